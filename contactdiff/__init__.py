@@ -1,0 +1,28 @@
+"""contactdiff: differentiability through contact for legged robots and manipulators.
+
+Public names (stable):
+
+    load_robot, Robot              robot models (URDF, robots/ names, example-robot-data)
+    Scene, load_scene, load_source scenes: robot + contacts + efforts + gravity + x0
+    Contact, Spring, JointSpring, UserEffort
+    ModeDynamics                   accelerations and contact forces in any contact mode
+    check_decoupling               the paper's assumptions, measured
+"""
+
+from .checks import DecouplingReport, check_decoupling
+from .contacts import Contact
+from .dynamics import ModeDynamics
+from .efforts import JointSpring, Spring, UserEffort
+from .errors import (ContactDiffError, InconsistentStateError, IntegrationError,
+                     InvalidInputError, ModelLoadError, SolverError, UnknownNameError)
+from .robot import QUADRUPEDS, Robot, load_robot
+from .scene import Scene, load_scene, load_source
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "Contact", "ContactDiffError", "DecouplingReport", "InconsistentStateError", "IntegrationError",
+    "InvalidInputError", "JointSpring", "ModeDynamics", "ModelLoadError", "QUADRUPEDS", "Robot",
+    "Scene", "SolverError", "Spring", "UnknownNameError", "UserEffort", "check_decoupling",
+    "load_robot", "load_scene", "load_source",
+]

@@ -1,0 +1,407 @@
+"""The decoupling checker: how far a scene is from the paper's assumptions.
+
+Two conditions, each measured with numbers (DESIGN.md §2, paper §3):
+
+* **Orthogonality** (continuity of the flow): for every pair of contacts, the
+  normalised inverse-mass coupling ``G_ij / sqrt(G_ii G_jj)`` with
+  ``G = A M^-1 A^T`` (normal rows), at configurations where both contacts are
+  closed: the scene's initial pose and seeded random poses, each projected onto
+  ``a_i = a_j = 0`` by Gauss–Newton.
+* **Limbs decoupled through the body** (differentiability through simultaneous
+  contact): coordinates are split into one limb per contact (the coordinates on
+  that contact's kinematic chain and on no other contact's) and the body (the
+  rest). Then the mass matrix must be block diagonal with each block depending
+  on its own coordinates, each gap must depend on its limb only, each limb's
+  effort on its limb and the body only, and the body's effort additively on the
+  limbs (zero mixed second derivatives across two limbs). Efforts here are
+  ``tau - nle``: the scene's efforts minus Coriolis and gravity.
+
+Every measure is relative (dimensionless) and compared with ``tol``. Verdicts:
+``decoupled`` (all measures within tol: outcomes differentiable through
+simultaneous contact), ``orthogonal only`` (couplings within tol but the limb
+assumption fails: continuous, not differentiable in general) and ``coupled``
+(some coupling above tol: outcomes jump when the contact order changes).
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+from .errors import InvalidInputError
+from .robot import Robot
+from .scene import Scene, load_source
+
+DECOUPLED, ORTHOGONAL_ONLY, COUPLED = "decoupled", "orthogonal only", "coupled"
+VERDICTS = (DECOUPLED, ORTHOGONAL_ONLY, COUPLED)
+
+_FD_STEP = 1e-5  # central differences of analytic first derivatives: error ~1e-10 relative
+_PROJECTION_TOL = 1e-12  # m, gap after projection onto a_i = a_j = 0
+
+
+@dataclass
+class PairCoupling:
+    """Normalised inverse-mass coupling of two contacts over the closed configurations.
+
+    Attributes:
+        contacts: the two contact names.
+        reference: coupling at the scene's pose projected onto both contacts closed.
+        max, median: largest and typical absolute coupling over all projected poses.
+        samples: number of poses that projected (reference included).
+        verdict: the pair's verdict (see module docstring).
+    """
+
+    contacts: tuple[str, str]
+    reference: float
+    max: float
+    median: float
+    samples: int
+    verdict: str = ""
+
+
+@dataclass
+class Term:
+    """One measured term of the limb-decoupling assumption.
+
+    Attributes:
+        condition: ``mass matrix``, ``gap``, ``limb effort`` or ``body effort``.
+        where: what was measured (block, contact or limbs involved).
+        value: largest relative size over the sampled states (0 means exactly decoupled).
+        contacts: the contacts whose limbs the term involves.
+        ok: ``value <= tol``.
+    """
+
+    condition: str
+    where: str
+    value: float
+    contacts: tuple[str, ...]
+    ok: bool = True
+
+
+@dataclass
+class DecouplingReport:
+    """Everything `check_decoupling` measured; ``to_dict()`` is the JSON form."""
+
+    scene: str
+    robot: str
+    armature: float
+    tol: float
+    samples: int
+    seed: int
+    body: list[str]
+    limbs: dict[str, list[str]]
+    pairs: list[PairCoupling]
+    terms: list[Term]
+    verdict: str
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def max_coupling(self) -> float:
+        """Largest pair coupling (0 with fewer than two contacts)."""
+        return max((p.max for p in self.pairs), default=0.0)
+
+    def failed_terms(self) -> list[Term]:
+        return [t for t in self.terms if not t.ok]
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["max_coupling"] = self.max_coupling
+        return _jsonable(d)
+
+    def format(self) -> str:
+        """A readable multi-line report."""
+        lines = [f"decoupling check: scene {self.scene} (robot {self.robot}"
+                 + (f", armature {self.armature:g}" if self.armature else "") + ")",
+                 f"  body: {', '.join(self.body) or '(none)'}"]
+        for name, coords in self.limbs.items():
+            lines.append(f"  limb of {name}: {', '.join(coords) or '(none: its gap moves with the body)'}")
+        lines.append("")
+        if self.pairs:
+            lines.append("orthogonality  |G_ij| / sqrt(G_ii G_jj) at closed contacts "
+                         f"({self.pairs[0].samples} poses)")
+            header = ("pair", "reference", "max", "median", "verdict")
+            rows = [(f"{p.contacts[0]} / {p.contacts[1]}", f"{p.reference:.3e}", f"{p.max:.3e}",
+                     f"{p.median:.3e}", p.verdict) for p in self.pairs]
+            lines += _table(header, rows)
+        else:
+            lines.append("orthogonality: fewer than two contacts, nothing to couple")
+        lines.append("")
+        lines.append(f"limbs decoupled through the body (relative sizes, tol {self.tol:g})")
+        lines += _table(("condition", "where", "size", "ok"),
+                        [(t.condition, t.where, f"{t.value:.3e}", "yes" if t.ok else "NO")
+                         for t in self.terms])
+        lines.append("")
+        lines.append(f"verdict: {self.verdict.upper()} - " + _VERDICT_MEANING[self.verdict])
+        for t in self.failed_terms()[:5]:
+            lines.append(f"  breaks: {t.condition} {t.where} ({t.value:.3e})")
+        lines += [f"  note: {n}" for n in self.notes]
+        return "\n".join(lines)
+
+
+_VERDICT_MEANING = {
+    DECOUPLED: "outcomes are differentiable through simultaneous contact",
+    ORTHOGONAL_ONLY: "outcomes are continuous but in general not differentiable when contact order changes",
+    COUPLED: "outcomes jump when the order of contacts changes",
+}
+
+
+def _table(header, rows) -> list[str]:
+    widths = [max(len(str(r[i])) for r in [header, *rows]) for i in range(len(header))]
+    fmt = "  " + "  ".join(f"{{:<{w}}}" for w in widths)
+    return [fmt.format(*header), fmt.format(*("-" * w for w in widths))] + [fmt.format(*r) for r in rows]
+
+
+def _jsonable(x):
+    if isinstance(x, dict):
+        return {k: _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, (np.floating, np.integer)):
+        return x.item()
+    return x
+
+
+# -- the checker ------------------------------------------------------------------------
+def check_decoupling(source: Scene | Robot | str | Path, *, samples: int = 20, seed: int = 0,
+                     armature: float = 0.0, tol: float = 1e-9, spread: float = 0.4) -> DecouplingReport:
+    """Check a scene (or a robot on its feet) against the paper's assumptions.
+
+    Args:
+        source: a `Scene`, a `Robot` (ground contacts at its feet) or any SOURCE
+            accepted by `load_source`.
+        samples: random poses besides the reference (seeded by ``seed``).
+        armature: rotor inertia added to the actuated joints (kg m²) before checking.
+        tol: relative size below which a coupling or term counts as zero.
+        spread: half-width of the uniform random perturbation of every coordinate
+            around the reference pose (rad or m), and of the random velocities.
+
+    Returns:
+        A `DecouplingReport`.
+    """
+    scene = _as_scene(source)
+    samples = int(samples)
+    if samples < 0:
+        raise InvalidInputError(f"samples must be >= 0, got {samples}")
+    if not (np.isfinite(tol) and tol > 0):
+        raise InvalidInputError(f"tol must be a positive number, got {tol!r}")
+    if not scene.contacts:
+        raise InvalidInputError(f"scene {scene.name!r} has no contacts; there is nothing to check")
+    if armature:
+        scene = scene.with_armature(armature)
+    checker = _Checker(scene, np.random.default_rng(seed), spread)
+    notes = []
+    if armature and not scene.robot.actuated:
+        notes.append(f"robot {scene.robot.name!r} has no actuated joints: armature changes nothing")
+    pairs = [checker.pair_coupling(i, j, samples) for i, j in itertools.combinations(range(len(scene.contacts)), 2)]
+    terms = checker.assumption_terms(samples)
+    for t in terms:
+        t.ok = bool(t.value <= tol)
+    names = scene.contact_names
+    for p in pairs:
+        if p.max > tol:
+            p.verdict = COUPLED
+        else:
+            involved = [t for t in terms if not t.contacts or set(t.contacts) & set(p.contacts)]
+            p.verdict = DECOUPLED if all(t.ok for t in involved) else ORTHOGONAL_ONLY
+    if any(p.verdict == COUPLED for p in pairs):
+        verdict = COUPLED
+    elif all(t.ok for t in terms):
+        verdict = DECOUPLED
+    else:
+        verdict = ORTHOGONAL_ONLY
+    model = scene.model
+    return DecouplingReport(
+        scene=scene.name, robot=scene.robot.name, armature=float(armature), tol=float(tol),
+        samples=samples, seed=int(seed),
+        body=[model.names[j] for j in checker.joints_of(checker.body)],
+        limbs={names[i]: [model.names[j] for j in checker.joints_of(limb)]
+               for i, limb in enumerate(checker.limbs)},
+        pairs=pairs, terms=terms, verdict=verdict, notes=notes)
+
+
+def _as_scene(source) -> Scene:
+    if isinstance(source, Scene):
+        return source
+    if isinstance(source, Robot):
+        return Scene.from_robot(source)
+    if isinstance(source, (str, Path)):
+        return load_source(source)
+    raise InvalidInputError(f"source must be a Scene, a Robot or a name/path, got {source!r}")
+
+
+class _Checker:
+    """The measurements of one check; coordinates are tangent (velocity) indices."""
+
+    def __init__(self, scene: Scene, rng: np.random.Generator, spread: float):
+        self.scene, self.rng, self.spread = scene, rng, float(spread)
+        self.model, self.robot = scene.model, scene.robot
+        self.data = self.model.createData()
+        self.kin = scene.kinematics
+        supports = [self._support(c) for c in scene.contacts]
+        self.limbs = [s - set().union(*(o for k, o in enumerate(supports) if k != i))
+                      for i, s in enumerate(supports)]
+        self.body = set(range(self.model.nv)) - set().union(*self.limbs)
+        self.v_joint = {}  # tangent index -> joint id
+        for jid in range(1, self.model.njoints):
+            j = self.model.joints[jid]
+            for k in range(j.idx_v, j.idx_v + j.nv):
+                self.v_joint[k] = jid
+
+    def joints_of(self, coords: set[int]) -> list[int]:
+        return sorted({self.v_joint[k] for k in coords})
+
+    def _support(self, contact) -> set[int]:
+        """Tangent coordinates on the kinematic chain(s) of a contact's frame(s)."""
+        coords = set()
+        for fid in (contact.fid, contact.against_fid):
+            if fid is None:
+                continue
+            for jid in self.model.supports[self.model.frames[fid].parentJoint]:
+                if jid == 0:
+                    continue
+                j = self.model.joints[jid]
+                coords.update(range(j.idx_v, j.idx_v + j.nv))
+        return coords
+
+    # -- poses -------------------------------------------------------------------------
+    def _random_pose(self) -> np.ndarray:
+        dq = self.rng.uniform(-self.spread, self.spread, self.model.nv)
+        return self.robot.integrate(self.scene.q0, dq)
+
+    def _project(self, q: np.ndarray, idx: list[int]) -> np.ndarray | None:
+        """Gauss–Newton (minimum-norm steps) onto the closed set of contacts ``idx``."""
+        zero = np.zeros(self.model.nv)
+        for _ in range(50):
+            self.kin.update(q, zero)
+            gaps = np.array([self.scene.contacts[i].gap(self.kin) for i in idx])
+            if np.max(np.abs(gaps)) <= _PROJECTION_TOL:
+                return q
+            A = np.vstack([self.scene.contacts[i].rows(self.kin)[:1] for i in idx])
+            q = self.robot.integrate(q, -np.linalg.lstsq(A, gaps, rcond=None)[0])
+        return None
+
+    def _poses(self, idx: list[int], samples: int) -> list[np.ndarray]:
+        poses = [self._project(self.scene.q0.copy(), idx)]
+        poses += [self._project(self._random_pose(), idx) for _ in range(samples)]
+        return [q for q in poses if q is not None]
+
+    # -- orthogonality -------------------------------------------------------------------
+    def _coupling(self, q: np.ndarray, i: int, j: int) -> float:
+        self.kin.update(q, np.zeros(self.model.nv))
+        A = np.vstack([self.scene.contacts[k].rows(self.kin)[:1] for k in (i, j)])
+        Minv = pin.computeMinverse(self.model, self.data, q)
+        G = A @ Minv @ A.T
+        return float(abs(G[0, 1]) / np.sqrt(G[0, 0] * G[1, 1]))
+
+    def pair_coupling(self, i: int, j: int, samples: int) -> PairCoupling:
+        poses = self._poses([i, j], samples)
+        values = [self._coupling(q, i, j) for q in poses]
+        names = self.scene.contact_names
+        ref = values[0] if poses and poses[0] is not None else float("nan")
+        return PairCoupling((names[i], names[j]), ref, float(np.max(values)),
+                            float(np.median(values)), len(values))
+
+    # -- limb assumption -----------------------------------------------------------------
+    def _effort_jacobian(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """``[d f/dq, d f/dv]`` of ``f = tau - nle`` (nv × 2nv)."""
+        self.kin.update(q, v, derivatives=True)
+        dtau_dq, dtau_dv = self.scene.tau_derivatives(self.kin, 0.0)
+        dn_dq, dn_dv, _ = pin.computeRNEADerivatives(self.model, self.data, q, v, np.zeros(self.model.nv))
+        return np.hstack([dtau_dq - dn_dq, dtau_dv - dn_dv])
+
+    def assumption_terms(self, samples: int) -> list[Term]:
+        nv, names = self.model.nv, self.scene.contact_names
+        all_closed = list(range(len(self.scene.contacts)))
+        poses = self._poses(all_closed, samples) or [self.scene.q0]
+        blocks = [("body", self.body)] + [(f"limb {n}", l) for n, l in zip(names, self.limbs)]
+        owners = [()] + [(n,) for n in names]
+        # largest relative size of each term over the poses, keyed by block/limb indices
+        mass, dep, effort, additive = {}, {}, {}, {}
+        gap = np.zeros(len(names))
+        for q in poses:
+            v = self.rng.uniform(-self.spread, self.spread, nv)
+            M = pin.crba(self.model, self.data, q)
+            diag = np.sqrt(np.abs(np.diag(M)))
+            scale = np.where(diag > 0, diag, 1.0)
+            Mn = M / np.outer(scale, scale)
+            for ia, ib in itertools.combinations(range(len(blocks)), 2):
+                ca, cb = sorted(blocks[ia][1]), sorted(blocks[ib][1])
+                if ca and cb:
+                    key = (ia, ib)
+                    mass[key] = max(mass.get(key, 0.0), float(np.max(np.abs(Mn[np.ix_(ca, cb)]))))
+            # block j of M may depend only on coordinates of block j
+            dM = self._mass_derivative(q)
+            for ib, (_, coords) in enumerate(blocks):
+                c = sorted(coords)
+                others = [k for k in range(nv) if k not in coords]
+                if c and others:
+                    value = np.max(np.abs(dM[np.ix_(c, c, others)])) / max(np.max(np.abs(M[np.ix_(c, c)])), 1e-300)
+                    dep[ib] = max(dep.get(ib, 0.0), float(value))
+            # each gap depends on its limb only
+            self.kin.update(q, np.zeros(nv))
+            for i, c in enumerate(self.scene.contacts):
+                row = c.rows(self.kin)[0]
+                outside = [k for k in range(nv) if k not in self.limbs[i]]
+                if outside:
+                    gap[i] = max(gap[i], float(np.max(np.abs(row[outside])) / max(np.max(np.abs(row)), 1e-300)))
+            # efforts
+            Df = self._effort_jacobian(q, v)
+            fscale = max(float(np.max(np.abs(Df))), 1.0)
+            for i, limb in enumerate(self.limbs):
+                other = sorted(set().union(*(l for k, l in enumerate(self.limbs) if k != i)))
+                if limb and other:
+                    cols = other + [nv + k for k in other]
+                    value = float(np.max(np.abs(Df[np.ix_(sorted(limb), cols)]))) / fscale
+                    effort[i] = max(effort.get(i, 0.0), value)
+            body = sorted(self.body)
+            if body:
+                for i, j in itertools.combinations(range(len(self.limbs)), 2):
+                    value = self._mixed_body_derivative(q, v, body, self.limbs[i], self.limbs[j]) / fscale
+                    additive[(i, j)] = max(additive.get((i, j), 0.0), value)
+        terms = []
+        for (ia, ib), value in mass.items():
+            terms.append(Term("mass matrix", f"block {blocks[ia][0]} / {blocks[ib][0]}", value,
+                              owners[ia] + owners[ib]))
+        for ib, value in dep.items():
+            terms.append(Term("mass matrix", f"block {blocks[ib][0]} depends on other coordinates",
+                              value, owners[ib]))
+        for i, value in enumerate(gap):
+            terms.append(Term("gap", f"{names[i]} depends on coordinates outside its limb", float(value),
+                              (names[i],)))
+        for i, value in effort.items():
+            terms.append(Term("limb effort", f"limb {names[i]} depends on other limbs", value, (names[i],)))
+        for (i, j), value in additive.items():
+            terms.append(Term("body effort", f"not additive in limbs {names[i]} and {names[j]}", value,
+                              (names[i], names[j])))
+        return terms
+
+    def _mass_derivative(self, q: np.ndarray) -> np.ndarray:
+        """``dM[a, b, k] = d M_ab / d q_k`` by central differences of ``crba``."""
+        nv = self.model.nv
+        dM = np.empty((nv, nv, nv))
+        for k in range(nv):
+            e = np.zeros(nv)
+            e[k] = _FD_STEP
+            dM[:, :, k] = (pin.crba(self.model, self.data, self.robot.integrate(q, e))
+                           - pin.crba(self.model, self.data, self.robot.integrate(q, -e))) / (2 * _FD_STEP)
+        return dM
+
+    def _mixed_body_derivative(self, q, v, body, limb_i, limb_j) -> float:
+        """Largest ``|d² f_body / dx_i dx_j|`` over coordinates ``x_i`` of limb i and
+        ``x_j`` of limb j (positions and velocities): central differences in ``x_j``
+        of the analytic first derivatives in ``x_i``."""
+        nv = self.model.nv
+        cols = sorted(limb_i) + [nv + k for k in sorted(limb_i)]
+        worst = 0.0
+        for k in sorted(limb_j):
+            e = np.zeros(nv)
+            e[k] = _FD_STEP
+            for plus, minus in (((self.robot.integrate(q, e), v), (self.robot.integrate(q, -e), v)),
+                                ((q, v + e), (q, v - e))):
+                diff = self._effort_jacobian(*plus) - self._effort_jacobian(*minus)
+                worst = max(worst, float(np.max(np.abs(diff[np.ix_(body, cols)]))) / (2 * _FD_STEP))
+        return worst

@@ -1,0 +1,197 @@
+"""Unilateral contacts: gaps, Jacobian rows, drift and their derivatives.
+
+A contact between frame ``p`` and the ground (or a second frame ``p'``) has the gap
+
+    a(q) = n · (p(q) - p'(q)) - offset        (m, world frame; n unit, world-fixed)
+
+and one constraint row per direction ``d`` it holds (the normal, then for a
+sticking contact two tangents): ``A_d = d^T (J_p - J_p')`` with ``J`` the linear
+LOCAL_WORLD_ALIGNED Jacobian, and ``drift_d = d^T (J̇_p - J̇_p') v``, so that the
+row's acceleration is ``A_d ddq + drift_d``. The first row is the gap's gradient.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import InvalidInputError
+from .kinematics import Kinematics
+from .robot import Robot
+
+FRICTION_MODES = ("none", "stick")
+"""``none``: frictionless, one row. ``stick``: no slip while active, three rows."""
+
+_ROW_TOL = 1e-12  # a row whose Jacobian is this small everywhere cannot act (m per unit q)
+
+
+def _finite(name: str, value, *, owner: str) -> float:
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"{owner}: {name} must be a number, got {value!r}") from None
+    if not np.isfinite(x):
+        raise InvalidInputError(f"{owner}: {name} must be finite, got {value!r}")
+    return x
+
+
+def _unit_vector(value, *, owner: str) -> tuple[float, float, float]:
+    try:
+        n = np.asarray(value, dtype=float).reshape(3)
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"{owner}: normal must be 3 numbers, got {value!r}") from None
+    norm = np.linalg.norm(n)
+    if not np.all(np.isfinite(n)) or norm < 1e-12:
+        raise InvalidInputError(f"{owner}: normal must be a finite non-zero 3-vector, got {value!r}")
+    return tuple(float(x) for x in n / norm)
+
+
+@dataclass(frozen=True)
+class Contact:
+    """A unilateral contact, independent of any robot.
+
+    Args:
+        frame: name of the contact frame (its origin is the contact point).
+        normal: world-fixed normal, normalised on construction.
+        offset: gap at which contact closes (m), e.g. a foot sphere's radius.
+        restitution: Newton coefficient ``e`` in [0, 1] (0 plastic, 1 elastic).
+        friction: ``"none"`` (frictionless) or ``"stick"`` (no slip while active).
+        against: second frame; ``None`` is the ground (world origin).
+        name: contact name, defaults to ``frame``.
+    """
+
+    frame: str
+    normal: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    offset: float = 0.0
+    restitution: float = 0.0
+    friction: str = "none"
+    against: str | None = None
+    name: str | None = None
+
+    def __post_init__(self) -> None:
+        owner = f"contact {self.name or self.frame!r}"
+        if not isinstance(self.frame, str) or not self.frame:
+            raise InvalidInputError(f"contact frame must be a frame name, got {self.frame!r}")
+        set_ = object.__setattr__  # frozen dataclass: normalise in place once
+        set_(self, "name", self.name or self.frame)
+        set_(self, "normal", _unit_vector(self.normal, owner=owner))
+        set_(self, "offset", _finite("offset", self.offset, owner=owner))
+        e = _finite("restitution", self.restitution, owner=owner)
+        if not 0.0 <= e <= 1.0:
+            raise InvalidInputError(f"{owner}: restitution must be in [0, 1], got {e!r}")
+        set_(self, "restitution", e)
+        if self.friction not in FRICTION_MODES:
+            raise InvalidInputError(
+                f"{owner}: friction must be one of {', '.join(FRICTION_MODES)}; got {self.friction!r}")
+
+    @property
+    def sticking(self) -> bool:
+        return self.friction == "stick"
+
+    def bind(self, robot: Robot) -> BoundContact:
+        """Resolve frame names on ``robot`` and choose the constraint directions."""
+        return BoundContact(self, robot)
+
+
+def tangent_basis(normal) -> np.ndarray:
+    """Two unit tangents ``(t1, t2)`` with ``t1 × t2 = n``; ``t1`` is world x projected when possible."""
+    n = np.asarray(normal, dtype=float)
+    seed = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    t1 = seed - (seed @ n) * n
+    t1 /= np.linalg.norm(t1)
+    return np.array([t1, np.cross(n, t1)])
+
+
+class BoundContact:
+    """A `Contact` resolved on a robot: frame indices and constraint directions.
+
+    Attributes:
+        spec: the `Contact`.
+        name: contact name.
+        directions: (k, 3) world directions of its rows, normal first; a sticking
+            contact keeps only the tangents along which the point can move (a planar
+            model has one, a 3-D robot two).
+    """
+
+    def __init__(self, spec: Contact, robot: Robot):
+        self.spec, self.name = spec, spec.name
+        self.fid = robot.frame_id(spec.frame)
+        self.against_fid = robot.frame_id(spec.against) if spec.against is not None else None
+        self.offset, self.restitution = spec.offset, spec.restitution
+        normal = np.array(spec.normal)
+        directions = [normal] + (list(tangent_basis(normal)) if spec.sticking else [])
+        reach = self._reach(robot, np.array(directions))
+        if reach[0] < _ROW_TOL:
+            raise InvalidInputError(
+                f"contact {self.name!r}: frame {spec.frame!r} cannot move along the normal "
+                f"{spec.normal} in this model, so the contact can never act")
+        self.directions = np.array([d for d, r in zip(directions, reach) if r >= _ROW_TOL])
+
+    def _reach(self, robot: Robot, directions: np.ndarray) -> np.ndarray:
+        """Largest Jacobian-row norm of each direction over a few seeded configurations."""
+        kin = Kinematics(robot.model)
+        rng = np.random.default_rng(0)
+        reach = np.zeros(len(directions))
+        for q in [robot.q_ref] + [robot.integrate(robot.q_ref, 0.5 * rng.standard_normal(robot.nv))
+                                  for _ in range(3)]:
+            kin.update(q, np.zeros(robot.nv))
+            reach = np.maximum(reach, np.linalg.norm(directions @ self._point_jacobian(kin), axis=1))
+        return reach
+
+    @property
+    def sticking(self) -> bool:
+        return self.spec.sticking
+
+    @property
+    def n_rows(self) -> int:
+        return len(self.directions)
+
+    @property
+    def normal(self) -> np.ndarray:
+        return self.directions[0]
+
+    # -- the point difference p - p' and its derivatives ----------------------------
+    def _diff(self, get):
+        value = get(self.fid)
+        if self.against_fid is not None:
+            other = get(self.against_fid)
+            value = tuple(a - b for a, b in zip(value, other)) if isinstance(value, tuple) else value - other
+        return value
+
+    def _point_jacobian(self, kin: Kinematics) -> np.ndarray:
+        return self._diff(kin.jacobian)
+
+    # -- values (need kin.update(q, v)) ------------------------------------------------
+    def gap(self, kin: Kinematics) -> float:
+        """Normal gap ``a(q)`` (m); negative means penetration."""
+        p = self._diff(kin.position)
+        return float(self.normal @ p - self.offset)
+
+    def rows(self, kin: Kinematics) -> np.ndarray:
+        """Constraint rows ``A`` (n_rows × nv); row 0 is ``Da(q)``."""
+        return self.directions @ self._point_jacobian(kin)
+
+    def drift(self, kin: Kinematics) -> np.ndarray:
+        """Row accelerations at zero joint acceleration, ``d^T (J̇_p - J̇_p') v`` (n_rows,)."""
+        return self.directions @ self._diff(kin.classical_acceleration)
+
+    # -- derivatives (need kin.update(q, v, derivatives=True)) ----------------------
+    def rows_velocity_dq(self, kin: Kinematics) -> np.ndarray:
+        """``d(A v)/dq`` at fixed ``v`` (n_rows × nv)."""
+        return self.directions @ self._diff(kin.velocity_derivative)
+
+    def drift_derivatives(self, kin: Kinematics) -> tuple[np.ndarray, np.ndarray]:
+        """``d drift/dq`` and ``d drift/dv`` (each n_rows × nv)."""
+        dq, dv = self._diff(kin.acceleration_derivatives)
+        return self.directions @ dq, self.directions @ dv
+
+    def rows_times_dq(self, kin: Kinematics, x: np.ndarray) -> np.ndarray:
+        """``d(A x)/dq`` at fixed ``x`` (n_rows × nv), ``x`` in R^nv (e.g. an acceleration)."""
+        H = self._diff(kin.hessian)  # (3, nv, nv)
+        return np.einsum("rc,cjk,j->rk", self.directions, H, x)
+
+    def rows_transpose_dq(self, kin: Kinematics, lam: np.ndarray) -> np.ndarray:
+        """``d(A^T lam)/dq`` at fixed ``lam`` (nv × nv), ``lam`` one entry per row."""
+        H = self._diff(kin.hessian)
+        return np.einsum("c,cjk->jk", lam @ self.directions, H)

@@ -1,0 +1,216 @@
+"""Efforts of a scene (generalised forces ``tau(q, v, t)`` in R^nv) and their derivatives.
+
+Gravity, Coriolis and centrifugal terms come from Pinocchio (``nle``) and are not
+listed here. Each effort is a robot-independent spec (`JointSpring`, `Spring`,
+`UserEffort`) whose ``bind(robot)`` returns an evaluator with
+
+    tau(kin, t)              -> (nv,)   generalised force (N or N m per coordinate)
+    derivatives(kin, t)      -> (dtau/dq, dtau/dv), each (nv × nv), tangent space
+
+where ``kin`` is a `Kinematics` updated at the state (with ``derivatives=True``
+for the second call).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import InvalidInputError
+from .kinematics import Kinematics
+from .robot import Robot
+
+
+def _parameter(owner: str, name: str, value, *, minimum: float | None = 0.0) -> float:
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"{owner}: {name} must be a number, got {value!r}") from None
+    if not np.isfinite(x):
+        raise InvalidInputError(f"{owner}: {name} must be finite, got {value!r}")
+    if minimum is not None and x < minimum:
+        raise InvalidInputError(f"{owner}: {name} must be >= {minimum:g}, got {value!r}")
+    return x
+
+
+@dataclass(frozen=True)
+class JointSpring:
+    """Spring-damper on one revolute or prismatic joint:
+    ``tau = -stiffness (q_j - rest) - damping v_j``.
+
+    Args:
+        joint: joint name.
+        stiffness: N/m or N m/rad, >= 0.
+        damping: N s/m or N m s/rad, >= 0.
+        rest: rest coordinate (m or rad).
+    """
+
+    joint: str
+    stiffness: float
+    damping: float = 0.0
+    rest: float = 0.0
+
+    def __post_init__(self) -> None:
+        owner = f"joint spring on {self.joint!r}"
+        for name, minimum in (("stiffness", 0.0), ("damping", 0.0), ("rest", None)):
+            object.__setattr__(self, name, _parameter(owner, name, getattr(self, name), minimum=minimum))
+
+    def bind(self, robot: Robot) -> _BoundJointSpring:
+        return _BoundJointSpring(self, robot)
+
+
+class _BoundJointSpring:
+    def __init__(self, spec: JointSpring, robot: Robot):
+        self.spec = spec
+        self.iq, self.iv = robot.scalar_joint(spec.joint)
+        self.nv = robot.nv
+
+    def tau(self, kin: Kinematics, t: float) -> np.ndarray:
+        s = self.spec
+        out = np.zeros(self.nv)
+        out[self.iv] = -s.stiffness * (kin.q[self.iq] - s.rest) - s.damping * kin.v[self.iv]
+        return out
+
+    def derivatives(self, kin: Kinematics, t: float) -> tuple[np.ndarray, np.ndarray]:
+        dq, dv = np.zeros((self.nv, self.nv)), np.zeros((self.nv, self.nv))
+        dq[self.iv, self.iv] = -self.spec.stiffness
+        dv[self.iv, self.iv] = -self.spec.damping
+        return dq, dv
+
+
+@dataclass(frozen=True)
+class Spring:
+    """Linear spring-damper between the origins of two frames.
+
+    With ``d = p_b - p_a`` (world), ``l = |d|``, ``u = d / l`` and ``l̇ = u · ḋ``,
+    frame ``b`` is pulled by ``-(stiffness (l - rest_length) + damping l̇) u`` and
+    frame ``a`` by the opposite force.
+
+    Args:
+        frame_a, frame_b: frame names.
+        stiffness: N/m, >= 0.  damping: N s/m, >= 0.  rest_length: m, >= 0.
+    """
+
+    frame_a: str
+    frame_b: str
+    stiffness: float
+    damping: float = 0.0
+    rest_length: float = 0.0
+
+    def __post_init__(self) -> None:
+        owner = f"spring {self.frame_a!r}-{self.frame_b!r}"
+        for name in ("stiffness", "damping", "rest_length"):
+            object.__setattr__(self, name, _parameter(owner, name, getattr(self, name)))
+
+    def bind(self, robot: Robot) -> _BoundSpring:
+        return _BoundSpring(self, robot)
+
+
+_MIN_LENGTH = 1e-9  # m; below this the spring direction is undefined
+
+
+class _BoundSpring:
+    def __init__(self, spec: Spring, robot: Robot):
+        self.spec = spec
+        self.fa, self.fb = robot.frame_id(spec.frame_a), robot.frame_id(spec.frame_b)
+        if self.fa == self.fb:
+            raise InvalidInputError(f"spring: frame_a and frame_b are both {spec.frame_a!r}")
+
+    def _geometry(self, kin: Kinematics):
+        d = kin.position(self.fb) - kin.position(self.fa)
+        length = float(np.linalg.norm(d))
+        if length < _MIN_LENGTH:
+            raise InvalidInputError(
+                f"spring {self.spec.frame_a!r}-{self.spec.frame_b!r}: the frames coincide "
+                f"(length {length:.3g} m), so the spring has no direction")
+        Jd = kin.jacobian(self.fb) - kin.jacobian(self.fa)
+        return d, length, d / length, Jd
+
+    def tau(self, kin: Kinematics, t: float) -> np.ndarray:
+        s = self.spec
+        _, length, u, Jd = self._geometry(kin)
+        rate = u @ (Jd @ kin.v)
+        return -(Jd.T @ u) * (s.stiffness * (length - s.rest_length) + s.damping * rate)
+
+    def derivatives(self, kin: Kinematics, t: float) -> tuple[np.ndarray, np.ndarray]:
+        s = self.spec
+        _, length, u, Jd = self._geometry(kin)
+        d_dot = Jd @ kin.v
+        rate = u @ d_dot
+        force = s.stiffness * (length - s.rest_length) + s.damping * rate
+        du_dq = (np.eye(3) - np.outer(u, u)) @ Jd / length
+        ddot_dq = kin.velocity_derivative(self.fb) - kin.velocity_derivative(self.fa)
+        rate_dq = d_dot @ du_dq + u @ ddot_dq
+        force_dq = s.stiffness * (u @ Jd) + s.damping * rate_dq
+        H = kin.hessian(self.fb) - kin.hessian(self.fa)  # d(Jd)/dq
+        JTu = Jd.T @ u
+        dq = -(np.einsum("c,cjk->jk", u * force, H) + force * (Jd.T @ du_dq) + np.outer(JTu, force_dq))
+        dv = -s.damping * np.outer(JTu, JTu)
+        return dq, dv
+
+
+@dataclass(frozen=True)
+class UserEffort:
+    """An effort given by a Python callable.
+
+    Args:
+        function: ``function(q, v, t) -> tau`` with ``tau`` of shape (nv,), in the
+            robot's generalised coordinates (N or N m).
+        jacobian: optional ``jacobian(q, v, t) -> (dtau_dq, dtau_dv)`` in the tangent
+            space. Without it, derivatives are central finite differences on the
+            manifold with step ``fd_step`` (truncation error ~ step², round-off ~
+            eps/step: 1e-6 balances both near 1e-10 relative for smooth efforts).
+        name: label used in reports.
+    """
+
+    function: Callable
+    jacobian: Callable | None = None
+    name: str = "user effort"
+    fd_step: float = 1e-6
+
+    def __post_init__(self) -> None:
+        if not callable(self.function):
+            raise InvalidInputError(f"{self.name}: function must be callable, got {self.function!r}")
+        if self.jacobian is not None and not callable(self.jacobian):
+            raise InvalidInputError(f"{self.name}: jacobian must be callable or None, got {self.jacobian!r}")
+        _parameter(self.name, "fd_step", self.fd_step, minimum=1e-15)
+
+    def bind(self, robot: Robot) -> _BoundUserEffort:
+        return _BoundUserEffort(self, robot)
+
+
+class _BoundUserEffort:
+    def __init__(self, spec: UserEffort, robot: Robot):
+        self.spec, self.robot = spec, robot
+
+    def _call(self, q, v, t) -> np.ndarray:
+        tau = np.asarray(self.spec.function(q, v, t), dtype=float)
+        if tau.shape != (self.robot.nv,):
+            raise InvalidInputError(
+                f"{self.spec.name}: function returned shape {tau.shape}, expected ({self.robot.nv},)")
+        if not np.all(np.isfinite(tau)):
+            raise InvalidInputError(f"{self.spec.name}: function returned non-finite values at t={t}: {tau}")
+        return tau
+
+    def tau(self, kin: Kinematics, t: float) -> np.ndarray:
+        return self._call(kin.q, kin.v, t)
+
+    def derivatives(self, kin: Kinematics, t: float) -> tuple[np.ndarray, np.ndarray]:
+        q, v, nv = kin.q, kin.v, self.robot.nv
+        if self.spec.jacobian is not None:
+            dq, dv = (np.asarray(x, dtype=float) for x in self.spec.jacobian(q, v, t))
+            if dq.shape != (nv, nv) or dv.shape != (nv, nv):
+                raise InvalidInputError(
+                    f"{self.spec.name}: jacobian returned shapes {dq.shape}, {dv.shape}; expected ({nv}, {nv})")
+            return dq, dv
+        h = self.spec.fd_step
+        dq, dv = np.empty((nv, nv)), np.empty((nv, nv))
+        for k in range(nv):
+            e = np.zeros(nv)
+            e[k] = h
+            dq[:, k] = (self._call(self.robot.integrate(q, e), v, t)
+                        - self._call(self.robot.integrate(q, -e), v, t)) / (2 * h)
+            dv[:, k] = (self._call(q, v + e, t) - self._call(q, v - e, t)) / (2 * h)
+        return dq, dv

@@ -1,0 +1,47 @@
+"""Exceptions of contactdiff: one base class, one subclass per kind of fault.
+
+Every message names the argument, shows the offending value and, where a
+finite set of values is valid, lists them.
+"""
+
+from __future__ import annotations
+
+
+class ContactDiffError(Exception):
+    """Base class of every error raised on purpose by contactdiff."""
+
+
+class InvalidInputError(ContactDiffError, ValueError):
+    """An argument, file entry or number is malformed or out of range."""
+
+
+class UnknownNameError(InvalidInputError, KeyError):
+    """A robot, frame, joint, contact or key name is not known.
+
+    The message lists the valid names.
+    """
+
+    def __str__(self) -> str:  # KeyError would quote the message
+        return str(self.args[0]) if self.args else ""
+
+
+class ModelLoadError(ContactDiffError):
+    """A URDF or scene file is missing, unreadable or malformed."""
+
+
+class InconsistentStateError(ContactDiffError):
+    """An initial state violates a unilateral constraint (penetration)."""
+
+
+class IntegrationError(ContactDiffError):
+    """The integrator cannot continue (step size underflow, no convergence)."""
+
+
+class SolverError(ContactDiffError):
+    """A complementarity or linear-algebra subproblem has no valid solution."""
+
+
+def unknown_name(kind: str, name: object, valid) -> UnknownNameError:
+    """Build an `UnknownNameError` listing the valid names of `kind`."""
+    listed = ", ".join(sorted(str(v) for v in valid)) or "(none)"
+    return UnknownNameError(f"unknown {kind} {name!r}; valid: {listed}")

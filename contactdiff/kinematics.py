@@ -1,0 +1,105 @@
+"""Per-state kinematics cache shared by contacts and efforts.
+
+One `Kinematics` object owns a ``pinocchio.Data`` and holds, for the state
+``(q, v)`` of its last `update`, frame positions, Jacobians and classical
+accelerations (all in the LOCAL_WORLD_ALIGNED frame: world axes, at the frame
+origin) and, when asked, their derivatives. Each quantity is computed once per
+update, however many contacts or springs use the frame.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+
+LWA = pin.LOCAL_WORLD_ALIGNED
+
+
+def _matrix(x: np.ndarray, rows: int) -> np.ndarray:
+    """Pinocchio returns an (r × 1) matrix as a 1-D array when nv = 1; restore the shape."""
+    return x.reshape(rows, -1)
+
+
+class Kinematics:
+    """Frame kinematics at one state ``(q, v)`` with zero joint acceleration.
+
+    Call `update` first; derivative getters need ``update(..., derivatives=True)``.
+    Every derivative with respect to ``q`` is taken in the tangent space
+    (column ``k`` = perturbation ``q ⊕ ε e_k``).
+    """
+
+    def __init__(self, model: pin.Model):
+        self.model = model
+        self.data = model.createData()
+        self._zero = np.zeros(model.nv)
+        self._cache: dict = {}
+        self.q = self.v = None
+        self.has_derivatives = False
+
+    def update(self, q: np.ndarray, v: np.ndarray, derivatives: bool = False) -> None:
+        """Compute placements, Jacobians and velocities at ``(q, v)``, joint acceleration 0."""
+        m, d = self.model, self.data
+        pin.forwardKinematics(m, d, q, v, self._zero)  # a = 0: classical acc = drift
+        pin.computeJointJacobians(m, d)
+        pin.updateFramePlacements(m, d)
+        if derivatives:
+            pin.computeForwardKinematicsDerivatives(m, d, q, v, self._zero)
+            pin.computeJointKinematicHessians(m, d, q)
+        self.q, self.v, self.has_derivatives = q, v, derivatives
+        self._cache.clear()
+
+    def _memo(self, key, compute):
+        value = self._cache.get(key)
+        if value is None:
+            value = self._cache[key] = compute()
+        return value
+
+    def position(self, fid: int) -> np.ndarray:
+        """World position of frame ``fid`` (3,)."""
+        return self.data.oMf[fid].translation
+
+    def jacobian(self, fid: int) -> np.ndarray:
+        """Linear LWA Jacobian of the frame origin, d p / d q (3 × nv)."""
+        return self._memo(("J", fid), lambda: _matrix(pin.getFrameJacobian(
+            self.model, self.data, fid, LWA), 6)[:3].copy())
+
+    def velocity(self, fid: int) -> np.ndarray:
+        """World velocity of the frame origin (3,)."""
+        return self.jacobian(fid) @ self.v
+
+    def classical_acceleration(self, fid: int) -> np.ndarray:
+        """Classical acceleration of the frame origin at zero joint acceleration: ``J̇ v`` (3,)."""
+        return self._memo(("a", fid), lambda: pin.getFrameClassicalAcceleration(
+            self.model, self.data, fid, LWA).linear.copy())
+
+    def _require_derivatives(self) -> None:
+        if not self.has_derivatives:
+            raise RuntimeError("Kinematics.update(..., derivatives=True) must come first")
+
+    def velocity_derivative(self, fid: int) -> np.ndarray:
+        """d(J v)/dq of the frame origin velocity at fixed ``v`` (3 × nv)."""
+        self._require_derivatives()
+        frame = self.model.frames[fid]
+        return self._memo(("dv", fid), lambda: _matrix(pin.getPointVelocityDerivatives(
+            self.model, self.data, frame.parentJoint, frame.placement, LWA)[0], 3).copy())
+
+    def acceleration_derivatives(self, fid: int) -> tuple[np.ndarray, np.ndarray]:
+        """d(J̇ v)/dq and d(J̇ v)/dv of the classical acceleration at zero joint acceleration."""
+        self._require_derivatives()
+        frame = self.model.frames[fid]
+
+        def compute():
+            _, dq, dv, _ = pin.getPointClassicAccelerationDerivatives(
+                self.model, self.data, frame.parentJoint, frame.placement, LWA)
+            return _matrix(dq, 3).copy(), _matrix(dv, 3).copy()
+        return self._memo(("da", fid), compute)
+
+    def hessian(self, fid: int) -> np.ndarray:
+        """Kinematic Hessian of the frame origin: ``H[c, j, k] = d J[c, j] / d q_k`` (3 × nv × nv)."""
+        self._require_derivatives()
+
+        def compute():
+            H = pin.getFrameKinematicHessian(self.model, self.data, fid, LWA)
+            # Pinocchio returns column-major memory flagged as C order (notes, pitfall 4).
+            return H.ravel(order="C").reshape(H.shape, order="F")[:3].copy()
+        return self._memo(("H", fid), compute)

@@ -1,0 +1,294 @@
+"""Robot models: loading URDF files into Pinocchio, frames, joints, Lie-group helpers.
+
+Only dynamics is loaded: no meshes or collision geometry (they cost up to
+seconds to parse and are never used here). Sources, in the order tried:
+
+1. a path to a URDF file;
+2. a model of the project's own ``robots/`` folder, by name (``"ball"``);
+3. an example-robot-data name (``"solo12"``, ``"anymal"``, ...).
+
+Configurations follow Pinocchio: ``q`` has ``nq`` entries (a free-flyer base is
+``[x y z qx qy qz qw]``, world frame), velocities and every perturbation live
+in the tangent space of size ``nv``, and ``q ⊕ dq = pin.integrate(model, q, dq)``.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+from .errors import InvalidInputError, ModelLoadError, unknown_name
+
+ROBOTS_DIR = Path(__file__).resolve().parent / "robots"
+"""Folder of the project's own URDF and scene files."""
+
+QUADRUPEDS = ("solo12", "anymal", "a1", "go1", "go2", "hyq")
+"""example-robot-data quadrupeds whose feet and standing pose are known to load."""
+
+_FOOT_FRAME_TYPES = (pin.FrameType.BODY, pin.FrameType.OP_FRAME)
+
+
+@dataclass
+class Robot:
+    """A Pinocchio model with the facts contactdiff needs about it.
+
+    Attributes:
+        model: the ``pinocchio.Model`` (its ``gravity`` and ``armature`` are used as set).
+        name: short name (file stem or example-robot-data name).
+        urdf: path of the URDF file the model came from ("" if built in code).
+        floating_base: whether the root joint is a free-flyer.
+        q_ref: reference configuration (SRDF "standing" pose if known, else neutral).
+        feet: foot frame names found automatically (one per leaf joint), may be empty.
+        actuated: names of the joints that carry a motor (armature is added to these).
+    """
+
+    model: pin.Model
+    name: str
+    urdf: str = ""
+    floating_base: bool = False
+    q_ref: np.ndarray | None = None
+    feet: tuple[str, ...] = ()
+    actuated: tuple[str, ...] = ()
+    _data: pin.Data | None = field(default=None, repr=False)
+
+    def __post_init__(self) -> None:
+        if self.q_ref is None:
+            self.q_ref = pin.neutral(self.model)
+        self.q_ref = np.array(self.q_ref, dtype=float)
+
+    # -- sizes and scratch data ---------------------------------------------------
+    @property
+    def nq(self) -> int:
+        return self.model.nq
+
+    @property
+    def nv(self) -> int:
+        return self.model.nv
+
+    @property
+    def data(self) -> pin.Data:
+        """A scratch ``pinocchio.Data`` owned by this robot (not thread safe)."""
+        if self._data is None:
+            self._data = self.model.createData()
+        return self._data
+
+    def new_data(self) -> pin.Data:
+        """A fresh ``pinocchio.Data`` (for APIs that must not share buffers)."""
+        return self.model.createData()
+
+    # -- Lie group -----------------------------------------------------------------
+    def integrate(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
+        """Return ``q ⊕ dq`` (``dq`` in the tangent space, local frame for a free-flyer)."""
+        return pin.integrate(self.model, q, dq)
+
+    def difference(self, q0: np.ndarray, q1: np.ndarray) -> np.ndarray:
+        """Return ``dq`` with ``q0 ⊕ dq = q1``."""
+        return pin.difference(self.model, q0, q1)
+
+    @property
+    def is_vector_space(self) -> bool:
+        """True if ``q ⊕ dq = q + dq``: no joint has more coordinates than velocities
+        (quaternions and unbounded revolutes do), so ``nq == nv`` says it all."""
+        return self.model.nq == self.model.nv
+
+    # -- names -----------------------------------------------------------------------
+    @property
+    def frame_names(self) -> list[str]:
+        return [f.name for f in self.model.frames]
+
+    @property
+    def joint_names(self) -> list[str]:
+        """Names of the model's joints, universe excluded."""
+        return list(self.model.names)[1:]
+
+    def frame_id(self, name: str) -> int:
+        """Index of frame ``name``; unknown names raise with the list of frames."""
+        if not isinstance(name, str) or not self.model.existFrame(name):
+            raise unknown_name(f"frame of robot {self.name!r}", name, self.frame_names)
+        return self.model.getFrameId(name)
+
+    def joint_id(self, name: str) -> int:
+        """Index of joint ``name``; unknown names raise with the list of joints."""
+        if not isinstance(name, str) or not self.model.existJointName(name):
+            raise unknown_name(f"joint of robot {self.name!r}", name, self.joint_names)
+        return self.model.getJointId(name)
+
+    def scalar_joint(self, name: str) -> tuple[int, int]:
+        """Return ``(idx_q, idx_v)`` of a one-coordinate joint (revolute or prismatic)."""
+        joint = self.model.joints[self.joint_id(name)]
+        if joint.nq != 1 or joint.nv != 1:
+            raise InvalidInputError(
+                f"joint {name!r} has nq={joint.nq}, nv={joint.nv}; only one-coordinate "
+                "(revolute or prismatic) joints can be set by a single number"
+            )
+        return joint.idx_q, joint.idx_v
+
+    def tangent_names(self) -> list[str]:
+        """One label per tangent coordinate (``joint`` or ``joint[k]`` for multi-dof joints)."""
+        return _tangent_names(self.model)
+
+    # -- variants --------------------------------------------------------------------
+    def copy(self) -> Robot:
+        """A copy whose model can be changed (gravity, armature) without touching this one."""
+        return Robot(pin.Model(self.model), self.name, self.urdf, self.floating_base,
+                     self.q_ref.copy(), self.feet, self.actuated)
+
+    def with_armature(self, armature: float) -> Robot:
+        """A copy with reflected rotor inertia ``armature`` (kg m² or kg) on every actuated joint."""
+        armature = float(armature)
+        if not np.isfinite(armature) or armature < 0:
+            raise InvalidInputError(f"armature must be finite and >= 0, got {armature!r}")
+        robot = self.copy()
+        values = np.array(robot.model.armature)
+        for name in self.actuated:
+            j = robot.model.joints[robot.model.getJointId(name)]
+            values[j.idx_v:j.idx_v + j.nv] += armature
+        robot.model.armature = values
+        return robot
+
+
+def _is_path(source) -> bool:
+    return isinstance(source, Path) or (
+        isinstance(source, str) and (os.sep in source or source.endswith(".urdf"))
+    )
+
+
+def own_robot_names() -> list[str]:
+    """Names of the URDF models in the project's ``robots/`` folder."""
+    return sorted(p.stem for p in ROBOTS_DIR.glob("*.urdf"))
+
+
+def example_robot_data_names() -> list[str]:
+    """Names of example-robot-data models that load from a URDF."""
+    from example_robot_data.robots_loader import ROBOTS
+
+    return sorted(n for n, loader in ROBOTS.items() if loader.urdf_filename)
+
+
+def load_robot(source: str | Path, floating_base: bool | None = None) -> Robot:
+    """Load a robot for dynamics only (no meshes).
+
+    Args:
+        source: a URDF path, a name of a model in ``robots/`` (see
+            `own_robot_names`) or an example-robot-data name (see
+            `example_robot_data_names`).
+        floating_base: add a free-flyer root joint. ``None`` takes the model's
+            own choice: True for example-robot-data legged robots, False for
+            the project's planar models and for URDF paths.
+
+    Returns:
+        The `Robot`, with its reference pose and its feet found automatically.
+
+    Raises:
+        UnknownNameError: ``source`` is neither a file nor a known name.
+        ModelLoadError: the URDF is missing or cannot be parsed.
+    """
+    if _is_path(source):
+        return _from_urdf(Path(source), bool(floating_base), Path(source).stem)
+    if not isinstance(source, str):
+        raise InvalidInputError(f"robot source must be a URDF path or a name, got {source!r}")
+    own = ROBOTS_DIR / f"{source}.urdf"
+    if own.is_file():
+        return _from_urdf(own, bool(floating_base), source)
+    from example_robot_data.robots_loader import ROBOTS
+
+    loader = ROBOTS.get(source)
+    if loader is None or not loader.urdf_filename:
+        raise unknown_name("robot", source, own_robot_names() + example_robot_data_names())
+    return _from_example_robot_data(source, loader, floating_base)
+
+
+def _from_urdf(path: Path, floating_base: bool, name: str, srdf: str = "",
+               posture: str = "standing") -> Robot:
+    if not path.is_file():
+        raise ModelLoadError(f"URDF file {str(path)!r} does not exist")
+    try:
+        if floating_base:
+            model = pin.buildModelFromUrdf(str(path), pin.JointModelFreeFlyer())
+        else:
+            model = pin.buildModelFromUrdf(str(path))
+    except (RuntimeError, ValueError) as exc:
+        raise ModelLoadError(f"cannot read URDF {str(path)!r}: {exc}") from None
+    _check_inertias(model, path)
+    q_ref = pin.neutral(model)
+    if srdf:
+        pin.loadReferenceConfigurations(model, srdf, False)
+        if posture in model.referenceConfigurations:
+            q_ref = model.referenceConfigurations[posture].copy()
+    _check_mass_matrix(model, q_ref, path)
+    root = 2 if floating_base else 1
+    actuated = tuple(model.names[j] for j in range(root, model.njoints)) if floating_base else ()
+    feet = tuple(find_feet(model)) if floating_base else ()
+    return Robot(model, name, str(path), floating_base, q_ref, feet, actuated)
+
+
+def _check_inertias(model: pin.Model, path: Path) -> None:
+    """Refuse negative or non-finite masses and inertias: they make M indefinite."""
+    for jid in range(1, model.njoints):
+        inertia = model.inertias[jid]
+        values = np.concatenate([[inertia.mass], inertia.lever, inertia.inertia.ravel()])
+        if not np.all(np.isfinite(values)) or inertia.mass < 0:
+            raise ModelLoadError(
+                f"URDF {str(path)!r}: body of joint {model.names[jid]!r} has mass {inertia.mass!r} "
+                "and inertia entries that must be finite with mass >= 0")
+        if np.min(np.linalg.eigvalsh(inertia.inertia)) < -1e-12 * max(1.0, np.abs(inertia.inertia).max()):
+            raise ModelLoadError(
+                f"URDF {str(path)!r}: rotational inertia of joint {model.names[jid]!r} is not "
+                f"positive semidefinite: {inertia.inertia.tolist()}")
+
+
+def _check_mass_matrix(model: pin.Model, q: np.ndarray, path: Path) -> None:
+    """Refuse a model whose mass matrix is singular (a coordinate moves no mass)."""
+    M = pin.crba(model, model.createData(), q)
+    try:
+        np.linalg.cholesky(M)
+    except np.linalg.LinAlgError:
+        massless = [n for n, m in zip(_tangent_names(model), np.diag(M)) if not m > 0]
+        raise ModelLoadError(
+            f"URDF {str(path)!r}: the mass matrix is singular at the reference pose"
+            + (f"; coordinates moving no mass: {', '.join(massless)}" if massless else "")
+            + " (check the <inertial> elements; a mass that failed to parse is dropped)") from None
+
+
+def _tangent_names(model: pin.Model) -> list[str]:
+    labels = []
+    for jid in range(1, model.njoints):
+        name, nv = model.names[jid], model.joints[jid].nv
+        labels += [name] if nv == 1 else [f"{name}[{k}]" for k in range(nv)]
+    return labels
+
+
+def _from_example_robot_data(name: str, loader, floating_base: bool | None) -> Robot:
+    from example_robot_data import getModelPath
+
+    rel = os.path.join(loader.path, loader.urdf_subpath, loader.urdf_filename)
+    root = getModelPath(rel)
+    srdf = ""
+    if loader.srdf_filename:
+        srdf = os.path.join(root, loader.path, loader.srdf_subpath, loader.srdf_filename)
+    floating = loader.free_flyer if floating_base is None else bool(floating_base)
+    return _from_urdf(Path(root) / rel, floating, name, srdf, loader.ref_posture)
+
+
+def find_feet(model: pin.Model) -> list[str]:
+    """Foot frames of a legged model: for each leaf joint, a frame named ``*foot*``
+    attached to it, else its frame farthest from the joint.
+
+    Returns:
+        Frame names in joint order (empty if no leaf carries a body or operational frame).
+    """
+    parents = {model.parents[j] for j in range(1, model.njoints)}
+    feet = []
+    for jid in range(1, model.njoints):
+        if jid in parents:
+            continue
+        frames = [f for f in model.frames if f.parentJoint == jid and f.type in _FOOT_FRAME_TYPES]
+        named = [f for f in frames if "foot" in f.name.lower()]
+        frames = named or sorted(frames, key=lambda f: -np.linalg.norm(f.placement.translation))
+        if frames:
+            feet.append(frames[0].name)
+    return feet

@@ -1,0 +1,161 @@
+"""Bad input gets a named error that says what is wrong and what is valid."""
+
+import math
+
+import numpy as np
+import pytest
+
+import contactdiff as cd
+
+BALL_URDF = """<?xml version="1.0"?>
+<robot name="b"><link name="world"/>
+<link name="ball"><inertial><mass value="{mass}"/>
+<inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial></link>
+<joint name="z" type="prismatic"><parent link="world"/><child link="ball"/>
+<axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="0" velocity="1"/></joint></robot>
+"""
+
+
+def write_scene(tmp_path, text, urdf_mass="1"):
+    (tmp_path / "b.urdf").write_text(BALL_URDF.format(mass=urdf_mass))
+    path = tmp_path / "s.toml"
+    path.write_text('robot = "b.urdf"\n' + text)
+    return path
+
+
+def test_unknown_robot_lists_known_names():
+    with pytest.raises(cd.UnknownNameError, match="solo12") as err:
+        cd.load_robot("solo13")
+    assert "planar_trot_soft" in str(err.value) and "'solo13'" in str(err.value)
+
+
+def test_missing_urdf(tmp_path):
+    with pytest.raises(cd.ModelLoadError, match="does not exist"):
+        cd.load_robot(tmp_path / "nope.urdf")
+
+
+def test_unreadable_urdf(tmp_path):
+    bad = tmp_path / "bad.urdf"
+    bad.write_text("<robot name='x'><link name='a'>")
+    with pytest.raises(cd.ModelLoadError, match="cannot read URDF"):
+        cd.load_robot(bad)
+
+
+@pytest.mark.parametrize("mass", ["-1", "nan"])
+def test_bad_mass_in_urdf(tmp_path, mass):
+    path = tmp_path / "m.urdf"
+    path.write_text(BALL_URDF.format(mass=mass))
+    with pytest.raises(cd.ModelLoadError, match="mass"):  # nan: the parser drops it, M singular
+        cd.load_robot(path)
+
+
+def test_unknown_frame_lists_frames():
+    robot = cd.load_robot("ball")
+    with pytest.raises(cd.UnknownNameError, match="unknown frame.*'foot'.*ball"):
+        cd.Scene(robot, [cd.Contact("foot")])
+
+
+def test_unknown_joint_in_initial_state_lists_joints():
+    robot = cd.load_robot("ball")
+    with pytest.raises(cd.UnknownNameError, match="unknown joint.*'x'.*valid: z"):
+        cd.Scene(robot, q0={"x": 1.0})
+
+
+def test_unknown_toml_key_lists_valid_keys(tmp_path):
+    path = write_scene(tmp_path, "[[contact]]\nframe = 'ball'\nrestitutoin = 0.5\n")
+    with pytest.raises(cd.UnknownNameError, match="restitutoin.*restitution"):
+        cd.load_scene(path)
+
+
+def test_unknown_top_level_key(tmp_path):
+    path = write_scene(tmp_path, "gravitee = [0, 0, -1]\n")
+    with pytest.raises(cd.UnknownNameError, match="gravitee.*gravity"):
+        cd.load_scene(path)
+
+
+def test_unparsable_toml(tmp_path):
+    path = write_scene(tmp_path, "[[contact]\n")
+    with pytest.raises(cd.ModelLoadError, match="cannot read scene"):
+        cd.load_scene(path)
+
+
+def test_unknown_scene_name_lists_scenes():
+    with pytest.raises(cd.UnknownNameError, match="planar_trot_soft"):
+        cd.load_scene("planar_trot_sfot")
+
+
+@pytest.mark.parametrize("restitution", [-0.1, 1.5, math.nan, math.inf])
+def test_restitution_outside_unit_interval(restitution):
+    with pytest.raises(cd.InvalidInputError, match="restitution"):
+        cd.Contact("ball", restitution=restitution)
+
+
+def test_zero_normal():
+    with pytest.raises(cd.InvalidInputError, match="non-zero"):
+        cd.Contact("ball", normal=(0, 0, 0))
+
+
+def test_unknown_friction_lists_modes():
+    with pytest.raises(cd.InvalidInputError, match="none, stick"):
+        cd.Contact("ball", friction="coulomb")
+
+
+@pytest.mark.parametrize("field,value", [("stiffness", -1.0), ("stiffness", math.inf),
+                                         ("damping", -0.5), ("rest_length", math.nan)])
+def test_bad_spring_numbers(field, value):
+    kwargs = dict(stiffness=1.0, damping=0.0, rest_length=0.5)
+    kwargs[field] = value
+    with pytest.raises(cd.InvalidInputError, match=field):
+        cd.Spring("a", "b", **kwargs)
+
+
+def test_negative_joint_spring_in_toml(tmp_path):
+    path = write_scene(tmp_path, "[[joint_spring]]\njoint = 'z'\nstiffness = -3.0\n")
+    with pytest.raises(cd.InvalidInputError, match="stiffness must be >= 0"):
+        cd.load_scene(path)
+
+
+def test_non_finite_initial_state(tmp_path):
+    path = write_scene(tmp_path, "[initial]\nq = { z = nan }\n")
+    with pytest.raises(cd.InvalidInputError, match="finite"):
+        cd.load_scene(path)
+
+
+def test_penetrating_initial_state_names_the_contact(tmp_path):
+    path = write_scene(tmp_path, "[[contact]]\nframe = 'ball'\n[initial]\nq = { z = -0.01 }\n")
+    with pytest.raises(cd.InconsistentStateError, match="'ball'.*gap -0.01"):
+        cd.load_scene(path)
+
+
+def test_closed_contact_is_not_penetration():
+    robot = cd.load_robot("ball")
+    scene = cd.Scene(robot, [cd.Contact("ball")], q0={"z": 0.0})
+    assert scene.gaps(scene.q0) == pytest.approx([0.0])
+
+
+def test_initial_state_of_wrong_size():
+    with pytest.raises(cd.InvalidInputError, match="1 entries"):
+        cd.Scene(cd.load_robot("ball"), q0=np.zeros(3))
+
+
+def test_duplicate_contact_names():
+    with pytest.raises(cd.InvalidInputError, match="unique.*ball"):
+        cd.Scene(cd.load_robot("ball"), [cd.Contact("ball"), cd.Contact("ball")], q0={"z": 1.0})
+
+
+def test_contact_that_cannot_move_along_its_normal():
+    """The ball moves along z only: a contact with a horizontal normal can never act."""
+    with pytest.raises(cd.InvalidInputError, match="cannot move along the normal"):
+        cd.Scene(cd.load_robot("ball"), [cd.Contact("ball", normal=(1, 0, 0))], q0={"z": 1.0})
+
+
+def test_robot_without_feet_needs_explicit_contacts():
+    with pytest.raises(cd.InvalidInputError, match="no feet"):
+        cd.Scene.from_robot(cd.load_robot("ball"))
+
+
+def test_user_effort_of_wrong_shape_is_refused():
+    robot = cd.load_robot("ball")
+    scene = cd.Scene(robot, efforts=[cd.UserEffort(lambda q, v, t: np.zeros(2), name="bad")])
+    with pytest.raises(cd.InvalidInputError, match="bad: function returned shape"):
+        cd.ModeDynamics(scene).solve(scene.q0, scene.v0, 0.0)
