@@ -157,8 +157,8 @@ class Scene:
         return labels
 
     # -- initial state by joint name ---------------------------------------------------
-    def _configuration(self, q0) -> np.ndarray:
-        q = self.robot.q_ref.copy()
+    def _configuration(self, q0, base: np.ndarray | None = None) -> np.ndarray:
+        q = (self.robot.q_ref if base is None else base).copy()
         if q0 is None:
             return q
         if isinstance(q0, Mapping):
@@ -170,8 +170,8 @@ class Scene:
             return q
         return _array("q0", q0, self.robot.nq)
 
-    def _velocity(self, v0) -> np.ndarray:
-        v = np.zeros(self.nv)
+    def _velocity(self, v0, base: np.ndarray | None = None) -> np.ndarray:
+        v = np.zeros(self.nv) if base is None else base.copy()
         if v0 is None:
             return v
         if isinstance(v0, Mapping):
@@ -191,12 +191,13 @@ class Scene:
         return self.with_robot(self.robot.with_armature(armature))
 
     def with_state(self, q0=None, v0=None) -> Scene:
-        """The same scene from another initial state (full arrays or by joint name)."""
+        """The same scene from another initial state: full arrays, or joint-name
+        mappings that change only the named joints of this scene's state."""
         scene = Scene.__new__(Scene)
         scene.__dict__.update(self.__dict__)
         scene._kinematics = None
-        scene.q0 = self.q0 if q0 is None else scene._configuration(q0)
-        scene.v0 = self.v0 if v0 is None else scene._velocity(v0)
+        scene.q0 = self.q0 if q0 is None else scene._configuration(q0, self.q0)
+        scene.v0 = self.v0 if v0 is None else scene._velocity(v0, self.v0)
         scene.check_state(scene.q0, scene.v0)
         return scene
 

@@ -1,0 +1,109 @@
+"""Shared test helpers: central finite differences on the configuration manifold.
+
+Column ``k`` of a derivative with respect to ``q`` is the perturbation
+``q ⊕ ε e_k = pin.integrate(model, q, ε e_k)`` (Pinocchio's tangent space);
+with respect to ``v`` it is ``v + ε e_k``.
+
+Step and tolerance. Central differences have truncation error ~ ε² |f'''| and
+round-off ~ u |f| / ε (u = 2.2e-16). With ε = 1e-6 both are ~1e-10 relative to
+the size of the function and its derivatives for the O(1)-scaled models here,
+so derivatives are compared with ``rtol = 1e-6`` relative to the larger of the
+derivative's max-abs entry and the function's own max-abs value (the scale of
+the round-off). That leaves four orders of margin for noise while any wrong
+term (a missing sign, transposition, wrong frame) shows up at O(1e-2..1).
+
+Set ``CONTACTDIFF_FD_REPORT=1`` to print the largest relative error seen per
+category at exit (``pytest -s``).
+"""
+
+from __future__ import annotations
+
+import atexit
+import os
+from collections.abc import Callable
+
+import numpy as np
+import pinocchio as pin
+
+EPS = 1e-6
+RTOL = 1e-6
+
+FD_ERRORS: dict[str, float] = {}
+
+
+def _report() -> None:  # pragma: no cover - diagnostics only
+    if os.environ.get("CONTACTDIFF_FD_REPORT") and FD_ERRORS:
+        print("\nlargest relative FD error per category:")
+        for key in sorted(FD_ERRORS):
+            print(f"  {key:45s} {FD_ERRORS[key]:.2e}")
+
+
+atexit.register(_report)
+
+
+def fd_dq(f: Callable[[np.ndarray], np.ndarray], model: pin.Model, q: np.ndarray,
+          eps: float = EPS) -> np.ndarray:
+    """Central FD of ``f(q)`` on the manifold; result has shape ``f.shape + (nv,)``."""
+    cols = []
+    for k in range(model.nv):
+        e = np.zeros(model.nv)
+        e[k] = eps
+        plus = np.asarray(f(pin.integrate(model, q, e)), dtype=float)
+        minus = np.asarray(f(pin.integrate(model, q, -e)), dtype=float)
+        cols.append((plus - minus) / (2 * eps))
+    return np.stack(cols, axis=-1)
+
+
+def fd_dv(f: Callable[[np.ndarray], np.ndarray], v: np.ndarray, eps: float = EPS) -> np.ndarray:
+    """Central FD of ``f(v)`` in the vector space R^nv; shape ``f.shape + (nv,)``."""
+    cols = []
+    for k in range(v.size):
+        e = np.zeros(v.size)
+        e[k] = eps
+        cols.append((np.asarray(f(v + e), dtype=float) - np.asarray(f(v - e), dtype=float)) / (2 * eps))
+    return np.stack(cols, axis=-1)
+
+
+def assert_fd(category: str, analytic, reference, value=None, rtol: float = RTOL) -> float:
+    """Assert ``analytic ≈ reference`` (a finite-difference matrix).
+
+    The error is ``max|analytic - reference|`` divided by the largest of
+    ``max|reference|``, ``max|analytic|`` and ``max|value|`` (the function's own
+    magnitude, which sets the FD round-off). Records the error under ``category``.
+    """
+    analytic = np.asarray(analytic, dtype=float)
+    reference = np.asarray(reference, dtype=float)
+    assert analytic.shape == reference.shape, (category, analytic.shape, reference.shape)
+    scale = max(np.abs(reference).max(initial=0.0), np.abs(analytic).max(initial=0.0),
+                0.0 if value is None else np.abs(np.asarray(value, dtype=float)).max(initial=0.0),
+                1e-300)
+    err = float(np.abs(analytic - reference).max(initial=0.0) / scale)
+    FD_ERRORS[category] = max(FD_ERRORS.get(category, 0.0), err)
+    assert err < rtol, f"{category}: relative FD error {err:.3e} >= {rtol:g} (scale {scale:.3e})\n" \
+                       f"analytic=\n{analytic}\nreference=\n{reference}"
+    return err
+
+
+def random_state(model: pin.Model, q_ref: np.ndarray, rng: np.random.Generator,
+                 q_scale: float = 0.3, v_scale: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """``q = q_ref ⊕ q_scale·N(0, I)``, ``v = v_scale·N(0, I)``."""
+    q = pin.integrate(model, q_ref, q_scale * rng.standard_normal(model.nv))
+    return q, v_scale * rng.standard_normal(model.nv)
+
+
+def second_derivative_along(f: Callable[[np.ndarray], float], model: pin.Model, q: np.ndarray,
+                            v: np.ndarray, ddq: np.ndarray | None = None, h: float = 1e-4) -> float:
+    """``d²/dt² f(q(t))`` at t = 0 for the curve with ``q(0) = q``, velocity ``v`` and
+    acceleration ``ddq`` (0 if None), by the central second difference of
+    ``f(q ⊕ (t v + t²/2 ddq))``.
+
+    For Pinocchio's ⊕ (``q · exp(ξ)`` on a free-flyer), ``ξ(t) = t v + t²/2 ddq`` has
+    tangent velocity ``v + t ddq + O(t²)`` (the first correction is ``ad_ξ ξ̇ / 2``,
+    of order t² because ``ad_v v = 0``), so the curve is right to O(t³); the odd
+    O(t³) terms cancel in the central difference, leaving O(h²) truncation and
+    O(u/h²) round-off: about 1e-8 at h = 1e-4.
+    """
+    a = np.zeros_like(v) if ddq is None else ddq
+    fp = f(pin.integrate(model, q, h * v + 0.5 * h * h * a))
+    fm = f(pin.integrate(model, q, -h * v + 0.5 * h * h * a))
+    return (np.asarray(fp) - 2 * np.asarray(f(q)) + np.asarray(fm)) / (h * h)
