@@ -7,6 +7,7 @@ Public names (stable):
     Contact, Spring, JointSpring, UserEffort
     ModeDynamics                   accelerations and contact forces in any contact mode
     check_decoupling               the paper's assumptions, measured
+    simulate, Trajectory           event-driven hybrid simulation
 """
 
 from .checks import DecouplingReport, check_decoupling
@@ -15,13 +16,16 @@ from .dynamics import ModeDynamics
 from .efforts import JointSpring, Spring, UserEffort
 from .errors import (ContactDiffError, InconsistentStateError, IntegrationError,
                      InvalidInputError, ModelLoadError, SolverError, UnknownNameError)
+from .integrator import GrazingError, TooManyEventsError, simulate
 from .robot import QUADRUPEDS, Robot, load_robot
 from .scene import Scene, load_scene, load_source
+from .trajectory import Event, Segment, Trajectory
 
 __version__ = "0.1.0"
 
 __all__ = [
-    "Contact", "ContactDiffError", "DecouplingReport", "InconsistentStateError", "IntegrationError",
+    "Contact", "ContactDiffError", "DecouplingReport", "Event", "GrazingError", "Segment",
+    "TooManyEventsError", "Trajectory", "simulate", "InconsistentStateError", "IntegrationError",
     "InvalidInputError", "JointSpring", "ModeDynamics", "ModelLoadError", "QUADRUPEDS", "Robot",
     "Scene", "SolverError", "Spring", "UnknownNameError", "UserEffort", "check_decoupling",
     "load_robot", "load_scene", "load_source",

@@ -1,0 +1,70 @@
+"""Guard crossings over one step: detection, root location and grouping.
+
+Small pure helpers in the style of scipy's ``_ivp`` event code. Guards are
+scalar functions of time along the dense output of an accepted step; a crossing
+is always *downward* (a touchdown gap or a normal force going from >= 0 to < 0),
+so a reset never re-triggers its own event: right after an event the guard is
+at zero moving up, which is not a downward crossing.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+
+import numpy as np
+from scipy.optimize import brentq
+
+_EPS = np.finfo(float).eps
+
+
+def hermite_minimum(g0: float, d0: float, g1: float, d1: float, h: float) -> tuple[float, float]:
+    """Minimum of the cubic Hermite interpolant of a guard over one step.
+
+    Args:
+        g0, d0: guard value and time derivative at the step start.
+        g1, d1: the same at the step end.
+        h: step length (s).
+
+    Returns:
+        ``(s, value)``: normalised time ``s`` in [0, 1] of the minimum and the
+        interpolant's value there. Detects a guard dipping below zero and coming
+        back within one step (a double crossing) from end-point data alone.
+    """
+    # p(s) = g0 + h d0 s + c2 s^2 + c3 s^3 on s in [0, 1]
+    c2 = 3 * (g1 - g0) - h * (2 * d0 + d1)
+    c3 = -2 * (g1 - g0) + h * (d0 + d1)
+    candidates = [0.0, 1.0]
+    # p'(s) = h d0 + 2 c2 s + 3 c3 s^2
+    roots = np.roots([3 * c3, 2 * c2, h * d0]) if (c3 or c2) else []
+    candidates += [float(r.real) for r in roots if abs(r.imag) < 1e-14 and 0.0 < r.real < 1.0]
+    values = [g0 + h * d0 * s + c2 * s * s + c3 * s ** 3 for s in candidates]
+    k = int(np.argmin(values))
+    return candidates[k], float(values[k])
+
+
+def locate_crossing(guard: Callable[[float], float], t_a: float, t_b: float,
+                    g_a: float | None = None, g_b: float | None = None) -> float:
+    """Time of the downward zero crossing of ``guard`` in ``[t_a, t_b]``.
+
+    Requires ``guard(t_a) > 0 >= guard(t_b)``. Brent's method to full double
+    precision in time: ``|t - t*| <= 4 eps max(1, |t|)``.
+    """
+    g_a = guard(t_a) if g_a is None else g_a
+    g_b = guard(t_b) if g_b is None else g_b
+    if g_b == 0.0:
+        return t_b
+    if not (g_a > 0.0 > g_b):
+        raise ValueError(f"no bracket: guard({t_a!r}) = {g_a!r}, guard({t_b!r}) = {g_b!r}")
+    xtol = 4 * _EPS * max(1.0, abs(t_a), abs(t_b))
+    return float(brentq(guard, t_a, t_b, xtol=xtol, rtol=4 * _EPS, maxiter=200))
+
+
+def simultaneous_group(roots: Sequence[tuple[float, object]], tol: float) -> tuple[float, list]:
+    """The earliest crossing time and every guard whose root lies within ``tol`` of it.
+
+    Args:
+        roots: ``(time, guard_id)`` pairs.
+        tol: simultaneity tolerance (s).
+    """
+    t_first = min(t for t, _ in roots)
+    return t_first, [g for t, g in sorted(roots, key=lambda r: r[0]) if t - t_first <= tol]

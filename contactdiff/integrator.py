@@ -1,0 +1,394 @@
+"""The hybrid loop: flow in a mode, locate the earliest event, reset, continue.
+
+`simulate` integrates a `Scene` event by event:
+
+1. In mode ``J`` the stepper (`contactdiff.steppers`) integrates the KKT flow of
+   `contactdiff.dynamics`.
+2. After every accepted step each guard of the mode is checked over the step:
+   the gap of every inactive contact (downward through 0, including a dip
+   below 0 and back within the step, found from the cubic Hermite interpolant
+   of the end-point gaps and gap rates and confirmed on the dense output) and
+   the normal force of every active contact (downward through 0).
+3. The earliest crossing is located on the dense output with Brent's method to
+   full precision in time; guards crossing within ``simultaneous_tol`` of it
+   form one simultaneous event. The stepper is cut at that time.
+4. Touchdowns apply the impact law (`contactdiff.impacts`) to every closed
+   contact; the next mode follows from the force-level complementarity.
+   Lift-offs change the mode without a jump.
+5. Active constraints are kept on their manifold: when the gap of an active
+   contact drifts beyond ``project_tol`` the state is projected back
+   (M-orthogonally) and the largest drift is reported.
+
+Admissibility: a penetrating initial state is an error; closed contacts at the
+start select a consistent mode (with an impact first if they approach);
+grazing touchdowns (normal speed below ``grazing_speed``) are events of kind
+``grazing`` (or an error with ``on_grazing="raise"``); a bounce slower than
+``zeno_speed`` ends the bounce sequence (the contact stays closed, event kind
+``zeno``); more than ``max_events`` events raise `TooManyEventsError`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+from scipy.linalg import cho_factor, cho_solve
+
+from .dynamics import ModeDynamics
+from .errors import IntegrationError, InvalidInputError
+from .events import hermite_minimum, locate_crossing, simultaneous_group
+from .impacts import choose_mode, resolve_impact
+from .scene import Scene
+from .steppers import METHODS, PinocchioGroup, make_stepper
+from .trajectory import Event, Segment, Trajectory
+
+
+class GrazingError(IntegrationError):
+    """A contact closed with (nearly) zero normal speed and ``on_grazing="raise"``."""
+
+
+class TooManyEventsError(IntegrationError):
+    """More than ``max_events`` events; ``.trajectory`` holds the run up to there."""
+
+    def __init__(self, message: str, trajectory: Trajectory):
+        super().__init__(message)
+        self.trajectory = trajectory
+
+
+_GRAZING_MODES = ("event", "raise")
+_SPEED_TOL = 1e-12  # m/s: a post-impact normal speed below this (scaled) counts as zero
+
+
+@dataclass
+class _Guard:
+    kind: str  # "gap" (inactive contact) or "force" (active contact)
+    contact: int
+
+
+class _ModeField:
+    """Vector field of one mode for the stepper, remembering its last forces."""
+
+    def __init__(self, dyn: ModeDynamics, mode: tuple[int, ...]):
+        self.dyn, self.mode = dyn, mode
+        self.last = None
+        self.n_solve = 0
+
+    def accel(self, t, q, v):
+        self.n_solve += 1
+        sol = self.dyn.solve(q, v, t, self.mode)
+        self.last = (t, q, v, sol)
+        return sol.ddq
+
+    def jac(self, t, q, v):
+        _, der = self.dyn.solve(q, v, t, self.mode, derivatives=True)
+        return der.ddq_dq, der.ddq_dv
+
+    def normal_forces(self, t, q, v) -> np.ndarray:
+        last = self.last
+        if last is not None and last[0] == t and np.array_equal(last[1], q) and np.array_equal(last[2], v):
+            return last[3].normal_forces()
+        return self.dyn.solve(q, v, t, self.mode).normal_forces()
+
+
+def simulate(scene: Scene, t_final: float, q0=None, v0=None, *, t0: float = 0.0,
+             rtol: float = 1e-8, atol: float = 1e-10, method: str = "DOP853",
+             jacobian: bool = False, max_events: int = 10_000, simultaneous_tol: float = 1e-9,
+             zeno_speed: float = 1e-6, grazing_speed: float = 1e-9, on_grazing: str = "event",
+             project_tol: float | None = None, max_step: float = np.inf) -> Trajectory:
+    """Compute the hybrid trajectory of ``scene`` from ``t0`` to ``t_final``.
+
+    Args:
+        scene: the `Scene`.
+        t_final: final time (s), > t0.
+        q0, v0: initial state (arrays or joint-name mappings); default the scene's.
+        t0: initial time (s).
+        rtol, atol: error tolerances of each step (relative; absolute in m, rad, m/s).
+        method: stepper, one of ``steppers.METHODS`` (``"Radau"`` for stiff scenes).
+        jacobian: also compute the flow Jacobian (not available yet: see the
+            Jacobian issue).
+        max_events: largest number of events before `TooManyEventsError`.
+        simultaneous_tol: guards crossing within this time of the first (s) form
+            one simultaneous event.
+        zeno_speed: a contact closing slower than this (m/s) does not bounce: the
+            sequence ends and it stays closed.
+        grazing_speed: a touchdown slower than this (m/s) is grazing.
+        on_grazing: ``"event"`` records a grazing event and goes on; ``"raise"``
+            raises `GrazingError`.
+        project_tol: active-gap drift (m) beyond which the state is projected back
+            onto the constraints; default ``atol``.
+        max_step: largest step (s).
+
+    Returns:
+        The `Trajectory`.
+    """
+    run = _HybridRun(scene, t0, t_final, q0, v0, rtol=rtol, atol=atol, method=method,
+                     jacobian=jacobian, max_events=max_events, simultaneous_tol=simultaneous_tol,
+                     zeno_speed=zeno_speed, grazing_speed=grazing_speed, on_grazing=on_grazing,
+                     project_tol=project_tol, max_step=max_step)
+    return run.run()
+
+
+def _positive(name: str, value, *, allow_zero: bool = False) -> float:
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"{name} must be a number, got {value!r}") from None
+    if not np.isfinite(x) or x < 0 or (x == 0 and not allow_zero):
+        raise InvalidInputError(f"{name} must be a finite number {'>=' if allow_zero else '>'} 0, got {value!r}")
+    return x
+
+
+class _HybridRun:
+    def __init__(self, scene, t0, t_final, q0, v0, *, rtol, atol, method, jacobian, max_events,
+                 simultaneous_tol, zeno_speed, grazing_speed, on_grazing, project_tol, max_step):
+        if not isinstance(scene, Scene):
+            raise InvalidInputError(f"scene must be a Scene (see load_scene), got {scene!r}")
+        if jacobian:
+            raise InvalidInputError("jacobian=True is not available yet in this version")
+        if method not in METHODS:
+            raise InvalidInputError(f"unknown method {method!r}; valid: {', '.join(METHODS)}")
+        if on_grazing not in _GRAZING_MODES:
+            raise InvalidInputError(f"on_grazing must be one of {', '.join(_GRAZING_MODES)}; got {on_grazing!r}")
+        self.t0 = float(t0)
+        if not np.isfinite(self.t0):
+            raise InvalidInputError(f"t0 must be finite, got {t0!r}")
+        self.t_final = float(t_final) if np.isscalar(t_final) else t_final
+        if not (isinstance(self.t_final, float) and np.isfinite(self.t_final) and self.t_final > self.t0):
+            raise InvalidInputError(f"t_final must be a finite time after t0 = {self.t0}, got {t_final!r}")
+        self.scene = scene.with_state(q0, v0) if (q0 is not None or v0 is not None) else scene
+        self.rtol, self.atol = _positive("rtol", rtol), _positive("atol", atol)
+        self.max_events = int(max_events)
+        self.simultaneous_tol = _positive("simultaneous_tol", simultaneous_tol, allow_zero=True)
+        self.zeno_speed = _positive("zeno_speed", zeno_speed, allow_zero=True)
+        self.grazing_speed = _positive("grazing_speed", grazing_speed, allow_zero=True)
+        self.on_grazing = on_grazing
+        self.project_tol = self.atol if project_tol is None else _positive("project_tol", project_tol)
+        self.method, self.max_step = method, max_step
+        self.dyn = ModeDynamics(self.scene)
+        self.kin = self.scene.kinematics
+        self.contacts = self.scene.contacts
+        self.names = self.scene.contact_names
+        self.gap_tol = 1e-12  # m: a contact with |gap| below this is closed
+        self.events: list[Event] = []
+        self.segments: list[Segment] = []
+        self.notes: list[str] = []
+        self.max_drift = 0.0
+        self.n_projections = 0
+
+    # -- small evaluations ------------------------------------------------------------
+    def _gaps_and_rates(self, q, v) -> tuple[np.ndarray, np.ndarray]:
+        self.kin.update(q, v)
+        gaps = np.array([c.gap(self.kin) for c in self.contacts])
+        rates = np.array([c.rows(self.kin)[0] @ v for c in self.contacts])
+        return gaps, rates
+
+    def _mode_names(self, mode) -> tuple[str, ...]:
+        return tuple(self.names[i] for i in mode)
+
+    # -- start ----------------------------------------------------------------------
+    def _initial_mode(self, q, v):
+        """Consistent mode at t0: closed contacts that approach get an impact first."""
+        gaps, rates = self._gaps_and_rates(q, v)
+        closed = [i for i, g in enumerate(gaps) if g <= self.gap_tol]
+        if not closed:
+            return (), v
+        if any(rates[i] < -self.grazing_speed for i in closed):
+            return self._impact(self.t0, q, v, (), closed, closed)
+        candidates = [i for i in closed if rates[i] <= self.grazing_speed]
+        return choose_mode(self.dyn, q, v, self.t0, candidates), v
+
+    # -- the loop -------------------------------------------------------------------
+    def run(self) -> Trajectory:
+        scene = self.scene
+        q, v = scene.q0.copy(), scene.v0.copy()
+        mode, v = self._initial_mode(q, v)
+        field = _ModeField(self.dyn, mode)
+        stepper = make_stepper(self.method, field.accel, PinocchioGroup(scene.model), self.t0, q, v,
+                               rtol=self.rtol, atol=self.atol, jac=field.jac, max_step=self.max_step,
+                               t_bound=self.t_final)
+        self.fields = [field]
+        segment = Segment(self.t0, self.t0, self._mode_names(mode))
+        self.segments.append(segment)
+        gaps, rates = self._gaps_and_rates(stepper.q, stepper.v)
+        forces = field.normal_forces(stepper.t, stepper.q, stepper.v)
+        while stepper.t < self.t_final:
+            stepper.step()
+            dense = stepper.dense()
+            segment.pieces.append(dense)
+            gaps1, rates1 = self._gaps_and_rates(stepper.q, stepper.v)
+            forces1 = field.normal_forces(stepper.t, stepper.q, stepper.v)
+            crossings = self._crossings(stepper, dense, field, mode, (gaps, rates, forces),
+                                        (gaps1, rates1, forces1))
+            if not crossings:
+                gaps, rates, forces = gaps1, rates1, forces1
+                if mode and self._project(stepper, mode, gaps1):
+                    gaps, rates = self._gaps_and_rates(stepper.q, stepper.v)
+                    forces = field.normal_forces(stepper.t, stepper.q, stepper.v)
+                segment.t1 = stepper.t
+                continue
+            t_event, fired = simultaneous_group(crossings, self.simultaneous_tol)
+            stepper.truncate(t_event)
+            segment.t1 = t_event
+            mode, v_plus = self._event(t_event, stepper.q, stepper.v, mode, fired)
+            if len(self.events) > self.max_events:
+                raise TooManyEventsError(
+                    f"more than max_events = {self.max_events} events by t = {t_event:.17g} "
+                    f"(last: {self.events[-1].kind} of {', '.join(self.events[-1].contacts)}); "
+                    "raise max_events or zeno_speed", self._trajectory(stepper, "max_events"))
+            q_event = self.events[-1].q
+            field = _ModeField(self.dyn, mode)
+            self.fields.append(field)
+            stepper.restart(t_event, q_event, v_plus, accel=field.accel, jac=field.jac)
+            segment = Segment(t_event, t_event, self._mode_names(mode))
+            self.segments.append(segment)
+            gaps, rates = self._gaps_and_rates(stepper.q, stepper.v)
+            forces = field.normal_forces(stepper.t, stepper.q, stepper.v)
+        return self._trajectory(stepper, "t_final")
+
+    def _trajectory(self, stepper, termination) -> Trajectory:
+        stats = {"steps": stepper.n_steps, "rejected_steps": stepper.n_rejected,
+                 "dynamics_evaluations": sum(f.n_solve for f in self.fields),
+                 "stepper_evaluations": stepper.n_accel, "jacobian_evaluations": stepper.n_jac,
+                 "events": len(self.events), "projections": self.n_projections}
+        return Trajectory(self.scene.name, self.t0, self.scene.q0.copy(), self.scene.v0.copy(),
+                          stepper.t, stepper.q.copy(), stepper.v.copy(), self.events, self.segments,
+                          stats, self.max_drift, termination, self.notes)
+
+    # -- detection ------------------------------------------------------------------
+    def _crossings(self, stepper, dense, field, mode, start, end) -> list[tuple[float, _Guard]]:
+        t_a, t_b = stepper.t_old, stepper.t
+        gaps0, rates0, forces0 = start
+        gaps1, rates1, forces1 = end
+        found = []
+        for i, contact in enumerate(self.contacts):
+            if i in mode:
+                continue
+
+            def gap(t, i=i):
+                qt, _ = dense(t)
+                self.kin.update(qt, np.zeros(self.scene.nv))
+                return self.contacts[i].gap(self.kin)
+            t_lo, g_lo = t_a, gaps0[i]
+            if gaps1[i] < 0.0:
+                t_hi, g_hi = t_b, gaps1[i]
+            else:
+                s, low = hermite_minimum(gaps0[i], rates0[i], gaps1[i], rates1[i], t_b - t_a)
+                if not (low < 0.0 and 0.0 < s < 1.0):
+                    continue
+                t_hi = t_a + s * (t_b - t_a)
+                g_hi = gap(t_hi)
+                if g_hi >= 0.0:
+                    continue  # the interpolant dipped, the solution did not
+            if g_lo <= 0.0:
+                # right after a bounce the gap starts at 0 moving up: start from its peak
+                t_lo, g_lo = self._peak(dense, i, gap, t_a, t_hi, rates0[i])
+                if t_lo is None:
+                    continue
+            found.append((locate_crossing(gap, t_lo, t_hi, g_lo, g_hi), _Guard("gap", i)))
+        for k, i in enumerate(mode):
+            if forces1[k] >= 0.0:
+                continue
+
+            def force(t, k=k):
+                qt, vt = dense(t)
+                return field.normal_forces(t, qt, vt)[k]
+            found.append((locate_crossing(force, t_a, t_b, forces0[k], forces1[k]), _Guard("force", i)))
+        return found
+
+    def _peak(self, dense, i, gap, t_a, t_b, rate_a):
+        """Highest point of a gap that starts at 0 moving up and ends below 0.
+
+        Returns ``(t, gap)`` there, or ``(None, None)`` if the gap never rises
+        above 0 (a bounce too small to resolve: the contact is taken as closed).
+        """
+        def rate(t):
+            qt, vt = dense(t)
+            self.kin.update(qt, vt)
+            return float(self.contacts[i].rows(self.kin)[0] @ vt)
+        if not rate_a > 0.0 or rate(t_b) >= 0.0:
+            return None, None
+        t_peak = locate_crossing(rate, t_a, t_b, rate_a)
+        g_peak = gap(t_peak)
+        return (t_peak, g_peak) if g_peak > 0.0 else (None, None)
+
+    # -- events ---------------------------------------------------------------------
+    def _event(self, t, q, v, mode, fired: list[_Guard]):
+        touching = [g.contact for g in fired if g.kind == "gap"]
+        releasing = [g.contact for g in fired if g.kind == "force"]
+        if touching:
+            closed = sorted(set(mode) | set(touching))
+            return self._impact(t, q, v, mode, closed, touching, releasing)
+        new_mode = choose_mode(self.dyn, q, v, t, [i for i in mode if i not in releasing])
+        self.events.append(Event(t, "lift-off", self._mode_names(releasing), len(releasing) > 1, q.copy(),
+                                 v.copy(), v.copy(), {}, self._mode_names(mode), self._mode_names(new_mode)))
+        return new_mode, v
+
+    def _impact(self, t, q, v_minus, mode, closed, touching, releasing=()):
+        q = self._close(q, closed)
+        self.kin.update(q, v_minus)
+        speeds = {i: float(self.contacts[i].rows(self.kin)[0] @ v_minus) for i in touching}
+        grazing = [i for i in touching if abs(speeds[i]) <= self.grazing_speed]
+        if grazing and self.on_grazing == "raise":
+            raise GrazingError(
+                f"grazing touchdown of {', '.join(self.names[i] for i in grazing)} at t = {t:.17g}: "
+                f"normal speed {max(abs(speeds[i]) for i in grazing):.3g} m/s <= grazing_speed "
+                f"{self.grazing_speed:g}; the flow is not differentiable there")
+        e = np.array([self.contacts[i].restitution for i in closed])
+        zeno = [i for i in touching if self.contacts[i].restitution > 0 and abs(speeds[i]) < self.zeno_speed]
+        for i in zeno:
+            e[closed.index(i)] = 0.0
+        impact = resolve_impact(self.dyn, q, v_minus, closed, e)
+        v_plus = impact.v_plus
+        scale = max(1.0, float(np.max(np.abs(impact.normal_speeds_before))))
+        staying = [i for i, s in zip(closed, impact.normal_speeds_after)
+                   if s <= _SPEED_TOL * scale and i not in releasing]
+        new_mode = choose_mode(self.dyn, q, v_plus, t, staying)
+        if grazing:
+            kind = "grazing"
+            self.notes.append(f"grazing touchdown of {', '.join(self.names[i] for i in grazing)} at t = {t:.12g}")
+        elif zeno:
+            kind = "zeno"
+            self.notes.append(f"Zeno: bounces of {', '.join(self.names[i] for i in zeno)} ended at t = {t:.12g} "
+                              f"(impact speed below zeno_speed = {self.zeno_speed:g} m/s); contact kept closed")
+        elif any(i in new_mode for i in touching):
+            kind = "touchdown"
+        else:
+            kind = "bounce"
+        impulses = {self.names[i]: float(x) for i, x in zip(closed, impact.impulses)}
+        self.events.append(Event(t, kind, self._mode_names(touching), len(touching) > 1, q.copy(),
+                                 v_minus.copy(), v_plus.copy(), impulses, self._mode_names(mode),
+                                 self._mode_names(new_mode), {self.names[i]: s for i, s in speeds.items()}))
+        return new_mode, v_plus
+
+    # -- constraint manifold ----------------------------------------------------------
+    def _close(self, q, contacts):
+        """Project ``q`` M-orthogonally onto ``gap = 0`` of ``contacts`` (Gauss–Newton)."""
+        if not contacts:
+            return q
+        model, zero = self.scene.model, np.zeros(self.scene.nv)
+        chol = cho_factor(pin.crba(model, self.dyn.data, q))
+        for _ in range(10):
+            self.kin.update(q, zero)
+            gaps = np.array([self.contacts[i].gap(self.kin) for i in contacts])
+            if np.max(np.abs(gaps)) <= 1e-15:
+                break
+            A = np.vstack([self.contacts[i].rows(self.kin)[0] for i in contacts])
+            MinvAT = cho_solve(chol, A.T)
+            q = pin.integrate(model, q, -MinvAT @ np.linalg.lstsq(A @ MinvAT, gaps, rcond=None)[0])
+        return q
+
+    def _project(self, stepper, mode, gaps) -> bool:
+        drift = max(abs(gaps[i]) for i in mode)
+        self.max_drift = max(self.max_drift, drift)
+        if drift <= self.project_tol:
+            return False
+        q = self._close(stepper.q, list(mode))
+        self.kin.update(q, stepper.v)
+        A = np.vstack([self.contacts[i].rows(self.kin) for i in mode])
+        chol = cho_factor(pin.crba(self.scene.model, self.dyn.data, q))
+        MinvAT = cho_solve(chol, A.T)
+        v = stepper.v - MinvAT @ np.linalg.lstsq(A @ MinvAT, A @ stepper.v, rcond=None)[0]
+        stepper.restart(stepper.t, q, v)
+        self.n_projections += 1
+        return True

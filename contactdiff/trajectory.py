@@ -1,0 +1,171 @@
+"""The result of a simulation: segments of smooth flow, events between them, final state.
+
+A `Trajectory` keeps the dense output of every accepted step, so the state can
+be evaluated anywhere (`Trajectory.at`, `Trajectory.sample`), and exports to
+``.npz`` and JSON. Times are in seconds, states as in the rest of the package
+(``q`` of size nq, ``v`` of size nv in the tangent space).
+"""
+
+from __future__ import annotations
+
+import bisect
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .errors import InvalidInputError
+
+EVENT_KINDS = ("touchdown", "lift-off", "bounce", "grazing", "zeno")
+"""``touchdown``: contacts close and stay closed (impact); ``lift-off``: an active
+contact's normal force reaches zero; ``bounce``: an impact after which the
+contact leaves again; ``grazing``: a contact closes with zero normal speed;
+``zeno``: an impact below the Zeno speed, after which the contact stays closed."""
+
+
+@dataclass
+class Event:
+    """One instant at which the contact mode changes.
+
+    Attributes:
+        t: time (s).
+        kind: one of `EVENT_KINDS`.
+        contacts: names of the contacts whose guard fired.
+        simultaneous: several guards fired within the simultaneity tolerance.
+        q: configuration at the event.
+        v_minus, v_plus: velocity before and after (equal without impact).
+        impulses: normal impulse of every contact closed at the event (N s).
+        mode_before, mode_after: names of the active contacts.
+        normal_speeds: ``A_i v-`` of the firing contacts (m/s, negative when closing).
+    """
+
+    t: float
+    kind: str
+    contacts: tuple[str, ...]
+    simultaneous: bool
+    q: np.ndarray
+    v_minus: np.ndarray
+    v_plus: np.ndarray
+    impulses: dict[str, float]
+    mode_before: tuple[str, ...]
+    mode_after: tuple[str, ...]
+    normal_speeds: dict[str, float] = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        return {
+            "t": self.t, "kind": self.kind, "contacts": list(self.contacts),
+            "simultaneous": self.simultaneous, "q": self.q.tolist(),
+            "v_minus": self.v_minus.tolist(), "v_plus": self.v_plus.tolist(),
+            "impulses": dict(self.impulses), "mode_before": list(self.mode_before),
+            "mode_after": list(self.mode_after), "normal_speeds": dict(self.normal_speeds),
+        }
+
+
+@dataclass
+class Segment:
+    """Smooth flow in one contact mode between two events (or the ends).
+
+    Attributes:
+        t0, t1: start and end time (s).
+        mode: names of the active contacts.
+        pieces: dense outputs of the accepted steps, each callable ``(t) -> (q, v)``
+            with attributes ``t_old`` and ``t``.
+    """
+
+    t0: float
+    t1: float
+    mode: tuple[str, ...]
+    pieces: list = field(default_factory=list, repr=False)
+
+    def at(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        starts = [p.t_old for p in self.pieces]
+        i = max(0, min(bisect.bisect_right(starts, t) - 1, len(self.pieces) - 1))
+        q, v = self.pieces[i](t)
+        return np.array(q, dtype=float), np.array(v, dtype=float)
+
+
+@dataclass
+class Trajectory:
+    """A hybrid trajectory.
+
+    Attributes:
+        scene_name: the scene simulated.
+        t0, q0, v0: initial time and state.
+        t, q, v: final time and state.
+        events: the `Event` list in time order.
+        segments: the `Segment` list (one per mode visited, in order).
+        stats: counters (steps, rejected steps, dynamics evaluations, ...).
+        max_drift: largest constraint violation of an active contact found before
+            projection, over the run (m).
+        termination: why the run ended (``"t_final"`` normally).
+        notes: human-readable remarks (Zeno ends, grazing, ...).
+    """
+
+    scene_name: str
+    t0: float
+    q0: np.ndarray
+    v0: np.ndarray
+    t: float
+    q: np.ndarray
+    v: np.ndarray
+    events: list[Event]
+    segments: list[Segment]
+    stats: dict
+    max_drift: float = 0.0
+    termination: str = "t_final"
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def modes(self) -> list[tuple[str, ...]]:
+        """Contact mode sequence: active contact names of each segment."""
+        return [s.mode for s in self.segments]
+
+    def at(self, t: float, side: str = "right") -> tuple[np.ndarray, np.ndarray]:
+        """State ``(q, v)`` at time ``t`` from the dense output.
+
+        Args:
+            t: time in [t0, t] (s).
+            side: at an event time, ``"right"`` gives the state after the jump,
+                ``"left"`` the state before.
+        """
+        if side not in ("left", "right"):
+            raise InvalidInputError(f"side must be 'left' or 'right', got {side!r}")
+        if not (self.t0 <= t <= self.t):
+            raise InvalidInputError(f"t must lie in [{self.t0}, {self.t}], got {t!r}")
+        candidates = [s for s in self.segments if s.t0 <= t <= s.t1 and s.pieces]
+        if not candidates:
+            return self.q.copy(), self.v.copy()
+        segment = candidates[0] if side == "left" else candidates[-1]
+        return segment.at(t)
+
+    def sample(self, times) -> tuple[np.ndarray, np.ndarray]:
+        """States at the given times (right limits at events): arrays (n, nq) and (n, nv)."""
+        times = np.asarray(times, dtype=float).reshape(-1)
+        states = [self.at(float(t)) for t in times]
+        return np.array([s[0] for s in states]), np.array([s[1] for s in states])
+
+    def summary(self) -> dict:
+        """Final state, events and statistics (what ``--json`` prints, without dense data)."""
+        return {
+            "scene": self.scene_name, "t0": self.t0, "t": self.t,
+            "q0": self.q0.tolist(), "v0": self.v0.tolist(),
+            "q": self.q.tolist(), "v": self.v.tolist(),
+            "events": [e.to_dict() for e in self.events],
+            "modes": [list(m) for m in self.modes],
+            "stats": dict(self.stats), "max_drift": self.max_drift,
+            "termination": self.termination, "notes": list(self.notes),
+        }
+
+    def save_json(self, path: str | Path) -> None:
+        """Write `summary` as JSON."""
+        Path(path).write_text(json.dumps(self.summary(), indent=2))
+
+    def save_npz(self, path: str | Path, n_samples: int = 1000) -> None:
+        """Write final state, events and ``n_samples`` states on a uniform time grid."""
+        times = np.linspace(self.t0, self.t, int(n_samples))
+        qs, vs = self.sample(times)
+        np.savez(path, t=times, q=qs, v=vs, t_final=self.t, q_final=self.q, v_final=self.v,
+                 event_t=np.array([e.t for e in self.events]),
+                 event_kind=np.array([e.kind for e in self.events], dtype=str),
+                 event_contacts=np.array(["+".join(e.contacts) for e in self.events], dtype=str))
