@@ -8,6 +8,7 @@ Public names (stable):
     ModeDynamics                   accelerations and contact forces in any contact mode
     check_decoupling               the paper's assumptions, measured
     simulate, Trajectory           event-driven hybrid simulation
+    trot_touchdown                 the paper's Fig. 1 scenes at any initial pitch
 """
 
 from .checks import DecouplingReport, check_decoupling
@@ -17,6 +18,7 @@ from .efforts import JointSpring, Spring, UserEffort
 from .errors import (ContactDiffError, InconsistentStateError, IntegrationError,
                      InvalidInputError, ModelLoadError, SolverError, UnknownNameError)
 from .integrator import GrazingError, TooManyEventsError, simulate
+from .models import trot_touchdown
 from .robot import QUADRUPEDS, Robot, load_robot
 from .scene import Scene, load_scene, load_source
 from .trajectory import Event, Segment, Trajectory
@@ -25,7 +27,7 @@ __version__ = "0.1.0"
 
 __all__ = [
     "Contact", "ContactDiffError", "DecouplingReport", "Event", "GrazingError", "Segment",
-    "TooManyEventsError", "Trajectory", "simulate", "InconsistentStateError", "IntegrationError",
+    "TooManyEventsError", "Trajectory", "simulate", "trot_touchdown", "InconsistentStateError", "IntegrationError",
     "InvalidInputError", "JointSpring", "ModeDynamics", "ModelLoadError", "QUADRUPEDS", "Robot",
     "Scene", "SolverError", "Spring", "UnknownNameError", "UserEffort", "check_decoupling",
     "load_robot", "load_scene", "load_source",
