@@ -36,7 +36,11 @@ class ImpactResult:
         row_impulses: impulses of all rows (normal and tangential).
         contacts: indices of the participating (closed) contacts.
         normal_speeds_before, normal_speeds_after: ``A_n v-`` and ``A_n v+`` per contact (m/s).
-        restitution: the coefficient used for each contact (0 where Zeno ended a bounce).
+        restitution: the coefficient used for each contact (0 where Zeno ended a bounce
+            or where the contact was not approaching).
+        active: positions in ``contacts`` of the contacts whose rows carry impulse
+            (the complementarity problem's active set).
+        rows: the row layout of ``contacts`` (`ContactRows`).
     """
 
     v_plus: np.ndarray
@@ -46,6 +50,8 @@ class ImpactResult:
     normal_speeds_before: np.ndarray
     normal_speeds_after: np.ndarray
     restitution: np.ndarray
+    active: tuple[int, ...] = ()
+    rows: ContactRows | None = None
 
 
 def _rows(dyn: ModeDynamics, contacts: Sequence[int]):
@@ -83,7 +89,7 @@ def resolve_impact(dyn: ModeDynamics, q: np.ndarray, v_minus: np.ndarray, contac
     v_plus = v_minus + MinvAT @ solution.x
     normal = list(rows.normal)
     return ImpactResult(v_plus, solution.x[normal].copy(), solution.x, contacts, Av[normal],
-                        (A @ v_plus)[normal], e)
+                        (A @ v_plus)[normal], e, solution.active, rows)
 
 
 def choose_mode(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float,

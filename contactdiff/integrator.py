@@ -34,12 +34,15 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 from scipy.linalg import cho_factor, cho_solve
+from scipy.optimize import minimize_scalar
 
 from .dynamics import ModeDynamics
 from .errors import IntegrationError, InvalidInputError
 from .events import hermite_minimum, locate_crossing, simultaneous_group
 from .impacts import choose_mode, resolve_impact
 from .scene import Scene
+from .sensitivity import (gap_gradient, impact_reset_jacobian, liftoff_saltation, saltation,
+                          simultaneous_saltation, vector_field)
 from .steppers import METHODS, PinocchioGroup, make_stepper
 from .trajectory import Event, Segment, Trajectory
 
@@ -105,8 +108,8 @@ def simulate(scene: Scene, t_final: float, q0=None, v0=None, *, t0: float = 0.0,
         t0: initial time (s).
         rtol, atol: error tolerances of each step (relative; absolute in m, rad, m/s).
         method: stepper, one of ``steppers.METHODS`` (``"Radau"`` for stiff scenes).
-        jacobian: also compute the flow Jacobian (not available yet: see the
-            Jacobian issue).
+        jacobian: also compute the flow Jacobian ``traj.jacobian`` (d x(t_final) /
+            d x0, tangent space) and each event's saltation matrix and time gradient.
         max_events: largest number of events before `TooManyEventsError`.
         simultaneous_tol: guards crossing within this time of the first (s) form
             one simultaneous event.
@@ -144,8 +147,6 @@ class _HybridRun:
                  simultaneous_tol, zeno_speed, grazing_speed, on_grazing, project_tol, max_step):
         if not isinstance(scene, Scene):
             raise InvalidInputError(f"scene must be a Scene (see load_scene), got {scene!r}")
-        if jacobian:
-            raise InvalidInputError("jacobian=True is not available yet in this version")
         if method not in METHODS:
             raise InvalidInputError(f"unknown method {method!r}; valid: {', '.join(METHODS)}")
         if on_grazing not in _GRAZING_MODES:
@@ -165,6 +166,7 @@ class _HybridRun:
         self.on_grazing = on_grazing
         self.project_tol = self.atol if project_tol is None else _positive("project_tol", project_tol)
         self.method, self.max_step = method, max_step
+        self.jacobian = bool(jacobian)
         self.dyn = ModeDynamics(self.scene)
         self.kin = self.scene.kinematics
         self.contacts = self.scene.contacts
@@ -175,6 +177,8 @@ class _HybridRun:
         self.notes: list[str] = []
         self.max_drift = 0.0
         self.n_projections = 0
+        self.phi = None  # flow Jacobian just before the event being processed
+        self.initial_saltation = None
 
     # -- small evaluations ------------------------------------------------------------
     def _gaps_and_rates(self, q, v) -> tuple[np.ndarray, np.ndarray]:
@@ -194,7 +198,11 @@ class _HybridRun:
         if not closed:
             return (), v
         if any(rates[i] < -self.grazing_speed for i in closed):
-            return self._impact(self.t0, q, v, (), closed, closed)
+            if self.jacobian:
+                self.phi = np.eye(2 * self.scene.nv)
+            mode, v_plus = self._impact(self.t0, q, v, (), closed, closed)
+            self.initial_saltation = self.events[-1].saltation
+            return mode, v_plus
         candidates = [i for i in closed if rates[i] <= self.grazing_speed]
         return choose_mode(self.dyn, q, v, self.t0, candidates), v
 
@@ -206,7 +214,10 @@ class _HybridRun:
         field = _ModeField(self.dyn, mode)
         stepper = make_stepper(self.method, field.accel, PinocchioGroup(scene.model), self.t0, q, v,
                                rtol=self.rtol, atol=self.atol, jac=field.jac, max_step=self.max_step,
-                               t_bound=self.t_final)
+                               t_bound=self.t_final,
+                               variational=np.eye(2 * scene.nv) if self.jacobian else None)
+        if self.jacobian and self.initial_saltation is not None:
+            stepper.restart(self.t0, q, v, phi=self.initial_saltation)
         self.fields = [field]
         segment = Segment(self.t0, self.t0, self._mode_names(mode))
         self.segments.append(segment)
@@ -230,6 +241,7 @@ class _HybridRun:
             t_event, fired = simultaneous_group(crossings, self.simultaneous_tol)
             stepper.truncate(t_event)
             segment.t1 = t_event
+            self.phi = stepper.phi
             mode, v_plus = self._event(t_event, stepper.q, stepper.v, mode, fired)
             if len(self.events) > self.max_events:
                 raise TooManyEventsError(
@@ -239,7 +251,9 @@ class _HybridRun:
             q_event = self.events[-1].q
             field = _ModeField(self.dyn, mode)
             self.fields.append(field)
-            stepper.restart(t_event, q_event, v_plus, accel=field.accel, jac=field.jac)
+            xi = self.events[-1].saltation
+            stepper.restart(t_event, q_event, v_plus, accel=field.accel, jac=field.jac,
+                            phi=None if xi is None else xi @ stepper.phi)
             segment = Segment(t_event, t_event, self._mode_names(mode))
             self.segments.append(segment)
             gaps, rates = self._gaps_and_rates(stepper.q, stepper.v)
@@ -253,7 +267,8 @@ class _HybridRun:
                  "events": len(self.events), "projections": self.n_projections}
         return Trajectory(self.scene.name, self.t0, self.scene.q0.copy(), self.scene.v0.copy(),
                           stepper.t, stepper.q.copy(), stepper.v.copy(), self.events, self.segments,
-                          stats, self.max_drift, termination, self.notes)
+                          stats, self.max_drift, termination, self.notes,
+                          stepper.phi.copy() if self.jacobian else None)
 
     # -- detection ------------------------------------------------------------------
     def _crossings(self, stepper, dense, field, mode, start, end) -> list[tuple[float, _Guard]]:
@@ -280,9 +295,10 @@ class _HybridRun:
                 g_hi = gap(t_hi)
                 if g_hi >= 0.0:
                     continue  # the interpolant dipped, the solution did not
-            if g_lo <= 0.0:
-                # right after a bounce the gap starts at 0 moving up: start from its peak
-                t_lo, g_lo = self._peak(dense, i, gap, t_a, t_hi, rates0[i])
+            if g_lo <= self.gap_tol:
+                # the contact has just opened (bounce or lift-off): its gap starts at 0
+                # going up; a new touchdown needs the gap to rise above 0 and come back
+                t_lo, g_lo = self._peak(gap, t_a, t_hi)
                 if t_lo is None:
                     continue
             found.append((locate_crossing(gap, t_lo, t_hi, g_lo, g_hi), _Guard("gap", i)))
@@ -296,32 +312,42 @@ class _HybridRun:
             found.append((locate_crossing(force, t_a, t_b, forces0[k], forces1[k]), _Guard("force", i)))
         return found
 
-    def _peak(self, dense, i, gap, t_a, t_b, rate_a):
-        """Highest point of a gap that starts at 0 moving up and ends below 0.
+    def _peak(self, gap, t_a, t_b):
+        """Highest point of a gap that starts closed at ``t_a`` and is negative at ``t_b``.
 
-        Returns ``(t, gap)`` there, or ``(None, None)`` if the gap never rises
-        above 0 (a bounce too small to resolve: the contact is taken as closed).
+        Returns ``(t, gap)`` there, or ``(None, None)`` if the gap never opens by more
+        than ``gap_tol`` (a bounce too small to resolve: the contact is taken as closed).
         """
-        def rate(t):
-            qt, vt = dense(t)
-            self.kin.update(qt, vt)
-            return float(self.contacts[i].rows(self.kin)[0] @ vt)
-        if not rate_a > 0.0 or rate(t_b) >= 0.0:
-            return None, None
-        t_peak = locate_crossing(rate, t_a, t_b, rate_a)
-        g_peak = gap(t_peak)
-        return (t_peak, g_peak) if g_peak > 0.0 else (None, None)
+        xatol = 4 * np.finfo(float).eps * max(1.0, abs(t_b))
+        peak = minimize_scalar(lambda t: -gap(t), bounds=(t_a, t_b), method="bounded",
+                               options={"xatol": xatol})
+        t_peak, g_peak = float(peak.x), -float(peak.fun)
+        return (t_peak, g_peak) if g_peak > self.gap_tol else (None, None)
 
     # -- events ---------------------------------------------------------------------
     def _event(self, t, q, v, mode, fired: list[_Guard]):
         touching = [g.contact for g in fired if g.kind == "gap"]
         releasing = [g.contact for g in fired if g.kind == "force"]
         if touching:
-            closed = sorted(set(mode) | set(touching))
+            # every contact closed at the instant takes part (DESIGN §2), also one whose
+            # guard did not fire within simultaneous_tol: left out, it would start the
+            # next step closed and be skipped by _crossings (no peak), i.e. penetrate
+            gaps, _ = self._gaps_and_rates(q, v)
+            near = [i for i, g in enumerate(gaps) if g <= self.gap_tol]
+            closed = sorted(set(mode) | set(touching) | set(near))
             return self._impact(t, q, v, mode, closed, touching, releasing)
         new_mode = choose_mode(self.dyn, q, v, t, [i for i in mode if i not in releasing])
-        self.events.append(Event(t, "lift-off", self._mode_names(releasing), len(releasing) > 1, q.copy(),
-                                 v.copy(), v.copy(), {}, self._mode_names(mode), self._mode_names(new_mode)))
+        event = Event(t, "lift-off", self._mode_names(releasing), len(releasing) > 1, q.copy(),
+                      v.copy(), v.copy(), {}, self._mode_names(mode), self._mode_names(new_mode))
+        if self.jacobian:
+            # guard: the normal force of the first releasing contact; with several at once
+            # (a simultaneous lift-off) each frictionless one has an identity saltation
+            xi = liftoff_saltation(self.dyn, t, q, v, mode, releasing[0], new_mode)
+            sol, der = self.dyn.solve(q, v, t, mode, derivatives=True)
+            row = sol.row_slices[mode.index(releasing[0])].start
+            Dh = np.concatenate([der.forces_dq[row], der.forces_dv[row]])
+            self._attach_sensitivity(event, xi, Dh, np.concatenate([v, sol.ddq]))
+        self.events.append(event)
         return new_mode, v
 
     def _impact(self, t, q, v_minus, mode, closed, touching, releasing=()):
@@ -356,10 +382,36 @@ class _HybridRun:
         else:
             kind = "bounce"
         impulses = {self.names[i]: float(x) for i, x in zip(closed, impact.impulses)}
-        self.events.append(Event(t, kind, self._mode_names(touching), len(touching) > 1, q.copy(),
-                                 v_minus.copy(), v_plus.copy(), impulses, self._mode_names(mode),
-                                 self._mode_names(new_mode), {self.names[i]: s for i, s in speeds.items()}))
+        event = Event(t, kind, self._mode_names(touching), len(touching) > 1, q.copy(),
+                      v_minus.copy(), v_plus.copy(), impulses, self._mode_names(mode),
+                      self._mode_names(new_mode), {self.names[i]: s for i, s in speeds.items()})
+        event.differentiable = not grazing
+        if self.jacobian:
+            F_minus = vector_field(self.dyn, q, v_minus, t, mode)
+            guard = min(touching, key=lambda i: speeds[i])
+            Dh = gap_gradient(self.dyn, q, guard)
+            if len(touching) > 1:
+                override = {i: e[closed.index(i)] for i in closed}
+                sim = simultaneous_saltation(self.dyn, t, q, v_minus, mode, touching, override)
+                xi = sim.matrix
+                event.differentiable = event.differentiable and sim.differentiable
+                event.saltation_orders = {self._mode_names(k): m for k, m in sim.orders.items()}
+                if not sim.differentiable:
+                    self.notes.append(
+                        f"not differentiable at t = {t:.12g}: the landing orders of "
+                        f"{', '.join(self.names[i] for i in touching)} give saltation matrices "
+                        f"differing by {sim.spread:.2e} (relative)")
+            else:
+                DR = impact_reset_jacobian(self.dyn, q, v_minus, impact)
+                xi = saltation(DR, Dh, F_minus, vector_field(self.dyn, q, v_plus, t, new_mode))
+            self._attach_sensitivity(event, xi, Dh, F_minus)
+        self.events.append(event)
         return new_mode, v_plus
+
+    def _attach_sensitivity(self, event: Event, xi: np.ndarray, Dh: np.ndarray, F_minus: np.ndarray) -> None:
+        """Saltation matrix and event-time gradient ``-Dh Φ- / (Dh F-)`` (implicit functions)."""
+        event.saltation = xi
+        event.time_gradient = -(Dh @ self.phi) / float(Dh @ F_minus)
 
     # -- constraint manifold ----------------------------------------------------------
     def _close(self, q, contacts):
@@ -388,7 +440,21 @@ class _HybridRun:
         A = np.vstack([self.contacts[i].rows(self.kin) for i in mode])
         chol = cho_factor(pin.crba(self.scene.model, self.dyn.data, q))
         MinvAT = cho_solve(chol, A.T)
-        v = stepper.v - MinvAT @ np.linalg.lstsq(A @ MinvAT, A @ stepper.v, rcond=None)[0]
-        stepper.restart(stepper.t, q, v)
+        pinv = MinvAT @ np.linalg.pinv(A @ MinvAT)  # M-orthogonal projector factor
+        v = stepper.v - pinv @ (A @ stepper.v)
+        phi = None
+        if self.jacobian:
+            # derivative of the projection (q, v) -> (q - P a(q), v - P A(q) v) on the manifold
+            nv = self.scene.nv
+            self.kin.update(q, v, derivatives=True)
+            normal = [0] + list(np.cumsum([self.contacts[i].n_rows for i in mode])[:-1])
+            dAv = np.vstack([self.contacts[i].rows_velocity_dq(self.kin) for i in mode])
+            D = np.eye(2 * nv)
+            pos = MinvAT[:, normal] @ np.linalg.pinv(A[normal] @ MinvAT[:, normal])
+            D[:nv, :nv] -= pos @ A[normal]
+            D[nv:, nv:] -= pinv @ A
+            D[nv:, :nv] -= pinv @ dAv
+            phi = D @ stepper.phi
+        stepper.restart(stepper.t, q, v, phi=phi)
         self.n_projections += 1
         return True

@@ -38,6 +38,14 @@ class Event:
         impulses: normal impulse of every contact closed at the event (N s).
         mode_before, mode_after: names of the active contacts.
         normal_speeds: ``A_i v-`` of the firing contacts (m/s, negative when closing).
+        saltation: saltation matrix Ξ (2nv × 2nv) when the Jacobian was asked for.
+        time_gradient: derivative of the event time with respect to the initial
+            state (2nv,), tangent space, when the Jacobian was asked for.
+        differentiable: False where the flow has only a piecewise-linear
+            (Bouligand) derivative: the landing orders of a simultaneous event
+            disagree, or a grazing touchdown.
+        saltation_orders: at a simultaneous touchdown, the saltation matrix of
+            every landing order (keys: contact names in landing order).
     """
 
     t: float
@@ -51,14 +59,25 @@ class Event:
     mode_before: tuple[str, ...]
     mode_after: tuple[str, ...]
     normal_speeds: dict[str, float] = field(default_factory=dict)
+    saltation: np.ndarray | None = None
+    time_gradient: np.ndarray | None = None
+    differentiable: bool = True
+    saltation_orders: dict | None = None
 
     def to_dict(self) -> dict:
-        return {
+        extra = {}
+        if self.saltation is not None:
+            extra["saltation"] = self.saltation.tolist()
+            extra["time_gradient"] = self.time_gradient.tolist()
+        if self.saltation_orders:
+            extra["saltation_orders"] = {" > ".join(k): m.tolist() for k, m in self.saltation_orders.items()}
+        return extra | {
             "t": self.t, "kind": self.kind, "contacts": list(self.contacts),
             "simultaneous": self.simultaneous, "q": self.q.tolist(),
             "v_minus": self.v_minus.tolist(), "v_plus": self.v_plus.tolist(),
             "impulses": dict(self.impulses), "mode_before": list(self.mode_before),
             "mode_after": list(self.mode_after), "normal_speeds": dict(self.normal_speeds),
+            "differentiable": self.differentiable,
         }
 
 
@@ -100,6 +119,7 @@ class Trajectory:
             projection, over the run (m).
         termination: why the run ended (``"t_final"`` normally).
         notes: human-readable remarks (Zeno ends, grazing, ...).
+        jacobian: ``d x(t) / d x0`` (2nv × 2nv, tangent space) if it was asked for.
     """
 
     scene_name: str
@@ -115,6 +135,12 @@ class Trajectory:
     max_drift: float = 0.0
     termination: str = "t_final"
     notes: list[str] = field(default_factory=list)
+    jacobian: np.ndarray | None = None
+
+    @property
+    def differentiable(self) -> bool:
+        """True unless some event has only a piecewise-linear derivative."""
+        return all(e.differentiable for e in self.events)
 
     @property
     def modes(self) -> list[tuple[str, ...]]:
@@ -155,7 +181,8 @@ class Trajectory:
             "modes": [list(m) for m in self.modes],
             "stats": dict(self.stats), "max_drift": self.max_drift,
             "termination": self.termination, "notes": list(self.notes),
-        }
+            "differentiable": self.differentiable,
+        } | ({"jacobian": self.jacobian.tolist()} if self.jacobian is not None else {})
 
     def save_json(self, path: str | Path) -> None:
         """Write `summary` as JSON."""
