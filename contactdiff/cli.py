@@ -70,6 +70,8 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--method", default="DOP853", choices=METHODS, help="stepper (default DOP853)")
     sim.add_argument("--rtol", type=float, default=1e-8, help="relative tolerance (default 1e-8)")
     sim.add_argument("--atol", type=float, default=1e-10, help="absolute tolerance (default 1e-10)")
+    sim.add_argument("--jacobian", action="store_true",
+                     help="also compute the flow Jacobian d x(T)/d x0 and every saltation matrix")
     sim.add_argument("--json", action="store_true", help="print the trajectory summary as JSON")
     sim.add_argument("--plot", metavar="PNG", help="draw contact gaps over time with events marked")
     sim.set_defaults(run=_run_simulate)
@@ -100,7 +102,8 @@ def _run_simulate(args) -> int:
     q0, v0 = _assignments(args.q, "--q"), _assignments(args.v, "--v")
     if q0 or v0:
         scene = scene.with_state(q0 or None, v0 or None)
-    traj = simulate(scene, args.t_final, method=args.method, rtol=args.rtol, atol=args.atol)
+    traj = simulate(scene, args.t_final, method=args.method, rtol=args.rtol, atol=args.atol,
+                    jacobian=args.jacobian)
     if args.plot:
         from .plotting import plot_gaps
 
@@ -140,7 +143,32 @@ def _format_trajectory(traj, scene) -> str:
     lines.append(f"steps {s['steps']} (rejected {s['rejected_steps']}), dynamics evaluations "
                  f"{s['dynamics_evaluations']}, largest active-gap drift {traj.max_drift:.2e} m")
     lines += [f"note: {n}" for n in traj.notes]
+    if traj.jacobian is not None:
+        lines += [""] + _format_jacobian(traj, scene)
     return "\n".join(lines)
+
+
+def _format_jacobian(traj, scene) -> list[str]:
+    import numpy as np
+
+    J = traj.jacobian
+    names = scene.robot.tangent_names()
+    labels = [f"dq[{n}]" for n in names] + [f"dv[{n}]" for n in names]
+    sv = np.linalg.svd(J, compute_uv=False)
+    lines = [f"flow Jacobian d x({traj.t:g}) / d x({traj.t0:g}): {J.shape[0]} x {J.shape[1]}, tangent space",
+             f"  2-norm {sv[0]:.6g}, condition number {sv[0] / sv[-1] if sv[-1] > 0 else float('inf'):.6g}",
+             "  largest entries:"]
+    order = np.argsort(-np.abs(J), axis=None)[:6]
+    for flat in order:
+        i, j = divmod(int(flat), J.shape[1])
+        lines.append(f"    d {labels[i]:<28} / d {labels[j]:<28} = {J[i, j]: .6g}")
+    lines.append("  events:")
+    for e in traj.events:
+        verdict = "differentiable" if e.differentiable else "NOT differentiable (piecewise-linear derivative)"
+        lines.append(f"    t = {e.t:.12f}  {e.kind:<9} {', '.join(e.contacts):<24} {verdict}")
+    lines.append("  the trajectory is " + ("differentiable" if traj.differentiable else
+                                          "NOT differentiable at some event (see notes)"))
+    return lines
 
 
 def _run_check(args) -> int:
