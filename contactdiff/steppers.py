@@ -24,8 +24,9 @@ Units and frames: time in the model's unit (s); ``q`` and ``v`` in Pinocchio's
 units and frames (m, rad, quaternion components; m/s and rad/s in each joint's
 local frame). The flow Jacobian ``phi`` (``2nv x m``) maps perturbations at the
 initial point to tangent perturbations ``(δq, δv)`` at the current point,
-``q ⊕ δq`` (Pinocchio's convention, DESIGN.md §2). Integration runs forward in
-time only.
+``q ⊕ δq`` (Pinocchio's convention, DESIGN.md §2); by default its local error
+is controlled together with the state's (``variational_error_control``).
+Integration runs forward in time only.
 
 Callbacks receive arrays that this module never modifies afterwards, so they
 may keep references to them (e.g. for caching).
@@ -399,6 +400,12 @@ def _rms(x: np.ndarray) -> float:
     return math.sqrt(float(np.vdot(x, x)) / x.size)
 
 
+def _rms_cols(x: np.ndarray) -> float:
+    """Largest RMS over the rows of a column of ``x`` (n x m); inf if not finite."""
+    err = math.sqrt(float(np.max(np.einsum("ij,ij->j", x, x))) / x.shape[0])
+    return err if math.isfinite(err) else math.inf
+
+
 # --------------------------------------------------------------------------
 # Base stepper
 # --------------------------------------------------------------------------
@@ -424,7 +431,28 @@ class Stepper:
         max_step: largest step (s).
         t_bound: steps never go beyond this time (s).
         variational: initial flow Jacobian ``phi`` (2nv x m) to propagate with
-            the same steps (no error control on it), or None.
+            the same steps, or None.
+        variational_error_control: with ``variational``, also control the
+            local error of ``phi`` ("full error control", as CVODES'
+            ``errconS``): every attempted step computes the stage increments
+            of ``phi``, forms the method's embedded error estimate for them and
+            is accepted only if both the state's and ``phi``'s error norms are
+            <= 1; the step size is chosen from the larger. Without it the steps
+            are chosen for the state alone, which can be far too long for
+            ``phi`` when the state is easy but its linearisation is not (a
+            spring at its rest length along the trajectory, free motion on a
+            Lie group). It never changes how ``phi`` is propagated (on vector
+            spaces ``phi`` stays the exact derivative of the discrete flow),
+            only which steps are accepted.
+        variational_atol: absolute tolerance of ``phi``, scalar or (2nv,) per
+            row; None uses ``atol`` per row. Each column of ``phi`` is the
+            response ``(δq, δv)`` to a unit initial perturbation, so its rows
+            carry the state's units and the state's ``atol`` is the natural
+            absolute floor (CVODES' default ``atolS = atol / pbar`` with
+            ``pbar = 1``). The error of ``phi`` is the RMS over the rows of
+            each column of its local error divided by
+            ``variational_atol + rtol * |phi|`` (entrywise), maximised over
+            the columns (CVODES' norm for a set of sensitivities).
 
     Attributes:
         t, q, v, phi: current time, state and flow Jacobian (phi None if off).
@@ -451,6 +479,8 @@ class Stepper:
         max_step: float = np.inf,
         t_bound: float = np.inf,
         variational=None,
+        variational_error_control: bool = True,
+        variational_atol=None,
     ) -> None:
         if not callable(accel):
             raise InvalidInputError(f"accel must be callable accel(t, q, v), got {accel!r}")
@@ -483,6 +513,17 @@ class Stepper:
         self.t_bound = _scalar("t_bound", t_bound, allow_inf=True)
         if self.t_bound < t0:
             raise InvalidInputError(f"t_bound must be >= t0 = {t0!r} (forward integration only), got {t_bound!r}")
+        self.variational_error_control = bool(variational_error_control)
+        if variational_atol is None:
+            self._atol_phi = self.atol if atol_arr.ndim == 0 else self.atol[:, None]
+        else:
+            va = np.array(variational_atol, dtype=float)
+            if va.shape not in ((), (self.n,)):
+                raise InvalidInputError(
+                    f"variational_atol must be a scalar or have shape ({self.n},), got shape {va.shape}")
+            if not (np.isfinite(va).all() and (va > 0).all()):
+                raise InvalidInputError(f"variational_atol must be positive and finite, got {variational_atol!r}")
+            self._atol_phi = float(va) if va.ndim == 0 else va[:, None]
         self.t = t0
         self.phi = None if variational is None else self._check_phi(variational)
 
@@ -712,6 +753,28 @@ class Stepper:
         A[nv:, nv:] = Jv
         return A
 
+    def _stage_df(self, t: float, q: np.ndarray, v: np.ndarray):
+        """``(J_q, J_v, G)`` of the tangent-space field at a point; ``G = -ad(v)`` (None on vector spaces)."""
+        Jq, Jv = self._call_jac(t, q, v)
+        return Jq, Jv, None if self._vs else self.group.velocity_jacobian_q(q, v)
+
+    def _df_apply(self, df, P: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """``[[G, I], [J_q, J_v]] @ P`` for ``df = (J_q, J_v, G)``, into ``out`` if given."""
+        Jq, Jv, G = df
+        nv = self.nv
+        if out is None:
+            out = np.empty(P.shape)
+        top, bot = P[:nv], P[nv:]
+        out[:nv] = bot
+        if G is not None:
+            out[:nv] += G @ top
+        out[nv:] = Jq @ top + Jv @ bot
+        return out
+
+    def _phi_scale(self, P0: np.ndarray, P1: np.ndarray) -> np.ndarray:
+        """Entrywise ``variational_atol + rtol * max(|phi_n|, |phi_n+1|)``."""
+        return self._atol_phi + self.rtol * np.maximum(np.abs(P0), np.abs(P1))
+
     def _initial_step(self) -> float:
         """Hairer–Nørsett–Wanner's starting step (as scipy's ``select_initial_step``)."""
         interval = self.t_bound - self.t
@@ -775,6 +838,13 @@ class ExplicitRK(Stepper):
     the variational equation, ``K_i = DF(x_i) (phi_n + h sum_j a_ij K_j)`` with
     ``DF`` at each stage's state (for vector spaces this is the exact
     derivative of the discrete step).
+
+    With ``variational_error_control`` these stage increments are computed in
+    every attempt whose state error passes (a rejection on the state alone
+    costs no Jacobian), and the pair's embedded error formula is applied to
+    them. ``DF`` at the step's start is evaluated once per step (not once per
+    attempt); when the error formula weights the FSAL stage (RK45) its
+    ``DF(x_{n+1})`` is reused as the next step's first stage.
     """
 
     A: np.ndarray
@@ -788,6 +858,13 @@ class ExplicitRK(Stepper):
         self._dense_cache: DenseOutput | None = None
         self._f_old = self._y_old = self._qc_old = self._y_end = None
         self._h_last = 0.0
+        self._KP: np.ndarray | None = None  # stage increments of phi, (n_stages + 1, n, m)
+        self._df_start = None  # DF at the current point (t, y), when known
+        # stages the error formula uses: the FSAL stage only if it has a nonzero weight
+        self._n_err = self.n_stages + int(any(e[self.n_stages] != 0 for e in self._error_weights()))
+
+    def _error_weights(self) -> tuple[np.ndarray, ...]:
+        return (self.E,)
 
     def _stages(self, t: float, y: np.ndarray, h: float, qc):
         """Stages of one attempt; ``K[n_stages]`` is ``F(t + h, y_new)`` (FSAL)."""
@@ -818,6 +895,27 @@ class ExplicitRK(Stepper):
     def _error_norm(self, h: float, K: np.ndarray, scale: np.ndarray) -> float:
         return _rms(h * (self.E @ K[: self.n_stages + 1]) / scale)
 
+    def _phi_error_norm(self, h: float, KP: np.ndarray, scale: np.ndarray) -> float:
+        """`_error_norm` applied to each column of phi's stage increments (max over columns)."""
+        ne = self._n_err
+        return _rms_cols(np.tensordot(h * self.E[:ne], KP[:ne], axes=1) / scale)
+
+    def _controlled_variational(self, t, h, ys, qs, t_new, y_new, q_new):
+        """phi_{n+1} of an attempt and its error norm; the end point's DF, if evaluated, is kept."""
+        P0, nv, ns = self.phi, self.nv, self.n_stages
+        KP = self._KP
+        if KP is None or KP.shape[2] != P0.shape[1]:
+            KP = self._KP = np.empty((ns + 1, self.n, P0.shape[1]))
+        if self._df_start is None:
+            self._df_start = self._stage_df(t, qs[0], ys[0][nv:])
+        phi_new = self._variational(t, h, ys, qs, P0, KP, self._df_start)
+        df_end = None
+        if self._n_err > ns:
+            df_end = self._stage_df(t_new, q_new, y_new[nv:])
+            self._df_apply(df_end, phi_new, KP[ns])
+        err = self._phi_error_norm(h, KP, self._phi_scale(P0, phi_new))
+        return phi_new, err, df_end
+
     def step(self) -> None:
         min_step, h_abs = self._begin_step()
         t, y = self.t, self._y
@@ -826,6 +924,8 @@ class ExplicitRK(Stepper):
         K[0] = self._f
         mag_n = self._mag(y, qc)
         exponent = -1.0 / (self.error_order + 1)
+        control = self.phi is not None and self.variational_error_control
+        phi_new = df_end = None
         rejected = False
         while True:
             if h_abs < min_step:
@@ -840,6 +940,9 @@ class ExplicitRK(Stepper):
                     self._nonfinite_stage(t + self.C[s] * h if s < ns else t_new,
                                           ys[s] if s < ns else y_new, K[s, nv:])
                 err = math.inf  # overflow of a too-large step: reject it
+            if control and err < 1.0:
+                phi_new, err_phi, df_end = self._controlled_variational(t, h, ys, qs, t_new, y_new, q_new)
+                err = max(err, err_phi)
             if err < 1.0:
                 factor = _MAX_FACTOR if err == 0 else min(_MAX_FACTOR, _SAFETY * err**exponent)
                 if rejected:
@@ -850,7 +953,9 @@ class ExplicitRK(Stepper):
             rejected = True
             self.n_rejected += 1
 
-        phi_new = None if self.phi is None else self._variational(t, h, ys, qs, self.phi)
+        if self.phi is not None and not control:
+            phi_new = self._variational(t, h, ys, qs, self.phi)
+        self._df_start = df_end  # DF at the new point if the error formula needed it, else unknown
         # Kept for dense output and truncate(): the step's start, its chart and its end in that chart.
         self._y_old, self._f_old, self._qc_old, self._h_last, self._y_end = y, self._f, qc, h, y_new
         self._dense_cache = None
@@ -858,20 +963,18 @@ class ExplicitRK(Stepper):
         self.phi = phi_new
         self.h_abs = h_abs
 
-    def _variational(self, t: float, h: float, ys, qs, P0: np.ndarray) -> np.ndarray:
+    def _variational(self, t: float, h: float, ys, qs, P0: np.ndarray, KP: np.ndarray | None = None,
+                     df0=None) -> np.ndarray:
+        """phi_{n+1}; the stage increments go to ``KP[:n_stages]``; ``df0``: DF at the first stage if known."""
         nv, ns = self.nv, self.n_stages
         hA, hB, C = h * self.A, h * self.B, self.C
-        KP = np.empty((ns, self.n, P0.shape[1]))
+        if KP is None:
+            KP = np.empty((ns, self.n, P0.shape[1]))
         for s in range(ns):
             Ps = P0 + np.tensordot(hA[s, :s], KP[:s], axes=1) if s else P0
-            q_s, v_s = qs[s], ys[s][nv:]
-            Jq, Jv = self._call_jac(t + C[s] * h, q_s, v_s)
-            top, bot = Ps[:nv], Ps[nv:]
-            KP[s, :nv] = bot
-            if not self._vs:
-                KP[s, :nv] += self.group.velocity_jacobian_q(q_s, v_s) @ top
-            KP[s, nv:] = Jq @ top + Jv @ bot
-        return P0 + np.tensordot(hB, KP, axes=1)
+            df = df0 if s == 0 and df0 is not None else self._stage_df(t + C[s] * h, qs[s], ys[s][nv:])
+            self._df_apply(df, Ps, KP[s])
+        return P0 + np.tensordot(hB, KP[:ns], axes=1)
 
     def _redo_variational(self, h: float) -> np.ndarray:
         self._K[0] = self._f_old
@@ -891,8 +994,12 @@ class ExplicitRK(Stepper):
         """Monomial coefficients (degree x n) of the step's interpolant, x in [0, 1]."""
         raise NotImplementedError
 
+    def _after_truncate(self) -> None:
+        self._df_start = None
+
     def _after_restart(self) -> None:
         self._dense_cache = None
+        self._df_start = None
 
 
 class RK45(ExplicitRK):
@@ -930,6 +1037,9 @@ class DOP853(ExplicitRK):
     E5 = _dop.E5
     D = _dop.D
 
+    def _error_weights(self) -> tuple[np.ndarray, ...]:
+        return (self.E5, self.E3)
+
     def _error_norm(self, h: float, K: np.ndarray, scale: np.ndarray) -> float:
         Ks = K[: self.n_stages + 1]
         err5 = (self.E5 @ Ks) / scale
@@ -939,6 +1049,20 @@ class DOP853(ExplicitRK):
         if e5 == 0.0 and e3 == 0.0:
             return 0.0
         return abs(h) * e5 / math.sqrt((e5 + 0.01 * e3) * self.n)
+
+    def _phi_error_norm(self, h: float, KP: np.ndarray, scale: np.ndarray) -> float:
+        """Hairer's 5(3) combination per column of phi (RMS over its rows), max over columns."""
+        ne = self._n_err
+        err5 = np.tensordot(self.E5[:ne], KP[:ne], axes=1) / scale
+        err3 = np.tensordot(self.E3[:ne], KP[:ne], axes=1) / scale
+        e5 = np.einsum("ij,ij->j", err5, err5)
+        den = (e5 + 0.01 * np.einsum("ij,ij->j", err3, err3)) * self.n
+        if not np.isfinite(den).all():
+            return math.inf
+        pos = den > 0.0
+        if not pos.any():
+            return 0.0
+        return abs(h) * float(np.max(e5[pos] / np.sqrt(den[pos])))
 
     def _dense_coef(self) -> np.ndarray:
         K, h, y_old, qc = self._K, self._h_last, self._y_old, self._qc_old
@@ -1024,6 +1148,19 @@ class Radau(Stepper):
     ``(I - h (A ⊗ I) diag(DF_j)) dY = 1 ⊗ phi_n``, ``phi_{n+1} = dY_3``, with
     ``DF_j`` at the converged stages (a dense solve of size 6nv).
 
+    That is Radau IIA applied to the linear ODE ``phi' = DF(t) phi`` (``DF``
+    sampled at the stages), so with ``variational_error_control`` its own
+    embedded estimator applies unchanged to the stage increments
+    ``dZ_i = dY_i - phi_n``: ``err_phi = (gamma/h I - J)^-1 (DF_n phi_n +
+    sum_i e_i dZ_i / h)``, with the state's LU factors, its filtered variant
+    after a rejection, and ``DF_n`` the exact Jacobian at the step's start
+    (the previous step's last stage, so no extra evaluation). It is what the
+    state's estimator gives for the augmented system ``(y, phi)`` with the
+    block-diagonal Newton matrix; ``J`` only filters the estimate, the
+    cancellation to ``O(h^4)`` is in the bracket. The 6nv solve and the three
+    stage Jacobians are then done per attempt (only for attempts whose state
+    error passes) instead of per accepted step.
+
     Attributes:
         n_lu: number of LU factorisations (pairs).
     """
@@ -1040,6 +1177,7 @@ class Radau(Stepper):
         self._sol: DenseOutput | None = None
         self._h_abs_old = self._err_old = None
         self._y_old = self._qc_old = self._Z = None
+        self._df_start = None  # (J_q, J_v, G) at the current point, when known
 
     # -- linear algebra on (alpha I - [[0, I], [J_q, J_v]]) --------------------
 
@@ -1058,13 +1196,21 @@ class Radau(Stepper):
         h, (Jq, _), lur, pivr, luc, pivc, _ = self._lu
         nv = self.nv
         r1, r2 = r[:nv], r[nv:]
-        if real:
+        if real and r.ndim == 2:  # phi's error estimate: one column at a time, because
+            # OpenBLAS threads getrs with several right-hand sides, which costs ~0.1 ms a
+            # call on small busy machines (10x the whole step in tests)
+            alpha = _MU_REAL / h
+            b = alpha * r2 + Jq @ r1
+            w = np.empty_like(b)
+            for j in range(b.shape[1]):
+                w[:, j] = dgetrs(lur, pivr, b[:, j])[0]
+        elif real:
             alpha = _MU_REAL / h
             w, _ = dgetrs(lur, pivr, alpha * r2 + Jq @ r1)
         else:
             alpha = _MU_COMPLEX / h
             w, _ = zgetrs(luc, pivc, alpha * r2 + Jq @ r1)
-        x = np.empty(self.n, dtype=w.dtype)
+        x = np.empty(r.shape, dtype=w.dtype)
         x[:nv] = (r1 + w) / alpha
         x[nv:] = w
         return x
@@ -1144,6 +1290,8 @@ class Radau(Stepper):
             h_abs, h_abs_old, err_old = self.h_abs, self._h_abs_old, self._err_old
         mag_n = self._mag(y, qc)
         scale_newton = self.atol + self.rtol * mag_n
+        control = self.phi is not None and self.variational_error_control
+        phi_new = J_end = df_end = None
         rejected = False
         while True:
             if h_abs < min_step:
@@ -1178,6 +1326,10 @@ class Radau(Stepper):
                     err = _rms(self._solve(fe + ZE, True) / scale)
             if not math.isfinite(err):
                 err = math.inf
+            if control and err <= 1:
+                phi_new, df_end, err_phi = self._controlled_variational(t, h, y, Z, qc, rejected)
+                J_end = df_end[:2]
+                err = max(err, err_phi)
             if err > 1:
                 factor = _predict_factor(h_abs, h_abs_old, err, err_old)
                 h_abs *= max(_MIN_FACTOR, safety * factor if math.isfinite(err) else 0.0)
@@ -1195,10 +1347,10 @@ class Radau(Stepper):
         a_new = np.asarray(self.accel(t_new, q_new, y_new[nv:]), dtype=float)
         self.n_accel += 1
         self._nonfinite_stage(t_new, y_new, a_new)
-        phi_new = None
-        J_end = None
-        if self.phi is not None:
+        if self.phi is not None and not control:
             phi_new, J_end = self._variational(t, h, y, Z, qc, self.phi)
+        # the last stage is the new point: its DF starts phi's next error estimate
+        self._df_start = df_end if control else None
         if recompute_jac:
             self._J = J_end if J_end is not None else self._call_jac(t_new, q_new, y_new[nv:])
             self._current_jac = True
@@ -1212,26 +1364,45 @@ class Radau(Stepper):
         self.h_abs = h_abs * factor
         self._sol = DenseOutput(t, t_new, h, y, _RP.T @ Z, None if self._vs else self.group, qc, nv)
 
-    def _variational(self, t: float, h: float, y: np.ndarray, Z: np.ndarray, qc, P0: np.ndarray):
-        """Differentiate the stage equations; return (phi_{n+1}, (J_q, J_v) at the last stage)."""
+    def _variational_stages(self, t: float, h: float, y: np.ndarray, Z: np.ndarray, qc, P0: np.ndarray):
+        """Differentiate the stage equations; return (dY (3, n, m), (J_q, J_v, G) at the last stage)."""
         nv, n = self.nv, self.n
         M = np.eye(3 * n)
-        J_end = None
+        DF = np.zeros((n, n))
+        DF[:nv, nv:] = np.eye(nv)
+        df = None
         for j in range(3):
             Yj = y + Z[j]
             qj = Yj[:nv] if qc is None else self.group.integrate(qc, Yj[:nv])
-            vj = Yj[nv:]
-            Jq, Jv = self._call_jac(t + _RC[j] * h, qj, vj)
-            DF = np.zeros((n, n))
-            DF[:nv, nv:] = np.eye(nv)
-            if qc is not None:
-                DF[:nv, :nv] = self.group.velocity_jacobian_q(qj, vj)
-            DF[nv:, :nv], DF[nv:, nv:] = Jq, Jv
+            df = self._stage_df(t + _RC[j] * h, qj, Yj[nv:])
+            if df[2] is not None:
+                DF[:nv, :nv] = df[2]
+            DF[nv:, :nv], DF[nv:, nv:] = df[0], df[1]
             for i in range(3):
                 M[i * n : (i + 1) * n, j * n : (j + 1) * n] -= (h * _RA[i, j]) * DF
-            J_end = (Jq, Jv)
         dY = np.linalg.solve(M, np.tile(P0, (3, 1)))
-        return dY[2 * n :], J_end
+        return dY.reshape(3, n, P0.shape[1]), df
+
+    def _variational(self, t: float, h: float, y: np.ndarray, Z: np.ndarray, qc, P0: np.ndarray):
+        """Return (phi_{n+1}, (J_q, J_v) at the last stage)."""
+        dY, df = self._variational_stages(t, h, y, Z, qc, P0)
+        return dY[2], df[:2]
+
+    def _controlled_variational(self, t: float, h: float, y: np.ndarray, Z: np.ndarray, qc, rejected: bool):
+        """phi_{n+1} of an attempt, (J_q, J_v) at its end and phi's error norm (Radau's estimator)."""
+        P0 = self.phi
+        dY, df_end = self._variational_stages(t, h, y, Z, qc, P0)
+        phi_new = dY[2]
+        if self._df_start is None:
+            self._df_start = self._stage_df(t, self.q, self.v)
+        df_n = self._df_start
+        ZE = np.tensordot(_RE / h, dY - P0, axes=1)
+        err_vec = self._solve(self._df_apply(df_n, P0) + ZE, True)
+        scale = self._phi_scale(P0, phi_new)
+        err = _rms_cols(err_vec / scale)
+        if rejected and err > 1:  # linearisation of the state's filtered estimate
+            err = _rms_cols(self._solve(self._df_apply(df_n, P0 + err_vec) + ZE, True) / scale)
+        return phi_new, df_end, err
 
     def _redo_variational(self, h: float) -> np.ndarray:
         t, y, qc = self.t_old, self._y_old, self._qc_old
@@ -1255,7 +1426,11 @@ class Radau(Stepper):
             raise InvalidInputError("dense() needs a step taken since the last (re)start")
         return self._sol
 
+    def _after_truncate(self) -> None:
+        self._df_start = None
+
     def _after_restart(self) -> None:
+        self._df_start = None
         self._sol = None
         self._h_abs_old = self._err_old = None
         self._J = self._call_jac(self.t, self.q, self.v)
