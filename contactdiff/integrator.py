@@ -192,19 +192,33 @@ class _HybridRun:
 
     # -- start ----------------------------------------------------------------------
     def _initial_mode(self, q, v):
-        """Consistent mode at t0: closed contacts that approach get an impact first."""
+        """Consistent mode at t0.
+
+        Closed contacts that approach, and closed sticking contacts that slide, take
+        an impact first (restitution on the normal, tangential velocity stopped).
+        Otherwise the closed, non-separating contacts choose the mode, and the tiny
+        row velocities they may have (at most ``grazing_speed``) are removed.
+        """
         gaps, rates = self._gaps_and_rates(q, v)
         closed = [i for i, g in enumerate(gaps) if g <= self.gap_tol]
         if not closed:
             return (), v
-        if any(rates[i] < -self.grazing_speed for i in closed):
+        self.kin.update(q, v)
+        sliding = [i for i in closed if self.contacts[i].n_rows > 1
+                   and np.max(np.abs(self.contacts[i].rows(self.kin)[1:] @ v)) > self.grazing_speed]
+        if any(rates[i] < -self.grazing_speed for i in closed) or sliding:
             if self.jacobian:
                 self.phi = np.eye(2 * self.scene.nv)
-            mode, v_plus = self._impact(self.t0, q, v, (), closed, closed)
+            mode, v_plus = self._impact(self.t0, q, v, (), closed, closed, initial=True)
             self.initial_saltation = self.events[-1].saltation
             return mode, v_plus
         candidates = [i for i in closed if rates[i] <= self.grazing_speed]
-        return choose_mode(self.dyn, q, v, self.t0, candidates), v
+        mode = choose_mode(self.dyn, q, v, self.t0, candidates)
+        if mode:
+            A = np.vstack([self.contacts[i].rows(self.kin) for i in mode])
+            MinvAT = cho_solve(cho_factor(pin.crba(self.scene.model, self.dyn.data, q)), A.T)
+            v = v - MinvAT @ np.linalg.lstsq(A @ MinvAT, A @ v, rcond=None)[0]
+        return mode, v
 
     # -- the loop -------------------------------------------------------------------
     def run(self) -> Trajectory:
@@ -315,14 +329,19 @@ class _HybridRun:
     def _peak(self, gap, t_a, t_b):
         """Highest point of a gap that starts closed at ``t_a`` and is negative at ``t_b``.
 
-        Returns ``(t, gap)`` there, or ``(None, None)`` if the gap never opens by more
-        than ``gap_tol`` (a bounce too small to resolve: the contact is taken as closed).
+        Returns ``(t, gap)`` there, or ``(None, None)`` if the gap never opens (rises
+        above 0). A peak in (0, gap_tol] is still a real bounce that comes back: skipping
+        it would leave the contact out of the mode, and it would fall through the
+        ground (e.g. a ball bounce at 1.2e-6 m/s under g = 1 peaks at 7e-13 m); the
+        Zeno rule ends such sequences instead.
         """
+        # search in s = t - t_a: the bounded method's tolerance includes
+        # sqrt(eps) |x|, which in absolute time (t ~ 300) exceeds a whole short flight
         xatol = 4 * np.finfo(float).eps * max(1.0, abs(t_b))
-        peak = minimize_scalar(lambda t: -gap(t), bounds=(t_a, t_b), method="bounded",
+        peak = minimize_scalar(lambda s: -gap(t_a + s), bounds=(0.0, t_b - t_a), method="bounded",
                                options={"xatol": xatol})
-        t_peak, g_peak = float(peak.x), -float(peak.fun)
-        return (t_peak, g_peak) if g_peak > self.gap_tol else (None, None)
+        t_peak, g_peak = t_a + float(peak.x), -float(peak.fun)
+        return (t_peak, g_peak) if g_peak > 0.0 else (None, None)
 
     # -- events ---------------------------------------------------------------------
     def _event(self, t, q, v, mode, fired: list[_Guard]):
@@ -350,11 +369,13 @@ class _HybridRun:
         self.events.append(event)
         return new_mode, v
 
-    def _impact(self, t, q, v_minus, mode, closed, touching, releasing=()):
+    def _impact(self, t, q, v_minus, mode, closed, touching, releasing=(), initial=False):
+        """Impact of the ``closed`` contacts, ``touching`` being those whose guard fired
+        (at the start, ``initial``: all closed contacts, with no guard and no grazing)."""
         q = self._close(q, closed)
         self.kin.update(q, v_minus)
         speeds = {i: float(self.contacts[i].rows(self.kin)[0] @ v_minus) for i in touching}
-        grazing = [i for i in touching if abs(speeds[i]) <= self.grazing_speed]
+        grazing = [] if initial else [i for i in touching if abs(speeds[i]) <= self.grazing_speed]
         if grazing and self.on_grazing == "raise":
             raise GrazingError(
                 f"grazing touchdown of {', '.join(self.names[i] for i in grazing)} at t = {t:.17g}: "
@@ -386,7 +407,11 @@ class _HybridRun:
                       v_minus.copy(), v_plus.copy(), impulses, self._mode_names(mode),
                       self._mode_names(new_mode), {self.names[i]: s for i, s in speeds.items()})
         event.differentiable = not grazing
-        if self.jacobian:
+        if self.jacobian and initial:
+            # no guard at t0: perturbations keep the start time, only the reset acts
+            event.saltation = impact_reset_jacobian(self.dyn, q, v_minus, impact)
+            event.time_gradient = np.zeros(2 * self.scene.nv)
+        elif self.jacobian:
             F_minus = vector_field(self.dyn, q, v_minus, t, mode)
             guard = min(touching, key=lambda i: speeds[i])
             Dh = gap_gradient(self.dyn, q, guard)
