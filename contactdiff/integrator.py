@@ -61,6 +61,7 @@ class TooManyEventsError(IntegrationError):
 
 _GRAZING_MODES = ("event", "raise")
 _SPEED_TOL = 1e-12  # m/s: a post-impact normal speed below this (scaled) counts as zero
+_DIP_FRACTION = 0.5  # search a step for a dip when its Hermite minimum is below this share of the end gaps
 
 
 @dataclass
@@ -303,12 +304,14 @@ class _HybridRun:
                 t_hi, g_hi = t_b, gaps1[i]
             else:
                 s, low = hermite_minimum(gaps0[i], rates0[i], gaps1[i], rates1[i], t_b - t_a)
-                if not (low < 0.0 and 0.0 < s < 1.0):
+                # an interior minimum that comes close to the ground relative to the end
+                # gaps may dip below it: the cubic from end-point data alone can miss a
+                # shallow dip, so search the step's own dense output for its minimum
+                if not (0.0 < s < 1.0 and low < _DIP_FRACTION * min(gaps0[i], gaps1[i])):
                     continue
-                t_hi = t_a + s * (t_b - t_a)
-                g_hi = gap(t_hi)
+                t_hi, g_hi = self._lowest(gap, t_a, t_b)
                 if g_hi >= 0.0:
-                    continue  # the interpolant dipped, the solution did not
+                    continue
             if g_lo <= self.gap_tol:
                 # the contact has just opened (bounce or lift-off): its gap starts at 0
                 # going up; a new touchdown needs the gap to rise above 0 and come back
@@ -326,6 +329,16 @@ class _HybridRun:
             found.append((locate_crossing(force, t_a, t_b, forces0[k], forces1[k]), _Guard("force", i)))
         return found
 
+    @staticmethod
+    def _lowest(gap, t_a, t_b):
+        """Lowest point of ``gap`` on the dense output of one step (bounded Brent),
+        searched in time relative to the step start: the bounded method's tolerance
+        includes sqrt(eps) |x|, which in absolute time (t ~ 300) exceeds a short flight."""
+        xatol = 4 * np.finfo(float).eps * max(1.0, abs(t_b))
+        low = minimize_scalar(lambda s: gap(t_a + s), bounds=(0.0, t_b - t_a), method="bounded",
+                              options={"xatol": xatol})
+        return t_a + float(low.x), float(low.fun)
+
     def _peak(self, gap, t_a, t_b):
         """Highest point of a gap that starts closed at ``t_a`` and is negative at ``t_b``.
 
@@ -335,13 +348,8 @@ class _HybridRun:
         ground (e.g. a ball bounce at 1.2e-6 m/s under g = 1 peaks at 7e-13 m); the
         Zeno rule ends such sequences instead.
         """
-        # search in s = t - t_a: the bounded method's tolerance includes
-        # sqrt(eps) |x|, which in absolute time (t ~ 300) exceeds a whole short flight
-        xatol = 4 * np.finfo(float).eps * max(1.0, abs(t_b))
-        peak = minimize_scalar(lambda s: -gap(t_a + s), bounds=(0.0, t_b - t_a), method="bounded",
-                               options={"xatol": xatol})
-        t_peak, g_peak = t_a + float(peak.x), -float(peak.fun)
-        return (t_peak, g_peak) if g_peak > 0.0 else (None, None)
+        t_peak, low = self._lowest(lambda t: -gap(t), t_a, t_b)
+        return (t_peak, -low) if -low > 0.0 else (None, None)
 
     # -- events ---------------------------------------------------------------------
     def _event(self, t, q, v, mode, fired: list[_Guard]):

@@ -1,0 +1,65 @@
+"""Guard helpers and double crossings inside one step."""
+
+import numpy as np
+import pytest
+
+import contactdiff as cd
+from contactdiff.events import hermite_minimum, locate_crossing, simultaneous_group
+
+
+def test_hermite_minimum_of_an_exact_cubic():
+    """g(t) = (t - 0.3)(t - 0.6)(t + 1) on [0, 1]: the Hermite interpolant of a cubic
+    is the cubic, whose interior minimum is at the root of g' in (0.3, 0.6)."""
+    g = np.poly1d(np.poly([0.3, 0.6, -1.0]))
+    dg = g.deriv()
+    s, value = hermite_minimum(g(0), dg(0), g(1), dg(1), 1.0)
+    s_exact = [r for r in dg.r if 0.3 < r < 0.6][0]
+    assert s == pytest.approx(s_exact, abs=1e-12)
+    assert value == pytest.approx(g(s_exact), abs=1e-12) and value < 0
+
+
+def test_hermite_minimum_scales_with_the_step():
+    """Same curve over a step of length h: rates are per second, so d0 h is the slope in s."""
+    h = 0.01
+    s, value = hermite_minimum(1.0, -300.0, 1.0, 300.0, h)  # p(s) = 1 - 3 s (1 - s) ... dips to 0.25
+    assert s == pytest.approx(0.5) and value == pytest.approx(1 - 0.75, abs=1e-12)
+
+
+def test_no_dip_when_monotone():
+    s, value = hermite_minimum(1.0, 1.0, 2.0, 1.0, 1.0)
+    assert s == 0.0 and value == 1.0
+
+
+def test_locate_crossing_to_full_precision():
+    t = locate_crossing(lambda t: np.cos(t), 0.0, 3.0)
+    assert abs(t - np.pi / 2) <= 4 * np.finfo(float).eps * 3
+
+
+def test_locate_crossing_needs_a_bracket():
+    with pytest.raises(ValueError, match="no bracket"):
+        locate_crossing(lambda t: 1.0 + t, 0.0, 1.0)
+
+
+def test_simultaneous_group():
+    t, group = simultaneous_group([(1.0 + 5e-10, "b"), (1.0, "a"), (1.1, "c")], tol=1e-9)
+    assert t == 1.0 and group == ["a", "b"]
+
+
+@pytest.mark.parametrize("rtol", [1e-3, 1e-6])
+def test_a_dip_below_the_ground_inside_one_step_is_found(rtol):
+    """A ball on a spring (k = 100, rest 0.5, no gravity) from z = 0.5 with speed
+    -5.0005: z(t) = 0.5 - 0.50005 sin(10 t) dips to -5e-5 for 2.8 ms. The same run
+    without the contact shows that no step ends inside the dip (both ends of the
+    step above ground), yet the touchdown is found, at sin(10 t) = 0.5 / 0.50005."""
+    robot = cd.load_robot("ball")
+    spring = [cd.JointSpring("z", stiffness=100.0, rest=0.5)]
+    state = dict(gravity=[0, 0, 0], q0={"z": 0.5}, v0={"z": -5.0005})
+    t_in = np.arcsin(0.5 / 0.50005) / 10
+    t_out = (np.pi - np.arcsin(0.5 / 0.50005)) / 10
+    free = cd.simulate(cd.Scene(robot, [], spring, **state), 0.2, rtol=rtol, atol=rtol * 1e-2)
+    ends = [p.t for seg in free.segments for p in seg.pieces]
+    assert not any(t_in <= t <= t_out for t in ends)
+    scene = cd.Scene(robot, [cd.Contact("ball", restitution=1.0)], spring, **state)
+    traj = cd.simulate(scene, 0.2, rtol=rtol, atol=rtol * 1e-2)
+    assert [e.kind for e in traj.events] == ["bounce"]
+    assert traj.events[0].t == pytest.approx(t_in, abs=1e3 * rtol)
