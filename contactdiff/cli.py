@@ -130,11 +130,7 @@ def _format_trajectory(traj, scene) -> str:
         lines.append("")
     lines.append("final state")
     names = scene.robot.tangent_names()
-    labels = []
-    for jid in range(1, scene.model.njoints):
-        n, nq = scene.model.names[jid], scene.model.joints[jid].nq
-        labels += [n] if nq == 1 else [f"{n}[{k}]" for k in range(nq)]
-    for label, x in zip(labels, traj.q):
+    for label, x in zip(scene.robot.configuration_names(), traj.q):
         lines.append(f"  q {label:<24} {x: .12g}")
     for label, x in zip(names, traj.v):
         lines.append(f"  v {label:<24} {x: .12g}")

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import InvalidInputError
+from .errors import InvalidInputError, check_number
 from .kinematics import Kinematics
 from .robot import Robot
 
@@ -24,16 +24,6 @@ FRICTION_MODES = ("none", "stick")
 """``none``: frictionless, one row. ``stick``: no slip while active, three rows."""
 
 _ROW_TOL = 1e-12  # a row whose Jacobian is this small everywhere cannot act (m per unit q)
-
-
-def _finite(name: str, value, *, owner: str) -> float:
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise InvalidInputError(f"{owner}: {name} must be a number, got {value!r}") from None
-    if not np.isfinite(x):
-        raise InvalidInputError(f"{owner}: {name} must be finite, got {value!r}")
-    return x
 
 
 def _unit_vector(value, *, owner: str) -> tuple[float, float, float]:
@@ -76,8 +66,8 @@ class Contact:
         set_ = object.__setattr__  # frozen dataclass: normalise in place once
         set_(self, "name", self.name or self.frame)
         set_(self, "normal", _unit_vector(self.normal, owner=owner))
-        set_(self, "offset", _finite("offset", self.offset, owner=owner))
-        e = _finite("restitution", self.restitution, owner=owner)
+        set_(self, "offset", check_number(owner, "offset", self.offset))
+        e = check_number(owner, "restitution", self.restitution)
         if not 0.0 <= e <= 1.0:
             raise InvalidInputError(f"{owner}: restitution must be in [0, 1], got {e!r}")
         set_(self, "restitution", e)

@@ -18,21 +18,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import InvalidInputError
+from .errors import InvalidInputError, check_number
 from .kinematics import Kinematics
 from .robot import Robot
-
-
-def _parameter(owner: str, name: str, value, *, minimum: float | None = 0.0) -> float:
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise InvalidInputError(f"{owner}: {name} must be a number, got {value!r}") from None
-    if not np.isfinite(x):
-        raise InvalidInputError(f"{owner}: {name} must be finite, got {value!r}")
-    if minimum is not None and x < minimum:
-        raise InvalidInputError(f"{owner}: {name} must be >= {minimum:g}, got {value!r}")
-    return x
 
 
 @dataclass(frozen=True)
@@ -55,7 +43,7 @@ class JointSpring:
     def __post_init__(self) -> None:
         owner = f"joint spring on {self.joint!r}"
         for name, minimum in (("stiffness", 0.0), ("damping", 0.0), ("rest", None)):
-            object.__setattr__(self, name, _parameter(owner, name, getattr(self, name), minimum=minimum))
+            object.__setattr__(self, name, check_number(owner, name, getattr(self, name), minimum=minimum))
 
     def bind(self, robot: Robot) -> _BoundJointSpring:
         return _BoundJointSpring(self, robot)
@@ -102,7 +90,7 @@ class Spring:
     def __post_init__(self) -> None:
         owner = f"spring {self.frame_a!r}-{self.frame_b!r}"
         for name in ("stiffness", "damping", "rest_length"):
-            object.__setattr__(self, name, _parameter(owner, name, getattr(self, name)))
+            object.__setattr__(self, name, check_number(owner, name, getattr(self, name), minimum=0.0))
 
     def bind(self, robot: Robot) -> _BoundSpring:
         return _BoundSpring(self, robot)
@@ -175,7 +163,7 @@ class UserEffort:
             raise InvalidInputError(f"{self.name}: function must be callable, got {self.function!r}")
         if self.jacobian is not None and not callable(self.jacobian):
             raise InvalidInputError(f"{self.name}: jacobian must be callable or None, got {self.jacobian!r}")
-        _parameter(self.name, "fd_step", self.fd_step, minimum=1e-15)
+        check_number(self.name, "fd_step", self.fd_step, minimum=1e-15)
 
     def bind(self, robot: Robot) -> _BoundUserEffort:
         return _BoundUserEffort(self, robot)

@@ -41,6 +41,20 @@ class SolverError(ContactDiffError):
     """A complementarity or linear-algebra subproblem has no valid solution."""
 
 
+def check_number(owner: str, name: str, value, *, minimum: float | None = None) -> float:
+    """``value`` as a finite float (>= ``minimum`` if given), else `InvalidInputError`
+    naming ``owner`` and ``name`` and showing the value."""
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"{owner}: {name} must be a number, got {value!r}") from None
+    if x != x or x in (float("inf"), float("-inf")):
+        raise InvalidInputError(f"{owner}: {name} must be finite, got {value!r}")
+    if minimum is not None and x < minimum:
+        raise InvalidInputError(f"{owner}: {name} must be >= {minimum:g}, got {value!r}")
+    return x
+
+
 def unknown_name(kind: str, name: object, valid) -> UnknownNameError:
     """Build an `UnknownNameError` listing the valid names of `kind`."""
     listed = ", ".join(sorted(str(v) for v in valid)) or "(none)"

@@ -127,6 +127,14 @@ class Robot:
             )
         return joint.idx_q, joint.idx_v
 
+    def configuration_names(self) -> list[str]:
+        """One label per configuration coordinate (``joint`` or ``joint[k]``)."""
+        labels = []
+        for jid in range(1, self.model.njoints):
+            name, nq = self.model.names[jid], self.model.joints[jid].nq
+            labels += [name] if nq == 1 else [f"{name}[{k}]" for k in range(nq)]
+        return labels
+
     def tangent_names(self) -> list[str]:
         """One label per tangent coordinate (``joint`` or ``joint[k]`` for multi-dof joints)."""
         return _tangent_names(self.model)

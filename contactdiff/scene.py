@@ -148,13 +148,7 @@ class Scene:
         return gaps
 
     def _labels(self, kind: str) -> list[str]:
-        if kind == "v":
-            return self.robot.tangent_names()
-        labels = []
-        for jid in range(1, self.model.njoints):
-            n, nq = self.model.names[jid], self.model.joints[jid].nq
-            labels += [n] if nq == 1 else [f"{n}[{k}]" for k in range(nq)]
-        return labels
+        return self.robot.tangent_names() if kind == "v" else self.robot.configuration_names()
 
     # -- initial state by joint name ---------------------------------------------------
     def _configuration(self, q0, base: np.ndarray | None = None) -> np.ndarray:
