@@ -368,14 +368,26 @@ class _HybridRun:
                       v.copy(), v.copy(), {}, self._mode_names(mode), self._mode_names(new_mode))
         if self.jacobian:
             # guard: the normal force of the first releasing contact; with several at once
-            # (a simultaneous lift-off) each frictionless one has an identity saltation
-            xi = liftoff_saltation(self.dyn, t, q, v, mode, releasing[0], new_mode)
+            # (a simultaneous lift-off) the saltation is the product of the single
+            # lift-offs in turn (each releasing contact's guard in the mode left by the
+            # earlier ones): a sticking contact's force jump is not carried by another's guard
+            xi = self._liftoff_sequence(t, q, v, mode, releasing, new_mode)
             sol, der = self.dyn.solve(q, v, t, mode, derivatives=True)
             row = sol.row_slices[mode.index(releasing[0])].start
             Dh = np.concatenate([der.forces_dq[row], der.forces_dv[row]])
             self._attach_sensitivity(event, xi, Dh, np.concatenate([v, sol.ddq]))
         self.events.append(event)
         return new_mode, v
+
+    def _liftoff_sequence(self, t, q, v, mode, releasing, new_mode) -> np.ndarray:
+        """Saltation of the lift-off of ``releasing`` from ``mode``, one contact after the
+        other in the given order at the same state (no jump: each force is zero there)."""
+        xi, current = np.eye(2 * self.scene.nv), tuple(mode)
+        for n, k in enumerate(releasing):
+            after = tuple(new_mode) if n == len(releasing) - 1 else tuple(i for i in current if i != k)
+            xi = liftoff_saltation(self.dyn, t, q, v, current, k, after) @ xi
+            current = after
+        return xi
 
     def _impact(self, t, q, v_minus, mode, closed, touching, releasing=(), initial=False):
         """Impact of the ``closed`` contacts, ``touching`` being those whose guard fired
