@@ -37,7 +37,7 @@ from scipy.linalg import cho_factor, cho_solve
 from scipy.optimize import minimize_scalar
 
 from .dynamics import ModeDynamics
-from .errors import IntegrationError, InvalidInputError
+from .errors import IntegrationError, InvalidInputError, check_number
 from .events import hermite_minimum, locate_crossing, simultaneous_group
 from .impacts import choose_mode, resolve_impact
 from .scene import Scene
@@ -134,12 +134,9 @@ def simulate(scene: Scene, t_final: float, q0=None, v0=None, *, t0: float = 0.0,
 
 
 def _positive(name: str, value, *, allow_zero: bool = False) -> float:
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise InvalidInputError(f"{name} must be a number, got {value!r}") from None
-    if not np.isfinite(x) or x < 0 or (x == 0 and not allow_zero):
-        raise InvalidInputError(f"{name} must be a finite number {'>=' if allow_zero else '>'} 0, got {value!r}")
+    x = check_number("simulate", name, value, minimum=0.0)
+    if x == 0 and not allow_zero:
+        raise InvalidInputError(f"simulate: {name} must be > 0, got {value!r}")
     return x
 
 
@@ -152,12 +149,10 @@ class _HybridRun:
             raise InvalidInputError(f"unknown method {method!r}; valid: {', '.join(METHODS)}")
         if on_grazing not in _GRAZING_MODES:
             raise InvalidInputError(f"on_grazing must be one of {', '.join(_GRAZING_MODES)}; got {on_grazing!r}")
-        self.t0 = float(t0)
-        if not np.isfinite(self.t0):
-            raise InvalidInputError(f"t0 must be finite, got {t0!r}")
-        self.t_final = float(t_final) if np.isscalar(t_final) else t_final
-        if not (isinstance(self.t_final, float) and np.isfinite(self.t_final) and self.t_final > self.t0):
-            raise InvalidInputError(f"t_final must be a finite time after t0 = {self.t0}, got {t_final!r}")
+        self.t0 = check_number("simulate", "t0", t0)
+        self.t_final = check_number("simulate", "t_final", t_final)
+        if not self.t_final > self.t0:
+            raise InvalidInputError(f"simulate: t_final must be after t0 = {self.t0}, got {t_final!r}")
         self.scene = scene.with_state(q0, v0) if (q0 is not None or v0 is not None) else scene
         self.rtol, self.atol = _positive("rtol", rtol), _positive("atol", atol)
         self.max_events = int(max_events)
