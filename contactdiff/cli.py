@@ -75,7 +75,31 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--json", action="store_true", help="print the trajectory summary as JSON")
     sim.add_argument("--plot", metavar="PNG", help="draw contact gaps over time with events marked")
     sim.set_defaults(run=_run_simulate)
+
+    bench = sub.add_parser(
+        "bench", help="error against run time of each method and baseline",
+        description="Measure final-state and event-time error against run time for contactdiff "
+                    "and its baselines (solve_ivp with events, impulse time stepping) on the "
+                    "project's scenes, and the cost of flow Jacobians against finite differences.")
+    bench.add_argument("--scenes", nargs="+", metavar="SCENE", help="scenes to run (default all)")
+    bench.add_argument("--quick", action="store_true", help="a tiny sweep of a few seconds (tests, CI)")
+    bench.add_argument("--repeats", type=int, default=3, help="timing repeats, median kept (default 3)")
+    bench.add_argument("--json", action="store_true", help="print the results as JSON")
+    bench.add_argument("--plot", metavar="PNG", help="write the log-log error vs run time plot")
+    bench.set_defaults(run=_run_bench)
     return parser
+
+
+def _run_bench(args) -> int:
+    from .bench import run_bench
+
+    result = run_bench(scenes=args.scenes, repeats=args.repeats, quick=args.quick)
+    if args.plot:
+        result.plot(args.plot)
+    print(json.dumps(result.to_dict(), indent=2) if args.json else result.format())
+    if args.plot and not args.json:
+        print(f"plot written to {args.plot}")
+    return 0
 
 
 def _assignments(items: list[str], flag: str) -> dict:

@@ -1,0 +1,462 @@
+"""Benchmarks: error against run time, per scene and method, in one process.
+
+`run_bench` runs every method of a tolerance (or step) sweep on every scene and
+measures, against a reference solution:
+
+* the error of the final state, ``max(|q ⊖ q_ref|_inf, |v - v_ref|_inf)`` (the
+  configuration difference taken on the manifold, `pinocchio.difference`);
+* the error of the event times, matched by order (when the event counts differ
+  this is reported and only the common prefix is compared);
+* the run time (median of ``repeats`` runs; a run longer than ``LONG_RUN`` s is
+  not repeated), dynamics evaluations and steps.
+
+Methods: ``ours-DOP853`` and ``ours-Radau`` (`simulate`), ``solve_ivp-DOP853``
+(`baselines.solve_ivp_baseline`, vector-space scenes only) and ``time-stepping``
+(`baselines.time_stepping_baseline`, a sweep over the step ``dt``).
+
+References: the ball has a closed form (bounce times and final state); every
+other scene uses contactdiff's own DOP853 run at rtol 1e-13 / atol 1e-14, whose
+difference from the run at rtol 1e-12 / atol 1e-13 is reported as its
+convergence check.
+
+Derivatives: on each scene the time of ``simulate(jacobian=True)`` over the plain
+run, and of central finite differences (4 nv runs) over the Jacobian run, with
+the largest difference between the two relative to the Jacobian's largest entry.
+
+Ratios (all from the same run): a baseline's time over ours at equal error
+(1e-6 and 1e-9 where reached), interpolated log-log along each method's curve;
+"ours" is the faster of our methods at that error.
+"""
+
+from __future__ import annotations
+
+import math
+import statistics
+import sys
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import pinocchio as pin
+
+from .baselines import solve_ivp_baseline, time_stepping_baseline
+from .errors import ContactDiffError, InvalidInputError, unknown_name
+from .integrator import simulate
+from .models import trot_touchdown
+from .scene import Scene, load_scene
+
+LONG_RUN = 2.0  # s: a run longer than this is timed once
+TARGETS = (1e-6, 1e-9)
+REF_TOL = dict(rtol=1e-13, atol=1e-14)
+CHECK_TOL = dict(rtol=1e-12, atol=1e-13)
+FD_EPS = 1e-6
+
+# name -> (builder, t_final)
+SCENES: dict[str, tuple[Callable[[], Scene], float]] = {
+    "ball": (lambda: load_scene("ball"), 5.2),
+    "two_limb": (lambda: load_scene("two_limb"), 2.0),
+    "planar_trot_soft": (lambda: load_scene("planar_trot_soft"), 1.8),
+    "planar_trot_rigid": (lambda: trot_touchdown("rigid", 0.05), 1.6),  # off-centre
+    "solo12_drop": (lambda: load_scene("solo12_drop"), 0.3),
+}
+METHODS = ("ours-DOP853", "ours-Radau", "solve_ivp-DOP853", "time-stepping")
+
+FULL_SWEEP = {
+    "ours-DOP853": [1e-4, 1e-6, 1e-8, 1e-10, 1e-12],
+    "ours-Radau": [1e-4, 1e-6, 1e-8, 1e-10],
+    "solve_ivp-DOP853": [1e-4, 1e-6, 1e-8, 1e-10, 1e-12],
+    "time-stepping": [1e-2, 3e-3, 1e-3, 3e-4, 1e-4],
+}
+QUICK_SWEEP = {
+    "ours-DOP853": [1e-6, 1e-9],
+    "ours-Radau": [1e-6],
+    "solve_ivp-DOP853": [1e-6, 1e-9],
+    "time-stepping": [1e-2, 3e-3],
+}
+QUICK_SCENES = ("ball", "planar_trot_rigid")
+FULL_DERIV_TOL = dict(rtol=1e-12, atol=1e-13)
+QUICK_DERIV_TOL = dict(rtol=1e-9, atol=1e-10)
+
+
+@dataclass
+class Reference:
+    """Reference solution of a scene: final state and event times."""
+
+    kind: str  # "closed-form" or "DOP853 rtol=1e-13"
+    q: np.ndarray
+    v: np.ndarray
+    event_times: list[float]
+    convergence: float | None = None  # |ref - run at rtol 1e-12| (state), None for closed form
+    convergence_events: float | None = None
+
+    def to_dict(self) -> dict:
+        return {"kind": self.kind, "q": self.q.tolist(), "v": self.v.tolist(),
+                "event_times": list(self.event_times), "convergence": self.convergence,
+                "convergence_events": self.convergence_events}
+
+
+@dataclass
+class BenchResult:
+    """What `run_bench` measured.
+
+    Attributes:
+        runs: one dict per (scene, method, parameter): ``scene, method, param``
+            (``rtol`` or ``dt``), ``param_name``, ``error`` (final state),
+            ``event_error``, ``n_events``, ``n_events_ref``, ``time`` (s, median),
+            ``dynamics_evaluations``, ``steps``, ``failed`` (message or None).
+        references: scene -> `Reference`.
+        derivatives: one dict per scene: ``nv``, ``tol``, ``time_plain``,
+            ``time_jacobian``, ``time_fd``, ``jacobian_over_plain``, ``fd_over_jacobian``,
+            ``jacobian_vs_fd`` (relative difference), ``fd_runs``.
+        ratios: one dict per (scene, baseline, target): ``time_baseline``,
+            ``time_ours``, ``ours_method``, ``ratio`` (None where a method does not reach
+            the target), ``note``.
+        repeats: timing repeats.
+    """
+
+    runs: list[dict] = field(default_factory=list)
+    references: dict[str, Reference] = field(default_factory=dict)
+    derivatives: list[dict] = field(default_factory=list)
+    ratios: list[dict] = field(default_factory=list)
+    repeats: int = 3
+
+    def to_dict(self) -> dict:
+        return {"repeats": self.repeats, "runs": [_clean(r) for r in self.runs],
+                "references": {k: _clean(r.to_dict()) for k, r in self.references.items()},
+                "derivatives": [_clean(d) for d in self.derivatives],
+                "ratios": [_clean(r) for r in self.ratios]}
+
+    def format(self) -> str:
+        """The tables as text."""
+        out = []
+        for scene, ref in self.references.items():
+            conv = "" if ref.convergence is None else \
+                f"; vs rtol 1e-12: state {ref.convergence:.1e}, events {ref.convergence_events:.1e}"
+            out.append(f"== {scene}  (reference: {ref.kind}, {len(ref.event_times)} events{conv})")
+            out.append(f"  {'method':<17} {'param':>9} {'state err':>10} {'event err':>10} "
+                       f"{'events':>7} {'time (ms)':>10} {'dyn evals':>10} {'steps':>7}")
+            for r in self.runs:
+                if r["scene"] != scene:
+                    continue
+                if r["failed"]:
+                    out.append(f"  {r['method']:<17} {r['param']:>9.0e}  failed: {r['failed']}")
+                    continue
+                ev = f"{r['n_events']}/{r['n_events_ref']}"
+                out.append(f"  {r['method']:<17} {r['param']:>9.0e} {r['error']:>10.2e} "
+                           f"{_num(r['event_error']):>10} {ev:>7} {1e3 * r['time']:>10.2f} "
+                           f"{r['dynamics_evaluations']:>10d} {r['steps']:>7d}")
+            out.append("")
+        if self.derivatives:
+            out.append("== derivatives: flow Jacobian vs plain run vs central FD (4 nv runs)")
+            out.append(f"  {'scene':<18} {'nv':>3} {'plain (ms)':>11} {'jac (ms)':>10} {'FD (ms)':>10} "
+                       f"{'jac/plain':>10} {'FD/jac':>8} {'|J-FD|/|J|':>11}")
+            for d in self.derivatives:
+                out.append(f"  {d['scene']:<18} {d['nv']:>3} {1e3 * d['time_plain']:>11.2f} "
+                           f"{1e3 * d['time_jacobian']:>10.2f} {1e3 * d['time_fd']:>10.1f} "
+                           f"{d['jacobian_over_plain']:>10.2f} {d['fd_over_jacobian']:>8.1f} "
+                           f"{d['jacobian_vs_fd']:>11.1e}"
+                           + ("" if d["differentiable"] else "  (not differentiable: simultaneous "
+                              "event whose landing orders differ; FD meaningless)"))
+            out.append("")
+        if self.ratios:
+            out.append("== time of a baseline / ours at equal final-state error (log-log interpolation)")
+            for r in self.ratios:
+                ratio = "n/a" if r["ratio"] is None else f"{r['ratio']:.3g}"
+                out.append(f"  {r['scene']:<18} {r['baseline']:<17} err {r['target']:.0e}: "
+                           f"{ratio:>8}  {r['note']}")
+        return "\n".join(out)
+
+    def plot(self, path: str) -> None:
+        """Log-log error vs run time, one panel per scene, one line per method (PNG)."""
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        scenes = list(self.references)
+        cols = min(3, len(scenes))
+        rows = math.ceil(len(scenes) / cols)
+        fig, axes = plt.subplots(rows, cols, figsize=(4.5 * cols, 3.8 * rows), squeeze=False)
+        for ax, scene in zip(axes.flat, scenes):
+            for method in METHODS:
+                pts = sorted((r["time"], max(r["error"], 1e-17)) for r in self.runs
+                             if r["scene"] == scene and r["method"] == method and not r["failed"]
+                             and math.isfinite(r["error"]))
+                if pts:
+                    ax.loglog([p[0] for p in pts], [p[1] for p in pts], "o-", label=method, ms=4)
+            ax.set_title(scene)
+            ax.set_xlabel("run time (s)")
+            ax.set_ylabel("final-state error")
+            ax.grid(True, which="both", alpha=0.3)
+            ax.legend(fontsize=7)
+        for ax in list(axes.flat)[len(scenes):]:
+            ax.set_visible(False)
+        fig.tight_layout()
+        fig.savefig(path, dpi=120)
+        plt.close(fig)
+
+
+def _num(x) -> str:
+    return "-" if x is None else f"{x:.2e}"
+
+
+def _clean(d: dict) -> dict:
+    """JSON-safe: numpy to Python, non-finite floats to None."""
+    out = {}
+    for k, x in d.items():
+        if isinstance(x, dict):
+            x = _clean(x)
+        elif isinstance(x, np.ndarray):
+            x = x.tolist()
+        elif isinstance(x, (float, np.floating)):
+            x = float(x) if math.isfinite(x) else None
+        elif isinstance(x, np.integer):
+            x = int(x)
+        out[k] = x
+    return out
+
+
+# -- errors -----------------------------------------------------------------------------
+def state_error(scene: Scene, q, v, q_ref, v_ref) -> float:
+    """``max(|q ⊖ q_ref|_inf, |v - v_ref|_inf)``, inf for a non-finite state."""
+    if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
+        return math.inf
+    dq = pin.difference(scene.model, np.asarray(q_ref), np.asarray(q))
+    return float(max(np.max(np.abs(dq)), np.max(np.abs(np.asarray(v) - v_ref))))
+
+
+def event_error(times: Sequence[float], ref: Sequence[float]) -> float | None:
+    """Largest difference of event times matched by order (common prefix), None if none."""
+    n = min(len(times), len(ref))
+    return float(max(abs(a - b) for a, b in zip(times[:n], ref[:n]))) if n else None
+
+
+def ball_closed_form(scene: Scene, t_final: float) -> Reference:
+    """Bounce times and final state of a ball dropped from rest (one frictionless contact)."""
+    g = -float(scene.model.gravity.linear[2])
+    e = scene.contacts[0].restitution
+    z0 = float(scene.gaps(scene.q0)[0])
+    u = math.sqrt(2 * g * z0)  # impact speed
+    times, t = [], u / g
+    while t <= t_final:  # bounce k (from 1) leaves at u e^k and lands 2 u e^k / g later
+        times.append(t)
+        t += 2 * u * e ** len(times) / g
+    if times:
+        s = t_final - times[-1]
+        height, vz = u * e ** len(times) * s - 0.5 * g * s * s, u * e ** len(times) - g * s
+    else:
+        height, vz = z0 - 0.5 * g * t_final ** 2, -g * t_final
+    q = scene.q0.copy()
+    q[-1] += height - z0  # the ball's height coordinate (prismatic z)
+    return Reference("closed-form", q, np.array([vz]), times)
+
+
+def reference(name: str, scene: Scene, t_final: float) -> Reference:
+    if name == "ball":
+        return ball_closed_form(scene, t_final)
+    ref = simulate(scene, t_final, **REF_TOL)
+    chk = simulate(scene, t_final, **CHECK_TOL)
+    times = [e.t for e in ref.events]
+    return Reference("DOP853 rtol=1e-13", ref.q.copy(), ref.v.copy(), times,
+                     state_error(scene, chk.q, chk.v, ref.q, ref.v),
+                     event_error([e.t for e in chk.events], times))
+
+
+# -- runs -----------------------------------------------------------------------------
+def _timed(fn, repeats: int):
+    times, out = [], None
+    for k in range(max(1, repeats)):
+        start = time.perf_counter()
+        out = fn()
+        times.append(time.perf_counter() - start)
+        if times[0] > LONG_RUN:
+            break
+    return out, statistics.median(times)
+
+
+def _run_one(name, scene, t_final, method, param, repeats):
+    if method.startswith("ours-"):
+        fn = lambda: simulate(scene, t_final, rtol=param, atol=param * 1e-2, method=method[5:])
+    elif method == "solve_ivp-DOP853":
+        fn = lambda: solve_ivp_baseline(scene, t_final, rtol=param, atol=param * 1e-2)
+    elif method == "time-stepping":
+        fn = lambda: time_stepping_baseline(scene, t_final, param)
+    else:
+        raise unknown_name("bench method", method, list(METHODS))
+    out, elapsed = _timed(fn, repeats)
+    if hasattr(out, "events"):  # Trajectory
+        times = [e.t for e in out.events]
+    else:
+        times = list(out.event_times)
+    return out, times, elapsed
+
+
+def _curve(runs, scene, method):
+    return sorted((r["time"], r["error"]) for r in runs
+                  if r["scene"] == scene and r["method"] == method and not r["failed"]
+                  and math.isfinite(r["error"]))
+
+
+def time_at_error(points: Sequence[tuple[float, float]], target: float) -> tuple[float | None, str]:
+    """Run time at which a curve of ``(time, error)`` first reaches ``target``.
+
+    Log-log interpolation between the last point above and the first point at or
+    below the target (in order of time). Returns ``(None, note)`` if never reached;
+    if the cheapest point is already below, its time (an upper bound).
+    """
+    pts = sorted(points)
+    for j, (t, e) in enumerate(pts):
+        if e <= target:
+            if j == 0:
+                return t, "upper bound (cheapest run already below)"
+            t0, e0 = pts[j - 1]
+            le0, le1 = math.log(e0), math.log(max(e, 1e-300))
+            s = (math.log(target) - le0) / (le1 - le0)
+            return math.exp(math.log(t0) + s * (math.log(t) - math.log(t0))), ""
+    if not pts:
+        return None, "no runs"
+    best = min(pts, key=lambda p: p[1])
+    note = f"not reached (best {best[1]:.1e} at {1e3 * best[0]:.1f} ms"
+    (t0, e0), (t1, e1) = pts[-2:] if len(pts) > 1 else (pts[0], pts[0])
+    if len(pts) > 1 and e1 < e0 and t1 > t0:  # extend the last segment of the curve
+        t_x = math.exp(math.log(t1) + (math.log(target) - math.log(e1))
+                       * (math.log(t1) - math.log(t0)) / (math.log(e1) - math.log(e0)))
+        note += f"; its last segment extended reaches it at ~{t_x:.3g} s"
+    return None, note + ")"
+
+
+
+def _derivatives(name, scene, t_final, tol, repeats) -> dict:
+    model, nv = scene.model, scene.nv
+    plain, t_plain = _timed(lambda: simulate(scene, t_final, **tol), repeats)
+    jac, t_jac = _timed(lambda: simulate(scene, t_final, jacobian=True, **tol), repeats)
+
+    def fd():
+        cols = []
+        for k in range(2 * nv):
+            e = np.zeros(nv)
+            e[k % nv] = FD_EPS
+            runs = []
+            for sign in (1.0, -1.0):
+                if k < nv:
+                    q, v = pin.integrate(model, scene.q0, sign * e), scene.v0
+                else:
+                    q, v = scene.q0, scene.v0 + sign * e
+                runs.append(simulate(scene.with_state(q, v), t_final, **tol))
+            p, m = runs
+            cols.append(np.concatenate([pin.difference(model, m.q, p.q), p.v - m.v]) / (2 * FD_EPS))
+        return np.array(cols).T
+
+    J_fd, t_fd = _timed(fd, 1)
+    J = jac.jacobian
+    return {"scene": name, "nv": nv, "tol": dict(tol), "time_plain": t_plain, "time_jacobian": t_jac,
+            "time_fd": t_fd, "fd_runs": 4 * nv, "jacobian_over_plain": t_jac / t_plain,
+            "fd_over_jacobian": t_fd / t_jac,
+            "jacobian_vs_fd": float(np.max(np.abs(J - J_fd)) / max(np.max(np.abs(J)), 1e-300)),
+            "differentiable": bool(jac.differentiable)}
+
+
+class _Progress:
+    def __init__(self, total: int, enabled: bool):
+        self.total, self.done, self.enabled = total, 0, enabled
+
+    def step(self, label: str) -> None:
+        self.done += 1
+        if self.enabled:
+            width = 30
+            fill = int(width * self.done / max(self.total, 1))
+            sys.stderr.write(f"\r[{'#' * fill}{'.' * (width - fill)}] {self.done}/{self.total} "
+                             f"{label[:50]:<50}")
+            if self.done == self.total:
+                sys.stderr.write("\n")
+            sys.stderr.flush()
+
+
+def run_bench(scenes: Sequence[str] | None = None, methods: Sequence[str] | None = None,
+              repeats: int = 3, progress: bool = True, quick: bool = False,
+              derivatives: bool = True) -> BenchResult:
+    """Measure error against run time for each scene and method (see the module doc).
+
+    Args:
+        scenes: names among `SCENES` (default all; ``quick``: ball and planar_trot_rigid).
+        methods: names among `METHODS` (default all).
+        repeats: timing repeats (the median is kept).
+        progress: draw a progress bar on stderr.
+        quick: a tiny sweep (a few seconds), for tests and CI.
+        derivatives: also measure the cost of flow Jacobians and finite differences.
+    """
+    scenes = list(scenes) if scenes else list(QUICK_SCENES if quick else SCENES)
+    methods = list(methods) if methods else list(METHODS)
+    for s in scenes:
+        if s not in SCENES:
+            raise unknown_name("bench scene", s, list(SCENES))
+    for m in methods:
+        if m not in METHODS:
+            raise unknown_name("bench method", m, list(METHODS))
+    if int(repeats) < 1:
+        raise InvalidInputError(f"repeats must be >= 1, got {repeats!r}")
+    sweep = QUICK_SWEEP if quick else FULL_SWEEP
+    deriv_tol = QUICK_DERIV_TOL if quick else FULL_DERIV_TOL
+    result = BenchResult(repeats=int(repeats))
+    built = {s: (SCENES[s][0](), SCENES[s][1]) for s in scenes}
+    tasks = [(s, m, p) for s in scenes for m in methods for p in sweep[m]
+             if not (m == "solve_ivp-DOP853" and built[s][0].robot.nq != built[s][0].nv)]
+    bar = _Progress(len(scenes) + len(tasks) + (len(scenes) if derivatives else 0), progress)
+    for s in scenes:
+        scene, t_final = built[s]
+        result.references[s] = reference(s, scene, t_final)
+        bar.step(f"{s}: reference")
+    for s, m, p in tasks:
+        scene, t_final = built[s]
+        ref = result.references[s]
+        row = {"scene": s, "method": m, "param": p,
+               "param_name": "dt" if m == "time-stepping" else "rtol", "n_events_ref": len(ref.event_times)}
+        try:
+            out, times, elapsed = _run_one(s, scene, t_final, m, p, repeats)
+            stats = out.stats
+            row.update(error=state_error(scene, out.q, out.v, ref.q, ref.v),
+                       event_error=event_error(times, ref.event_times), n_events=len(times),
+                       time=elapsed, dynamics_evaluations=int(stats["dynamics_evaluations"]),
+                       steps=int(stats["steps"]), failed=None)
+        except ContactDiffError as exc:
+            row.update(error=math.inf, event_error=None, n_events=0, time=math.nan,
+                       dynamics_evaluations=0, steps=0, failed=str(exc))
+        result.runs.append(row)
+        bar.step(f"{s}: {m} {p:g}")
+    if derivatives:
+        for s in scenes:
+            scene, t_final = built[s]
+            result.derivatives.append(_derivatives(s, scene, t_final, deriv_tol, repeats))
+            bar.step(f"{s}: derivatives")
+    ours = [m for m in methods if m.startswith("ours-")]
+    for s in scenes:
+        for target in TARGETS:
+            best, best_m = None, None
+            for m in ours:
+                t, _ = time_at_error(_curve(result.runs, s, m), target)
+                if t is not None and (best is None or t < best):
+                    best, best_m = t, m
+            for b in (m for m in methods if not m.startswith("ours-")):
+                pts = _curve(result.runs, s, b)
+                if not pts and not any(r["scene"] == s and r["method"] == b for r in result.runs):
+                    continue
+                t_b, note = time_at_error(pts, target)
+                if t_b is None and best is not None and "~" in note:
+                    t_x = float(note.split("~")[1].split(" s")[0])
+                    note += f", ~{t_x / best:.2g} x ours ({best_m} {1e3 * best:.2f} ms)"
+                if best is None:
+                    note = "ours does not reach it" + (f"; baseline: {note}" if note else "")
+                ratio = t_b / best if (t_b is not None and best is not None) else None
+                if ratio is not None and not note:
+                    note = f"baseline {1e3 * t_b:.2f} ms vs {best_m} {1e3 * best:.2f} ms"
+                elif ratio is not None:
+                    note = f"baseline {1e3 * t_b:.2f} ms ({note}) vs {best_m} {1e3 * best:.2f} ms"
+                result.ratios.append({"scene": s, "baseline": b, "target": target, "time_baseline": t_b,
+                                      "time_ours": best, "ours_method": best_m, "ratio": ratio,
+                                      "note": note})
+    return result
+
+
+__all__ = ["BenchResult", "Reference", "run_bench", "time_at_error", "state_error", "event_error",
+           "ball_closed_form", "SCENES", "METHODS"]

@@ -1,0 +1,36 @@
+"""Full benchmark: error against run time of contactdiff and its baselines.
+
+    python scripts/bench_error_vs_time.py [--repeats N] [--json out.json]
+
+Runs `contactdiff.bench.run_bench` on every scene, writes
+docs/bench_error_vs_time.png and prints the tables (ratios measured in this run).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+from contactdiff.bench import run_bench
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--json", metavar="PATH", help="also write the results as JSON")
+    args = parser.parse_args()
+    result = run_bench(repeats=args.repeats)
+    out = ROOT / "docs" / "bench_error_vs_time.png"
+    out.parent.mkdir(exist_ok=True)
+    result.plot(str(out))
+    print(result.format())
+    print(f"\nplot written to {out}")
+    if args.json:
+        Path(args.json).write_text(json.dumps(result.to_dict(), indent=2))
+
+
+if __name__ == "__main__":
+    main()
