@@ -19,7 +19,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
-from scipy.linalg import cho_factor, cho_solve, LinAlgError
 
 from .errors import SolverError
 from .scene import Scene
@@ -92,25 +91,21 @@ class ModeDynamics:
         kin.update(q, v, derivatives=derivatives)
         tau = self.scene.tau(kin, t)
         contacts, slices = self._rows(active)
-        M = pin.crba(self.model, self.data, q)
-        nle = pin.nonLinearEffects(self.model, self.data, q, v)
-        chol = cho_factor(M)
-        a_free = cho_solve(chol, tau - nle)
-        if contacts:
+        if not contacts:  # free flow: ABA, O(n) and one call
+            ddq = pin.aba(self.model, self.data, q, v, tau)
+            A, forces = np.zeros((0, self.model.nv)), np.zeros(0)
+        else:
+            Minv = pin.computeMinverse(self.model, self.data, q)  # symmetric copy
+            a_free = Minv @ (tau - pin.nonLinearEffects(self.model, self.data, q, v))
             A = np.vstack([c.rows(kin) for c in contacts])
             drift = np.concatenate([c.drift(kin) for c in contacts])
-            MinvAT = cho_solve(chol, A.T)
-            G = A @ MinvAT
-            forces = _solve_spd(G, -(drift + A @ a_free))
+            MinvAT = Minv @ A.T
+            forces = _solve_spd(A @ MinvAT, -(drift + A @ a_free))
             ddq = a_free + MinvAT @ forces
-        else:
-            A = np.zeros((0, self.model.nv))
-            forces = np.zeros(0)
-            ddq = a_free
         solution = ModeSolution(ddq, forces, active, slices)
         if not derivatives:
             return solution
-        return solution, self._derivatives(q, v, t, solution, contacts, A, M)
+        return solution, self._derivatives(q, v, t, solution, contacts, A, pin.crba(self.model, self.data, q))
 
     def _derivatives(self, q, v, t, sol: ModeSolution, contacts, A, M) -> ModeDerivatives:
         """Differentiate the KKT system implicitly.
@@ -144,11 +139,13 @@ def _solve_spd(G: np.ndarray, b: np.ndarray) -> np.ndarray:
 
     Cholesky when ``G`` is definite; otherwise (redundant rows) the minimum-norm
     least-squares solution, which is the physically chosen force distribution
-    of a redundant rigid contact set.
+    of a redundant rigid contact set. (numpy's Cholesky, not scipy's: the
+    latter's input checks cost more than the factorisation of these small G.)
     """
     try:
-        return cho_solve(cho_factor(G), b)
-    except LinAlgError:
+        L = np.linalg.cholesky(G)
+        return np.linalg.solve(L.T, np.linalg.solve(L, b))
+    except np.linalg.LinAlgError:
         x, *_ = np.linalg.lstsq(G, b, rcond=None)
         if not np.all(np.isfinite(x)):
             raise SolverError(f"contact forces are not finite for Delassus matrix {G} and b={b}") from None
