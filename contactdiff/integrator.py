@@ -235,7 +235,7 @@ class _HybridRun:
         forces = field.normal_forces(stepper.t, stepper.q, stepper.v)
         while stepper.t < self.t_final:
             stepper.step()
-            dense = stepper.dense()
+            dense = stepper.dense(lazy=True)  # DOP853's extra stages only if a guard needs them
             segment.pieces.append(dense)
             gaps1, rates1 = self._gaps_and_rates(stepper.q, stepper.v)
             forces1 = field.normal_forces(stepper.t, stepper.q, stepper.v)
@@ -250,7 +250,7 @@ class _HybridRun:
                 continue
             t_event, fired = simultaneous_group(crossings, self.simultaneous_tol)
             stepper.truncate(t_event)
-            segment.t1 = t_event
+            dense.t = segment.t1 = t_event
             self.phi = stepper.phi
             mode, v_plus = self._event(t_event, stepper.q, stepper.v, mode, fired)
             if len(self.events) > self.max_events:

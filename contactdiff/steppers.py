@@ -368,6 +368,37 @@ class DenseOutput:
         return self._group.tangent_velocity(self._q_base, xi, dy[:nv]), dy[nv:]
 
 
+class LazyDenseOutput(DenseOutput):
+    """A `DenseOutput` whose coefficients are computed on first use.
+
+    DOP853's interpolant needs three extra vector-field evaluations; a caller
+    that keeps every step's interpolant but reads few of them (the hybrid loop
+    reads one only where a guard may cross) skips that work for the others.
+    ``build()`` returns the coefficients from a snapshot of the step.
+    """
+
+    __slots__ = ("_build",)
+
+    def __init__(self, t_old, t, h, y_old, build, group, q_base, nv):
+        self.t_old, self.t, self.h = t_old, t, h
+        self._y_old, self._coef, self._pow, self._build = y_old, None, None, build
+        self._group, self._q_base, self._nv = group, q_base, nv
+
+    def _ready(self) -> None:
+        if self._coef is None:
+            self._coef = self._build()
+            self._pow = np.arange(1, self._coef.shape[0] + 1, dtype=float)
+            self._build = None
+
+    def _y(self, t):
+        self._ready()
+        return DenseOutput._y(self, t)
+
+    def _dy(self, t):
+        self._ready()
+        return DenseOutput._dy(self, t)
+
+
 # --------------------------------------------------------------------------
 # Input validation helpers
 # --------------------------------------------------------------------------
@@ -555,8 +586,9 @@ class Stepper:
         """
         raise NotImplementedError
 
-    def dense(self) -> DenseOutput:
-        """Interpolant of the last step on ``[t_old, t]``."""
+    def dense(self, lazy: bool = False) -> DenseOutput:
+        """Interpolant of the last step on ``[t_old, t]``; with ``lazy`` any extra
+        vector-field evaluations it needs are deferred until it is first read."""
         raise NotImplementedError
 
     def truncate(self, t: float) -> None:
@@ -684,8 +716,11 @@ class Stepper:
             return np.abs(y)
         return np.concatenate((self.group.magnitude(q), np.abs(y[self.nv :])))
 
-    def _eval_into(self, t: float, y: np.ndarray, out: np.ndarray, qc) -> np.ndarray:
-        """Write ``F(t, y)`` in the chart at ``qc`` (None: vector space) into ``out``; return the stage ``q``."""
+    def _eval_into(self, t: float, y: np.ndarray, out: np.ndarray, qc, accel=None) -> np.ndarray:
+        """Write ``F(t, y)`` in the chart at ``qc`` (None: vector space) into ``out``; return the stage ``q``.
+
+        ``accel`` overrides the current vector field (a lazy interpolant evaluates
+        the field of the step it belongs to)."""
         nv = self.nv
         v = y[nv:]
         if qc is None:
@@ -695,7 +730,7 @@ class Stepper:
             xi = y[:nv]
             q = self.group.integrate(qc, xi)
             out[:nv] = self.group.chart_velocity(qc, xi, v)
-        out[nv:] = self.accel(t, q, v)
+        out[nv:] = (self.accel if accel is None else accel)(t, q, v)
         self.n_accel += 1
         return q
 
@@ -981,17 +1016,29 @@ class ExplicitRK(Stepper):
         _, _, ys, qs = self._stages(self.t_old, self._y_old, h, self._qc_old)
         return self._variational(self.t_old, h, ys, qs, self.phi_old)
 
-    def dense(self) -> DenseOutput:
+    def dense(self, lazy: bool = False) -> DenseOutput:
+        """Interpolant of the last step; ``lazy`` defers its extra work to first use."""
         if self.t_old is None:
             raise InvalidInputError("dense() needs a step taken since the last (re)start")
-        if self._dense_cache is None:
-            coef = self._dense_coef()
-            self._dense_cache = DenseOutput(self.t_old, self.t, self._h_last, self._y_old, coef,
-                                            None if self._vs else self.group, self._qc_old, self.nv)
-        return self._dense_cache
+        if self._dense_cache is not None:
+            return self._dense_cache
+        group = None if self._vs else self.group
+        if not lazy:
+            self._dense_cache = DenseOutput(self.t_old, self.t, self._h_last, self._y_old,
+                                            self._dense_coef(), group, self._qc_old, self.nv)
+            return self._dense_cache
+        step = (self._K.copy(), self._h_last, self._y_old, self._y_end.copy(), self._qc_old,
+                self.t_old, self.accel)
+        return LazyDenseOutput(self.t_old, self.t, self._h_last, self._y_old,
+                               lambda: self._coef_from(*step), group, self._qc_old, self.nv)
 
     def _dense_coef(self) -> np.ndarray:
-        """Monomial coefficients (degree x n) of the step's interpolant, x in [0, 1]."""
+        """Monomial coefficients (degree x n) of the last step's interpolant, x in [0, 1]."""
+        return self._coef_from(self._K, self._h_last, self._y_old, self._y_end, self._qc_old,
+                               self.t_old, None)
+
+    def _coef_from(self, K, h, y_old, y_end, qc, t_old, accel) -> np.ndarray:
+        """Interpolant coefficients from a step's stages ``K`` (extra rows may be written)."""
         raise NotImplementedError
 
     def _after_truncate(self) -> None:
@@ -1012,8 +1059,8 @@ class RK45(ExplicitRK):
 
     A, B, C, E, P = _SciRK45.A, _SciRK45.B, _SciRK45.C, _SciRK45.E, _SciRK45.P
 
-    def _dense_coef(self) -> np.ndarray:
-        return self._h_last * (self.P.T @ self._K)
+    def _coef_from(self, K, h, y_old, y_end, qc, t_old, accel) -> np.ndarray:
+        return h * (self.P.T @ K)
 
 
 class DOP853(ExplicitRK):
@@ -1064,15 +1111,14 @@ class DOP853(ExplicitRK):
             return 0.0
         return abs(h) * float(np.max(e5[pos] / np.sqrt(den[pos])))
 
-    def _dense_coef(self) -> np.ndarray:
-        K, h, y_old, qc = self._K, self._h_last, self._y_old, self._qc_old
-        A, C, t_old = self.A_FULL, self.C, self.t_old
+    def _coef_from(self, K, h, y_old, y_end, qc, t_old, accel) -> np.ndarray:
+        A, C = self.A_FULL, self.C
         for s in range(self.n_stages + 1, self.n_rows):
             ys = y_old + (h * A[s, :s]) @ K[:s]
-            self._eval_into(t_old + C[s] * h, ys, K[s], qc)
+            self._eval_into(t_old + C[s] * h, ys, K[s], qc, accel)
             self._nonfinite_stage(t_old + C[s] * h, ys, K[s, self.nv :])
         f_old, f_new = K[0], K[self.n_stages]
-        dy = self._y_end - y_old
+        dy = y_end - y_old
         F = [dy, h * f_old - dy, 2 * dy - h * (f_new + f_old), *(h * (self.D @ K))]
         # Expand y_old + x(F0 + (1-x)(F1 + x(F2 + (1-x)(F3 + ...)))) into monomials of x.
         c = np.zeros((len(F) + 1, self.n))
@@ -1421,7 +1467,8 @@ class Radau(Stepper):
             )
         return self._variational(t, h, y, Z, qc, self.phi_old)[0]
 
-    def dense(self) -> DenseOutput:
+    def dense(self, lazy: bool = False) -> DenseOutput:
+        # the collocation polynomial costs nothing extra: lazy changes nothing
         if self.t_old is None or self._sol is None:
             raise InvalidInputError("dense() needs a step taken since the last (re)start")
         return self._sol
