@@ -20,7 +20,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
-from scipy.linalg import cho_factor, cho_solve
 
 from .dynamics import ModeDynamics
 from .lcp import ContactRows, impact_rhs, solve_contact_lcp
@@ -79,8 +78,7 @@ def resolve_impact(dyn: ModeDynamics, q: np.ndarray, v_minus: np.ndarray, contac
     A, rows = _rows(dyn, contacts)
     e = np.array([dyn.scene.contacts[i].restitution for i in contacts]) if restitution is None \
         else np.array(restitution, dtype=float)
-    chol = cho_factor(pin.crba(model, dyn.data, q))
-    MinvAT = cho_solve(chol, A.T)
+    MinvAT = pin.computeMinverse(model, dyn.data, q) @ A.T
     Av = A @ v_minus
     # Restitution restores compression only: a closed contact that is not approaching
     # takes part plastically (with its own e, Newton's law could add energy).
@@ -105,7 +103,6 @@ def choose_mode(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float,
     a_free = dyn.solve(q, v, t, ()).ddq  # also updates the kinematics at (q, v)
     A, rows = _rows(dyn, candidates)
     drift = np.concatenate([dyn.scene.contacts[i].drift(dyn.kin) for i in candidates])
-    chol = cho_factor(pin.crba(dyn.model, dyn.data, q))
-    G = A @ cho_solve(chol, A.T)
+    G = A @ pin.computeMinverse(dyn.model, dyn.data, q) @ A.T
     solution = solve_contact_lcp(G, A @ a_free + drift, rows, on_infeasible="relax")
     return tuple(candidates[k] for k in solution.active)

@@ -33,7 +33,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
-from scipy.linalg import cho_factor, cho_solve
 from scipy.optimize import minimize_scalar
 
 from .dynamics import ModeDynamics
@@ -212,8 +211,7 @@ class _HybridRun:
         mode = choose_mode(self.dyn, q, v, self.t0, candidates)
         if mode:
             A = np.vstack([self.contacts[i].rows(self.kin) for i in mode])
-            MinvAT = cho_solve(cho_factor(pin.crba(self.scene.model, self.dyn.data, q)), A.T)
-            v = v - MinvAT @ np.linalg.lstsq(A @ MinvAT, A @ v, rcond=None)[0]
+            v = v - self._weighted_pinv(q, A) @ (A @ v)
         return mode, v
 
     # -- the loop -------------------------------------------------------------------
@@ -459,16 +457,20 @@ class _HybridRun:
         if not contacts:
             return q
         model, zero = self.scene.model, np.zeros(self.scene.nv)
-        chol = cho_factor(pin.crba(model, self.dyn.data, q))
         for _ in range(10):
             self.kin.update(q, zero)
             gaps = np.array([self.contacts[i].gap(self.kin) for i in contacts])
             if np.max(np.abs(gaps)) <= 1e-15:
                 break
             A = np.vstack([self.contacts[i].rows(self.kin)[0] for i in contacts])
-            MinvAT = cho_solve(chol, A.T)
-            q = pin.integrate(model, q, -MinvAT @ np.linalg.lstsq(A @ MinvAT, gaps, rcond=None)[0])
+            q = pin.integrate(model, q, -self._weighted_pinv(q, A) @ gaps)
         return q
+
+    def _weighted_pinv(self, q, A) -> np.ndarray:
+        """``M^-1 A^T (A M^-1 A^T)^+``: the M-orthogonal (minimum kinetic energy)
+        pseudo-inverse of the rows ``A`` at ``q``; redundant rows are allowed."""
+        MinvAT = pin.computeMinverse(self.scene.model, self.dyn.data, q) @ A.T
+        return MinvAT @ np.linalg.pinv(A @ MinvAT)
 
     def _project(self, stepper, mode, gaps) -> bool:
         drift = max(abs(gaps[i]) for i in mode)
@@ -478,9 +480,7 @@ class _HybridRun:
         q = self._close(stepper.q, list(mode))
         self.kin.update(q, stepper.v)
         A = np.vstack([self.contacts[i].rows(self.kin) for i in mode])
-        chol = cho_factor(pin.crba(self.scene.model, self.dyn.data, q))
-        MinvAT = cho_solve(chol, A.T)
-        pinv = MinvAT @ np.linalg.pinv(A @ MinvAT)  # M-orthogonal projector factor
+        pinv = self._weighted_pinv(q, A)
         v = stepper.v - pinv @ (A @ stepper.v)
         phi = None
         if self.jacobian:
@@ -490,8 +490,7 @@ class _HybridRun:
             normal = [0] + list(np.cumsum([self.contacts[i].n_rows for i in mode])[:-1])
             dAv = np.vstack([self.contacts[i].rows_velocity_dq(self.kin) for i in mode])
             D = np.eye(2 * nv)
-            pos = MinvAT[:, normal] @ np.linalg.pinv(A[normal] @ MinvAT[:, normal])
-            D[:nv, :nv] -= pos @ A[normal]
+            D[:nv, :nv] -= self._weighted_pinv(q, A[normal]) @ A[normal]
             D[nv:, nv:] -= pinv @ A
             D[nv:, :nv] -= pinv @ dAv
             phi = D @ stepper.phi
