@@ -190,7 +190,7 @@ def time_stepping_baseline(scene: Scene, t_final: float, dt: float, *,
     """
     if not (dt > 0 and np.isfinite(dt)):
         raise InvalidInputError(f"time_stepping_baseline: dt must be > 0, got {dt!r}")
-    model, nv = scene.model, scene.nv
+    model = scene.model
     contacts, names = scene.contacts, scene.contact_names
     dyn = ModeDynamics(scene)
     kin, data = dyn.kin, dyn.data

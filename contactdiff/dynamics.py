@@ -58,8 +58,8 @@ class ModeDerivatives:
 class ModeDynamics:
     """Evaluates the flow of a scene in any contact mode.
 
-    Owns its own Pinocchio data (one for kinematics, one for dynamics), so
-    instances are cheap to create and independent of each other.
+    Uses the scene's kinematics cache and a ``pinocchio.Data`` of its own for the
+    dynamics; not thread safe (one instance per thread, each with its own scene).
     """
 
     def __init__(self, scene: Scene):
