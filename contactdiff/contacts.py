@@ -179,9 +179,10 @@ class BoundContact:
     def rows_times_dq(self, kin: Kinematics, x: np.ndarray) -> np.ndarray:
         """``d(A x)/dq`` at fixed ``x`` (n_rows × nv), ``x`` in R^nv (e.g. an acceleration)."""
         H = self._diff(kin.hessian)  # (3, nv, nv)
-        return np.einsum("rc,cjk,j->rk", self.directions, H, x)
+        return self.directions @ (x @ H)  # x @ H: sum_j x_j H[c, j, k]
 
     def rows_transpose_dq(self, kin: Kinematics, lam: np.ndarray) -> np.ndarray:
         """``d(A^T lam)/dq`` at fixed ``lam`` (nv × nv), ``lam`` one entry per row."""
         H = self._diff(kin.hessian)
-        return np.einsum("c,cjk->jk", lam @ self.directions, H)
+        nv = H.shape[1]
+        return ((lam @ self.directions) @ H.reshape(3, nv * nv)).reshape(nv, nv)

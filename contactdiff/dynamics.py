@@ -19,8 +19,11 @@ from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
+from scipy.linalg.lapack import dposv as _dposv
 
 from .errors import SolverError
+from .rigid_contacts import RigidContactMode
+from .rigid_contacts import eligible as rigid_eligible
 from .scene import Scene
 
 
@@ -58,8 +61,12 @@ class ModeDerivatives:
 class ModeDynamics:
     """Evaluates the flow of a scene in any contact mode.
 
-    Uses the scene's kinematics cache and a ``pinocchio.Data`` of its own for the
-    dynamics; not thread safe (one instance per thread, each with its own scene).
+    Free flight uses ABA (and its analytic derivatives); a mode of sticking
+    point contacts on the ground uses Pinocchio's constraint dynamics
+    (`rigid_contacts`); any other mode assembles its rows in Python and solves
+    with ``M^-1`` and the Cholesky factor of the Delassus matrix. Uses the
+    scene's kinematics cache and ``pinocchio.Data`` of its own; not thread safe
+    (one instance per thread, each with its own scene).
     """
 
     def __init__(self, scene: Scene):
@@ -67,86 +74,103 @@ class ModeDynamics:
         self.model = scene.model
         self.kin = scene.kinematics
         self.data = self.model.createData()
+        self._modes: dict[tuple[int, ...], tuple] = {}
 
-    def _rows(self, active: Sequence[int]):
-        contacts = [self.scene.contacts[i] for i in active]
-        slices, start = [], 0
-        for c in contacts:
-            slices.append(slice(start, start + c.n_rows))
-            start += c.n_rows
-        return contacts, tuple(slices)
+    def _mode(self, active: tuple[int, ...]):
+        """Contacts, row slices and (if eligible) the Pinocchio constraint mode of ``active``."""
+        entry = self._modes.get(active)
+        if entry is None:
+            contacts = [self.scene.contacts[i] for i in active]
+            slices, start = [], 0
+            for c in contacts:
+                slices.append(slice(start, start + c.n_rows))
+                start += c.n_rows
+            rigid = RigidContactMode(self.model, contacts) if rigid_eligible(contacts) else None
+            entry = self._modes[active] = (contacts, tuple(slices), rigid)
+        return entry
 
     def solve(self, q: np.ndarray, v: np.ndarray, t: float, active: Sequence[int] = (),
               *, derivatives: bool = False) -> ModeSolution | tuple[ModeSolution, ModeDerivatives]:
-        """Accelerations and forces in mode ``active`` at ``(q, v, t)``.
+        """Accelerations and forces in mode ``active`` at ``(q, v)``.
 
         Args:
             q, v: state (configuration, tangent velocity).
             t: time (s), passed to time-dependent efforts.
             active: indices of the active contacts (scene order).
             derivatives: also return the `ModeDerivatives`.
+
+        Also moves the scene's kinematics cache to ``(q, v)``.
         """
         active = tuple(active)
-        kin = self.kin
+        kin, model, data = self.kin, self.model, self.data
         kin.update(q, v, derivatives=derivatives)
         tau = self.scene.tau(kin, t)
-        contacts, slices = self._rows(active)
-        if not contacts:  # free flow: ABA, O(n) and one call
-            ddq = pin.aba(self.model, self.data, q, v, tau)
-            A, forces = np.zeros((0, self.model.nv)), np.zeros(0)
-        else:
-            Minv = pin.computeMinverse(self.model, self.data, q)  # symmetric copy
-            a_free = Minv @ (tau - pin.nonLinearEffects(self.model, self.data, q, v))
-            A = np.vstack([c.rows(kin) for c in contacts])
-            drift = np.concatenate([c.drift(kin) for c in contacts])
-            MinvAT = Minv @ A.T
-            forces = _solve_spd(A @ MinvAT, -(drift + A @ a_free))
-            ddq = a_free + MinvAT @ forces
-        solution = ModeSolution(ddq, forces, active, slices)
+        contacts, slices, rigid = self._mode(active)
+        if not contacts:  # free flow: ABA, O(n)
+            if derivatives:
+                ddq_dq, ddq_dv, Minv = pin.computeABADerivatives(model, data, q, v, tau)
+                solution = ModeSolution(data.ddq.copy(), np.zeros(0), active, slices)
+                dtau_dq, dtau_dv = self.scene.tau_derivatives(kin, t)
+                empty = np.zeros((0, model.nv))
+                return solution, ModeDerivatives(ddq_dq + Minv @ dtau_dq, ddq_dv + Minv @ dtau_dv,
+                                                 empty, empty)
+            return ModeSolution(pin.aba(model, data, q, v, tau), np.zeros(0), active, slices)
+        solved = rigid.solve(q, v, tau) if rigid is not None else None
+        if solved is not None:
+            solution = ModeSolution(*solved, active, slices)
+            if not derivatives:
+                return solution
+            dtau_dq, dtau_dv = self.scene.tau_derivatives(kin, t)
+            return solution, ModeDerivatives(*rigid.derivatives(dtau_dq, dtau_dv))
+        Minv = pin.computeMinverse(model, data, q)  # symmetric copy
+        a_free = Minv @ (tau - pin.nonLinearEffects(model, data, q, v))
+        A = np.vstack([c.rows(kin) for c in contacts])
+        drift = np.concatenate([c.drift(kin) for c in contacts])
+        MinvAT = Minv @ A.T
+        G = A @ MinvAT
+        forces = _solve_spd(G, -(drift + A @ a_free))
+        solution = ModeSolution(a_free + MinvAT @ forces, forces, active, slices)
         if not derivatives:
             return solution
-        return solution, self._derivatives(q, v, t, solution, contacts, A, pin.crba(self.model, self.data, q))
+        return solution, self._derivatives(q, v, t, solution, contacts, A, Minv, MinvAT, G)
 
-    def _derivatives(self, q, v, t, sol: ModeSolution, contacts, A, M) -> ModeDerivatives:
+    def _derivatives(self, q, v, t, sol: ModeSolution, contacts, A, Minv, MinvAT, G) -> ModeDerivatives:
         """Differentiate the KKT system implicitly.
 
         With ``r(q, v, ddq) = M ddq + nle`` (RNEA), both sides differentiated give
-            [M  -A^T] [d ddq]   [dtau - dr/d(q,v)|ddq + d(A^T lam)/dq]
-            [A   0  ] [d lam] = [-d drift - d(A ddq)/dq|ddq           ]
+            [M  -A^T] [d ddq]   [R = dtau - dr/d(q,v)|ddq + d(A^T lam)/dq]
+            [A   0  ] [d lam] = [C = -d drift - d(A ddq)/dq|ddq           ]
+        solved by the Schur complement on the Delassus matrix ``G = A M^-1 A^T``:
+        ``G d lam = C - A M^-1 R`` and ``d ddq = M^-1 (R + A^T d lam)``.
         """
         kin, nv = self.kin, self.model.nv
         dtau_dq, dtau_dv = self.scene.tau_derivatives(kin, t)
         dr_dq, dr_dv, _ = pin.computeRNEADerivatives(self.model, self.data, q, v, sol.ddq)
-        rhs_q = dtau_dq - dr_dq
-        rhs_v = dtau_dv - dr_dv
-        m = A.shape[0]
-        con_q, con_v = np.zeros((m, nv)), np.zeros((m, nv))
+        R = np.hstack((dtau_dq - dr_dq, dtau_dv - dr_dv))
+        C = np.zeros((A.shape[0], 2 * nv))
         for c, s in zip(contacts, sol.row_slices):
-            rhs_q += c.rows_transpose_dq(kin, sol.forces[s])
+            R[:, :nv] += c.rows_transpose_dq(kin, sol.forces[s])
             drift_dq, drift_dv = c.drift_derivatives(kin)
-            con_q[s] = -drift_dq - c.rows_times_dq(kin, sol.ddq)
-            con_v[s] = -drift_dv
-        K = np.block([[M, -A.T], [A, np.zeros((m, m))]])
-        try:
-            X = np.linalg.solve(K, np.block([[rhs_q, rhs_v], [con_q, con_v]]))
-        except np.linalg.LinAlgError:
-            X = np.linalg.lstsq(K, np.block([[rhs_q, rhs_v], [con_q, con_v]]), rcond=None)[0]
-        return ModeDerivatives(X[:nv, :nv], X[:nv, nv:], X[nv:, :nv], X[nv:, nv:])
+            C[s, :nv] = -drift_dq - c.rows_times_dq(kin, sol.ddq)
+            C[s, nv:] = -drift_dv
+        MinvR = Minv @ R
+        dlam = _solve_spd(G, C - A @ MinvR)
+        dddq = MinvR + MinvAT @ dlam
+        return ModeDerivatives(dddq[:, :nv], dddq[:, nv:], dlam[:, :nv], dlam[:, nv:])
 
 
 def _solve_spd(G: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Solve ``G x = b`` for a symmetric positive (semi)definite Delassus matrix.
 
-    Cholesky when ``G`` is definite; otherwise (redundant rows) the minimum-norm
-    least-squares solution, which is the physically chosen force distribution
-    of a redundant rigid contact set. (numpy's Cholesky, not scipy's: the
-    latter's input checks cost more than the factorisation of these small G.)
+    Cholesky (LAPACK ``dposv``, called directly: numpy's and scipy's wrappers
+    cost ten times the factorisation of these small G) when ``G`` is definite;
+    otherwise (redundant rows) the minimum-norm least-squares solution, which
+    is the physically chosen force distribution of a redundant rigid contact set.
     """
-    try:
-        L = np.linalg.cholesky(G)
-        return np.linalg.solve(L.T, np.linalg.solve(L, b))
-    except np.linalg.LinAlgError:
-        x, *_ = np.linalg.lstsq(G, b, rcond=None)
-        if not np.all(np.isfinite(x)):
-            raise SolverError(f"contact forces are not finite for Delassus matrix {G} and b={b}") from None
+    _, x, info = _dposv(G, b, lower=1)
+    if info == 0:
         return x
+    x, *_ = np.linalg.lstsq(G, b, rcond=None)
+    if not np.all(np.isfinite(x)):
+        raise SolverError(f"contact forces are not finite for Delassus matrix {G} and b={b}") from None
+    return x

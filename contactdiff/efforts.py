@@ -13,6 +13,7 @@ for the second call).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -50,22 +51,36 @@ class JointSpring:
 
 
 class _BoundJointSpring:
-    def __init__(self, spec: JointSpring, robot: Robot):
-        self.spec = spec
-        self.iq, self.iv = robot.scalar_joint(spec.joint)
+    """One or several joint springs, evaluated together (index arrays, no Python loop)."""
+
+    def __init__(self, specs: JointSpring | list[JointSpring], robot: Robot):
+        specs = [specs] if isinstance(specs, JointSpring) else list(specs)
+        self.specs = specs
+        idx = [robot.scalar_joint(s.joint) for s in specs]
+        self.iq = np.array([i for i, _ in idx], dtype=int)
+        self.iv = np.array([i for _, i in idx], dtype=int)
+        self.stiffness = np.array([s.stiffness for s in specs])
+        self.damping = np.array([s.damping for s in specs])
+        self.rest = np.array([s.rest for s in specs])
         self.nv = robot.nv
+        self._unique = len(set(self.iv.tolist())) == len(self.iv)
+        # springs on the same joint add up: accumulate with np.add.at
+        self._dq = np.zeros((self.nv, self.nv))
+        np.add.at(self._dq, (self.iv, self.iv), -self.stiffness)
+        self._dv = np.zeros((self.nv, self.nv))
+        np.add.at(self._dv, (self.iv, self.iv), -self.damping)
 
     def tau(self, kin: Kinematics, t: float) -> np.ndarray:
-        s = self.spec
         out = np.zeros(self.nv)
-        out[self.iv] = -s.stiffness * (kin.q[self.iq] - s.rest) - s.damping * kin.v[self.iv]
+        value = -self.stiffness * (kin.q[self.iq] - self.rest) - self.damping * kin.v[self.iv]
+        if self._unique:
+            out[self.iv] = value
+        else:
+            np.add.at(out, self.iv, value)
         return out
 
     def derivatives(self, kin: Kinematics, t: float) -> tuple[np.ndarray, np.ndarray]:
-        dq, dv = np.zeros((self.nv, self.nv)), np.zeros((self.nv, self.nv))
-        dq[self.iv, self.iv] = -self.spec.stiffness
-        dv[self.iv, self.iv] = -self.spec.damping
-        return dq, dv
+        return self._dq.copy(), self._dv.copy()
 
 
 @dataclass(frozen=True)
@@ -108,7 +123,7 @@ class _BoundSpring:
 
     def _geometry(self, kin: Kinematics):
         d = kin.position(self.fb) - kin.position(self.fa)
-        length = float(np.linalg.norm(d))
+        length = math.sqrt(d @ d)
         if length < _MIN_LENGTH:
             raise InvalidInputError(
                 f"spring {self.spec.frame_a!r}-{self.spec.frame_b!r}: the frames coincide "
@@ -128,15 +143,25 @@ class _BoundSpring:
         d_dot = Jd @ kin.v
         rate = u @ d_dot
         force = s.stiffness * (length - s.rest_length) + s.damping * rate
-        du_dq = (np.eye(3) - np.outer(u, u)) @ Jd / length
+        JTu = Jd.T @ u
+        du_dq = (Jd - np.outer(u, JTu)) / length  # (I - u u^T) Jd / l
         ddot_dq = kin.velocity_derivative(self.fb) - kin.velocity_derivative(self.fa)
         rate_dq = d_dot @ du_dq + u @ ddot_dq
-        force_dq = s.stiffness * (u @ Jd) + s.damping * rate_dq
-        H = kin.hessian(self.fb) - kin.hessian(self.fa)  # d(Jd)/dq
-        JTu = Jd.T @ u
-        dq = -(np.einsum("c,cjk->jk", u * force, H) + force * (Jd.T @ du_dq) + np.outer(JTu, force_dq))
+        force_dq = s.stiffness * JTu + s.damping * rate_dq
+        H = kin.hessian(self.fb) - kin.hessian(self.fa)  # d(Jd)/dq, (3, nv, nv)
+        nv = H.shape[1]
+        dq = -(((u * force) @ H.reshape(3, nv * nv)).reshape(nv, nv)
+               + force * (Jd.T @ du_dq) + np.outer(JTu, force_dq))
         dv = -s.damping * np.outer(JTu, JTu)
         return dq, dv
+
+
+def bind_efforts(specs, robot: Robot) -> list:
+    """Bind effort specs on ``robot``; every `JointSpring` goes into one evaluator
+    (a dozen joint springs then cost one vectorised call, not a dozen)."""
+    joint_springs = [s for s in specs if isinstance(s, JointSpring)]
+    bound = [_BoundJointSpring(joint_springs, robot)] if joint_springs else []
+    return bound + [s.bind(robot) for s in specs if not isinstance(s, JointSpring)]
 
 
 @dataclass(frozen=True)

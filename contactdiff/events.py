@@ -9,6 +9,7 @@ at zero moving up, which is not a downward crossing.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 
 import numpy as np
@@ -34,12 +35,25 @@ def hermite_minimum(g0: float, d0: float, g1: float, d1: float, h: float) -> tup
     c2 = 3 * (g1 - g0) - h * (2 * d0 + d1)
     c3 = -2 * (g1 - g0) + h * (d0 + d1)
     candidates = [0.0, 1.0]
-    # p'(s) = h d0 + 2 c2 s + 3 c3 s^2
-    roots = np.roots([3 * c3, 2 * c2, h * d0]) if (c3 or c2) else []
-    candidates += [float(r.real) for r in roots if abs(r.imag) < 1e-14 and 0.0 < r.real < 1.0]
+    # p'(s) = 3 c3 s^2 + 2 c2 s + h d0: its real roots in (0, 1)
+    candidates += [s for s in _quadratic_roots(3 * c3, 2 * c2, h * d0) if 0.0 < s < 1.0]
     values = [g0 + h * d0 * s + c2 * s * s + c3 * s ** 3 for s in candidates]
     k = int(np.argmin(values))
     return candidates[k], float(values[k])
+
+
+def _quadratic_roots(a: float, b: float, c: float) -> list[float]:
+    """Real roots of ``a x^2 + b x + c`` (a linear or constant one allowed), computed
+    without cancellation (the root of larger magnitude first, then c / (a x1))."""
+    if a == 0.0:
+        return [-c / b] if b != 0.0 else []
+    disc = b * b - 4.0 * a * c
+    if disc < 0.0:
+        return []
+    big = -0.5 * (b + math.copysign(math.sqrt(disc), b))
+    if big == 0.0:  # b = c = 0: double root at 0
+        return [0.0]
+    return [big / a, c / big]
 
 
 def locate_crossing(guard: Callable[[float], float], t_a: float, t_b: float,

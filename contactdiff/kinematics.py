@@ -4,7 +4,9 @@ One `Kinematics` object owns a ``pinocchio.Data`` and holds, for the state
 ``(q, v)`` of its last `update`, frame positions, Jacobians and classical
 accelerations (all in the LOCAL_WORLD_ALIGNED frame: world axes, at the frame
 origin) and, when asked, their derivatives. Each quantity is computed once per
-update, however many contacts or springs use the frame.
+update, however many contacts or springs use the frame, and only when first
+asked for: a mode whose efforts and contacts need no frame kinematics (joint
+springs, contacts handled by Pinocchio's constraint dynamics) pays for none.
 """
 
 from __future__ import annotations
@@ -35,18 +37,37 @@ class Kinematics:
         self._cache: dict = {}
         self.q = self.v = None
         self.has_derivatives = False
+        self._fresh = self._fresh_derivatives = False
 
     def update(self, q: np.ndarray, v: np.ndarray, derivatives: bool = False) -> None:
-        """Compute placements, Jacobians and velocities at ``(q, v)``, joint acceleration 0."""
-        m, d = self.model, self.data
-        pin.forwardKinematics(m, d, q, v, self._zero)  # a = 0: classical acc = drift
-        pin.computeJointJacobians(m, d)
-        pin.updateFramePlacements(m, d)
-        if derivatives:
-            pin.computeForwardKinematicsDerivatives(m, d, q, v, self._zero)
-            pin.computeJointKinematicHessians(m, d, q)
-        self.q, self.v, self.has_derivatives = q, v, derivatives
+        """Move the cache to the state ``(q, v)`` (joint acceleration 0).
+
+        Nothing is computed here: placements and Jacobians on first use, their
+        derivatives on first use of a derivative getter. ``q`` and ``v`` are
+        copied, so the caller may reuse its buffers.
+        """
+        self.q, self.v, self.has_derivatives = np.array(q, dtype=float), np.array(v, dtype=float), derivatives
+        self._fresh = self._fresh_derivatives = False
         self._cache.clear()
+
+    def _kinematics(self) -> pin.Data:
+        if not self._fresh:
+            m, d = self.model, self.data
+            pin.forwardKinematics(m, d, self.q, self.v, self._zero)  # a = 0: classical acc = drift
+            pin.computeJointJacobians(m, d)
+            pin.updateFramePlacements(m, d)
+            self._fresh = True
+        return self.data
+
+    def _derivative_data(self) -> pin.Data:
+        if not self.has_derivatives:
+            raise RuntimeError("Kinematics.update(..., derivatives=True) must come first")
+        if not self._fresh_derivatives:
+            m, d = self.model, self._kinematics()
+            pin.computeForwardKinematicsDerivatives(m, d, self.q, self.v, self._zero)
+            pin.computeJointKinematicHessians(m, d, self.q)
+            self._fresh_derivatives = True
+        return self.data
 
     def _memo(self, key, compute):
         value = self._cache.get(key)
@@ -56,12 +77,12 @@ class Kinematics:
 
     def position(self, fid: int) -> np.ndarray:
         """World position of frame ``fid`` (3,)."""
-        return self.data.oMf[fid].translation
+        return self._kinematics().oMf[fid].translation
 
     def jacobian(self, fid: int) -> np.ndarray:
         """Linear LWA Jacobian of the frame origin, d p / d q (3 × nv)."""
         return self._memo(("J", fid), lambda: _matrix(pin.getFrameJacobian(
-            self.model, self.data, fid, LWA), 6)[:3].copy())
+            self.model, self._kinematics(), fid, LWA), 6)[:3].copy())
 
     def velocity(self, fid: int) -> np.ndarray:
         """World velocity of the frame origin (3,)."""
@@ -70,36 +91,28 @@ class Kinematics:
     def classical_acceleration(self, fid: int) -> np.ndarray:
         """Classical acceleration of the frame origin at zero joint acceleration: ``J̇ v`` (3,)."""
         return self._memo(("a", fid), lambda: pin.getFrameClassicalAcceleration(
-            self.model, self.data, fid, LWA).linear.copy())
-
-    def _require_derivatives(self) -> None:
-        if not self.has_derivatives:
-            raise RuntimeError("Kinematics.update(..., derivatives=True) must come first")
+            self.model, self._kinematics(), fid, LWA).linear.copy())
 
     def velocity_derivative(self, fid: int) -> np.ndarray:
         """d(J v)/dq of the frame origin velocity at fixed ``v`` (3 × nv)."""
-        self._require_derivatives()
         frame = self.model.frames[fid]
         return self._memo(("dv", fid), lambda: _matrix(pin.getPointVelocityDerivatives(
-            self.model, self.data, frame.parentJoint, frame.placement, LWA)[0], 3).copy())
+            self.model, self._derivative_data(), frame.parentJoint, frame.placement, LWA)[0], 3).copy())
 
     def acceleration_derivatives(self, fid: int) -> tuple[np.ndarray, np.ndarray]:
         """d(J̇ v)/dq and d(J̇ v)/dv of the classical acceleration at zero joint acceleration."""
-        self._require_derivatives()
         frame = self.model.frames[fid]
 
         def compute():
             _, dq, dv, _ = pin.getPointClassicAccelerationDerivatives(
-                self.model, self.data, frame.parentJoint, frame.placement, LWA)
+                self.model, self._derivative_data(), frame.parentJoint, frame.placement, LWA)
             return _matrix(dq, 3).copy(), _matrix(dv, 3).copy()
         return self._memo(("da", fid), compute)
 
     def hessian(self, fid: int) -> np.ndarray:
         """Kinematic Hessian of the frame origin: ``H[c, j, k] = d J[c, j] / d q_k`` (3 × nv × nv)."""
-        self._require_derivatives()
-
         def compute():
-            H = pin.getFrameKinematicHessian(self.model, self.data, fid, LWA)
+            H = pin.getFrameKinematicHessian(self.model, self._derivative_data(), fid, LWA)
             # Pinocchio returns column-major memory flagged as C order (notes, pitfall 4).
             return H.ravel(order="C").reshape(H.shape, order="F")[:3].copy()
         return self._memo(("H", fid), compute)

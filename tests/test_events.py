@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import contactdiff as cd
-from contactdiff.events import hermite_minimum, locate_crossing, simultaneous_group
+from contactdiff.events import _quadratic_roots, hermite_minimum, locate_crossing, simultaneous_group
 
 
 def test_hermite_minimum_of_an_exact_cubic():
@@ -23,6 +23,24 @@ def test_hermite_minimum_scales_with_the_step():
     h = 0.01
     s, value = hermite_minimum(1.0, -300.0, 1.0, 300.0, h)  # p(s) = 1 - 3 s (1 - s) ... dips to 0.25
     assert s == pytest.approx(0.5) and value == pytest.approx(1 - 0.75, abs=1e-12)
+
+
+@pytest.mark.parametrize("roots", [(0.3, 0.6), (-2.0, 1e-9), (1e8, 1e-8), (0.5, 0.5), (0.0, 3.0)])
+@pytest.mark.parametrize("scale", [1.0, -1e-6, 1e6])
+def test_quadratic_roots_recover_known_roots(roots, scale):
+    """The coefficients of scale (x - r1)(x - r2) give back r1 and r2, each to a few
+    ulps relative to itself (the cancellation-free form; np.roots loses the small
+    root of (1e8, 1e-8) to cancellation)."""
+    r1, r2 = roots
+    found = sorted(_quadratic_roots(scale, -scale * (r1 + r2), scale * r1 * r2))
+    for got, want in zip(found, sorted(roots)):
+        assert got == pytest.approx(want, rel=1e-7 if r1 == r2 else 1e-14, abs=1e-300)
+
+
+def test_quadratic_roots_degenerate_cases():
+    assert _quadratic_roots(1.0, 0.0, 1.0) == []  # x^2 + 1: no real root
+    assert _quadratic_roots(0.0, 2.0, -1.0) == [0.5]  # linear
+    assert _quadratic_roots(0.0, 0.0, 1.0) == []  # constant
 
 
 def test_no_dip_when_monotone():
