@@ -167,7 +167,8 @@ def _jsonable(x):
 
 # -- the checker ------------------------------------------------------------------------
 def check_decoupling(source: Scene | Robot | str | Path, *, samples: int = 20, seed: int = 0,
-                     armature: float = 0.0, tol: float = 1e-9, spread: float = 0.4) -> DecouplingReport:
+                     armature: float = 0.0, tol: float = 1e-9, spread: float = 0.4,
+                     states=None) -> DecouplingReport:
     """Check a scene (or a robot on its feet) against the paper's assumptions.
 
     Args:
@@ -178,6 +179,10 @@ def check_decoupling(source: Scene | Robot | str | Path, *, samples: int = 20, s
         tol: relative size below which a coupling or term counts as zero.
         spread: half-width of the uniform random perturbation of every coordinate
             around the reference pose (rad or m), and of the random velocities.
+        states: optional ``(q, v)`` pairs (e.g. touchdown states of a gait) at which
+            to measure instead: the couplings at each ``q`` as given (no projection)
+            and the limb terms at each ``(q, v)``; ``samples`` and ``seed`` are then
+            not used. Each ``q`` has ``nq`` entries, each ``v`` ``nv``.
 
     Returns:
         A `DecouplingReport`.
@@ -194,10 +199,16 @@ def check_decoupling(source: Scene | Robot | str | Path, *, samples: int = 20, s
         scene = scene.with_armature(armature)
     checker = _Checker(scene, np.random.default_rng(seed), spread)
     notes = []
+    if states is not None:
+        states = _given_states(scene, states)
+        samples = 0
+        notes.append(f"measured at {len(states)} given state(s), not at sampled poses")
     if armature and not scene.robot.actuated:
         notes.append(f"robot {scene.robot.name!r} has no actuated joints: armature changes nothing")
-    pairs = [checker.pair_coupling(i, j, samples) for i, j in itertools.combinations(range(len(scene.contacts)), 2)]
-    terms = checker.assumption_terms(samples)
+    poses = None if states is None else [q for q, _ in states]
+    pairs = [checker.pair_coupling(i, j, samples, poses)
+             for i, j in itertools.combinations(range(len(scene.contacts)), 2)]
+    terms = checker.assumption_terms(samples, states)
     for t in terms:
         t.ok = bool(t.value <= tol)
     names = scene.contact_names
@@ -221,6 +232,24 @@ def check_decoupling(source: Scene | Robot | str | Path, *, samples: int = 20, s
         limbs={names[i]: [model.names[j] for j in checker.joints_of(limb)]
                for i, limb in enumerate(checker.limbs)},
         pairs=pairs, terms=terms, verdict=verdict, notes=notes)
+
+
+def _given_states(scene: Scene, states) -> list[tuple[np.ndarray, np.ndarray]]:
+    """``states`` as a non-empty list of finite ``(q, v)`` arrays of the scene's sizes."""
+    nq, nv = scene.robot.nq, scene.nv
+    try:
+        pairs = [(np.array(q, dtype=float), np.array(v, dtype=float)) for q, v in states]
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"states must be (q, v) pairs of numbers, got {states!r}") from None
+    if not pairs:
+        raise InvalidInputError("states must hold at least one (q, v) pair, got none")
+    for k, (q, v) in enumerate(pairs):
+        if q.shape != (nq,) or v.shape != (nv,):
+            raise InvalidInputError(f"states[{k}]: q must have shape ({nq},) and v ({nv},); "
+                                    f"got {q.shape} and {v.shape}")
+        if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
+            raise InvalidInputError(f"states[{k}] has non-finite entries: q={q}, v={v}")
+    return pairs
 
 
 def _as_scene(source) -> Scene:
@@ -297,8 +326,9 @@ class _Checker:
         G = A @ Minv @ A.T
         return float(abs(G[0, 1]) / np.sqrt(G[0, 0] * G[1, 1]))
 
-    def pair_coupling(self, i: int, j: int, samples: int) -> PairCoupling:
-        poses = self._poses([i, j], samples)
+    def pair_coupling(self, i: int, j: int, samples: int, poses=None) -> PairCoupling:
+        """Coupling over projected reference and random poses, or at ``poses`` as given."""
+        poses = self._poses([i, j], samples) if poses is None else poses
         values = [self._coupling(q, i, j) for q in poses]
         names = self.scene.contact_names
         ref = values[0] if poses and poses[0] is not None else float("nan")
@@ -313,17 +343,19 @@ class _Checker:
         dn_dq, dn_dv, _ = pin.computeRNEADerivatives(self.model, self.data, q, v, np.zeros(self.model.nv))
         return np.hstack([dtau_dq - dn_dq, dtau_dv - dn_dv])
 
-    def assumption_terms(self, samples: int) -> list[Term]:
+    def assumption_terms(self, samples: int, states=None) -> list[Term]:
+        """Terms over projected poses with random velocities, or at ``states`` ((q, v) pairs)."""
         nv, names = self.model.nv, self.scene.contact_names
-        all_closed = list(range(len(self.scene.contacts)))
-        poses = self._poses(all_closed, samples) or [self.scene.q0]
+        if states is None:
+            all_closed = list(range(len(self.scene.contacts)))
+            poses = self._poses(all_closed, samples) or [self.scene.q0]
+            states = [(q, self.rng.uniform(-self.spread, self.spread, nv)) for q in poses]
         blocks = [("body", self.body)] + [(f"limb {n}", l) for n, l in zip(names, self.limbs)]
         owners = [()] + [(n,) for n in names]
         # largest relative size of each term over the poses, keyed by block/limb indices
         mass, dep, effort, additive = {}, {}, {}, {}
         gap = np.zeros(len(names))
-        for q in poses:
-            v = self.rng.uniform(-self.spread, self.spread, nv)
+        for q, v in states:
             M = pin.crba(self.model, self.data, q)
             diag = np.sqrt(np.abs(np.diag(M)))
             scale = np.where(diag > 0, diag, 1.0)

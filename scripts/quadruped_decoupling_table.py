@@ -1,0 +1,321 @@
+"""How decoupled is a real robot: the checker and the order gap at a trot's diagonal touchdown.
+
+For each example-robot-data quadruped, at the touchdown of its front-left and
+hind-right feet (sticking, plastic contacts; the state source is
+`touchdown_states`), with and without reflected rotor inertia (armature, kg m²
+on every actuated joint, swept over the values in ARMATURES):
+
+* the decoupling checker's numbers at that state: the landing pair's coupling
+  |G_ij| / sqrt(G_ii G_jj), the largest over all six foot pairs, and the
+  limb-assumption terms (worst mass-matrix term; the gap term is 1 on every
+  floating-base robot, since a foot's height moves with the base);
+* the order gap (`contactdiff.order_gap`): how different the post-impact
+  velocity (kinetic-energy norm, relative to the impact's velocity jump) and
+  the saltation matrix (relative max norm) are when one foot of the pair lands
+  first versus the other.
+
+Then the compliant-feet trend on solo12 (`contactdiff.compliance`): each foot
+on a spring along the shank carrying a foot mass taken from the lower leg, over
+a stiffness × foot-mass grid: coupling and order gap at the touchdown (sticking
+and frictionless feet), and the gap between the two one-sided derivatives of
+the base's state (pose and velocity) HORIZON seconds later, where the
+stiffness acts (at the touchdown itself the spring is at rest and the
+stiffness enters nothing).
+
+    python scripts/quadruped_decoupling_table.py [--json] [--plot out.png] [--robots solo12 a1]
+                                                 [--states standing|trot] [--no-trend]
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import json
+import math
+import sys
+
+import numpy as np
+
+import contactdiff as cd
+from contactdiff.compliance import add_compliant_feet, compliant_state
+from contactdiff.order_gap import diagonal_pairs, diagonal_touchdown, order_gap
+
+# Reflected rotor inertia I_rotor · N² (kg m²) at each actuated joint: (low, high) bracket per robot.
+ARMATURES = {
+    # T-motor MN4004-class rotor ~1e-5 kg m² (bell of ~25 g at ~20 mm) up to the 4.5e-5 kg m² often
+    # quoted for the actuator module, through the 1:9 belt transmission (N² = 81).
+    "solo12": (8e-4, 3.6e-3),
+    # ANYdrive: series-elastic. At an impact the output sees the spring, not the rotor: ~0.
+    # Rigid-gear equivalent (rotor ~4e-5 kg m² × 50²): ~0.1 -- an upper bound, not what a touchdown feels.
+    "anymal": (0.0, 0.1),
+    # Unitree A1/Go1/Go2: rotor 1.118e-4 kg m² (the rotor links of the go1/go2 URDFs), gear 6.33 at the
+    # hip and thigh (4.5e-3) and 1.5 times more at the knee (~1.0e-2; MuJoCo Menagerie's go2 uses 0.01).
+    "a1": (4.5e-3, 1.0e-2),
+    "go1": (4.5e-3, 1.0e-2),
+    "go2": (4.5e-3, 1.0e-2),
+    # HyQ: hydraulic cylinders and rotary actuators, no gearbox. Piston and rod (~0.3 kg) on a ~4 cm
+    # lever: ~5e-4; 2e-3 allows for the oil column and the valve-side inertia.
+    "hyq": (5e-4, 2e-3),
+}
+
+TREND_ROBOT = "solo12"
+TREND_ARMATURE = 3.6e-3                      # kg m², solo12's high bracket
+TREND_FOOT_MASSES = (1e-2, 3e-3, 1e-3, 3e-4)  # kg; solo12's shank (38 g) can give at most ~20 g at the foot
+TREND_STIFFNESSES = (1e3, 1e4, 1e5)          # N/m
+HORIZON = 0.02                               # s after the touchdown
+SIM = dict(rtol=1e-8, atol=1e-10)
+
+
+# -- the state source ------------------------------------------------------------------
+STATE_SOURCES = ("standing", "trot")
+TROT_STRIDES = 2             # simulated strides of the trot
+TROT_MAX_PARTNER_GAP = 0.01  # m: a pair counts as landing together if the partner is this close
+TROT_MIN_SPEED = 0.02        # m/s: slower landings are re-contacts (chatter), not a foot's touchdown
+
+
+def touchdown_states(name: str, source: str = "standing"):
+    """Scene, diagonal touchdown states ``[(q, v, pair, mode)]`` and a label, for robot ``name``.
+
+    ``source="standing"``: a trot-like touchdown built from the standing pose
+    (`contactdiff.order_gap.diagonal_touchdown`). ``source="trot"``: the diagonal
+    touchdown events of the simulated trot of `contactdiff.trot` (see
+    `trot_touchdowns`), falling back to the standing pose (with a note) when the
+    module is missing, its simulation fails or it has no clean diagonal touchdown.
+    """
+    if source == "trot" and importlib.util.find_spec("contactdiff.trot") is None:
+        print(f"note: {name}: contactdiff.trot is missing; standing-pose touchdown instead", file=sys.stderr)
+    elif source == "trot":
+        try:
+            scene, states = trot_touchdowns(name)
+            if states:
+                return scene, states, "trot touchdowns (contactdiff.trot)"
+            reason = "no diagonal touchdown in the simulated strides"
+        except (cd.ContactDiffError, ValueError, np.linalg.LinAlgError) as exc:
+            reason = f"{type(exc).__name__}: {exc}"
+        print(f"note: {name}: trot not used ({reason}); standing-pose touchdown instead", file=sys.stderr)
+    scene = cd.Scene.from_robot(cd.load_robot(name))
+    q, v, pair = diagonal_touchdown(scene)
+    return scene, [(q, v, pair, ())], "standing-pose diagonal touchdown"
+
+
+def trot_touchdowns(name: str):
+    """Diagonal touchdowns of the simulated trot of ``name``.
+
+    At each touchdown event in which a foot of a diagonal pair lands while its
+    partner is in the air: if the partner lands at the same event, the event's
+    state; if it is still above the ground by at most TROT_MAX_PARTNER_GAP, the
+    event's state with the partner's gap closed along its leg (Gauss-Newton on its
+    leg joints), so that both feet touch as at a simultaneous landing. Both feet
+    must approach faster than TROT_MIN_SPEED. ``mode`` is the stance of the other
+    pair at that instant.
+    """
+    from contactdiff.trot import trot_parameters, trot_scene
+
+    scene = trot_scene(name)
+    traj = cd.simulate(scene, TROT_STRIDES * trot_parameters(name)["period"])
+    index = scene.contact_index
+    states = []
+    for event in traj.events:
+        if event.kind != "touchdown":
+            continue
+        fired = {index(c) for c in event.contacts}
+        before = {index(c) for c in event.mode_before}
+        for pair in diagonal_pairs(scene):
+            if not fired & set(pair) or before & set(pair):
+                continue
+            q = event.q.copy()
+            for partner in set(pair) - fired:
+                q = _close_gap(scene, q, partner)
+                if q is None:
+                    break
+            if q is None:
+                continue
+            scene.kinematics.update(q, event.v_minus)
+            if all(scene.contacts[k].rows(scene.kinematics)[0] @ event.v_minus < -TROT_MIN_SPEED for k in pair):
+                states.append((q, event.v_minus.copy(), pair, tuple(sorted(before - set(pair)))))
+    return scene, states
+
+
+def _close_gap(scene, q, contact: int):
+    """``q`` with contact's gap closed by its own leg joints, or None if it is too far."""
+    kin, c = scene.kinematics, scene.contacts[contact]
+    zero = np.zeros(scene.nv)
+    kin.update(q, zero)
+    if not 0 <= c.gap(kin) <= TROT_MAX_PARTNER_GAP:
+        return None
+    joint = scene.model.frames[c.fid].parentJoint
+    cols = [k for j in scene.model.supports[joint] if j > 1
+            for k in range(scene.model.joints[j].idx_v, scene.model.joints[j].idx_v + scene.model.joints[j].nv)]
+    for _ in range(50):
+        kin.update(q, zero)
+        gap = c.gap(kin)
+        if abs(gap) <= 1e-13:
+            return q
+        row = c.rows(kin)[0][cols]
+        step = np.zeros(scene.nv)
+        step[cols] = -gap * row / (row @ row)
+        q = scene.robot.integrate(q, step)
+    return None
+
+
+# -- measurements ----------------------------------------------------------------------
+def measure(scene, states, armature: float) -> dict:
+    """Checker numbers and order gap at the touchdown states (worst over the states)."""
+    scene = scene.with_armature(armature) if armature else scene
+    names = scene.contact_names
+    report = cd.check_decoupling(scene, states=[(q, v) for q, v, _, _ in states])
+    row = {"armature": armature, "max_coupling": report.max_coupling}
+    pairs = {frozenset(names[k] for k in pair) for _, _, pair, _ in states}
+    row["pair_coupling"] = max(p.max for p in report.pairs if frozenset(p.contacts) in pairs)
+    mass = [t for t in report.terms if t.condition == "mass matrix"]
+    worst_mass = max(mass, key=lambda t: t.value)
+    row["mass_term"], row["mass_term_where"] = worst_mass.value, worst_mass.where
+    row["gap_term"] = max(t.value for t in report.terms if t.condition == "gap")
+    row["other_terms"] = max((t.value for t in report.terms if t.condition not in ("mass matrix", "gap")),
+                             default=0.0)
+    row["verdict"] = report.verdict
+    gaps = [order_gap(scene, q, v, pair, mode=mode) for q, v, pair, mode in states]
+    row["outcome_gap"] = max(g.outcome for g in gaps)
+    row["saltation_gap"] = max(g.saltation for g in gaps)
+    row["saltation_spread"] = max(g.saltation_spread for g in gaps)
+    row["modes_after"] = sorted({m for g in gaps for m in map(tuple, g.mode_after.values())})
+    return row
+
+
+def robot_table(robots, source: str = "standing") -> list[dict]:
+    rows = []
+    for name in robots:
+        scene, states, source_label = touchdown_states(name, source)
+        low, high = ARMATURES[name]
+        for armature in sorted({0.0, low, high}):
+            row = measure(scene, states, armature)
+            row.update(robot=name, source=source_label, states=len(states),
+                       pair=[scene.contact_names[k] for k in states[0][2]])
+            rows.append(row)
+    return rows
+
+
+def trend_table() -> list[dict]:
+    """Compliant feet on solo12 over foot mass × stiffness, at TREND_ARMATURE."""
+    robot = cd.load_robot(TREND_ROBOT)
+    rows = []
+    for friction in ("stick", "none"):
+        base = cd.Scene.from_robot(robot, friction=friction).with_armature(TREND_ARMATURE)
+        q, v, pair = diagonal_touchdown(base)
+        cases = [(None, None)] + [(m, k) for m in TREND_FOOT_MASSES for k in TREND_STIFFNESSES]
+        for foot_mass, stiffness in cases:
+            if foot_mass is None:
+                scene, qc, vc = base, q, v
+            else:
+                scene = add_compliant_feet(base, stiffness, foot_mass)
+                qc, vc = compliant_state(base.robot, scene.robot, q, v)
+            report = cd.check_decoupling(scene, states=[(qc, vc)])
+            names = {scene.contact_names[k] for k in pair}
+            gap = order_gap(scene, qc, vc, pair, horizon=HORIZON if friction == "stick" else None,
+                            jacobian=friction == "stick", simulate_options=SIM)
+            rows.append({"friction": friction, "foot_mass": foot_mass, "stiffness": stiffness,
+                         "pair_coupling": next(p.max for p in report.pairs if set(p.contacts) == names),
+                         "max_coupling": report.max_coupling, "outcome_gap": gap.outcome,
+                         "saltation_gap": gap.saltation, "saltation_spread": gap.saltation_spread,
+                         "later_saltation_gap": gap.later_saltation,
+                         "later_base_saltation_gap": gap.later_saltation_on(range(6)) if gap.horizon else None})
+    return rows
+
+
+# -- output ----------------------------------------------------------------------------
+def _e(x) -> str:
+    return "-" if x is None else ("0" if x == 0 else f"{x:.1e}")
+
+
+def print_tables(rows, trend) -> None:
+    sources = sorted({(r["source"], r["states"]) for r in rows})
+    print("touchdown: " + "; ".join(f"{label} ({n} state{'s' * (n > 1)} per robot)" for label, n in sources)
+          + "; a diagonal pair lands, sticking plastic feet\n")
+    print("| robot | armature (kg m²) | pair coupling | max coupling (6 pairs) | worst M term (body/limb) "
+          "| order gap: outcome | order gap: saltation | saltation spread |")
+    print("|---|---|---|---|---|---|---|---|")
+    for r in rows:
+        print(f"| {r['robot']} | {_e(r['armature'])} | {_e(r['pair_coupling'])} | {_e(r['max_coupling'])} "
+              f"| {_e(r['mass_term'])} | {_e(r['outcome_gap'])} | {_e(r['saltation_gap'])} "
+              f"| {_e(r['saltation_spread'])} |")
+    gap_terms = sorted({r["gap_term"] for r in rows})
+    print(f"\ngap term (foot height depends on coordinates outside its leg): {', '.join(map(_e, gap_terms))} "
+          f"on every robot; effort terms: {_e(max(r['other_terms'] for r in rows))}; verdicts: "
+          + ", ".join(sorted({r['verdict'] for r in rows})))
+    if not trend:
+        return
+    print(f"\ncompliant feet on {TREND_ROBOT} (armature {TREND_ARMATURE:g} kg m², foot mass taken from the shank, "
+          f"spring along the shank; later = {HORIZON * 1e3:g} ms after touchdown)\n")
+    print("| foot mass (g) | stiffness (N/m) | pair coupling | order gap: outcome | saltation (stick) "
+          "| saltation (frictionless) | base derivatives later (stick) |")
+    print("|---|---|---|---|---|---|---|")
+    by_key = {(r["friction"], r["foot_mass"], r["stiffness"]): r for r in trend}
+    for (friction, mass, k), r in by_key.items():
+        if friction != "stick":
+            continue
+        free = by_key[("none", mass, k)]
+        label = "rigid" if mass is None else f"{mass * 1e3:g}"
+        print(f"| {label} | {'-' if k is None else f'{k:g}'} | {_e(r['pair_coupling'])} | {_e(r['outcome_gap'])} "
+              f"| {_e(r['saltation_gap'])} | {_e(free['saltation_gap'])} | {_e(r['later_base_saltation_gap'])} |")
+
+
+def plot_trend(trend, path: str) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4), constrained_layout=True)
+    masses = np.array(TREND_FOOT_MASSES) * 1e3
+    k0 = TREND_STIFFNESSES[0]
+    rigid = {r["friction"]: r for r in trend if r["foot_mass"] is None}
+
+    def series(friction, key, k=k0):
+        return [next(r[key] for r in trend if r["friction"] == friction and r["foot_mass"] == m
+                     and r["stiffness"] == k) for m in TREND_FOOT_MASSES]
+    ax = axes[0]
+    ax.loglog(masses, series("stick", "pair_coupling"), "o-", label="pair coupling")
+    ax.loglog(masses, series("stick", "saltation_gap"), "s-", label="saltation gap, sticking feet")
+    ax.loglog(masses, series("none", "saltation_gap"), "^-", label="saltation gap, frictionless feet")
+    for key, style in (("pair_coupling", "C0"), ("saltation_gap", "C1")):
+        ax.axhline(rigid["stick"][key], color=style, ls=":", lw=1)
+    ax.axhline(rigid["none"]["saltation_gap"], color="C2", ls=":", lw=1)
+    ax.set_xlabel("foot mass (g)")
+    ax.set_title("at touchdown (dotted: rigid feet)")
+    ax.legend(fontsize=8)
+    ax = axes[1]
+    for k in TREND_STIFFNESSES:
+        ax.loglog(masses, series("stick", "later_base_saltation_gap", k), "o-", label=f"k = {k:g} N/m")
+    ax.axhline(rigid["stick"]["later_base_saltation_gap"], color="k", ls=":", lw=1, label="rigid feet")
+    ax.set_xlabel("foot mass (g)")
+    ax.set_title(f"base-state derivative gap {HORIZON * 1e3:g} ms later (sticking feet)")
+    ax.legend(fontsize=8)
+    fig.suptitle(f"{TREND_ROBOT} with compliant feet, armature {TREND_ARMATURE:g} kg m²")
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--robots", nargs="+", default=list(cd.QUADRUPEDS), choices=list(cd.QUADRUPEDS))
+    parser.add_argument("--states", choices=STATE_SOURCES, default="standing",
+                        help="touchdown states: built from the standing pose, or the simulated trot's")
+    parser.add_argument("--no-trend", action="store_true", help="skip the compliant-feet trend on solo12")
+    parser.add_argument("--json", action="store_true")
+    parser.add_argument("--plot", metavar="PNG", help="draw the compliant-feet trend")
+    args = parser.parse_args(argv)
+    rows = robot_table(args.robots, args.states)
+    trend = [] if args.no_trend else trend_table()
+    if args.json:
+        clean = lambda x: None if isinstance(x, float) and not math.isfinite(x) else x  # noqa: E731
+        print(json.dumps({"armatures": ARMATURES, "robots": rows, "trend": trend},
+                         indent=2, default=lambda o: o.tolist() if hasattr(o, "tolist") else clean(o)))
+    else:
+        print_tables(rows, trend)
+    if args.plot and trend:
+        plot_trend(trend, args.plot)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
