@@ -136,12 +136,19 @@ class BenchResult:
     derivatives: list[dict] = field(default_factory=list)
     ratios: list[dict] = field(default_factory=list)
     repeats: int = 3
+    studies: object = None  # studies.StudyResult (stiff and extreme cases), with --studies
+    footprint: object = None  # footprint.Footprint (only what a scene needs), with --studies
 
     def to_dict(self) -> dict:
+        extra = {}
+        if self.studies is not None:
+            extra["studies"] = self.studies.to_dict()
+        if self.footprint is not None:
+            extra["footprint"] = dict(self.footprint)
         return {"repeats": self.repeats, "runs": [_clean(r) for r in self.runs],
                 "references": {k: _clean(r.to_dict()) for k, r in self.references.items()},
                 "derivatives": [_clean(d) for d in self.derivatives],
-                "ratios": [_clean(r) for r in self.ratios]}
+                "ratios": [_clean(r) for r in self.ratios]} | extra
 
     def format(self) -> str:
         """The tables as text."""
@@ -182,6 +189,10 @@ class BenchResult:
                 ratio = "n/a" if r["ratio"] is None else f"{r['ratio']:.3g}"
                 out.append(f"  {r['scene']:<18} {r['baseline']:<17} err {r['target']:.0e}: "
                            f"{ratio:>8}  {r['note']}")
+        if self.studies is not None:
+            out += ["", self.studies.format()]
+        if self.footprint is not None:
+            out += ["", self.footprint.format()]
         return "\n".join(out)
 
     def plot(self, path: str) -> None:
@@ -395,7 +406,7 @@ class _Progress:
 
 def run_bench(scenes: Sequence[str] | None = None, methods: Sequence[str] | None = None,
               repeats: int = 3, progress: bool = True, quick: bool = False,
-              derivatives: bool = True) -> BenchResult:
+              derivatives: bool = True, studies: bool = False) -> BenchResult:
     """Measure error against run time for each scene and method (see the module doc).
 
     Args:
@@ -405,6 +416,9 @@ def run_bench(scenes: Sequence[str] | None = None, methods: Sequence[str] | None
         progress: draw a progress bar on stderr.
         quick: a tiny sweep (a few seconds), for tests and CI.
         derivatives: also measure the cost of flow Jacobians and finite differences.
+        studies: also run the stiff and extreme-case studies (`contactdiff.studies`) and
+            the "only what a scene needs" measurements (`contactdiff.footprint`);
+            ``quick`` keeps them to seconds.
     """
     scenes = list(scenes) if scenes else list(QUICK_SCENES if quick else SCENES)
     methods = list(methods) if methods else list(METHODS)
@@ -475,6 +489,12 @@ def run_bench(scenes: Sequence[str] | None = None, methods: Sequence[str] | None
                 result.ratios.append({"scene": s, "baseline": b, "target": target, "time_baseline": t_b,
                                       "time_ours": best, "ours_method": best_m, "ratio": ratio,
                                       "note": note})
+    if studies:
+        from .footprint import measure_footprint
+        from .studies import run_studies
+
+        result.studies = run_studies(quick=quick)
+        result.footprint = measure_footprint(quick=quick)
     return result
 
 

@@ -19,16 +19,24 @@
    contact drifts beyond ``project_tol`` the state is projected back
    (M-orthogonally) and the largest drift is reported.
 
+With ``method="auto"`` the stepper is DOP853 while its steps are limited by
+accuracy and Radau IIA while they would be limited by stability
+(`contactdiff.stiffness`); a switch restarts the stepper at the current point
+(no jump; the flow Jacobian carries over).
+
 Admissibility: a penetrating initial state is an error; closed contacts at the
 start select a consistent mode (with an impact first if they approach);
 grazing touchdowns (normal speed below ``grazing_speed``) are events of kind
-``grazing`` (or an error with ``on_grazing="raise"``); a bounce slower than
+``grazing`` (or an error with ``on_grazing="raise"``), and so are, as notes,
+near-grazing misses (a gap turning back up within ``grazing_gap`` of 0, where
+the integration error cannot tell a touch from a miss); a bounce slower than
 ``zeno_speed`` ends the bounce sequence (the contact stays closed, event kind
 ``zeno``); more than ``max_events`` events raise `TooManyEventsError`.
 """
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from dataclasses import dataclass
 
 import numpy as np
@@ -43,6 +51,7 @@ from .scene import Scene
 from .sensitivity import (gap_gradient, impact_reset_jacobian, liftoff_saltation, saltation,
                           simultaneous_saltation, vector_field)
 from .steppers import METHODS, PinocchioGroup, make_stepper
+from .stiffness import EXPLICIT, MethodChooser, spectral_radius
 from .trajectory import Event, Segment, Trajectory
 
 
@@ -59,6 +68,10 @@ class TooManyEventsError(IntegrationError):
 
 
 _GRAZING_MODES = ("event", "raise")
+AUTO = "auto"
+SIMULATE_METHODS = (AUTO,) + METHODS
+"""Valid ``method`` names of `simulate`: ``"auto"`` (`contactdiff.stiffness`) or a stepper."""
+_SWITCH_NOTES = 10  # notes for the first switches of method="auto" (all are in the stats)
 _SPEED_TOL = 1e-12  # m/s: a post-impact normal speed below this (scaled) counts as zero
 _DIP_FRACTION = 0.5  # search a step for a dip when its Hermite minimum is below this share of the end gaps
 
@@ -70,21 +83,44 @@ class _Guard:
 
 
 class _ModeField:
-    """Vector field of one mode for the stepper, remembering its last forces."""
+    """Vector field of one mode for the stepper, remembering its last forces.
 
-    def __init__(self, dyn: ModeDynamics, mode: tuple[int, ...]):
-        self.dyn, self.mode = dyn, mode
+    With ``fused`` (a flow Jacobian is being computed) every evaluation also
+    differentiates the mode: the stepper asks for the Jacobian at the very
+    stage points whose accelerations it evaluated, and one solve with
+    derivatives costs less than a plain solve followed by a derivative solve.
+    The derivatives of the last few points are kept for `jac`.
+    """
+
+    _KEEP = 32  # points remembered: more than the stages of one step
+
+    def __init__(self, dyn: ModeDynamics, mode: tuple[int, ...], fused: bool = False):
+        self.dyn, self.mode, self.fused = dyn, mode, fused
         self.last = None
-        self.n_solve = 0
+        self.n_solve = self.n_derivatives = 0
+        self._derivatives: OrderedDict = OrderedDict()
 
     def accel(self, t, q, v):
         self.n_solve += 1
-        sol = self.dyn.solve(q, v, t, self.mode)
+        if self.fused:
+            sol, der = self._solve_with_derivatives(t, q, v)
+            self._derivatives[(t, q.tobytes(), v.tobytes())] = (der.ddq_dq, der.ddq_dv)
+            if len(self._derivatives) > self._KEEP:
+                self._derivatives.popitem(last=False)
+        else:
+            sol = self.dyn.solve(q, v, t, self.mode)
         self.last = (t, q, v, sol)
         return sol.ddq
 
+    def _solve_with_derivatives(self, t, q, v):
+        self.n_derivatives += 1
+        return self.dyn.solve(q, v, t, self.mode, derivatives=True)
+
     def jac(self, t, q, v):
-        _, der = self.dyn.solve(q, v, t, self.mode, derivatives=True)
+        known = self._derivatives.get((t, q.tobytes(), v.tobytes()))
+        if known is not None:
+            return known
+        _, der = self._solve_with_derivatives(t, q, v)
         return der.ddq_dq, der.ddq_dv
 
     def normal_forces(self, t, q, v) -> np.ndarray:
@@ -95,10 +131,11 @@ class _ModeField:
 
 
 def simulate(scene: Scene, t_final: float, q0=None, v0=None, *, t0: float = 0.0,
-             rtol: float = 1e-8, atol: float = 1e-10, method: str = "DOP853",
+             rtol: float = 1e-8, atol: float = 1e-10, method: str = AUTO,
              jacobian: bool = False, max_events: int = 10_000, simultaneous_tol: float = 1e-9,
              zeno_speed: float = 1e-6, grazing_speed: float = 1e-9, on_grazing: str = "event",
-             project_tol: float | None = None, max_step: float = np.inf) -> Trajectory:
+             grazing_gap: float | None = None, project_tol: float | None = None,
+             max_step: float = np.inf) -> Trajectory:
     """Compute the hybrid trajectory of ``scene`` from ``t0`` to ``t_final``.
 
     Args:
@@ -107,7 +144,10 @@ def simulate(scene: Scene, t_final: float, q0=None, v0=None, *, t0: float = 0.0,
         q0, v0: initial state (arrays or joint-name mappings); default the scene's.
         t0: initial time (s).
         rtol, atol: error tolerances of each step (relative; absolute in m, rad, m/s).
-        method: stepper, one of ``steppers.METHODS`` (``"Radau"`` for stiff scenes).
+        method: ``"auto"`` (explicit DOP853, switching to Radau IIA while the explicit
+            steps are limited by stability rather than accuracy, see
+            `contactdiff.stiffness`; the steps of each are in ``traj.stats``) or a
+            stepper of ``steppers.METHODS`` used throughout (``"Radau"`` for stiff scenes).
         jacobian: also compute the flow Jacobian ``traj.jacobian`` (d x(t_final) /
             d x0, tangent space) and each event's saltation matrix and time gradient.
         max_events: largest number of events before `TooManyEventsError`.
@@ -117,7 +157,11 @@ def simulate(scene: Scene, t_final: float, q0=None, v0=None, *, t0: float = 0.0,
             sequence ends and it stays closed.
         grazing_speed: a touchdown slower than this (m/s) is grazing.
         on_grazing: ``"event"`` records a grazing event and goes on; ``"raise"``
-            raises `GrazingError`.
+            raises `GrazingError`, also for a near-grazing miss (see ``grazing_gap``).
+        grazing_gap: a contact whose gap comes down to within this distance (m) of
+            0 and turns back up is a near-grazing miss: the integration error cannot
+            tell whether it touched (a note, counted in ``stats["near_grazing_misses"]``,
+            or `GrazingError`); default 10 (atol + rtol |q|_inf) at that step.
         project_tol: active-gap drift (m) beyond which the state is projected back
             onto the constraints; default ``atol``.
         max_step: largest step (s).
@@ -128,7 +172,7 @@ def simulate(scene: Scene, t_final: float, q0=None, v0=None, *, t0: float = 0.0,
     run = _HybridRun(scene, t0, t_final, q0, v0, rtol=rtol, atol=atol, method=method,
                      jacobian=jacobian, max_events=max_events, simultaneous_tol=simultaneous_tol,
                      zeno_speed=zeno_speed, grazing_speed=grazing_speed, on_grazing=on_grazing,
-                     project_tol=project_tol, max_step=max_step)
+                     grazing_gap=grazing_gap, project_tol=project_tol, max_step=max_step)
     return run.run()
 
 
@@ -141,11 +185,12 @@ def _positive(name: str, value, *, allow_zero: bool = False) -> float:
 
 class _HybridRun:
     def __init__(self, scene, t0, t_final, q0, v0, *, rtol, atol, method, jacobian, max_events,
-                 simultaneous_tol, zeno_speed, grazing_speed, on_grazing, project_tol, max_step):
+                 simultaneous_tol, zeno_speed, grazing_speed, on_grazing, grazing_gap, project_tol,
+                 max_step):
         if not isinstance(scene, Scene):
             raise InvalidInputError(f"scene must be a Scene (see load_scene), got {scene!r}")
-        if method not in METHODS:
-            raise InvalidInputError(f"unknown method {method!r}; valid: {', '.join(METHODS)}")
+        if method not in SIMULATE_METHODS:
+            raise InvalidInputError(f"unknown method {method!r}; valid: {', '.join(SIMULATE_METHODS)}")
         if on_grazing not in _GRAZING_MODES:
             raise InvalidInputError(f"on_grazing must be one of {', '.join(_GRAZING_MODES)}; got {on_grazing!r}")
         self.t0 = check_number("simulate", "t0", t0)
@@ -154,11 +199,14 @@ class _HybridRun:
             raise InvalidInputError(f"simulate: t_final must be after t0 = {self.t0}, got {t_final!r}")
         self.scene = scene.with_state(q0, v0) if (q0 is not None or v0 is not None) else scene
         self.rtol, self.atol = _positive("rtol", rtol), _positive("atol", atol)
+        if isinstance(max_events, bool) or not isinstance(max_events, (int, np.integer)) or max_events < 0:
+            raise InvalidInputError(f"simulate: max_events must be an integer >= 0, got {max_events!r}")
         self.max_events = int(max_events)
         self.simultaneous_tol = _positive("simultaneous_tol", simultaneous_tol, allow_zero=True)
         self.zeno_speed = _positive("zeno_speed", zeno_speed, allow_zero=True)
         self.grazing_speed = _positive("grazing_speed", grazing_speed, allow_zero=True)
         self.on_grazing = on_grazing
+        self.grazing_gap = None if grazing_gap is None else _positive("grazing_gap", grazing_gap, allow_zero=True)
         self.project_tol = self.atol if project_tol is None else _positive("project_tol", project_tol)
         self.method, self.max_step = method, max_step
         self.jacobian = bool(jacobian)
@@ -172,6 +220,9 @@ class _HybridRun:
         self.notes: list[str] = []
         self.max_drift = 0.0
         self.n_projections = 0
+        self.n_near_misses = 0
+        self.misses: list = []
+        self.n_probe_evaluations = 0
         self.phi = None  # flow Jacobian just before the event being processed
         self.initial_saltation = None
 
@@ -219,11 +270,15 @@ class _HybridRun:
         scene = self.scene
         q, v = scene.q0.copy(), scene.v0.copy()
         mode, v = self._initial_mode(q, v)
-        field = _ModeField(self.dyn, mode)
-        stepper = make_stepper(self.method, field.accel, PinocchioGroup(scene.model), self.t0, q, v,
-                               rtol=self.rtol, atol=self.atol, jac=field.jac, max_step=self.max_step,
+        field = _ModeField(self.dyn, mode, fused=self.jacobian)
+        self.group = PinocchioGroup(scene.model)
+        self.chooser = MethodChooser(self._probe(mode)) if self.method == AUTO else None
+        stepper = make_stepper(EXPLICIT if self.chooser else self.method, field.accel, self.group, self.t0,
+                               q, v, rtol=self.rtol, atol=self.atol, jac=field.jac, max_step=self.max_step,
                                t_bound=self.t_final,
                                variational=np.eye(2 * scene.nv) if self.jacobian else None)
+        self.retired = []  # steppers replaced by method="auto", for the statistics
+        self.switches: list[tuple[float, str]] = []
         if self.jacobian and self.initial_saltation is not None:
             stepper.restart(self.t0, q, v, phi=self.initial_saltation)
         self.fields = [field]
@@ -233,6 +288,7 @@ class _HybridRun:
         forces = field.normal_forces(stepper.t, stepper.q, stepper.v)
         while stepper.t < self.t_final:
             stepper.step()
+            h = stepper.t - stepper.t_old
             dense = stepper.dense(lazy=True)  # DOP853's extra stages only if a guard needs them
             segment.pieces.append(dense)
             gaps1, rates1 = self._gaps_and_rates(stepper.q, stepper.v)
@@ -240,13 +296,19 @@ class _HybridRun:
             crossings = self._crossings(stepper, dense, field, mode, (gaps, rates, forces),
                                         (gaps1, rates1, forces1))
             if not crossings:
+                self._near_misses(np.inf)
                 gaps, rates, forces = gaps1, rates1, forces1
                 if mode and self._project(stepper, mode, gaps1):
                     gaps, rates = self._gaps_and_rates(stepper.q, stepper.v)
                     forces = field.normal_forces(stepper.t, stepper.q, stepper.v)
                 segment.t1 = stepper.t
+                if self.chooser is not None and stepper.t < self.t_final:
+                    switch = self.chooser.after_step(h, stepper.q, stepper.v, stepper.t)
+                    if switch:
+                        stepper = self._switch(stepper, switch, field)
                 continue
             t_event, fired = simultaneous_group(crossings, self.simultaneous_tol)
+            self._near_misses(t_event)
             stepper.truncate(t_event)
             dense.t = segment.t1 = t_event
             self.phi = stepper.phi
@@ -257,22 +319,61 @@ class _HybridRun:
                     f"(last: {self.events[-1].kind} of {', '.join(self.events[-1].contacts)}); "
                     "raise max_events or zeno_speed", self._trajectory(stepper, "max_events"))
             q_event = self.events[-1].q
-            field = _ModeField(self.dyn, mode)
+            field = _ModeField(self.dyn, mode, fused=self.jacobian)
             self.fields.append(field)
             xi = self.events[-1].saltation
             stepper.restart(t_event, q_event, v_plus, accel=field.accel, jac=field.jac,
                             phi=None if xi is None else xi @ stepper.phi)
+            if self.chooser is not None:
+                self.chooser.new_mode(self._probe(mode))
             segment = Segment(t_event, t_event, self._mode_names(mode))
             self.segments.append(segment)
             gaps, rates = self._gaps_and_rates(stepper.q, stepper.v)
             forces = field.normal_forces(stepper.t, stepper.q, stepper.v)
         return self._trajectory(stepper, "t_final")
 
+    # -- method="auto" ----------------------------------------------------------------
+    def _probe(self, mode):
+        """``ρ`` of ``mode`` at a state, for `MethodChooser` (difference quotients of
+        the mode's accelerations; they bypass the mode field and its counters)."""
+        def accel(t, q, v):
+            self.n_probe_evaluations += 1
+            return self.dyn.solve(q, v, t, mode).ddq
+        return lambda q, v, t: spectral_radius(accel, q, v, t, self.group)
+
+    def _switch(self, stepper, method: str, field):
+        """Continue from the stepper's current point with ``method``: a restart without a
+        jump (state and flow Jacobian carried over, the step size as a first guess)."""
+        self.retired.append(stepper)
+        self.switches.append((stepper.t, method))
+        rho = self.chooser.rho
+        if len(self.switches) <= _SWITCH_NOTES:
+            why = ("explicit steps limited by stability" if method != EXPLICIT
+                   else "steps resolve the fastest motion")
+            self.notes.append(f"method auto: {method} from t = {stepper.t:.12g} ({why}: "
+                              f"h = {stepper.h_abs:.3g} s, spectral radius {rho:.3g} /s)")
+        return make_stepper(method, field.accel, self.group, stepper.t, stepper.q, stepper.v,
+                            rtol=self.rtol, atol=self.atol, jac=field.jac, max_step=self.max_step,
+                            t_bound=self.t_final, first_step=stepper.h_abs,
+                            variational=stepper.phi if self.jacobian else None)
+
     def _trajectory(self, stepper, termination) -> Trajectory:
-        stats = {"steps": stepper.n_steps, "rejected_steps": stepper.n_rejected,
+        steppers = self.retired + [stepper]
+        by_method: dict[str, int] = {}
+        for st in steppers:
+            by_method[st.method] = by_method.get(st.method, 0) + st.n_steps
+        stats = {"steps": sum(st.n_steps for st in steppers),
+                 "rejected_steps": sum(st.n_rejected for st in steppers),
                  "dynamics_evaluations": sum(f.n_solve for f in self.fields),
-                 "stepper_evaluations": stepper.n_accel, "jacobian_evaluations": stepper.n_jac,
-                 "events": len(self.events), "projections": self.n_projections}
+                 "stepper_evaluations": sum(st.n_accel for st in steppers),
+                 "jacobian_evaluations": sum(st.n_jac for st in steppers),
+                 "derivative_evaluations": sum(f.n_derivatives for f in self.fields),
+                 "events": len(self.events), "projections": self.n_projections,
+                 "method": self.method, "steps_by_method": by_method,
+                 "method_switches": [[t, m] for t, m in self.switches],
+                 "stiffness_probes": self.chooser.n_probes if self.chooser else 0,
+                 "probe_evaluations": self.n_probe_evaluations,
+                 "near_grazing_misses": self.n_near_misses}
         return Trajectory(self.scene.name, self.t0, self.scene.q0.copy(), self.scene.v0.copy(),
                           stepper.t, stepper.q.copy(), stepper.v.copy(), self.events, self.segments,
                           stats, self.max_drift, termination, self.notes,
@@ -284,6 +385,7 @@ class _HybridRun:
         gaps0, rates0, forces0 = start
         gaps1, rates1, forces1 = end
         found = []
+        self.misses = []  # near-grazing misses of this step: (t, contact, gap, band)
         for i, contact in enumerate(self.contacts):
             if i in mode:
                 continue
@@ -300,10 +402,16 @@ class _HybridRun:
                 # an interior minimum that comes close to the ground relative to the end
                 # gaps may dip below it: the cubic from end-point data alone can miss a
                 # shallow dip, so search the step's own dense output for its minimum
-                if not (0.0 < s < 1.0 and low < _DIP_FRACTION * min(gaps0[i], gaps1[i])):
+                dip = 0.0 < s < 1.0 and low < _DIP_FRACTION * min(gaps0[i], gaps1[i])
+                # a gap that turns upward within the step, perhaps just above the ground
+                turning = gaps0[i] > self.gap_tol and rates0[i] < 0.0 <= rates1[i]
+                band = self._grazing_band(stepper.q) if turning else 0.0
+                if not (dip or (turning and min(low, gaps1[i]) <= 2.0 * band)):
                     continue
-                t_hi, g_hi = self._lowest(gap, t_a, t_b)
+                t_hi, g_hi = self._lowest(gap, t_a, t_b, stop_below=0.0)
                 if g_hi >= 0.0:
+                    if turning and g_hi <= band:
+                        self.misses.append((t_hi, i, g_hi, band))
                     continue
             if g_lo <= self.gap_tol:
                 # the contact has just opened (bounce or lift-off): its gap starts at 0
@@ -322,14 +430,58 @@ class _HybridRun:
             found.append((locate_crossing(force, t_a, t_b, forces0[k], forces1[k]), _Guard("force", i)))
         return found
 
+    def _grazing_band(self, q) -> float:
+        """Gap (m) within which a contact that turns back up may have touched, given
+        the integration error: ``grazing_gap``, by default 10 (atol + rtol |q|_inf)."""
+        if self.grazing_gap is not None:
+            return self.grazing_gap
+        return 10.0 * (self.atol + self.rtol * float(np.max(np.abs(q))))
+
+    def _near_misses(self, t_event: float) -> None:
+        """Report the near-grazing misses of the last step before ``t_event``.
+
+        A contact came down to ``gap`` (within ``band``) with zero normal speed and
+        rose again: no touchdown was found, but the integration error cannot tell
+        touching from missing, and the outcome is not continuous there (a touch of
+        depth d stops a normal speed of order sqrt(d)). Never silent: a note, or
+        `GrazingError` with ``on_grazing="raise"``."""
+        for t, i, gap, band in sorted(self.misses):
+            if t >= t_event:
+                break
+            message = (f"near-grazing of {self.names[i]} at t = {t:.12g}: its gap came down to {gap:.3g} m "
+                       f"(within grazing_gap {band:.3g} m) with zero normal speed and rose again")
+            if self.on_grazing == "raise":
+                raise GrazingError(message + "; whether it touches is below the integration error: "
+                                   "tighten rtol/atol, or lower grazing_gap to accept the miss")
+            self.n_near_misses += 1
+            if self.n_near_misses <= _SWITCH_NOTES:
+                self.notes.append(message + "; counted as a miss (no touchdown)")
+
     @staticmethod
-    def _lowest(gap, t_a, t_b):
+    def _lowest(gap, t_a, t_b, stop_below: float = -np.inf):
         """Lowest point of ``gap`` on the dense output of one step (bounded Brent),
         searched in time relative to the step start: the bounded method's tolerance
-        includes sqrt(eps) |x|, which in absolute time (t ~ 300) exceeds a short flight."""
-        xatol = 4 * np.finfo(float).eps * max(1.0, abs(t_b))
-        low = minimize_scalar(lambda s: gap(t_a + s), bounds=(0.0, t_b - t_a), method="bounded",
-                              options={"xatol": xatol})
+        includes sqrt(eps) |x|, which in absolute time (t ~ 300) exceeds a short flight.
+
+        The search stops at the first point below ``stop_below``: a caller that
+        only needs a point past a sign change (a bracket) gets it without resolving
+        the minimum. The time tolerance, 1e-9 of the step (or a few ulps of t),
+        puts the minimum's value within ~1e-18 of the step's gap variation.
+        """
+        class _Below(Exception):
+            pass
+
+        def f(s):
+            value = gap(t_a + s)
+            if value < stop_below:
+                raise _Below(s, value)
+            return value
+        xatol = max(4 * np.finfo(float).eps * max(1.0, abs(t_b)), 1e-9 * (t_b - t_a))
+        try:
+            low = minimize_scalar(f, bounds=(0.0, t_b - t_a), method="bounded", options={"xatol": xatol})
+        except _Below as below:
+            s, value = below.args
+            return t_a + float(s), float(value)
         return t_a + float(low.x), float(low.fun)
 
     def _peak(self, gap, t_a, t_b):
@@ -341,7 +493,7 @@ class _HybridRun:
         ground (e.g. a ball bounce at 1.2e-6 m/s under g = 1 peaks at 7e-13 m); the
         Zeno rule ends such sequences instead.
         """
-        t_peak, low = self._lowest(lambda t: -gap(t), t_a, t_b)
+        t_peak, low = self._lowest(lambda t: -gap(t), t_a, t_b, stop_below=0.0)
         return (t_peak, -low) if -low > 0.0 else (None, None)
 
     # -- events ---------------------------------------------------------------------

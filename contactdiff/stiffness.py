@@ -1,0 +1,156 @@
+"""Choosing the stepper of ``simulate(method="auto")``: explicit unless stability limits it.
+
+An explicit Runge–Kutta step of size ``h`` is stable only while ``h ρ`` stays
+inside the method's stability region, ``ρ`` being the spectral radius of the
+flow's first-order Jacobian
+
+    DF = [[G, I], [∂a/∂q, ∂a/∂v]]     (tangent space; G = -ad(v) on Lie groups)
+
+of the current contact mode (1/s). DOP853's region reaches ``|h λ| ≈ 6.4`` on
+the negative real axis and ``≈ 6.0`` on the imaginary axis. When the
+accuracy asked for would allow longer steps than that — a stiff spring whose
+fast motion is damped out or was never excited — error control holds ``h ρ``
+near the boundary step after step: the explicit method is limited by
+stability, and an implicit method (Radau IIA, stable for every ``h``) is
+cheaper. When the fast motion is excited and undamped (a stiff spring ringing
+after an impact) every accurate method must resolve it; the explicit steps
+then have ``h ρ`` well below the boundary and the explicit method is cheaper.
+
+The rule (after Hairer's stiffness detection in DOP853 and LSODA's switching):
+
+* ``ρ`` is measured once a mode has taken `PROBE_AFTER` steps (shorter modes
+  never pay for it), by Arnoldi's method on difference quotients of the
+  mode's accelerations (`spectral_radius`: at most `KRYLOV` + 1 evaluations,
+  no derivatives, so a run without ``jacobian=True`` stays free of derivative
+  work), and again at the current state before any switch;
+* explicit to stiff: `SWITCH_COUNT` of the last `WINDOW` explicit steps had
+  ``h ρ >= STIFF_RATIO`` (two thirds of the stability boundary);
+* stiff to explicit: `SWITCH_COUNT` of the last `WINDOW` Radau steps had
+  ``h ρ <= EXPLICIT_RATIO`` (steps an explicit method takes stably and, being
+  of higher order, at least as long for the same accuracy).
+
+The choice carries over from mode to mode: a run starts explicit, and a mode
+that follows a stiff one starts stiff.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+
+import numpy as np
+
+EXPLICIT, STIFF = "DOP853", "Radau"
+STIFF_RATIO = 3.0  # h ρ of a stability-limited DOP853 step (boundary ≈ 6; ~3-4 at rtol 1e-12)
+EXPLICIT_RATIO = 1.0  # h ρ of a Radau step that resolves the fastest motion
+WINDOW = 15  # steps looked at (Hairer's DOP853 declares stiffness after 15)
+SWITCH_COUNT = 12  # of which this many must agree
+PROBE_AFTER = 8  # steps in a mode before ρ is measured
+KRYLOV = 12  # Arnoldi products (accel calls) of one measurement of ρ
+
+
+def spectral_radius(accel, q: np.ndarray, v: np.ndarray, t: float, group=None,
+                    krylov: int = KRYLOV) -> float:
+    """Largest ``|λ|`` of the first-order tangent-space Jacobian ``DF`` of ``dv/dt = accel``
+    at ``(q, v, t)`` (1/s), without derivatives.
+
+    Arnoldi's method on ``DF`` with ``min(krylov, 2 nv)`` products, each a forward
+    difference of ``accel`` along the direction (one ``accel`` call): the Ritz value
+    of largest modulus. With ``2 nv <= krylov`` the Krylov space is the whole
+    tangent space and the Ritz values are the eigenvalues of the difference
+    Jacobian; beyond, the extreme eigenvalues are the ones Arnoldi finds first.
+    The start vector is fixed (seeded), so the estimate is reproducible.
+
+    Args:
+        accel: ``accel(t, q, v) -> dv/dt`` (nv,).
+        q, v: state; t: time (s).
+        group: the configuration's Lie group (a `steppers.PinocchioGroup`) or None
+            for a vector space (``q ⊕ δq = q + δq``).
+        krylov: largest number of products.
+    """
+    nv = v.size
+    n = 2 * nv
+    lie = group is not None and not group.is_vector_space
+    G = group.velocity_jacobian_q(q, v) if lie else None
+    a0 = np.asarray(accel(t, q, v), dtype=float)
+    size = max(1.0, float(np.max(np.abs(q))), float(np.max(np.abs(v))))
+    eps = np.sqrt(np.finfo(float).eps) * size
+
+    def product(w):
+        wq, wv = w[:nv], w[nv:]
+        q_eps = group.integrate(q, eps * wq) if group is not None else q + eps * wq
+        out = np.empty(n)
+        out[:nv] = wv + (G @ wq if lie else 0.0)
+        out[nv:] = (np.asarray(accel(t, q_eps, v + eps * wv), dtype=float) - a0) / eps
+        return out
+
+    m = min(int(krylov), n)
+    V = np.zeros((n, m + 1))
+    H = np.zeros((m + 1, m))
+    w = np.random.default_rng(0).standard_normal(n)
+    V[:, 0] = w / np.linalg.norm(w)
+    k = m
+    for j in range(m):
+        u = product(V[:, j])
+        for i in range(j + 1):  # modified Gram-Schmidt
+            H[i, j] = V[:, i] @ u
+            u -= H[i, j] * V[:, i]
+        H[j + 1, j] = np.linalg.norm(u)
+        if H[j + 1, j] <= 1e-12 * max(1.0, np.abs(H[: j + 1, j]).max()):
+            k = j + 1  # invariant subspace: its eigenvalues are exact
+            break
+        V[:, j + 1] = u / H[j + 1, j]
+    return float(np.max(np.abs(np.linalg.eigvals(H[:k, :k])))) if k else 0.0
+
+
+class MethodChooser:
+    """Decides, after every accepted step, whether ``method="auto"`` should switch.
+
+    Args:
+        probe: ``probe(q, v, t) -> ρ`` of the current mode at a state (1/s).
+
+    Attributes:
+        method: the stepper in use (`EXPLICIT` or `STIFF`).
+        rho: ``ρ`` of the current mode once measured, else None.
+        n_probes: how many times ``ρ`` was measured.
+    """
+
+    def __init__(self, probe):
+        self.probe = probe
+        self.method = EXPLICIT
+        self.rho: float | None = None
+        self.n_probes = 0
+        self._steps: deque[float] = deque(maxlen=WINDOW)
+        self._mode_steps = 0
+
+    def new_mode(self, probe) -> None:
+        """A mode starts: forget ``ρ`` and the steps of the last one."""
+        self.probe, self.rho = probe, None
+        self._steps.clear()
+        self._mode_steps = 0
+
+    def _count(self, rho: float) -> int:
+        if self.method == EXPLICIT:
+            return sum(h * rho >= STIFF_RATIO for h in self._steps)
+        return sum(h * rho <= EXPLICIT_RATIO for h in self._steps)
+
+    def after_step(self, h: float, q: np.ndarray, v: np.ndarray, t: float) -> str | None:
+        """Record an accepted step of size ``h`` (s) ending at ``(q, v, t)``; return the
+        method to switch to, or None to go on."""
+        self._steps.append(h)
+        self._mode_steps += 1
+        if self._mode_steps < PROBE_AFTER:
+            return None
+        if self.rho is None:
+            self.rho = self._measure(q, v, t)
+        if len(self._steps) < SWITCH_COUNT or self._count(self.rho) < SWITCH_COUNT:
+            return None
+        self.rho = self._measure(q, v, t)  # confirm at the current state
+        if self._count(self.rho) < SWITCH_COUNT:
+            return None
+        self.method = STIFF if self.method == EXPLICIT else EXPLICIT
+        self._steps.clear()
+        return self.method
+
+    def _measure(self, q, v, t) -> float:
+        self.n_probes += 1
+        return self.probe(q, v, t)
