@@ -416,9 +416,17 @@ class _HybridRun:
             if g_lo <= self.gap_tol:
                 # the contact has just opened (bounce or lift-off): its gap starts at 0
                 # going up; a new touchdown needs the gap to rise above 0 and come back
-                t_lo, g_lo = self._peak(gap, t_a, t_hi)
-                if t_lo is None:
+                t_peak, g_peak = self._peak(gap, t_a, t_hi)
+                if t_peak is None:
+                    # it never opened (released at an impact with no separating speed,
+                    # or rising by less than the search resolves) and is sinking: it
+                    # touches down where it passes -gap_tol, within the closed band
+                    shift = self.gap_tol - min(g_lo, 0.0)
+                    if g_hi + shift < 0.0:
+                        found.append((locate_crossing(lambda t: gap(t) + shift, t_a, t_hi, g_lo + shift,
+                                                      g_hi + shift), _Guard("gap", i)))
                     continue
+                t_lo, g_lo = t_peak, g_peak
             found.append((locate_crossing(gap, t_lo, t_hi, g_lo, g_hi), _Guard("gap", i)))
         for k, i in enumerate(mode):
             if forces1[k] >= 0.0:
@@ -555,7 +563,21 @@ class _HybridRun:
         scale = max(1.0, float(np.max(np.abs(impact.normal_speeds_before))))
         staying = [i for i, s in zip(closed, impact.normal_speeds_after)
                    if s <= _SPEED_TOL * scale and i not in releasing]
-        new_mode = choose_mode(self.dyn, q, v_plus, t, staying)
+        # The Zeno rule for impact cascades: a closed contact that this impact would
+        # lift slower than zeno_speed does not leave (with several sticking feet an
+        # impact at one foot lifts another by a little, whose return lifts a third,
+        # and so on, a geometric series of ever slower impacts); its separating speed
+        # is removed M-orthogonally if the mode keeps it
+        settling = [i for i, s in zip(closed, impact.normal_speeds_after)
+                    if _SPEED_TOL * scale < s < self.zeno_speed and i not in releasing and i not in touching]
+        new_mode = choose_mode(self.dyn, q, v_plus, t, staying + settling)
+        settled = [i for i in settling if i in new_mode]
+        if settled:
+            A = np.vstack([self.contacts[i].rows(self.kin) for i in new_mode])
+            v_plus = v_plus - self._weighted_pinv(q, A) @ (A @ v_plus)
+            self.notes.append(f"Zeno: impact cascade ended at t = {t:.12g}: "
+                              f"{', '.join(self.names[i] for i in settled)} kept closed (lifted slower "
+                              f"than zeno_speed = {self.zeno_speed:g} m/s)")
         if grazing:
             kind = "grazing"
             self.notes.append(f"grazing touchdown of {', '.join(self.names[i] for i in grazing)} at t = {t:.12g}")
@@ -571,7 +593,7 @@ class _HybridRun:
         event = Event(t, kind, self._mode_names(touching), len(touching) > 1, q.copy(),
                       v_minus.copy(), v_plus.copy(), impulses, self._mode_names(mode),
                       self._mode_names(new_mode), {self.names[i]: s for i, s in speeds.items()})
-        event.differentiable = not grazing
+        event.differentiable = not (grazing or settled)  # the cascade rule's cut-off is not smooth
         if self.jacobian and initial:
             # no guard at t0: perturbations keep the start time, only the reset acts
             event.saltation = impact_reset_jacobian(self.dyn, q, v_minus, impact)
