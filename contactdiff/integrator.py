@@ -85,7 +85,7 @@ class _Guard:
 class _ModeField:
     """Vector field of one mode for the stepper, remembering its last forces.
 
-    With ``fused`` (a flow Jacobian is being computed) every evaluation also
+    With ``fused`` (a flow Jacobian by an explicit method) every evaluation also
     differentiates the mode: the stepper asks for the Jacobian at the very
     stage points whose accelerations it evaluated, and one solve with
     derivatives costs less than a plain solve followed by a derivative solve.
@@ -270,7 +270,7 @@ class _HybridRun:
         scene = self.scene
         q, v = scene.q0.copy(), scene.v0.copy()
         mode, v = self._initial_mode(q, v)
-        field = _ModeField(self.dyn, mode, fused=self.jacobian)
+        field = _ModeField(self.dyn, mode, fused=self.jacobian and self.method != "Radau")
         self.group = PinocchioGroup(scene.model)
         self.chooser = MethodChooser(self._probe(mode)) if self.method == AUTO else None
         stepper = make_stepper(EXPLICIT if self.chooser else self.method, field.accel, self.group, self.t0,
@@ -319,7 +319,7 @@ class _HybridRun:
                     f"(last: {self.events[-1].kind} of {', '.join(self.events[-1].contacts)}); "
                     "raise max_events or zeno_speed", self._trajectory(stepper, "max_events"))
             q_event = self.events[-1].q
-            field = _ModeField(self.dyn, mode, fused=self.jacobian)
+            field = _ModeField(self.dyn, mode, fused=self.jacobian and stepper.method != "Radau")
             self.fields.append(field)
             xi = self.events[-1].saltation
             stepper.restart(t_event, q_event, v_plus, accel=field.accel, jac=field.jac,
@@ -346,6 +346,8 @@ class _HybridRun:
         jump (state and flow Jacobian carried over, the step size as a first guess)."""
         self.retired.append(stepper)
         self.switches.append((stepper.t, method))
+        # Radau evaluates the field at Newton iterates, where no derivative is wanted
+        field.fused = self.jacobian and method != "Radau"
         rho = self.chooser.rho
         if len(self.switches) <= _SWITCH_NOTES:
             why = ("explicit steps limited by stability" if method != EXPLICIT
