@@ -14,9 +14,11 @@ in the tangent space of size ``nv``, and ``q ⊕ dq = pin.integrate(model, q, dq
 
 from __future__ import annotations
 
+import math
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
+from xml.etree import ElementTree
 
 import numpy as np
 import pinocchio as pin
@@ -221,6 +223,7 @@ def _from_urdf(path: Path, floating_base: bool, name: str, srdf: str = "",
             model = pin.buildModelFromUrdf(str(path))
     except (RuntimeError, ValueError) as exc:
         raise ModelLoadError(f"cannot read URDF {str(path)!r}: {exc}") from None
+    _check_numbers(path)
     _check_inertias(model, path)
     q_ref = pin.neutral(model)
     if srdf:
@@ -232,6 +235,34 @@ def _from_urdf(path: Path, floating_base: bool, name: str, srdf: str = "",
     actuated = tuple(model.names[j] for j in range(root, model.njoints)) if floating_base else ()
     feet = tuple(find_feet(model)) if floating_base else ()
     return Robot(model, name, str(path), floating_base, q_ref, feet, actuated)
+
+
+_NAME_ATTRIBUTES = {"name", "link", "joint", "filename", "type"}  # never numbers, even "nan"
+
+
+def _check_numbers(path: Path) -> None:
+    """Refuse non-finite numbers in the URDF's attributes: the URDF parser drops an
+    element it cannot read (an inertial block with ``ixx="nan"`` loses its whole
+    rotational inertia) and would give a wrong model without a word."""
+    try:
+        root = ElementTree.parse(path).getroot()
+    except ElementTree.ParseError as exc:
+        raise ModelLoadError(f"cannot read URDF {str(path)!r}: {exc}") from None
+    for element in root.iter():
+        for key, text in element.attrib.items():
+            if key in _NAME_ATTRIBUTES:
+                continue
+            for token in text.split():
+                try:
+                    value = float(token)
+                except ValueError:
+                    continue  # names, file paths
+                if not math.isfinite(value):
+                    owner = element.get("name") or next(
+                        (p.get("name") for p in root.iter() if element in list(p)), "?")
+                    raise ModelLoadError(
+                        f"URDF {str(path)!r}: <{element.tag} {key}={text!r}> in {owner!r} is not "
+                        "a finite number")
 
 
 def _check_inertias(model: pin.Model, path: Path) -> None:

@@ -393,8 +393,6 @@ def test_non_finite_toml_values(tmp_path, entry, where):
     assert "nan" in str(info.value) or "inf" in str(info.value)
 
 
-@pytest.mark.xfail(strict=True, reason="urdfdom drops an inertial block it cannot parse; robot.py "
-                                       "does not check the URDF text for non-finite numbers yet")
 def test_nan_inertia_in_urdf_is_refused(tmp_path):
     """ixx = "nan": the parser silently drops the whole rotational inertia (iyy = 7 is
     lost too), a wrong model; it must be refused."""
