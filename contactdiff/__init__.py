@@ -9,6 +9,7 @@ Public names (stable):
     check_decoupling               the paper's assumptions, measured
     simulate, Trajectory           event-driven hybrid simulation
     trot_touchdown                 the paper's Fig. 1 scenes at any initial pitch
+    stride_map, find_periodic_gait gait stability: stride map, periodic gait, Floquet multipliers
 """
 
 from .checks import DecouplingReport, check_decoupling
@@ -21,6 +22,7 @@ from .integrator import GrazingError, TooManyEventsError, simulate
 from .models import trot_touchdown
 from .robot import QUADRUPEDS, Robot, load_robot
 from .scene import Scene, load_scene, load_source
+from .stride import StrideError, find_periodic_gait, stride_map
 from .trajectory import Event, Segment, Trajectory
 
 __version__ = "0.1.0"
@@ -31,4 +33,5 @@ __all__ = [
     "InvalidInputError", "JointSpring", "ModeDynamics", "ModelLoadError", "QUADRUPEDS", "Robot",
     "Scene", "SolverError", "Spring", "UnknownNameError", "UserEffort", "check_decoupling",
     "load_robot", "load_scene", "load_source",
+    "StrideError", "find_periodic_gait", "stride_map",
 ]

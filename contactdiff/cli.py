@@ -3,6 +3,8 @@
     contactdiff check SOURCE [--samples N] [--seed S] [--armature X] [--tol T] [--json]
     contactdiff simulate SOURCE --t-final T [--q JOINT=VALUE ...] [--v JOINT=VALUE ...]
                         [--method M] [--rtol R] [--atol A] [--json] [--plot out.png]
+    contactdiff stride SOURCE --foot NAME [--newton N] [--t0 T] [--period T] [--neutral x,y,yaw]
+                        [--json]
 
 SOURCE is a scene (TOML path or a name of robots/) or a robot (URDF path or
 example-robot-data name; its feet get ground contacts). Errors print one line
@@ -67,13 +69,17 @@ def build_parser() -> argparse.ArgumentParser:
                      help="initial joint coordinate (repeatable); comma-separated for multi-dof joints")
     sim.add_argument("--v", action="append", default=[], metavar="JOINT=VALUE",
                      help="initial joint velocity (repeatable)")
-    sim.add_argument("--method", default="DOP853", choices=METHODS, help="stepper (default DOP853)")
+    sim.add_argument("--method", default="auto", choices=("auto",) + tuple(METHODS),
+                     help="stepper: auto (DOP853, switching to Radau while stiff; the default), "
+                          "or one used throughout")
     sim.add_argument("--rtol", type=float, default=1e-8, help="relative tolerance (default 1e-8)")
     sim.add_argument("--atol", type=float, default=1e-10, help="absolute tolerance (default 1e-10)")
     sim.add_argument("--jacobian", action="store_true",
                      help="also compute the flow Jacobian d x(T)/d x0 and every saltation matrix")
     sim.add_argument("--json", action="store_true", help="print the trajectory summary as JSON")
-    sim.add_argument("--plot", metavar="PNG", help="draw contact gaps over time with events marked")
+    sim.add_argument("--plot", metavar="PNG",
+                     help="draw contact gaps over time with events marked; for a floating base, "
+                          "the contact timeline and the base height, roll and pitch")
     sim.set_defaults(run=_run_simulate)
 
     bench = sub.add_parser(
@@ -86,14 +92,68 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument("--repeats", type=int, default=3, help="timing repeats, median kept (default 3)")
     bench.add_argument("--json", action="store_true", help="print the results as JSON")
     bench.add_argument("--plot", metavar="PNG", help="write the log-log error vs run time plot")
+    bench.add_argument("--studies", action="store_true",
+                       help="also run the stiff and extreme-case studies and measure what a scene "
+                            "costs beyond its needs (with --quick: seconds; without: minutes)")
     bench.set_defaults(run=_run_bench)
+
+    stride = sub.add_parser(
+        "stride", help="gait stability: stride map, periodic gait, Floquet multipliers",
+        description="Stride map of a foot (the state just before one of its touchdowns to the state "
+                    "just before the next) and its Jacobian; Newton iterations towards a periodic "
+                    "gait; the Floquet multipliers (eigenvalues in section coordinates, neutral moves "
+                    "removed). The start is the scene's initial state carried to the foot's first "
+                    "touchdown.")
+    stride.add_argument("source", metavar="SOURCE", help="scene or robot, as for check")
+    stride.add_argument("--foot", required=True, help="contact whose touchdowns define the section")
+    stride.add_argument("--newton", type=_positive_int, default=0, metavar="N",
+                        help="Newton iterations towards a periodic gait (default 0: one stride)")
+    stride.add_argument("--tol", type=_nonnegative_float, default=1e-9,
+                        help="residual at which Newton stops (default 1e-9)")
+    stride.add_argument("--t0", type=float, default=0.0, help="start time (s, default 0)")
+    stride.add_argument("--t-max", type=float, default=10.0, help="longest stride (s, default 10)")
+    stride.add_argument("--min-stride", type=float, default=None,
+                        help="shortest stride (s): earlier re-landings of the foot are skipped "
+                             "(default: half the clock period of a clock-driven scene, else 0)")
+    stride.add_argument("--period", type=float, default=None,
+                        help="clock period (s) of a clock-driven scene (default: from its controller)")
+    stride.add_argument("--neutral", default=None, metavar="MOVES",
+                        help="neutral moves removed, comma-separated from x, y, yaw, or 'none' "
+                             "(default: those the scene admits)")
+    stride.add_argument("--q", action="append", default=[], metavar="JOINT=VALUE",
+                        help="initial joint coordinate (repeatable)")
+    stride.add_argument("--v", action="append", default=[], metavar="JOINT=VALUE",
+                        help="initial joint velocity (repeatable)")
+    stride.add_argument("--method", default="DOP853", choices=METHODS, help="stepper (default DOP853)")
+    stride.add_argument("--rtol", type=float, default=1e-10, help="relative tolerance (default 1e-10)")
+    stride.add_argument("--atol", type=float, default=1e-12, help="absolute tolerance (default 1e-12)")
+    stride.add_argument("--json", action="store_true", help="print the result as JSON")
+    stride.set_defaults(run=_run_stride)
     return parser
+
+
+def _run_stride(args) -> int:
+    from .scene import load_source
+    from .stride import find_periodic_gait
+
+    scene = load_source(args.source)
+    q0, v0 = _assignments(args.q, "--q"), _assignments(args.v, "--v")
+    if q0 or v0:
+        scene = scene.with_state(q0 or None, v0 or None)
+    neutral = args.neutral
+    if neutral is not None and neutral.strip().lower() == "none":
+        neutral = ""
+    gait = find_periodic_gait(scene, args.foot, t=args.t0, iterations=args.newton, tol=args.tol,
+                              neutral=neutral, period=args.period, t_max=args.t_max,
+                              min_stride=args.min_stride, method=args.method, rtol=args.rtol, atol=args.atol)
+    print(json.dumps(gait.to_dict(), indent=2) if args.json else gait.format())
+    return 0
 
 
 def _run_bench(args) -> int:
     from .bench import run_bench
 
-    result = run_bench(scenes=args.scenes, repeats=args.repeats, quick=args.quick)
+    result = run_bench(scenes=args.scenes, repeats=args.repeats, quick=args.quick, studies=args.studies)
     if args.plot:
         result.plot(args.plot)
     print(json.dumps(result.to_dict(), indent=2) if args.json else result.format())
@@ -129,9 +189,10 @@ def _run_simulate(args) -> int:
     traj = simulate(scene, args.t_final, method=args.method, rtol=args.rtol, atol=args.atol,
                     jacobian=args.jacobian)
     if args.plot:
-        from .plotting import plot_gaps
+        from .plotting import plot_gait, plot_gaps
 
-        plot_gaps(traj, scene, args.plot)
+        # floating base: contact timeline, base height and attitude; else contact gaps
+        (plot_gait if scene.robot.floating_base else plot_gaps)(traj, scene, args.plot)
     if args.json:
         print(json.dumps(traj.summary(), indent=2))
         return 0
@@ -162,6 +223,8 @@ def _format_trajectory(traj, scene) -> str:
     s = traj.stats
     lines.append(f"steps {s['steps']} (rejected {s['rejected_steps']}), dynamics evaluations "
                  f"{s['dynamics_evaluations']}, largest active-gap drift {traj.max_drift:.2e} m")
+    if s.get("steps_by_method"):
+        lines.append(f"method {s['method']}: " + ", ".join(f"{m} {n} steps" for m, n in s["steps_by_method"].items()))
     lines += [f"note: {n}" for n in traj.notes]
     if traj.jacobian is not None:
         lines += [""] + _format_jacobian(traj, scene)

@@ -55,3 +55,48 @@ def plot_gaps(traj: Trajectory, scene, path: str | Path, n_samples: int = 800) -
     fig.savefig(path, dpi=120)
     plt.close(fig)
     return Path(path)
+
+
+def plot_gait(traj: Trajectory, scene, path: str | Path, n_samples: int = 1500) -> Path:
+    """Gait figure of a floating-base scene, saved as PNG: a contact timeline (one row
+    per contact, a bar wherever it is active), and the base height (m) and its roll and
+    pitch (rad, Pinocchio's roll-pitch-yaw of the base orientation) against time (s),
+    with touchdowns (red) and lift-offs (green) marked.
+
+    Args:
+        traj: the trajectory.
+        scene: the scene it was computed on (a free-flyer robot).
+        path: output file.
+        n_samples: points per curve.
+    """
+    import pinocchio as pin
+
+    plt = _pyplot()
+    times = np.linspace(traj.t0, traj.t, n_samples)
+    qs, _ = traj.sample(times)
+    rpy = np.array([pin.rpy.matrixToRpy(pin.Quaternion(q[6], q[3], q[4], q[5]).toRotationMatrix())
+                    for q in qs])
+    fig, (ax_c, ax_z, ax_a) = plt.subplots(3, 1, figsize=(9, 7), sharex=True, constrained_layout=True,
+                                           gridspec_kw={"height_ratios": [1.1, 1, 1]})
+    names = scene.contact_names
+    for row, name in enumerate(names):
+        spans = [(s.t0, s.t1 - s.t0) for s in traj.segments if name in s.mode and s.t1 > s.t0]
+        ax_c.broken_barh(spans, (row - 0.35, 0.7), color=f"C{row}")
+    ax_c.set_yticks(range(len(names)), names)
+    ax_c.set_ylim(len(names) - 0.5, -0.5)
+    ax_c.set_title(f"{traj.scene_name}: feet on the ground, base height and attitude")
+    for kind, color in (("touchdown", "tab:red"), ("lift-off", "tab:green")):
+        for e in traj.events:
+            if e.kind == kind:
+                ax_c.plot([e.t] * len(e.contacts), [names.index(c) for c in e.contacts], "|", color=color, ms=9)
+    ax_z.plot(times, qs[:, 2], color="k", lw=1.2)
+    ax_z.set_ylabel("base height (m)")
+    ax_a.plot(times, rpy[:, 0], label="roll", lw=1.2)
+    ax_a.plot(times, rpy[:, 1], label="pitch", lw=1.2)
+    ax_a.axhline(0.0, color="k", lw=0.5)
+    ax_a.set_ylabel("base attitude (rad)")
+    ax_a.set_xlabel("time (s)")
+    ax_a.legend(loc="best", fontsize=8)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return Path(path)

@@ -16,9 +16,10 @@ import numpy as np
 import pinocchio as pin
 
 from .contacts import FRICTION_MODES, BoundContact, Contact
-from .efforts import JointSpring, Spring, UserEffort
+from .efforts import JointSpring, Spring, UserEffort, bind_efforts
 from .errors import (InconsistentStateError, InvalidInputError, ModelLoadError,
                      UnknownNameError, unknown_name)
+from .gait_controller import TrotController
 from .kinematics import Kinematics
 from .robot import (ROBOTS_DIR, Robot, example_robot_data_names, load_robot,
                     own_robot_names)
@@ -64,11 +65,11 @@ class Scene:
         if duplicates:
             raise InvalidInputError(f"contact names must be unique; repeated: {', '.join(duplicates)}")
         for e in self.effort_specs:
-            if not isinstance(e, (JointSpring, Spring, UserEffort)):
+            if not isinstance(e, (JointSpring, Spring, UserEffort, TrotController)):
                 raise InvalidInputError(
-                    f"efforts must be JointSpring, Spring or UserEffort objects, got {e!r}")
+                    f"efforts must be JointSpring, Spring, UserEffort or TrotController objects, got {e!r}")
         self.contacts: list[BoundContact] = [c.bind(robot) for c in self.contact_specs]
-        self.efforts = [e.bind(robot) for e in self.effort_specs]
+        self.efforts = bind_efforts(self.effort_specs, robot)
         self.q0 = self._configuration(q0)
         self.v0 = self._velocity(v0)
         self._kinematics: Kinematics | None = None
@@ -245,7 +246,8 @@ def _joint_values(joint: str, value, size: int, kind: str) -> np.ndarray:
 
 # -- TOML ------------------------------------------------------------------------------
 _TOP_KEYS = ("robot", "floating_base", "gravity", "name", "description", "contact", "spring",
-             "joint_spring", "initial")
+             "joint_spring", "trot", "initial")
+_TROT_KEYS = TrotController.KEYS
 _CONTACT_KEYS = ("frame", "normal", "offset", "restitution", "friction", "against", "name")
 _SPRING_KEYS = ("frame_a", "frame_b", "stiffness", "damping", "rest_length")
 _JOINT_SPRING_KEYS = ("joint", "stiffness", "damping", "rest")
@@ -321,6 +323,12 @@ def load_scene(source: str | Path) -> Scene:
         _check_keys(f"{where} [[joint_spring]] #{i + 1}", entry, _JOINT_SPRING_KEYS,
                     required=("joint", "stiffness"))
         efforts.append(JointSpring(**entry))
+    if "trot" in doc:  # a TrotController (contactdiff.gait_controller) on the legs
+        _check_keys(f"{where} [trot]", doc["trot"], _TROT_KEYS)
+        stance = doc["trot"].get("stance", {})
+        if not isinstance(stance, Mapping):
+            raise InvalidInputError(f"{where}: trot.stance must be a table of joint = angle (rad), got {stance!r}")
+        efforts.append(TrotController(**doc["trot"]))
     initial = doc.get("initial", {})
     _check_keys(f"{where} [initial]", initial, _INITIAL_KEYS)
     for key in _INITIAL_KEYS:

@@ -1,0 +1,525 @@
+"""A clock-driven trot controller for quadrupeds: PD torques tracking a periodic
+joint-space reference, with a scheduled feed-forward load.
+
+`TrotController` is an effort spec like those of `contactdiff.efforts`
+(``bind(robot)`` returns an evaluator with ``tau(kin, t)`` and
+``derivatives(kin, t)``). On every joint of a leg it applies
+
+    tau_j = g(t) [kp (q*_j(t) - q_j) + kd (q̇*_j(t) - v_j)] + tau_ff,j(t)       (N m)
+
+and nothing on the base or on joints outside the legs.
+
+**Clock.** The controller is driven by time only, never by contact state: the
+gait phase is ``phi(t) = ((t - t_start) / period) mod 1``. Diagonal pair A is
+front-left + hind-right, pair B front-right + hind-left. Each leg has its own
+phase ``psi = (phi + o_leg) mod 1``, 0 at its scheduled touchdown; it is
+scheduled in stance for ``psi < duty`` and in swing for ``psi >= duty``. The
+hind foot of a pair follows its front foot by ``lag`` and pair B follows pair
+A by half a period; with ``c = (duty + lag) / 2`` the offsets are
+
+    o = c (A front),  c - lag (A hind),  c - 1/2 (B front),  c - 1/2 - lag (B hind),
+
+so ``phi = 0`` is the middle of pair A's stance, pair B being in the air. In
+phase, the scheduled events of one period are
+
+    A front touchdown  -c           A hind touchdown  lag - c
+    A front lift-off   duty - c     A hind lift-off   duty + lag - c
+    pair B: the same plus 1/2.
+
+With ``duty > 1/2`` a pair lands before the other lifts off (double support, a
+walking trot). ``lag > 0`` keeps the two feet of a pair from landing or lifting
+off at almost, but not exactly, the same instant (a diagonal pair of a
+symmetric robot would otherwise do so within round-off, which no event
+detection can order). The simulated touchdowns and lift-offs come from the
+mechanics, near these scheduled times.
+
+**Reference.** Each foot follows a path in the body frame relative to its
+position in the stance pose (default: the robot's standing pose ``q_ref``).
+With the quintic smooth step ``S(u) = 10u³ - 15u⁴ + 6u⁵`` (zero slope and
+curvature at both ends) every piece is C² in time:
+
+* forward: ``dx = step_length (1/2 - S(psi / duty))`` in stance,
+  ``dx = step_length (S(s) - 1/2)`` in swing, ``s = (psi - duty) / (1 - duty)``
+  (``step_length = 0`` trots in place);
+* up, in swing only: up to ``step_height`` over the first `SWING_RISE` of the
+  swing, down to ``approach_height`` by the phase ``1 - approach``, and down to
+  the stance position over the last ``approach`` of the period.
+
+The joint reference ``q*(phi)`` is the periodic cubic spline through the exact
+inverse kinematics of those paths (base frame, Gauss–Newton on the leg's own
+joints) at ``samples`` equally spaced phases, and ``q̇*`` its derivative over
+the period: the feet follow the designed paths to interpolation accuracy.
+
+**Feed-forward and contact transitions.** ``tau_ff,leg = g_leg - s w(psi)
+J_leg^T (0, 0, c_leg m g)``, with ``g_leg`` the gravity torque of the leg's own
+mass and ``J_leg`` its foot Jacobian (linear, world axes), both at the stance
+pose, ``m g`` the robot's weight, ``c_leg`` the leg's share of it when its pair
+stands alone (the two shares of a pair balance the weight's moment about the
+line through its feet; 1/2 each for a robot whose centre of mass is centred)
+and ``s`` the scale that makes the scheduled loads carry the weight on average
+over a period. The load ``w`` (`TrotControllerEvaluator.load`, smooth steps
+between levels) is 1 in stance and 0 in swing, with three transitions of
+length ``transfer``:
+
+* landing: in the last ``transfer`` of the swing ``w`` rises to
+  ``touchdown_load``, pressing the foot down so that it meets the ground with
+  a definite speed (not grazing) and is loaded at once; then it rises to 1
+  over the first ``transfer`` of the stance;
+* lift-off: over a window of ``2 transfer`` ``w`` falls from 1 through 0 at the
+  scheduled lift-off to ``-liftoff_pull`` (a vertical pull), then returns to 0
+  over the next ``transfer``;
+* meanwhile the PD gains are scaled by ``g(psi)``, falling to ``release_gain``
+  (default 0) at the scheduled lift-off and back to 1 over ``transfer`` on
+  either side.
+
+Why: with sticking contacts a foot is released when its normal force reaches
+zero, and if its tangential force is not zero then, the released foot is
+pushed into the ground (the sticking model has no friction cone to let it
+slip first). Joint-space PD terms squeeze the two stance feet of a pair
+against each other through the body; fading them out while a purely vertical
+feed-forward pull takes the normal force through zero releases the foot with
+almost no tangential force. What is left (the legs' own inertia) can still
+hold a released foot a few nanometres below the ground for a fraction of a
+millisecond, until the pull lifts it (the simulation may record tiny bounces
+there).
+
+Because ``q*``, ``q̇*``, ``g`` and ``tau_ff`` depend on time only, the
+derivatives are ``dtau/dq = -g(t) kp`` and ``dtau/dv = -g(t) kd`` on the leg
+joints (tangent space), zero elsewhere.
+
+Legs are found from the kinematic tree: the joints on the path from each foot
+frame up to the free-flyer. Front/hind and left/right come from the foot
+positions in the base frame at the stance pose (x forward, y left), so the
+same code serves every quadruped whatever its naming.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, fields
+
+import numpy as np
+import pinocchio as pin
+from scipy.interpolate import CubicSpline
+
+from .errors import InvalidInputError, check_number
+from .kinematics import Kinematics
+from .robot import Robot
+
+PAIR_A, PAIR_B = "A", "B"
+"""Diagonal pairs: A = front-left + hind-right (mid-stance at phase 0), B = front-right + hind-left."""
+
+SWING_RISE = 0.3
+"""Fraction of the swing over which a foot rises to its step height."""
+
+_IK_TOL = 1e-12  # m: foot position residual of the inverse kinematics
+_IK_ITERATIONS = 50
+
+
+def smooth_step(u):
+    """Quintic ``S(u) = 10u³ - 15u⁴ + 6u⁵``: 0 -> 1 on [0, 1] with zero slope and curvature at both ends."""
+    return u ** 3 * (10.0 - 15.0 * u + 6.0 * u ** 2)
+
+
+def _unload_window(spec) -> tuple[float, float]:
+    """Leg phases between which the load falls from 1 to ``-liftoff_pull``: length
+    ``2 transfer``, crossing 0 at ``duty`` (where ``S(u) = 1 / (1 + liftoff_pull)``)."""
+    target = 1.0 / (1.0 + spec.liftoff_pull)
+    lo, hi = 0.0, 1.0
+    for _ in range(60):  # bisection: S is increasing on [0, 1]
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if smooth_step(mid) < target else (lo, mid)
+    start = spec.duty - 2.0 * spec.transfer * 0.5 * (lo + hi)
+    return start, start + 2.0 * spec.transfer
+
+
+def _ramp(x, a: float, b: float):
+    """``S`` from 0 at ``x = a`` to 1 at ``x = b`` (clamped outside)."""
+    return smooth_step(np.clip((x - a) / (b - a), 0.0, 1.0))
+
+
+@dataclass(frozen=True)
+class TrotController:
+    """PD trot: diagonal leg pairs alternate stance and swing on a clock.
+
+    Args:
+        period: gait period (s), > 0.
+        duty: fraction of the period each foot is scheduled on the ground, in (0, 1).
+        lag: phase by which the hind foot of a pair follows the front one, >= 0,
+            below ``duty`` and ``1 - duty``.
+        step_height: swing apex of each foot above its stance position (m, body frame), > 0.
+        approach_height: height (m) from which the foot makes its final descent,
+            in [0, step_height].
+        approach: phase (fraction of the period) of that final descent, > 0.
+        step_length: forward sweep of each foot over a stride (m, body frame);
+            0 trots in place.
+        transfer: phase over which a foot takes or gives up its load and its gains
+            fade (see the module notes), > 0; the transitions must fit in the stance
+            and the swing.
+        touchdown_load: scheduled load pressing a landing foot down, in [0, 1].
+        liftoff_pull: scheduled vertical pull on a leaving foot, in [0, 1].
+        release_gain: scale of the PD gains at the scheduled lift-off, in [0, 1].
+        kp: proportional gain (N m/rad), >= 0.
+        kd: derivative gain (N m s/rad), >= 0.
+        t_start: time (s) at which the phase is 0 (mid-stance of pair A).
+        feedforward: add the leg gravity torques and the scheduled load.
+        stance: joint angles (rad) of the stance pose by joint name, overriding the
+            robot's reference pose; a mapping or a tuple of (name, value) pairs.
+        samples: phases at which the inverse kinematics is solved (spline nodes), >= 16.
+    """
+
+    period: float = 0.4
+    duty: float = 0.6
+    lag: float = 0.03
+    step_height: float = 0.04
+    approach_height: float = 0.01
+    approach: float = 0.15
+    step_length: float = 0.0
+    transfer: float = 0.05
+    touchdown_load: float = 0.2
+    liftoff_pull: float = 0.1
+    release_gain: float = 0.0
+    kp: float = 10.0
+    kd: float = 0.2
+    t_start: float = 0.0
+    feedforward: bool = True
+    stance: tuple = ()
+    samples: int = 240
+
+    def __post_init__(self) -> None:
+        owner = "trot controller"
+        set_ = object.__setattr__
+        for name, minimum in (("period", 0.0), ("duty", 0.0), ("lag", 0.0), ("step_height", 0.0),
+                              ("approach_height", 0.0), ("approach", 0.0), ("step_length", None),
+                              ("transfer", 0.0), ("touchdown_load", 0.0), ("liftoff_pull", 0.0),
+                              ("release_gain", 0.0), ("kp", 0.0), ("kd", 0.0), ("t_start", None)):
+            set_(self, name, check_number(owner, name, getattr(self, name), minimum=minimum))
+
+        def bad(message: str):
+            raise InvalidInputError(f"{owner}: {message}")
+        if self.period == 0:
+            bad(f"period must be > 0 s, got {self.period!r}")
+        if not 0.0 < self.duty < 1.0:
+            bad(f"duty must be in (0, 1), got {self.duty!r}")
+        if not self.lag < min(self.duty, 1.0 - self.duty):
+            bad(f"lag must be below duty and 1 - duty ({min(self.duty, 1.0 - self.duty)!r}), got {self.lag!r}")
+        if self.step_height == 0:
+            bad("step_height must be > 0 m, got 0")
+        if self.approach_height > self.step_height:
+            bad(f"approach_height must be in [0, step_height = {self.step_height!r}], got {self.approach_height!r}")
+        longest = (1.0 - SWING_RISE) * (1.0 - self.duty)
+        if not 0.0 < self.approach < longest:
+            bad(f"approach must be in (0, {longest:.6g}) (after the swing apex), got {self.approach!r}")
+        for name in ("touchdown_load", "liftoff_pull", "release_gain"):
+            if getattr(self, name) > 1.0:
+                bad(f"{name} must be in [0, 1], got {getattr(self, name)!r}")
+        if self.transfer == 0:
+            bad("transfer must be > 0, got 0")
+        start, end = _unload_window(self)
+        if start < self.transfer or end + self.transfer > 1.0 - self.transfer:
+            bad(f"transfer = {self.transfer!r} is too long for duty = {self.duty!r}: the load transitions "
+                "(see TrotControllerEvaluator.load) must not overlap; shorten it")
+        if not isinstance(self.feedforward, bool):
+            bad(f"feedforward must be true or false, got {self.feedforward!r}")
+        if isinstance(self.samples, bool) or not isinstance(self.samples, (int, np.integer)) or self.samples < 16:
+            bad(f"samples must be an integer >= 16, got {self.samples!r}")
+        stance = self.stance.items() if isinstance(self.stance, Mapping) else self.stance
+        try:
+            pairs = tuple((str(name), value) for name, value in stance)
+        except (TypeError, ValueError):
+            bad(f"stance must map joint names to angles (rad), got {self.stance!r}")
+        set_(self, "stance", tuple((name, check_number(owner, f"stance angle of {name!r}", value))
+                                   for name, value in pairs))
+
+    def bind(self, robot: Robot) -> TrotControllerEvaluator:
+        return TrotControllerEvaluator(self, robot)
+
+
+TrotController.KEYS = tuple(f.name for f in fields(TrotController))
+"""Argument names of `TrotController` (the keys of a scene file's ``[trot]`` table)."""
+
+
+@dataclass(frozen=True)
+class Leg:
+    """One leg of a quadruped, as found from the kinematic tree.
+
+    Attributes:
+        foot: foot frame name.
+        joints: joint names from hip to foot (the joints between the foot and the base).
+        iq, iv: their configuration and tangent indices.
+        front, left: where the foot is in the base frame at the stance pose (x > 0, y > 0).
+    """
+
+    foot: str
+    joints: tuple[str, ...]
+    iq: tuple[int, ...]
+    iv: tuple[int, ...]
+    front: bool
+    left: bool
+
+    @property
+    def pair(self) -> str:
+        """`PAIR_A` (front-left, hind-right) or `PAIR_B` (front-right, hind-left)."""
+        return PAIR_A if self.front == self.left else PAIR_B
+
+    @property
+    def label(self) -> str:
+        return ("front" if self.front else "hind") + "-" + ("left" if self.left else "right")
+
+
+def find_legs(robot: Robot, q_stance: np.ndarray | None = None) -> list[Leg]:
+    """The four legs of a floating-base quadruped, in the order of ``robot.feet``.
+
+    Raises:
+        InvalidInputError: not a floating-base robot with four feet, one per
+            quadrant of the base frame, on chains of one-coordinate joints.
+    """
+    model = robot.model
+    _check_quadruped(robot)
+    q = _base_at_origin(robot.q_ref if q_stance is None else q_stance)
+    data = model.createData()
+    pin.framesForwardKinematics(model, data, q)
+    legs = []
+    for foot in robot.feet:
+        fid = robot.frame_id(foot)
+        chain, jid = [], model.frames[fid].parentJoint
+        while jid > 0 and model.joints[jid].nq != 7:  # up to the free-flyer
+            if model.joints[jid].nq != 1 or model.joints[jid].nv != 1:
+                raise InvalidInputError(
+                    f"leg of foot {foot!r}: joint {model.names[jid]!r} has nq={model.joints[jid].nq}; "
+                    "the trot controller needs one-coordinate (revolute or prismatic) leg joints")
+            chain.append(jid)
+            jid = model.parents[jid]
+        chain.reverse()
+        p = data.oMf[fid].translation
+        legs.append(Leg(foot, tuple(model.names[j] for j in chain), tuple(model.joints[j].idx_q for j in chain),
+                        tuple(model.joints[j].idx_v for j in chain), bool(p[0] > 0), bool(p[1] > 0)))
+    quadrants = sorted(leg.label for leg in legs)
+    if quadrants != ["front-left", "front-right", "hind-left", "hind-right"]:
+        raise InvalidInputError(
+            f"robot {robot.name!r}: the feet {list(robot.feet)} are not one per quadrant of the base "
+            f"frame at the stance pose (found {quadrants}); a trot needs front/hind x left/right feet")
+    return legs
+
+
+def _check_quadruped(robot: Robot) -> None:
+    if not robot.floating_base or len(robot.feet) != 4:
+        raise InvalidInputError(
+            f"a trot needs a floating-base robot with four feet; {robot.name!r} has "
+            f"floating_base={robot.floating_base} and feet {list(robot.feet)}")
+
+
+def _base_at_origin(q: np.ndarray) -> np.ndarray:
+    """``q`` with the free-flyer at the world origin, unrotated: world axes = base axes."""
+    q = np.array(q, dtype=float)
+    q[:7] = [0, 0, 0, 0, 0, 0, 1]
+    return q
+
+
+class TrotControllerEvaluator:
+    """`TrotController` bound to a robot.
+
+    Attributes:
+        spec: the controller.
+        legs: the `Leg` list (order of ``robot.feet``).
+        q_stance: stance pose (nq,), base at the origin.
+        iq, iv: configuration and tangent indices of all leg joints (legs in order).
+        shares: fraction of the weight each leg carries when its pair stands alone.
+        load_scale: the scale ``s`` of the scheduled loads (see the module notes).
+    """
+
+    def __init__(self, spec: TrotController, robot: Robot):
+        self.spec, self.robot, self.nv = spec, robot, robot.nv
+        _check_quadruped(robot)
+        q_stance = _base_at_origin(robot.q_ref)
+        for name, value in spec.stance:
+            q_stance[robot.scalar_joint(name)[0]] = value
+        self.q_stance = q_stance
+        self.legs = find_legs(robot, q_stance)
+        self.iq = np.array([i for leg in self.legs for i in leg.iq])
+        self.iv = np.array([i for leg in self.legs for i in leg.iv])
+        self._sizes = [len(leg.iv) for leg in self.legs]
+        c = 0.5 * (spec.duty + spec.lag)
+        self._offsets = [c - (0.0 if leg.pair == PAIR_A else 0.5) - (0.0 if leg.front else spec.lag)
+                         for leg in self.legs]
+        self._spline = self._reference_spline()
+        self._dspline = self._spline.derivative()
+        self._gravity, self._carry = self._static_terms()
+        grid = np.linspace(0.0, 1.0, 4001)
+        # both legs of each pair share the weight (c_front + c_hind = 1): two pairs
+        self.load_scale = 1.0 / (2.0 * np.trapezoid([self.load(p % 1.0) for p in grid], grid))
+
+    # -- schedule -------------------------------------------------------------------
+    def phase(self, t: float) -> float:
+        """Gait phase ``phi`` in [0, 1) at time ``t`` (s)."""
+        return ((t - self.spec.t_start) / self.spec.period) % 1.0
+
+    def leg_phase(self, leg: int, phi: float) -> float:
+        """Phase ``psi`` of leg number ``leg`` (in ``legs``) at gait phase ``phi``; 0 = its touchdown."""
+        return (phi + self._offsets[leg]) % 1.0
+
+    def scheduled_stance(self, t: float) -> list[bool]:
+        """Which feet the schedule has on the ground at time ``t`` (``legs`` order)."""
+        phi = self.phase(t)
+        return [self.leg_phase(k, phi) < self.spec.duty for k in range(4)]
+
+    def scheduled_touchdown(self, leg: int) -> float:
+        """Gait phase of the scheduled touchdown of leg number ``leg``."""
+        return (-self._offsets[leg]) % 1.0
+
+    def scheduled_liftoff(self, leg: int) -> float:
+        """Gait phase of the scheduled lift-off of leg number ``leg``."""
+        return (self.spec.duty - self._offsets[leg]) % 1.0
+
+    def load(self, psi: float) -> float:
+        """Scheduled vertical load ``w`` of a leg at leg phase ``psi`` (1: its share of the
+        weight before scaling; negative: a pull), with ``r = transfer``, ``d = duty`` and smooth
+        steps between the levels (C² in time):
+
+        * ``touchdown_load`` at ``psi = 0`` (rising from 0 over the last ``r`` of the swing),
+          to 1 by ``psi = r``;
+        * 1 until the unloading: from 1 down to ``-liftoff_pull`` over a window of length
+          ``2 r``, placed so that ``w`` crosses 0 at ``psi = d`` (the scheduled lift-off);
+        * from ``-liftoff_pull`` back to 0 over the next ``r``; 0 for the rest of the swing.
+        """
+        s = self.spec
+        r, pull, tl = s.transfer, s.liftoff_pull, s.touchdown_load
+        start, end = _unload_window(s)
+        if psi < r:
+            return tl + (1.0 - tl) * float(smooth_step(psi / r))
+        if psi < start:
+            return 1.0
+        if psi < end:
+            return 1.0 - (1.0 + pull) * float(smooth_step((psi - start) / (end - start)))
+        if psi < end + r:
+            return -pull * (1.0 - float(smooth_step((psi - end) / r)))
+        if psi < 1.0 - r:
+            return 0.0
+        return tl * float(smooth_step((psi - (1.0 - r)) / r))
+
+    def gain(self, psi: float) -> float:
+        """Scale ``g`` of the PD gains of a leg at leg phase ``psi``: ``release_gain`` at the
+        scheduled lift-off (``psi = duty``), back to 1 over ``transfer`` on either side
+        (smooth steps)."""
+        s = self.spec
+        distance = abs(psi - s.duty)
+        distance = min(distance, 1.0 - distance)
+        if distance >= s.transfer:
+            return 1.0
+        return s.release_gain + (1.0 - s.release_gain) * float(smooth_step(distance / s.transfer))
+
+    # -- reference ------------------------------------------------------------------
+    def foot_offset(self, psi):
+        """Foot displacement ``(dx, dz)`` (m, base frame) from the stance pose at leg phase ``psi``."""
+        s = self.spec
+        psi = np.asarray(psi, dtype=float)
+        stance = psi < s.duty
+        u = np.where(stance, psi / s.duty, (psi - s.duty) / (1.0 - s.duty))
+        dx = np.where(stance, s.step_length * (0.5 - smooth_step(u)), s.step_length * (smooth_step(u) - 0.5))
+        top, final = s.duty + SWING_RISE * (1.0 - s.duty), 1.0 - s.approach
+        up = (s.step_height * _ramp(psi, s.duty, top) - (s.step_height - s.approach_height) * _ramp(psi, top, final)
+              - s.approach_height * _ramp(psi, final, 1.0))
+        return dx, np.where(stance, 0.0, up)
+
+    def _reference_spline(self) -> CubicSpline:
+        n = self.spec.samples
+        phis = np.arange(n + 1) / n
+        values = np.empty((n + 1, self.iq.size))
+        model = self.robot.model
+        data = model.createData()
+        pin.framesForwardKinematics(model, data, self.q_stance)
+        start = 0
+        for k, leg in enumerate(self.legs):
+            fid = self.robot.frame_id(leg.foot)
+            p0 = data.oMf[fid].translation.copy()
+            cols = slice(start, start + len(leg.iq))
+            start += len(leg.iq)
+            q = self.q_stance.copy()
+            for i, phi in enumerate(phis[:-1]):
+                dx, dz = self.foot_offset(self.leg_phase(k, phi))
+                q = self._inverse_kinematics(q, leg, fid, p0 + np.array([float(dx), 0.0, float(dz)]), data)
+                values[i, cols] = q[list(leg.iq)]
+        values[-1] = values[0]
+        return CubicSpline(phis, values, bc_type="periodic")
+
+    def _inverse_kinematics(self, q, leg: Leg, fid: int, target, data) -> np.ndarray:
+        """Leg joints placing foot ``fid`` at ``target`` (base frame; Gauss–Newton, warm start ``q``)."""
+        model = self.robot.model
+        q = q.copy()
+        iq, iv = list(leg.iq), list(leg.iv)
+        for _ in range(_IK_ITERATIONS):
+            pin.forwardKinematics(model, data, q)
+            pin.updateFramePlacements(model, data)
+            error = target - data.oMf[fid].translation
+            if np.linalg.norm(error) <= _IK_TOL:
+                return q
+            J = pin.computeFrameJacobian(model, data, q, fid, pin.LOCAL_WORLD_ALIGNED)[:3, iv]
+            q[iq] += np.linalg.lstsq(J, error, rcond=None)[0]
+        raise InvalidInputError(
+            f"trot controller: foot {leg.foot!r} cannot reach {np.round(target, 4).tolist()} m (base frame) "
+            f"with step_height={self.spec.step_height} m, step_length={self.spec.step_length} m "
+            f"(residual {np.linalg.norm(error):.3g} m); lower them")
+
+    def _static_terms(self) -> tuple[np.ndarray, np.ndarray]:
+        """Leg gravity torques at the stance pose, and per leg (rows) the torques that
+        press its foot on the ground with its share of the robot's weight when its
+        pair carries the robot alone: the shares of a pair balance the moment of the
+        weight about the line through its feet (centre of mass projected on that line,
+        horizontal plane)."""
+        model = self.robot.model
+        data = model.createData()
+        q = self.q_stance
+        gravity = pin.computeGeneralizedGravity(model, data, q)[self.iv].copy()
+        com = pin.centerOfMass(model, data, q)
+        pin.computeJointJacobians(model, data, q)
+        pin.updateFramePlacements(model, data)
+        weight = pin.computeTotalMass(model) * np.linalg.norm(model.gravity.linear)
+        up = -np.asarray(model.gravity.linear) / max(np.linalg.norm(model.gravity.linear), 1e-300)
+        feet = [self.robot.frame_id(leg.foot) for leg in self.legs]
+        carry = np.zeros((4, self.iv.size))
+        self.shares = np.zeros(4)
+        for k, leg in enumerate(self.legs):
+            partner = next(j for j, other in enumerate(self.legs) if other.pair == leg.pair and j != k)
+            p_k, p_j = data.oMf[feet[k]].translation[:2], data.oMf[feet[partner]].translation[:2]
+            self.shares[k] = np.clip((com[:2] - p_j) @ (p_k - p_j) / ((p_k - p_j) @ (p_k - p_j)), 0.0, 1.0)
+            J = pin.getFrameJacobian(model, data, feet[k], pin.LOCAL_WORLD_ALIGNED)[:3]
+            carry[k] = -(J.T @ (self.shares[k] * weight * up))[self.iv]
+        return gravity, carry
+
+    def reference(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """Joint reference ``q*`` (rad) and ``q̇*`` (rad/s) of the leg joints at time ``t`` (s)."""
+        phi = self.phase(t)
+        return self._spline(phi), self._dspline(phi) / self.spec.period
+
+    def gains(self, t: float) -> np.ndarray:
+        """Gain scale ``g`` of every leg joint at time ``t``."""
+        phi = self.phase(t)
+        return np.repeat([self.gain(self.leg_phase(k, phi)) for k in range(4)], self._sizes)
+
+    def feedforward(self, t: float) -> np.ndarray:
+        """Feed-forward torques (N m) of the leg joints at time ``t``."""
+        if not self.spec.feedforward:
+            return np.zeros(self.iv.size)
+        phi = self.phase(t)
+        loads = np.array([self.load(self.leg_phase(k, phi)) for k in range(4)])
+        return self._gravity + self.load_scale * (loads @ self._carry)
+
+    # -- effort protocol --------------------------------------------------------------
+    def tau(self, kin: Kinematics, t: float) -> np.ndarray:
+        s = self.spec
+        q_ref, v_ref = self.reference(t)
+        out = np.zeros(self.nv)
+        out[self.iv] = (self.gains(t) * (s.kp * (q_ref - kin.q[self.iq]) + s.kd * (v_ref - kin.v[self.iv]))
+                        + self.feedforward(t))
+        return out
+
+    def derivatives(self, kin: Kinematics, t: float) -> tuple[np.ndarray, np.ndarray]:
+        dq, dv = np.zeros((self.nv, self.nv)), np.zeros((self.nv, self.nv))
+        g = self.gains(t)
+        dq[self.iv, self.iv] = -self.spec.kp * g
+        dv[self.iv, self.iv] = -self.spec.kd * g
+        return dq, dv
+
+
+__all__ = ["TrotController", "TrotControllerEvaluator", "Leg", "find_legs", "smooth_step", "PAIR_A", "PAIR_B",
+           "SWING_RISE"]
