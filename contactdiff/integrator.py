@@ -422,8 +422,9 @@ class _HybridRun:
                 if t_peak is None:
                     # it never opened (released at an impact with no separating speed,
                     # or rising by less than the search resolves) and is sinking: it
-                    # touches down where it passes -gap_tol, within the closed band
-                    shift = self.gap_tol - min(g_lo, 0.0)
+                    # touches down where it passes below the integration error band
+                    # (a shallower dip of the dense output may be its error alone)
+                    shift = max(self.gap_tol, self._grazing_band(stepper.q)) - min(g_lo, 0.0)
                     if g_hi + shift < 0.0:
                         found.append((locate_crossing(lambda t: gap(t) + shift, t_a, t_hi, g_lo + shift,
                                                       g_hi + shift), _Guard("gap", i)))
