@@ -133,13 +133,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _run_stride(args) -> int:
-    from .scene import load_source
     from .stride import find_periodic_gait
 
-    scene = load_source(args.source)
-    q0, v0 = _assignments(args.q, "--q"), _assignments(args.v, "--v")
-    if q0 or v0:
-        scene = scene.with_state(q0 or None, v0 or None)
+    scene = _scene_from_args(args)
     neutral = args.neutral
     if neutral is not None and neutral.strip().lower() == "none":
         neutral = ""
@@ -162,6 +158,17 @@ def _run_bench(args) -> int:
     return 0
 
 
+def _scene_from_args(args):
+    """The scene of ``args.source`` with the initial state changed by ``--q`` / ``--v``."""
+    from .scene import load_source
+
+    scene = load_source(args.source)
+    q0, v0 = _assignments(args.q, "--q"), _assignments(args.v, "--v")
+    if q0 or v0:
+        scene = scene.with_state(q0 or None, v0 or None)
+    return scene
+
+
 def _assignments(items: list[str], flag: str) -> dict:
     from .errors import InvalidInputError
 
@@ -180,12 +187,8 @@ def _assignments(items: list[str], flag: str) -> dict:
 
 def _run_simulate(args) -> int:
     from .integrator import simulate
-    from .scene import load_source
 
-    scene = load_source(args.source)
-    q0, v0 = _assignments(args.q, "--q"), _assignments(args.v, "--v")
-    if q0 or v0:
-        scene = scene.with_state(q0 or None, v0 or None)
+    scene = _scene_from_args(args)
     traj = simulate(scene, args.t_final, method=args.method, rtol=args.rtol, atol=args.atol,
                     jacobian=args.jacobian)
     if args.plot:

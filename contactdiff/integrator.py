@@ -82,6 +82,10 @@ class _Guard:
     contact: int
 
 
+class _Below(Exception):
+    """A guard search found a point below its threshold: ``args = (s, value)``."""
+
+
 class _ModeField:
     """Vector field of one mode for the stepper, remembering its last forces.
 
@@ -260,10 +264,7 @@ class _HybridRun:
             return mode, v_plus
         candidates = [i for i in closed if rates[i] <= self.grazing_speed]
         mode = choose_mode(self.dyn, q, v, self.t0, candidates)
-        if mode:
-            A = np.vstack([self.contacts[i].rows(self.kin) for i in mode])
-            v = v - self._weighted_pinv(q, A) @ (A @ v)
-        return mode, v
+        return mode, self._held_velocity(q, v, mode)
 
     # -- the loop -------------------------------------------------------------------
     def run(self) -> Trajectory:
@@ -479,9 +480,6 @@ class _HybridRun:
         the minimum. The time tolerance, 1e-9 of the step (or a few ulps of t),
         puts the minimum's value within ~1e-18 of the step's gap variation.
         """
-        class _Below(Exception):
-            pass
-
         def f(s):
             value = gap(t_a + s)
             if value < stop_below:
@@ -576,8 +574,7 @@ class _HybridRun:
         new_mode = choose_mode(self.dyn, q, v_plus, t, staying + settling)
         settled = [i for i in settling if i in new_mode]
         if settled:
-            A = np.vstack([self.contacts[i].rows(self.kin) for i in new_mode])
-            v_plus = v_plus - self._weighted_pinv(q, A) @ (A @ v_plus)
+            v_plus = self._held_velocity(q, v_plus, new_mode)
             self.notes.append(f"Zeno: impact cascade ended at t = {t:.12g}: "
                               f"{', '.join(self.names[i] for i in settled)} kept closed (lifted slower "
                               f"than zeno_speed = {self.zeno_speed:g} m/s)")
@@ -643,6 +640,19 @@ class _HybridRun:
             q = pin.integrate(model, q, -self._weighted_pinv(q, A) @ gaps)
         return q
 
+    def _mode_rows(self, mode) -> np.ndarray:
+        """Stacked constraint rows of ``mode`` at the kinematics' current configuration."""
+        return np.vstack([self.contacts[i].rows(self.kin) for i in mode])
+
+    def _held_velocity(self, q, v, mode) -> np.ndarray:
+        """``v`` with the row velocities of ``mode`` removed M-orthogonally (the least
+        kinetic-energy change that holds every contact of the mode)."""
+        if not mode:
+            return v
+        self.kin.update(q, v)
+        A = self._mode_rows(mode)
+        return v - self._weighted_pinv(q, A) @ (A @ v)
+
     def _weighted_pinv(self, q, A) -> np.ndarray:
         """``M^-1 A^T (A M^-1 A^T)^+``: the M-orthogonal (minimum kinetic energy)
         pseudo-inverse of the rows ``A`` at ``q``; redundant rows are allowed."""
@@ -656,7 +666,7 @@ class _HybridRun:
             return False
         q = self._close(stepper.q, list(mode))
         self.kin.update(q, stepper.v)
-        A = np.vstack([self.contacts[i].rows(self.kin) for i in mode])
+        A = self._mode_rows(mode)
         pinv = self._weighted_pinv(q, A)
         v = stepper.v - pinv @ (A @ stepper.v)
         phi = None

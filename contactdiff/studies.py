@@ -35,6 +35,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 import pinocchio as pin
 
+from .bench import state_error as bench_state_error
 from .contacts import Contact
 from .efforts import JointSpring, Spring
 from .errors import ContactDiffError
@@ -137,14 +138,24 @@ def _run(scene, t_final, **options):
     return out, time.perf_counter() - start
 
 
+def _failed(base: dict, error: ContactDiffError, elapsed: float) -> StudyRow:
+    """The row of a run that ended in a named error."""
+    return StudyRow(**base, error=None, time=elapsed, steps=0, evaluations=0,
+                    outcome=f"{type(error).__name__}: {error}", ok=False)
+
+
+def _error_name(out) -> str:
+    """Name of the error a `_run` returned, or ``"no error"``."""
+    return type(out).__name__ if isinstance(out, Exception) else "no error"
+
+
 def _counts(traj) -> tuple[int, int]:
     return int(traj.stats["steps"]), int(traj.stats["dynamics_evaluations"])
 
 
 def state_error(scene: Scene, traj, q_ref, v_ref) -> float:
-    """``max(|q ⊖ q_ref|_inf, |v - v_ref|_inf)`` of a trajectory's final state."""
-    dq = pin.difference(scene.model, np.asarray(q_ref, dtype=float), traj.q)
-    return float(max(np.max(np.abs(dq)), np.max(np.abs(traj.v - np.asarray(v_ref)))))
+    """``max(|q ⊖ q_ref|_inf, |v - v_ref|_inf)`` of a trajectory's final state (`bench.state_error`)."""
+    return bench_state_error(scene, traj.q, traj.v, np.asarray(q_ref, dtype=float), np.asarray(v_ref))
 
 
 # -- stiffness ------------------------------------------------------------------------
@@ -254,8 +265,7 @@ def stiffness_sweep(scales=(1, 10, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7), damping_ratio:
                 continue
             traj, elapsed = _run(scene, t_final, method=method, max_events=1000, **tol)
             if isinstance(traj, ContactDiffError):
-                rows.append(StudyRow(**base, error=None, time=elapsed, steps=0, evaluations=0,
-                                     outcome=f"{type(traj).__name__}: {traj}", ok=False))
+                rows.append(_failed(base, traj, elapsed))
                 continue
             steps, evals = _counts(traj)
             state_err = state_error(scene, traj, ref.q, ref.v)
@@ -365,8 +375,7 @@ def tiny_mass_study(masses=(1e-1, 1e-3, 1e-6), t_final: float = 1.9,
                 continue
             traj, elapsed = _run(scene, t_final, method=method, **tol)
             if isinstance(traj, ContactDiffError):
-                rows.append(StudyRow(**base, error=None, time=elapsed, steps=0, evaluations=0,
-                                     outcome=f"{type(traj).__name__}: {traj}", ok=False))
+                rows.append(_failed(base, traj, elapsed))
                 continue
             steps, evals = _counts(traj)
             kinds = [e.kind for e in traj.events]
@@ -442,13 +451,12 @@ def grazing_study(speeds=(1e-3, 1e-5, 1e-7, 1e-9, 1e-10, 1e-12),
         base = dict(study="grazing", case="slow drop from 1e-6 m", parameter=f"u = {u:g} m/s",
                     method="auto", reference="event time 2h/u (relative)")
         if isinstance(traj, ContactDiffError):
-            rows.append(StudyRow(**base, error=None, time=elapsed, steps=0, evaluations=0,
-                                 outcome=f"{type(traj).__name__}: {traj}", ok=False))
+            rows.append(_failed(base, traj, elapsed))
             continue
         ev = traj.events[0] if traj.events else None
         err = abs(ev.t - t_c) / t_c if ev else None
         kind = ev.kind if ev else "no event"
-        raise_outcome = type(raised).__name__ if isinstance(raised, Exception) else "no error"
+        raise_outcome = _error_name(raised)
         ok = (ev is not None and err <= 1e-9 and kind == ("grazing" if grazing else "touchdown")
               and raise_outcome == ("GrazingError" if grazing else "no error"))
         steps, evals = _counts(traj)
@@ -464,15 +472,14 @@ def grazing_study(speeds=(1e-3, 1e-5, 1e-7, 1e-9, 1e-10, 1e-12),
         base = dict(study="grazing", case="tangent approach, swing 1 m", parameter=f"dip {dip:g} m",
                     method="auto", reference="closed form with the touch")
         if isinstance(traj, ContactDiffError):
-            rows.append(StudyRow(**base, error=None, time=elapsed, steps=0, evaluations=0,
-                                 outcome=f"{type(traj).__name__}: {traj}", ok=False))
+            rows.append(_failed(base, traj, elapsed))
             continue
         err = max(abs(traj.q[0] - z_ref), abs(traj.v[0] - v_ref))
         misses = traj.stats["near_grazing_misses"]
         bound = 10 * (tol["rtol"] + tol["atol"]) * (1 + 1 / max(u, 1e-300))
         found = [e for e in traj.events if e.kind in ("touchdown", "bounce", "grazing")]
         flagged = misses > 0 or any(e.kind == "grazing" for e in found)
-        raise_outcome = type(raised).__name__ if isinstance(raised, Exception) else "no error"
+        raise_outcome = _error_name(raised)
         if found:
             outcome = f"{found[0].kind} at t_c {found[0].t - t_c:+.1e}"
         elif misses:
