@@ -10,8 +10,8 @@ same contact complementarity problem (`contactdiff.lcp`), so a comparison with
     event function per guard of the current mode (the gap of each inactive
     contact and the normal force of each active contact, both firing downward
     through 0). At an event the contacts closed at that instant (gap below
-    ``contact_tol``) take the impact law `resolve_impact`, `choose_mode` picks
-    the next mode, and `solve_ivp` restarts. Guards at the same instant (value
+    ``contact_tol``) take the impact law `resolve_impact`, `choose_mode` (after
+    a lift-off `liftoff_mode`) picks the next mode, and `solve_ivp` restarts. Guards at the same instant (value
     within ``contact_tol``) fire together. No projection onto the active
     constraints (they drift at the integration error).
 
@@ -48,7 +48,7 @@ from scipy.linalg import cho_factor, cho_solve
 
 from .dynamics import ModeDynamics
 from .errors import IntegrationError, InvalidInputError
-from .impacts import choose_mode, resolve_impact
+from .impacts import choose_mode, liftoff_mode, resolve_impact
 from .lcp import ContactRows, impact_rhs, solve_contact_lcp
 from .scene import Scene
 
@@ -120,15 +120,17 @@ def solve_ivp_baseline(scene: Scene, t_final: float, rtol: float = 1e-8, atol: f
         return rhs
 
     def guards(mode):
+        """``((kind, key or contact), event function)`` of every guard of ``mode`` (keys
+        of `contactdiff.dynamics`: a sliding contact's force guard has its sliding key)."""
         events = []
-        for i in range(len(contacts)):
-            if i in mode:
-                k = mode.index(i)
-                ev = (lambda t, y, k=k, mode=mode: f.solve(y[:nv], y[nv:], t, mode).normal_forces()[k])
-            else:
-                ev = (lambda t, y, i=i: gap(y[:nv], i))
+        for k, key in enumerate(mode):
+            ev = (lambda t, y, k=k, mode=mode: f.solve(y[:nv], y[nv:], t, mode).normal_forces()[k])
+            events.append((("force", key), ev))
+        active = f.dyn.contacts_of(mode)
+        for i in (i for i in range(len(contacts)) if i not in active):
+            events.append((("gap", i), lambda t, y, i=i: gap(y[:nv], i)))
+        for _, ev in events:
             ev.terminal, ev.direction = True, -1
-            events.append((i, ev))
         return events
 
     t, q, v = 0.0, scene.q0.copy(), scene.v0.copy()
@@ -153,13 +155,14 @@ def solve_ivp_baseline(scene: Scene, t_final: float, rtol: float = 1e-8, atol: f
         gaps = scene.gaps(q)
         forces = f.solve(q, v, t, mode).normal_forces() if mode else np.zeros(0)
         scale = max(1.0, float(np.max(np.abs(forces)))) if mode else 1.0
-        touching = [i for i in range(len(contacts)) if i not in mode and gaps[i] <= contact_tol]
-        releasing = [i for k, i in enumerate(mode) if forces[k] <= contact_tol * scale]
-        terminal = [i for (i, _), te in zip(evs, sol.t_events) if len(te) and te[-1] == t]
-        for i in terminal:  # the guard that stopped solve_ivp fires even outside contact_tol
-            if i in mode and i not in releasing:
+        active = f.dyn.contacts_of(mode)
+        touching = [i for i in range(len(contacts)) if i not in active and gaps[i] <= contact_tol]
+        releasing = [key for k, key in enumerate(mode) if forces[k] <= contact_tol * scale]
+        terminal = [guard for (guard, _), te in zip(evs, sol.t_events) if len(te) and te[-1] == t]
+        for kind, i in terminal:  # the guard that stopped solve_ivp fires even outside contact_tol
+            if kind == "force" and i not in releasing:
                 releasing.append(i)
-            elif i not in mode and i not in touching:
+            elif kind == "gap" and i not in touching:
                 touching.append(i)
         if touching:
             closed = sorted(set(mode) | set(touching))
@@ -172,9 +175,9 @@ def solve_ivp_baseline(scene: Scene, t_final: float, rtol: float = 1e-8, atol: f
             fired = touching + releasing
         else:
             fired = releasing
-            mode = choose_mode(f.dyn, q, v, t, [i for i in mode if i not in releasing])
+            mode = liftoff_mode(f.dyn, q, v, t, mode, releasing)
         times.append(t)
-        fired_names.append(tuple(names[i] for i in sorted(set(fired))))
+        fired_names.append(tuple(names[i] for i in sorted(set(f.dyn.contacts_of(fired)))))
         if len(times) > max_events:
             raise IntegrationError(f"solve_ivp_baseline: more than {max_events} events by t = {t}")
     return BaselineResult(t, q, v, times, fired_names,

@@ -12,6 +12,7 @@ row's acceleration is ``A_d ddq + drift_d``. The first row is the gap's gradient
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 
 import numpy as np
@@ -129,9 +130,22 @@ class BoundContact:
             reach = np.maximum(reach, np.linalg.norm(directions @ self._point_jacobian(kin), axis=1))
         return reach
 
+    sliding = False  # a normal-only view of a sticking contact (see `sliding_view`)
+
     @property
     def sticking(self) -> bool:
-        return self.spec.sticking
+        return self.spec.sticking and not self.sliding
+
+    def sliding_view(self) -> BoundContact:
+        """This contact with its normal row only: a sticking contact that slides.
+
+        At zero normal force Coulomb friction carries no tangential force, so a
+        sticking contact whose release would let it sink keeps its normal row and
+        drops its tangents (frictionless sliding) until its normal force vanishes.
+        """
+        view = copy.copy(self)
+        view.directions, view.sliding = self.directions[:1], True
+        return view
 
     @property
     def n_rows(self) -> int:

@@ -10,6 +10,10 @@ with ``M`` the mass matrix (armature included), ``nle`` Coriolis + gravity,
 when positive). The Delassus matrix ``G = A M^-1 A^T`` is symmetric positive
 definite when the rows are independent; with redundant rows the minimum-norm
 forces are returned.
+
+A mode is a sorted tuple of *contact keys*: key ``i < n`` (``n`` contacts in the
+scene) is contact ``i`` with all its rows; key ``n + i`` is sticking contact
+``i`` sliding, its normal row only (`BoundContact.sliding_view`).
 """
 
 from __future__ import annotations
@@ -75,12 +79,39 @@ class ModeDynamics:
         self.kin = scene.kinematics
         self.data = self.model.createData()
         self._modes: dict[tuple[int, ...], tuple] = {}
+        self.n_contacts = len(scene.contacts)
+        self._views = list(scene.contacts) + [c.sliding_view() if c.sticking else None
+                                              for c in scene.contacts]
+
+    # -- contact keys (see the module doc) ----------------------------------------------
+    def contact(self, key: int):
+        """The bound contact (or sliding view) of a contact key."""
+        view = self._views[key]
+        if view is None:
+            raise ValueError(f"contact {self.scene.contacts[key - self.n_contacts].name!r} is not "
+                             "sticking, so it has no sliding state")
+        return view
+
+    def contact_index(self, key: int) -> int:
+        """Scene index of the contact of a key."""
+        return key - self.n_contacts if key >= self.n_contacts else key
+
+    def sliding_key(self, index: int) -> int:
+        """Key of scene contact ``index`` sliding."""
+        return index + self.n_contacts
+
+    def is_sliding(self, key: int) -> bool:
+        return key >= self.n_contacts
+
+    def contacts_of(self, mode: Sequence[int]) -> tuple[int, ...]:
+        """Scene indices of the contacts active in ``mode`` (sticking or sliding)."""
+        return tuple(self.contact_index(k) for k in mode)
 
     def _mode(self, active: tuple[int, ...]):
         """Contacts, row slices and (if eligible) the Pinocchio constraint mode of ``active``."""
         entry = self._modes.get(active)
         if entry is None:
-            contacts = [self.scene.contacts[i] for i in active]
+            contacts = [self.contact(k) for k in active]
             slices, start = [], 0
             for c in contacts:
                 slices.append(slice(start, start + c.n_rows))
@@ -90,21 +121,25 @@ class ModeDynamics:
         return entry
 
     def solve(self, q: np.ndarray, v: np.ndarray, t: float, active: Sequence[int] = (),
-              *, derivatives: bool = False) -> ModeSolution | tuple[ModeSolution, ModeDerivatives]:
+              *, derivatives: bool = False, tau: np.ndarray | None = None
+              ) -> ModeSolution | tuple[ModeSolution, ModeDerivatives]:
         """Accelerations and forces in mode ``active`` at ``(q, v)``.
 
         Args:
             q, v: state (configuration, tangent velocity).
             t: time (s), passed to time-dependent efforts.
-            active: indices of the active contacts (scene order).
+            active: keys of the active contacts (see the module doc).
             derivatives: also return the `ModeDerivatives`.
+            tau: efforts (nv,) to use instead of the scene's at ``t`` (not with
+                ``derivatives``).
 
         Also moves the scene's kinematics cache to ``(q, v)``.
         """
         active = tuple(active)
         kin, model, data = self.kin, self.model, self.data
         kin.update(q, v, derivatives=derivatives)
-        tau = self.scene.tau(kin, t)
+        if tau is None:
+            tau = self.scene.tau(kin, t)
         contacts, slices, rigid = self._mode(active)
         if not contacts:  # free flow: ABA, O(n)
             if derivatives:

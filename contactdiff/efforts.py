@@ -82,6 +82,9 @@ class _BoundJointSpring:
     def derivatives(self, kin: Kinematics, t: float) -> tuple[np.ndarray, np.ndarray]:
         return self._dq.copy(), self._dv.copy()
 
+    def time_derivative(self, kin: Kinematics, t: float) -> np.ndarray:
+        return np.zeros(self.nv)  # autonomous
+
 
 @dataclass(frozen=True)
 class Spring:
@@ -155,6 +158,9 @@ class _BoundSpring:
         dv = -s.damping * np.outer(JTu, JTu)
         return dq, dv
 
+    def time_derivative(self, kin: Kinematics, t: float) -> np.ndarray:
+        return np.zeros(kin.v.size)  # autonomous
+
 
 def bind_efforts(specs, robot: Robot) -> list:
     """Bind effort specs on ``robot``; every `JointSpring` goes into one evaluator
@@ -176,18 +182,25 @@ class UserEffort:
             manifold with step ``fd_step`` (truncation error ~ step², round-off ~
             eps/step: 1e-6 balances both near 1e-10 relative for smooth efforts).
         name: label used in reports.
+        time_derivative: optional ``time_derivative(q, v, t) -> dtau_dt`` (N/s or
+            N m/s, shape (nv,)), the explicit time rate, used where a contact force
+            is a guard (lift-off); without it, a central difference in ``t`` with
+            step ``fd_step`` (1 s scale: relative error ~1e-10 as above).
     """
 
     function: Callable
     jacobian: Callable | None = None
     name: str = "user effort"
     fd_step: float = 1e-6
+    time_derivative: Callable | None = None
 
     def __post_init__(self) -> None:
         if not callable(self.function):
             raise InvalidInputError(f"{self.name}: function must be callable, got {self.function!r}")
-        if self.jacobian is not None and not callable(self.jacobian):
-            raise InvalidInputError(f"{self.name}: jacobian must be callable or None, got {self.jacobian!r}")
+        for field_name in ("jacobian", "time_derivative"):
+            value = getattr(self, field_name)
+            if value is not None and not callable(value):
+                raise InvalidInputError(f"{self.name}: {field_name} must be callable or None, got {value!r}")
         check_number(self.name, "fd_step", self.fd_step, minimum=1e-15)
 
     def bind(self, robot: Robot) -> _BoundUserEffort:
@@ -227,3 +240,19 @@ class _BoundUserEffort:
                         - self._call(self.robot.integrate(q, -e), v, t)) / (2 * h)
             dv[:, k] = (self._call(q, v + e, t) - self._call(q, v - e, t)) / (2 * h)
         return dq, dv
+
+    def time_derivative(self, kin: Kinematics, t: float) -> np.ndarray:
+        if self.spec.time_derivative is None:
+            return central_time_difference(self, kin, t, self.spec.fd_step)
+        rate = np.asarray(self.spec.time_derivative(kin.q, kin.v, t), dtype=float)
+        if rate.shape != (self.robot.nv,) or not np.all(np.isfinite(rate)):
+            raise InvalidInputError(f"{self.spec.name}: time_derivative returned {rate!r}; "
+                                    f"expected {self.robot.nv} finite numbers")
+        return rate
+
+
+def central_time_difference(effort, kin: Kinematics, t: float, step: float) -> np.ndarray:
+    """``d tau/dt`` of a bound effort at fixed state by a central difference in ``t``
+    (step in s; truncation ~ step² times the third time derivative, round-off
+    ~ eps |tau| / step)."""
+    return (effort.tau(kin, t + step) - effort.tau(kin, t - step)) / (2.0 * step)

@@ -102,6 +102,7 @@ import numpy as np
 import pinocchio as pin
 from scipy.interpolate import CubicSpline
 
+from .efforts import central_time_difference
 from .errors import InvalidInputError, check_number
 from .kinematics import Kinematics
 from .robot import Robot
@@ -512,6 +513,11 @@ class TrotControllerEvaluator:
         out[self.iv] = (self.gains(t) * (s.kp * (q_ref - kin.q[self.iq]) + s.kd * (v_ref - kin.v[self.iv]))
                         + self.feedforward(t))
         return out
+
+    def time_derivative(self, kin: Kinematics, t: float) -> np.ndarray:
+        """``d tau/dt`` at fixed state: a central difference in ``t`` with a step of 1e-6
+        period (the schedule is smooth on that scale: relative error ~1e-10)."""
+        return central_time_difference(self, kin, t, 1e-6 * self.spec.period)
 
     def derivatives(self, kin: Kinematics, t: float) -> tuple[np.ndarray, np.ndarray]:
         dq, dv = np.zeros((self.nv, self.nv)), np.zeros((self.nv, self.nv))

@@ -11,10 +11,27 @@ Mode choice (force-level complementarity): among the closed contacts whose
 normal velocity is zero, the next mode is the active set ``S`` of the
 acceleration-level problem: contacts in ``S`` have normal force >= 0 and zero
 row acceleration, the others a non-negative normal acceleration.
+
+Sliding: with sticking rows the mode choice may have no solution (holding a
+contact's tangents would need a pulling normal force, releasing it lets it
+sink: a Painleve-type inconsistency of infinite friction). Coulomb friction
+carries no tangential force at zero normal force, so the fewest sticking
+contacts needed are then made to *slide*: they keep their normal row only
+(keys of `contactdiff.dynamics`), and frictionless rows always have a
+solution. A sliding contact stays sliding until its normal force vanishes
+(the integrator's ``slip`` event makes the same choice at a lift-off).
+
+Impacts keep the infinite-friction limit where sticking has no solution
+(`solve_contact_lcp`'s ``on_infeasible="relax"``): the contact's slip is
+stopped by a tangential impulse with no normal one, which may lift it. Sliding
+there instead would leave its slip speed (measured up to 0.56 m/s on ANYmal's
+trot) to persist, frictionless, through its whole stance.
+Contacts are given as keys throughout (see `contactdiff.dynamics`).
 """
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -22,6 +39,7 @@ import numpy as np
 import pinocchio as pin
 
 from .dynamics import ModeDynamics
+from .errors import SolverError
 from .lcp import ContactRows, impact_rhs, solve_contact_lcp
 
 
@@ -33,7 +51,7 @@ class ImpactResult:
         v_plus: post-impact velocity (nv,).
         impulses: normal impulse of each participating contact (N s), in ``contacts`` order.
         row_impulses: impulses of all rows (normal and tangential).
-        contacts: indices of the participating (closed) contacts.
+        contacts: keys of the participating (closed) contacts.
         normal_speeds_before, normal_speeds_after: ``A_n v-`` and ``A_n v+`` per contact (m/s).
         restitution: the coefficient used for each contact (0 where Zeno ended a bounce
             or where the contact was not approaching).
@@ -55,9 +73,40 @@ class ImpactResult:
 
 def _rows(dyn: ModeDynamics, contacts: Sequence[int]):
     """Stacked rows of ``contacts`` at the kinematics' current state, and their layout."""
-    bound = [dyn.scene.contacts[i] for i in contacts]
+    bound = [dyn.contact(k) for k in contacts]
     A = np.vstack([c.rows(dyn.kin) for c in bound])
     return A, ContactRows.from_sizes([c.n_rows for c in bound])
+
+
+def _solve_sliding_where_needed(dyn: ModeDynamics, keys: tuple[int, ...], G: np.ndarray, b: np.ndarray,
+                                rows: ContactRows):
+    """Solve the contact problem of ``keys``; if no sticking solution exists, with
+    the fewest sticking contacts sliding (module doc).
+
+    Returns:
+        ``(solution, keys, kept)``: the solution on the rows ``kept`` (indices into
+        ``G``), and the keys with the sliding contacts' keys substituted.
+    """
+    try:
+        return solve_contact_lcp(G, b, rows), keys, np.arange(rows.n_rows)
+    except SolverError:
+        pass
+    sticking = [k for k in range(len(keys)) if len(rows.tangential[k])]
+    for size in range(1, len(sticking) + 1):
+        for group in itertools.combinations(sticking, size):
+            kept = np.concatenate([rows.rows_of([k])[:1] if k in group else rows.rows_of([k])
+                                   for k in range(len(keys))])
+            sub = ContactRows.from_sizes([1 if k in group else 1 + len(rows.tangential[k])
+                                          for k in range(len(keys))])
+            try:
+                solution = solve_contact_lcp(G[np.ix_(kept, kept)], b[kept], sub)
+            except SolverError:
+                continue
+            slid = tuple(dyn.sliding_key(dyn.contact_index(key)) if k in group else key
+                         for k, key in enumerate(keys))
+            return solution, slid, kept
+    raise SolverError(f"no solution for contacts {keys}, even with every sticking one sliding "
+                      f"(Delassus matrix {G.tolist()}, b {b.tolist()})")
 
 
 def resolve_impact(dyn: ModeDynamics, q: np.ndarray, v_minus: np.ndarray, contacts: Sequence[int],
@@ -68,7 +117,8 @@ def resolve_impact(dyn: ModeDynamics, q: np.ndarray, v_minus: np.ndarray, contac
         dyn: the scene's `ModeDynamics` (its kinematics cache is reused).
         q: configuration at the impact.
         v_minus: velocity just before (nv,).
-        contacts: indices of the closed contacts (all take part).
+        contacts: keys of the closed contacts (all take part; a sliding contact
+            with its normal row only).
         restitution: coefficient per contact overriding the scene's (e.g. 0 to end a
             Zeno sequence); ``None`` uses each contact's own.
     """
@@ -76,7 +126,7 @@ def resolve_impact(dyn: ModeDynamics, q: np.ndarray, v_minus: np.ndarray, contac
     model = dyn.model
     dyn.kin.update(q, v_minus)
     A, rows = _rows(dyn, contacts)
-    e = np.array([dyn.scene.contacts[i].restitution for i in contacts]) if restitution is None \
+    e = np.array([dyn.contact(k).restitution for k in contacts]) if restitution is None \
         else np.array(restitution, dtype=float)
     MinvAT = pin.computeMinverse(model, dyn.data, q) @ A.T
     Av = A @ v_minus
@@ -94,15 +144,47 @@ def choose_mode(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float,
                 candidates: Sequence[int]) -> tuple[int, ...]:
     """Active set among the closed, non-separating ``candidates`` (acceleration-level LCP).
 
+    Args:
+        candidates: keys of the contacts that may stay active; a sticking key may be
+            turned into its sliding key when no sticking solution exists (module doc).
+
     Returns:
-        Sorted contact indices that stay active (normal force >= 0).
+        Sorted keys of the contacts that stay active (normal force >= 0).
     """
     candidates = tuple(sorted(candidates))
     if not candidates:
         return ()
     a_free = dyn.solve(q, v, t, ()).ddq  # also updates the kinematics at (q, v)
     A, rows = _rows(dyn, candidates)
-    drift = np.concatenate([dyn.scene.contacts[i].drift(dyn.kin) for i in candidates])
+    drift = np.concatenate([dyn.contact(k).drift(dyn.kin) for k in candidates])
     G = A @ pin.computeMinverse(dyn.model, dyn.data, q) @ A.T
-    solution = solve_contact_lcp(G, A @ a_free + drift, rows, on_infeasible="relax")
-    return tuple(candidates[k] for k in solution.active)
+    solution, keys, _ = _solve_sliding_where_needed(dyn, candidates, G, A @ a_free + drift, rows)
+    return tuple(sorted(keys[k] for k in solution.active))
+
+
+#: A released contact accelerating downwards by less than this share of |gravity|
+#: (round-off of the mode solve) is not sinking.
+ACCEL_TOL = 1e-9
+
+
+def liftoff_mode(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float, mode: Sequence[int],
+                 releasing: Sequence[int]) -> tuple[int, ...]:
+    """The mode after the normal forces of ``releasing`` (keys of ``mode``) reach zero.
+
+    The releasing contacts leave, unless a sticking one would then sink: at zero
+    normal speed its normal acceleration in the new mode is negative beyond
+    round-off, because the tangential force it carried pressed it down. That one
+    slides instead (module doc): its normal row stays, its tangents go.
+    """
+    staying = [k for k in mode if k not in releasing]
+    new_mode = choose_mode(dyn, q, v, t, staying)
+    released = [k for k in releasing if dyn.contact(k).sticking]
+    if not released:
+        return new_mode
+    ddq = dyn.solve(q, v, t, new_mode).ddq  # also moves the kinematics to (q, v)
+    tol = ACCEL_TOL * max(1.0, float(np.linalg.norm(dyn.model.gravity.linear)))
+    sinking = [k for k in released
+               if dyn.contact(k).rows(dyn.kin)[0] @ ddq + dyn.contact(k).drift(dyn.kin)[0] < -tol]
+    if not sinking:
+        return new_mode
+    return choose_mode(dyn, q, v, t, staying + [dyn.sliding_key(k) for k in sinking])

@@ -14,7 +14,10 @@
    form one simultaneous event. The stepper is cut at that time.
 4. Touchdowns apply the impact law (`contactdiff.impacts`) to every closed
    contact; the next mode follows from the force-level complementarity.
-   Lift-offs change the mode without a jump.
+   Lift-offs change the mode without a jump. A sticking contact whose normal
+   force vanishes while its release would let it sink (the tangential force it
+   carried pressed it down) slides instead: event ``slip``, normal row only,
+   until its normal force vanishes again (a ``lift-off``).
 5. Active constraints are kept on their manifold: when the gap of an active
    contact drifts beyond ``project_tol`` the state is projected back
    (M-orthogonally) and the largest drift is reported.
@@ -46,10 +49,10 @@ from scipy.optimize import minimize_scalar
 from .dynamics import ModeDynamics
 from .errors import IntegrationError, InvalidInputError, check_number
 from .events import hermite_minimum, locate_crossing, simultaneous_group
-from .impacts import choose_mode, resolve_impact
+from .impacts import choose_mode, liftoff_mode, resolve_impact
 from .scene import Scene
-from .sensitivity import (gap_gradient, impact_reset_jacobian, liftoff_saltation, saltation,
-                          simultaneous_saltation, vector_field)
+from .sensitivity import (force_time_rate, gap_gradient, impact_reset_jacobian, liftoff_saltation,
+                          saltation, simultaneous_saltation, vector_field)
 from .steppers import METHODS, PinocchioGroup, make_stepper
 from .stiffness import EXPLICIT, MethodChooser, spectral_radius
 from .trajectory import Event, Segment, Trajectory
@@ -79,7 +82,7 @@ _DIP_FRACTION = 0.5  # search a step for a dip when its Hermite minimum is below
 @dataclass
 class _Guard:
     kind: str  # "gap" (inactive contact) or "force" (active contact)
-    contact: int
+    contact: int  # scene index for "gap", contact key (`contactdiff.dynamics`) for "force"
 
 
 class _Below(Exception):
@@ -238,7 +241,12 @@ class _HybridRun:
         return gaps, rates
 
     def _mode_names(self, mode) -> tuple[str, ...]:
-        return tuple(self.names[i] for i in mode)
+        """Names of the contacts active (sticking or sliding) in ``mode``."""
+        return tuple(self.names[i] for i in sorted(self.dyn.contacts_of(mode)))
+
+    def _sliding_names(self, mode) -> tuple[str, ...]:
+        return tuple(self.names[i] for i in sorted(self.dyn.contact_index(k) for k in mode
+                                                   if self.dyn.is_sliding(k)))
 
     # -- start ----------------------------------------------------------------------
     def _initial_mode(self, q, v):
@@ -283,7 +291,7 @@ class _HybridRun:
         if self.jacobian and self.initial_saltation is not None:
             stepper.restart(self.t0, q, v, phi=self.initial_saltation)
         self.fields = [field]
-        segment = Segment(self.t0, self.t0, self._mode_names(mode))
+        segment = Segment(self.t0, self.t0, self._mode_names(mode), sliding=self._sliding_names(mode))
         self.segments.append(segment)
         gaps, rates = self._gaps_and_rates(stepper.q, stepper.v)
         forces = field.normal_forces(stepper.t, stepper.q, stepper.v)
@@ -327,7 +335,7 @@ class _HybridRun:
                             phi=None if xi is None else xi @ stepper.phi)
             if self.chooser is not None:
                 self.chooser.new_mode(self._probe(mode))
-            segment = Segment(t_event, t_event, self._mode_names(mode))
+            segment = Segment(t_event, t_event, self._mode_names(mode), sliding=self._sliding_names(mode))
             self.segments.append(segment)
             gaps, rates = self._gaps_and_rates(stepper.q, stepper.v)
             forces = field.normal_forces(stepper.t, stepper.q, stepper.v)
@@ -389,8 +397,9 @@ class _HybridRun:
         gaps1, rates1, forces1 = end
         found = []
         self.misses = []  # near-grazing misses of this step: (t, contact, gap, band)
+        active = self.dyn.contacts_of(mode)
         for i, contact in enumerate(self.contacts):
-            if i in mode:
+            if i in active:
                 continue
 
             def gap(t, i=i):
@@ -432,14 +441,14 @@ class _HybridRun:
                     continue
                 t_lo, g_lo = t_peak, g_peak
             found.append((locate_crossing(gap, t_lo, t_hi, g_lo, g_hi), _Guard("gap", i)))
-        for k, i in enumerate(mode):
+        for k, key in enumerate(mode):
             if forces1[k] >= 0.0:
                 continue
 
             def force(t, k=k):
                 qt, vt = dense(t)
                 return field.normal_forces(t, qt, vt)[k]
-            found.append((locate_crossing(force, t_a, t_b, forces0[k], forces1[k]), _Guard("force", i)))
+            found.append((locate_crossing(force, t_a, t_b, forces0[k], forces1[k]), _Guard("force", key)))
         return found
 
     def _grazing_band(self, q) -> float:
@@ -507,6 +516,7 @@ class _HybridRun:
 
     # -- events ---------------------------------------------------------------------
     def _event(self, t, q, v, mode, fired: list[_Guard]):
+        dyn = self.dyn
         touching = [g.contact for g in fired if g.kind == "gap"]
         releasing = [g.contact for g in fired if g.kind == "force"]
         if touching:
@@ -514,12 +524,17 @@ class _HybridRun:
             # guard did not fire within simultaneous_tol: left out, it would start the
             # next step closed and be skipped by _crossings (no peak), i.e. penetrate
             gaps, _ = self._gaps_and_rates(q, v)
-            near = [i for i, g in enumerate(gaps) if g <= self.gap_tol]
+            active = dyn.contacts_of(mode)
+            near = [i for i, g in enumerate(gaps) if g <= self.gap_tol and i not in active]
             closed = sorted(set(mode) | set(touching) | set(near))
             return self._impact(t, q, v, mode, closed, touching, releasing)
-        new_mode = choose_mode(self.dyn, q, v, t, [i for i in mode if i not in releasing])
-        event = Event(t, "lift-off", self._mode_names(releasing), len(releasing) > 1, q.copy(),
-                      v.copy(), v.copy(), {}, self._mode_names(mode), self._mode_names(new_mode))
+        # a released sticking contact that would sink (the tangential force it carried
+        # pressed it down) slides instead: normal row only, until its force vanishes
+        new_mode = liftoff_mode(dyn, q, v, t, mode, releasing)
+        kind = "slip" if any(dyn.is_sliding(k) and k not in mode for k in new_mode) else "lift-off"
+        event = Event(t, kind, self._mode_names(releasing), len(releasing) > 1, q.copy(),
+                      v.copy(), v.copy(), {}, self._mode_names(mode), self._mode_names(new_mode),
+                      sliding=self._sliding_names(new_mode))
         if self.jacobian:
             # guard: the normal force of the first releasing contact; with several at once
             # (a simultaneous lift-off) the saltation is the product of the single
@@ -529,7 +544,8 @@ class _HybridRun:
             sol, der = self.dyn.solve(q, v, t, mode, derivatives=True)
             row = sol.row_slices[mode.index(releasing[0])].start
             Dh = np.concatenate([der.forces_dq[row], der.forces_dv[row]])
-            self._attach_sensitivity(event, xi, Dh, np.concatenate([v, sol.ddq]))
+            self._attach_sensitivity(event, xi, Dh, np.concatenate([v, sol.ddq]),
+                                     force_time_rate(self.dyn, q, v, t, mode, row))
         self.events.append(event)
         return new_mode, v
 
@@ -538,14 +554,17 @@ class _HybridRun:
         other in the given order at the same state (no jump: each force is zero there)."""
         xi, current = np.eye(2 * self.scene.nv), tuple(mode)
         for n, k in enumerate(releasing):
-            after = tuple(new_mode) if n == len(releasing) - 1 else tuple(i for i in current if i != k)
+            slide = self.dyn.sliding_key(k) if not self.dyn.is_sliding(k) else None
+            after = tuple(new_mode) if n == len(releasing) - 1 else tuple(sorted(
+                [i for i in current if i != k] + ([slide] if slide in new_mode else [])))
             xi = liftoff_saltation(self.dyn, t, q, v, current, k, after) @ xi
             current = after
         return xi
 
     def _impact(self, t, q, v_minus, mode, closed, touching, releasing=(), initial=False):
-        """Impact of the ``closed`` contacts, ``touching`` being those whose guard fired
-        (at the start, ``initial``: all closed contacts, with no guard and no grazing)."""
+        """Impact of the ``closed`` contacts (keys: a sliding contact takes part with its
+        normal row), ``touching`` being those whose guard fired (at the start,
+        ``initial``: all closed contacts, with no guard and no grazing)."""
         q = self._close(q, closed)
         self.kin.update(q, v_minus)
         speeds = {i: float(self.contacts[i].rows(self.kin)[0] @ v_minus) for i in touching}
@@ -555,24 +574,28 @@ class _HybridRun:
                 f"grazing touchdown of {', '.join(self.names[i] for i in grazing)} at t = {t:.17g}: "
                 f"normal speed {max(abs(speeds[i]) for i in grazing):.3g} m/s <= grazing_speed "
                 f"{self.grazing_speed:g}; the flow is not differentiable there")
-        e = np.array([self.contacts[i].restitution for i in closed])
+        e = np.array([self.dyn.contact(k).restitution for k in closed])
         zeno = [i for i in touching if self.contacts[i].restitution > 0 and abs(speeds[i]) < self.zeno_speed]
         for i in zeno:
             e[closed.index(i)] = 0.0
-        impact = resolve_impact(self.dyn, q, v_minus, closed, e)
+        dyn = self.dyn
+        impact = resolve_impact(dyn, q, v_minus, closed, e)
         v_plus = impact.v_plus
         scale = max(1.0, float(np.max(np.abs(impact.normal_speeds_before))))
-        staying = [i for i, s in zip(closed, impact.normal_speeds_after)
-                   if s <= _SPEED_TOL * scale and i not in releasing]
+        # impact.contacts: the keys of closed, a contact whose slip could not be stopped sliding
+        leaving = set(dyn.contacts_of(releasing))
+        staying = [k for k, s in zip(impact.contacts, impact.normal_speeds_after)
+                   if s <= _SPEED_TOL * scale and dyn.contact_index(k) not in leaving]
         # The Zeno rule for impact cascades: a closed contact that this impact would
         # lift slower than zeno_speed does not leave (with several sticking feet an
         # impact at one foot lifts another by a little, whose return lifts a third,
         # and so on, a geometric series of ever slower impacts); its separating speed
         # is removed M-orthogonally if the mode keeps it
-        settling = [i for i, s in zip(closed, impact.normal_speeds_after)
-                    if _SPEED_TOL * scale < s < self.zeno_speed and i not in releasing and i not in touching]
-        new_mode = choose_mode(self.dyn, q, v_plus, t, staying + settling)
-        settled = [i for i in settling if i in new_mode]
+        settling = [k for k, s in zip(impact.contacts, impact.normal_speeds_after)
+                    if _SPEED_TOL * scale < s < self.zeno_speed
+                    and dyn.contact_index(k) not in leaving | set(touching)]
+        new_mode = choose_mode(dyn, q, v_plus, t, staying + settling)
+        settled = [i for i in dyn.contacts_of(settling) if i in dyn.contacts_of(new_mode)]
         if settled:
             v_plus = self._held_velocity(q, v_plus, new_mode)
             self.notes.append(f"Zeno: impact cascade ended at t = {t:.12g}: "
@@ -585,14 +608,15 @@ class _HybridRun:
             kind = "zeno"
             self.notes.append(f"Zeno: bounces of {', '.join(self.names[i] for i in zeno)} ended at t = {t:.12g} "
                               f"(impact speed below zeno_speed = {self.zeno_speed:g} m/s); contact kept closed")
-        elif any(i in new_mode for i in touching):
+        elif any(i in dyn.contacts_of(new_mode) for i in touching):
             kind = "touchdown"
         else:
             kind = "bounce"
-        impulses = {self.names[i]: float(x) for i, x in zip(closed, impact.impulses)}
+        impulses = {self.names[dyn.contact_index(k)]: float(x) for k, x in zip(closed, impact.impulses)}
         event = Event(t, kind, self._mode_names(touching), len(touching) > 1, q.copy(),
                       v_minus.copy(), v_plus.copy(), impulses, self._mode_names(mode),
-                      self._mode_names(new_mode), {self.names[i]: s for i, s in speeds.items()})
+                      self._mode_names(new_mode), {self.names[i]: s for i, s in speeds.items()},
+                      sliding=self._sliding_names(new_mode))
         event.differentiable = not (grazing or settled)  # the cascade rule's cut-off is not smooth
         if self.jacobian and initial:
             # no guard at t0: perturbations keep the start time, only the reset acts
@@ -607,7 +631,7 @@ class _HybridRun:
                 sim = simultaneous_saltation(self.dyn, t, q, v_minus, mode, touching, override)
                 xi = sim.matrix
                 event.differentiable = event.differentiable and sim.differentiable
-                event.saltation_orders = {self._mode_names(k): m for k, m in sim.orders.items()}
+                event.saltation_orders = {tuple(self.names[i] for i in k): m for k, m in sim.orders.items()}
                 if not sim.differentiable:
                     self.notes.append(
                         f"not differentiable at t = {t:.12g}: the landing orders of "
@@ -620,29 +644,31 @@ class _HybridRun:
         self.events.append(event)
         return new_mode, v_plus
 
-    def _attach_sensitivity(self, event: Event, xi: np.ndarray, Dh: np.ndarray, F_minus: np.ndarray) -> None:
-        """Saltation matrix and event-time gradient ``-Dh Φ- / (Dh F-)`` (implicit functions)."""
+    def _attach_sensitivity(self, event: Event, xi: np.ndarray, Dh: np.ndarray, F_minus: np.ndarray,
+                            h_t: float = 0.0) -> None:
+        """Saltation matrix and event-time gradient ``-Dh Φ- / (Dh F- + h_t)`` (implicit
+        functions; ``h_t`` the guard's explicit time rate)."""
         event.saltation = xi
-        event.time_gradient = -(Dh @ self.phi) / float(Dh @ F_minus)
+        event.time_gradient = -(Dh @ self.phi) / (float(Dh @ F_minus) + h_t)
 
     # -- constraint manifold ----------------------------------------------------------
     def _close(self, q, contacts):
-        """Project ``q`` M-orthogonally onto ``gap = 0`` of ``contacts`` (Gauss–Newton)."""
+        """Project ``q`` M-orthogonally onto ``gap = 0`` of ``contacts`` (keys; Gauss–Newton)."""
         if not contacts:
             return q
         model, zero = self.scene.model, np.zeros(self.scene.nv)
         for _ in range(10):
             self.kin.update(q, zero)
-            gaps = np.array([self.contacts[i].gap(self.kin) for i in contacts])
+            gaps = np.array([self.dyn.contact(k).gap(self.kin) for k in contacts])
             if np.max(np.abs(gaps)) <= 1e-15:
                 break
-            A = np.vstack([self.contacts[i].rows(self.kin)[0] for i in contacts])
+            A = np.vstack([self.dyn.contact(k).rows(self.kin)[0] for k in contacts])
             q = pin.integrate(model, q, -self._weighted_pinv(q, A) @ gaps)
         return q
 
     def _mode_rows(self, mode) -> np.ndarray:
         """Stacked constraint rows of ``mode`` at the kinematics' current configuration."""
-        return np.vstack([self.contacts[i].rows(self.kin) for i in mode])
+        return np.vstack([self.dyn.contact(k).rows(self.kin) for k in mode])
 
     def _held_velocity(self, q, v, mode) -> np.ndarray:
         """``v`` with the row velocities of ``mode`` removed M-orthogonally (the least
@@ -660,7 +686,7 @@ class _HybridRun:
         return MinvAT @ np.linalg.pinv(A @ MinvAT)
 
     def _project(self, stepper, mode, gaps) -> bool:
-        drift = max(abs(gaps[i]) for i in mode)
+        drift = max(abs(gaps[i]) for i in self.dyn.contacts_of(mode))
         self.max_drift = max(self.max_drift, drift)
         if drift <= self.project_tol:
             return False
@@ -674,8 +700,8 @@ class _HybridRun:
             # derivative of the projection (q, v) -> (q - P a(q), v - P A(q) v) on the manifold
             nv = self.scene.nv
             self.kin.update(q, v, derivatives=True)
-            normal = [0] + list(np.cumsum([self.contacts[i].n_rows for i in mode])[:-1])
-            dAv = np.vstack([self.contacts[i].rows_velocity_dq(self.kin) for i in mode])
+            normal = [0] + list(np.cumsum([self.dyn.contact(k).n_rows for k in mode])[:-1])
+            dAv = np.vstack([self.dyn.contact(k).rows_velocity_dq(self.kin) for k in mode])
             D = np.eye(2 * nv)
             D[:nv, :nv] -= self._weighted_pinv(q, A[normal]) @ A[normal]
             D[nv:, nv:] -= pinv @ A

@@ -124,6 +124,14 @@ class Scene:
             dv += b
         return dq, dv
 
+    def tau_time_derivative(self, kin: Kinematics, t: float) -> np.ndarray:
+        """``d tau/dt`` at fixed state (nv,): the explicit time rate of the efforts
+        (zero for an autonomous scene; see each effort's ``time_derivative``)."""
+        total = np.zeros(self.nv)
+        for e in self.efforts:
+            total += e.time_derivative(kin, t)
+        return total
+
     def check_state(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """Validate a state; return its gaps.
 

@@ -43,10 +43,26 @@ def vector_field(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float,
     return np.concatenate([v, dyn.solve(q, v, t, tuple(mode)).ddq])
 
 
-def saltation(DR: np.ndarray, Dh: np.ndarray, F_minus: np.ndarray, F_plus: np.ndarray) -> np.ndarray:
-    """``Ξ = DR + (F+ - DR F-) Dh / (Dh F-)`` (2nv × 2nv)."""
-    rate = float(Dh @ F_minus)
+def saltation(DR: np.ndarray, Dh: np.ndarray, F_minus: np.ndarray, F_plus: np.ndarray,
+              h_t: float = 0.0) -> np.ndarray:
+    """``Ξ = DR + (F+ - DR F-) Dh / (Dh F- + h_t)`` (2nv × 2nv); ``h_t`` is the guard's
+    explicit time rate (a contact force under time-dependent efforts)."""
+    rate = float(Dh @ F_minus) + h_t
     return DR + np.outer(F_plus - DR @ F_minus, Dh) / rate
+
+
+def force_time_rate(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float, mode: Sequence[int],
+                    row: int) -> float:
+    """``∂lam_row/∂t`` at fixed state (N/s): the forces are affine in the efforts, so
+    it is the forces' response to ``d tau/dt`` alone (exact up to round-off; zero for
+    an autonomous scene)."""
+    dyn.kin.update(q, v)
+    tau_t = dyn.scene.tau_time_derivative(dyn.kin, t)
+    if not np.any(tau_t):
+        return 0.0
+    tau = dyn.scene.tau(dyn.kin, t)
+    mode = tuple(mode)
+    return float(dyn.solve(q, v, t, mode, tau=tau + tau_t).forces[row] - dyn.solve(q, v, t, mode, tau=tau).forces[row])
 
 
 def impact_reset_jacobian(dyn: ModeDynamics, q: np.ndarray, v_minus: np.ndarray,
@@ -57,7 +73,7 @@ def impact_reset_jacobian(dyn: ModeDynamics, q: np.ndarray, v_minus: np.ndarray,
     held fixed: ``M (v+ - v-) = A^T Λ``, ``A_n v+ = -e A_n v-``, ``A_t v+ = 0``.
     """
     model, nv = dyn.model, dyn.model.nv
-    contacts = [dyn.scene.contacts[impact.contacts[k]] for k in impact.active]
+    contacts = [dyn.contact(impact.contacts[k]) for k in impact.active]
     DR = np.eye(2 * nv)
     if not contacts:
         return DR
@@ -68,7 +84,7 @@ def impact_reset_jacobian(dyn: ModeDynamics, q: np.ndarray, v_minus: np.ndarray,
     # impulses and restitution of the active rows, in the same stacking
     lam, e_rows, start = [], [], 0
     for k in range(len(impact.contacts)):
-        size = dyn.scene.contacts[impact.contacts[k]].n_rows
+        size = dyn.contact(impact.contacts[k]).n_rows
         if k in impact.active:
             lam.append(impact.row_impulses[start:start + size])
             e_rows += [impact.restitution[k]] + [0.0] * (size - 1)
@@ -97,7 +113,7 @@ def impact_reset_jacobian(dyn: ModeDynamics, q: np.ndarray, v_minus: np.ndarray,
 def gap_gradient(dyn: ModeDynamics, q: np.ndarray, contact: int) -> np.ndarray:
     """``Dh = [A_i, 0]`` of the touchdown guard of ``contact`` (2nv,)."""
     dyn.kin.update(q, np.zeros(dyn.model.nv))
-    return np.concatenate([dyn.scene.contacts[contact].rows(dyn.kin)[0], np.zeros(dyn.model.nv)])
+    return np.concatenate([dyn.contact(contact).rows(dyn.kin)[0], np.zeros(dyn.model.nv)])
 
 
 @dataclass
@@ -127,7 +143,7 @@ def touchdown(dyn: ModeDynamics, t: float, q: np.ndarray, v_minus: np.ndarray, m
     closed = sorted(set(mode) | set(contacts))
     impact = resolve_impact(dyn, q, v_minus, closed, restitution)
     scale = max(1.0, float(np.max(np.abs(impact.normal_speeds_before))))
-    staying = [i for i, s in zip(closed, impact.normal_speeds_after) if s <= 1e-12 * scale]
+    staying = [k for k, s in zip(impact.contacts, impact.normal_speeds_after) if s <= 1e-12 * scale]
     mode_after = choose_mode(dyn, q, impact.v_plus, t, staying)
     DR = impact_reset_jacobian(dyn, q, v_minus, impact)
     guard = contacts[0] if guard is None else guard
@@ -146,7 +162,7 @@ def liftoff_saltation(dyn: ModeDynamics, t: float, q: np.ndarray, v: np.ndarray,
     Dh = np.concatenate([der.forces_dq[row], der.forces_dv[row]])
     F_minus = np.concatenate([v, sol.ddq])
     F_plus = vector_field(dyn, q, v, t, mode_after)
-    return saltation(np.eye(len(F_minus)), Dh, F_minus, F_plus)
+    return saltation(np.eye(len(F_minus)), Dh, F_minus, F_plus, force_time_rate(dyn, q, v, t, mode, row))
 
 
 @dataclass
@@ -196,14 +212,14 @@ def simultaneous_saltation(dyn: ModeDynamics, t: float, q: np.ndarray, v_minus: 
     def e_for(closed):
         if not override:
             return None
-        return [override.get(i, dyn.scene.contacts[i].restitution) for i in closed]
+        return [override.get(i, dyn.contact(i).restitution) for i in closed]
 
     result = SimultaneousSaltation(tol=tol)
     for order in itertools.permutations(contacts):
         Xi, v, current = np.eye(2 * dyn.model.nv), v_minus, mode
         for k in order:
             dyn.kin.update(q, v)
-            if dyn.scene.contacts[k].rows(dyn.kin)[0] @ v >= 0.0:
+            if dyn.contact(k).rows(dyn.kin)[0] @ v >= 0.0:
                 continue  # already separating after the earlier impacts: it does not land
             step = touchdown(dyn, t, q, v, current, [k], e_for(sorted(set(current) | {k})), guard=k)
             Xi, v, current = step.saltation @ Xi, step.v_plus, step.mode_after

@@ -470,7 +470,7 @@ class _StrideRun(_HybridRun):
         n, phi_minus = len(self.events), self.phi
         new_mode, v_plus = super()._event(t, q, v, mode, fired)
         for event in self.events[n:]:
-            if (self.names[self.foot] in event.contacts and event.kind != "lift-off"
+            if (self.names[self.foot] in event.contacts and event.kind not in ("lift-off", "slip")
                     and t >= self.t_earliest and self.hit is None):
                 self.hit = (event, tuple(mode), None if phi_minus is None else phi_minus.copy())
                 self.t_final = t  # the loop ends after this event

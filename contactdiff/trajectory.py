@@ -17,9 +17,11 @@ import numpy as np
 
 from .errors import InvalidInputError
 
-EVENT_KINDS = ("touchdown", "lift-off", "bounce", "grazing", "zeno")
+EVENT_KINDS = ("touchdown", "lift-off", "slip", "bounce", "grazing", "zeno")
 """``touchdown``: contacts close and stay closed (impact); ``lift-off``: an active
-contact's normal force reaches zero; ``bounce``: an impact after which the
+contact's normal force reaches zero and it leaves; ``slip``: a sticking contact's
+normal force reaches zero but leaving would let it sink, so it slides (normal row
+only) until a later lift-off; ``bounce``: an impact after which the
 contact leaves again; ``grazing``: a contact closes with zero normal speed;
 ``zeno``: an impact below the Zeno speed, after which the contact stays closed."""
 
@@ -36,7 +38,7 @@ class Event:
         q: configuration at the event.
         v_minus, v_plus: velocity before and after (equal without impact).
         impulses: normal impulse of every contact closed at the event (N s).
-        mode_before, mode_after: names of the active contacts.
+        mode_before, mode_after: names of the active contacts (sticking or sliding).
         normal_speeds: ``A_i v-`` of the firing contacts (m/s, negative when closing).
         saltation: saltation matrix Ξ (2nv × 2nv) when the Jacobian was asked for.
         time_gradient: derivative of the event time with respect to the initial
@@ -46,6 +48,7 @@ class Event:
             disagree, or a grazing touchdown.
         saltation_orders: at a simultaneous touchdown, the saltation matrix of
             every landing order (keys: contact names in landing order).
+        sliding: the contacts of ``mode_after`` that slide (normal row only).
     """
 
     t: float
@@ -63,6 +66,7 @@ class Event:
     time_gradient: np.ndarray | None = None
     differentiable: bool = True
     saltation_orders: dict | None = None
+    sliding: tuple[str, ...] = ()
 
     def to_dict(self) -> dict:
         extra = {}
@@ -77,7 +81,7 @@ class Event:
             "v_minus": self.v_minus.tolist(), "v_plus": self.v_plus.tolist(),
             "impulses": dict(self.impulses), "mode_before": list(self.mode_before),
             "mode_after": list(self.mode_after), "normal_speeds": dict(self.normal_speeds),
-            "differentiable": self.differentiable,
+            "differentiable": self.differentiable, "sliding": list(self.sliding),
         }
 
 
@@ -87,7 +91,7 @@ class Segment:
 
     Attributes:
         t0, t1: start and end time (s).
-        mode: names of the active contacts.
+        mode: names of the active contacts (sticking or sliding).
         pieces: dense outputs of the accepted steps, each callable ``(t) -> (q, v)``
             with attributes ``t_old`` and ``t``.
     """
@@ -96,6 +100,7 @@ class Segment:
     t1: float
     mode: tuple[str, ...]
     pieces: list = field(default_factory=list, repr=False)
+    sliding: tuple[str, ...] = ()
 
     def at(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         starts = [p.t_old for p in self.pieces]
