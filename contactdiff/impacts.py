@@ -84,11 +84,11 @@ def _solve_sliding_where_needed(dyn: ModeDynamics, keys: tuple[int, ...], G: np.
     the fewest sticking contacts sliding (module doc).
 
     Returns:
-        ``(solution, keys, kept)``: the solution on the rows ``kept`` (indices into
-        ``G``), and the keys with the sliding contacts' keys substituted.
+        ``(solution, keys)``: the solution (on the kept rows: a sliding contact's
+        normal row only) and the keys with the sliding contacts' keys substituted.
     """
     try:
-        return solve_contact_lcp(G, b, rows), keys, np.arange(rows.n_rows)
+        return solve_contact_lcp(G, b, rows), keys
     except SolverError:
         pass
     sticking = [k for k in range(len(keys)) if len(rows.tangential[k])]
@@ -104,7 +104,7 @@ def _solve_sliding_where_needed(dyn: ModeDynamics, keys: tuple[int, ...], G: np.
                 continue
             slid = tuple(dyn.sliding_key(dyn.contact_index(key)) if k in group else key
                          for k, key in enumerate(keys))
-            return solution, slid, kept
+            return solution, slid
     raise SolverError(f"no solution for contacts {keys}, even with every sticking one sliding "
                       f"(Delassus matrix {G.tolist()}, b {b.tolist()})")
 
@@ -158,7 +158,7 @@ def choose_mode(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float,
     A, rows = _rows(dyn, candidates)
     drift = np.concatenate([dyn.contact(k).drift(dyn.kin) for k in candidates])
     G = A @ pin.computeMinverse(dyn.model, dyn.data, q) @ A.T
-    solution, keys, _ = _solve_sliding_where_needed(dyn, candidates, G, A @ a_free + drift, rows)
+    solution, keys = _solve_sliding_where_needed(dyn, candidates, G, A @ a_free + drift, rows)
     return tuple(sorted(keys[k] for k in solution.active))
 
 

@@ -21,8 +21,8 @@ def _pyplot():
     return plt
 
 
-_EVENT_STYLE = {"touchdown": ("tab:red", "-"), "lift-off": ("tab:green", "--"), "bounce": ("tab:orange", ":"),
-                "grazing": ("tab:purple", "-."), "zeno": ("black", "-")}
+_EVENT_STYLE = {"touchdown": ("tab:red", "-"), "lift-off": ("tab:green", "--"), "slip": ("tab:olive", "--"),
+                "bounce": ("tab:orange", ":"), "grazing": ("tab:purple", "-."), "zeno": ("black", "-")}
 
 
 def plot_gaps(traj: Trajectory, scene, path: str | Path, n_samples: int = 800) -> Path:

@@ -196,3 +196,20 @@ def test_user_effort_time_derivative_is_validated(leg_robot):
     kin.update(scene.q0, np.zeros(3))
     with pytest.raises(cd.InvalidInputError, match="time_derivative returned"):
         scene.tau_time_derivative(kin, 0.2)
+
+
+def test_mode_choice_slides_where_sticking_has_no_solution(leg_run):
+    """Mid-slide, sticking would pull (lam_n < 0) and releasing would sink (ABA): the
+    acceleration-level problem has no sticking solution, and choose_mode slides."""
+    scene, traj = leg_run
+    seg = traj.segments[2]
+    t = 0.5 * (seg.t0 + seg.t1)
+    q, v = seg.at(t)
+    dyn = ModeDynamics(scene)
+    assert dyn.solve(q, v, t, (0,)).normal_forces()[0] < 0.0  # sticking pulls
+    model, data = scene.model, scene.model.createData()
+    J, drift = _foot_normal_row(model, data, q, v, model.getFrameId("foot"))
+    assert J @ pin.aba(model, data, q, v, _lift(q, v, t)) + drift < 0.0  # free sinks
+    from contactdiff.impacts import choose_mode
+    assert choose_mode(dyn, q, v, t, [0]) == (dyn.sliding_key(0),)
+    assert dyn.solve(q, v, t, (dyn.sliding_key(0),)).forces.shape == (1,)
