@@ -68,7 +68,7 @@ class OrderGap:
         v_simultaneous: velocity after the impact with both closed at once (nv,).
         v_after: velocity after each order, keyed by the order (first, second) of
             contact names (nv,) each.
-        mode_after: contacts active after each order (names).
+        mode_after: contacts active after each order (names; a sliding one marked "(sliding)").
         saltation_orders: saltation matrix of each order (2nv × 2nv, tangent space).
         saltation_paper: the paper's ``DR_K + Σ_k S_k`` (2nv × 2nv).
         impact_jump: ``‖v_sim - v-‖_M`` (sqrt(kg) m/s for a metric in kg; the scale
@@ -257,7 +257,7 @@ def order_gap(scene: Scene, q, v_minus, contacts: Sequence = (0, 1), *, mode: Se
     result = OrderGap(
         contacts=(names[i], names[j]), t=t, q=q, v_minus=v_minus, v_simultaneous=v_sim,
         v_after={named(o): v for o, v in v_after.items()},
-        mode_after={named(o): tuple(names[k] for k in m) for o, m in mode_after.items()},
+        mode_after={named(o): tuple(_key_name(names, k) for k in m) for o, m in mode_after.items()},
         saltation_orders={named(o): X for o, X in sal.orders.items()}, saltation_paper=sal.paper,
         impact_jump=jump, outcome=m_norm(dv) / scale,
         outcome_vs_simultaneous=max(m_norm(v - v_sim) for v in v_after.values()) / scale,
@@ -386,3 +386,9 @@ def diagonal_touchdown(scene: Scene, *, down_speed: float = 0.2, forward_speed: 
         wanted = np.array([0.0, 0.0, -down_speed]) - J @ v
         v[cols] = np.linalg.lstsq(J[:, cols], wanted, rcond=None)[0]
     return q, v, landing
+
+
+def _key_name(names, key: int) -> str:
+    """Name of a contact key (`contactdiff.dynamics`): a sliding contact is marked."""
+    n = len(names)
+    return names[key] if key < n else f"{names[key - n]} (sliding)"

@@ -1,29 +1,38 @@
-"""How decoupled is a real robot: the checker and the order gap at a trot's diagonal touchdown.
+"""How decoupled is a real robot: the checker and the order gap at a trot's diagonal touchdowns.
 
-For each example-robot-data quadruped, at the touchdown of its front-left and
-hind-right feet (sticking, plastic contacts; the state source is
-`touchdown_states`), with and without reflected rotor inertia (armature, kg m²
-on every actuated joint, swept over the values in ARMATURES):
+For each example-robot-data quadruped, at the diagonal touchdowns of its
+simulated trot (`contactdiff.trot.trot_scene`; sticking, plastic feet; the
+state source is `touchdown_states`, the selection `trot_touchdowns`), with and
+without reflected rotor inertia (armature, kg m² on every actuated joint,
+swept over the values in ARMATURES):
 
-* the decoupling checker's numbers at that state: the landing pair's coupling
+* the decoupling checker's numbers at those states: the landing pair's coupling
   |G_ij| / sqrt(G_ii G_jj), the largest over all six foot pairs, and the
   limb-assumption terms (worst mass-matrix term; the gap term is 1 on every
   floating-base robot, since a foot's height moves with the base);
-* the order gap (`contactdiff.order_gap`): how different the post-impact
-  velocity (kinetic-energy norm, relative to the impact's velocity jump) and
-  the saltation matrix (relative max norm) are when one foot of the pair lands
+* the order gap (`contactdiff.order_gap`, at the event's time, with the other
+  pair's stance feet active): how different the post-impact velocity
+  (kinetic-energy norm, relative to the impact's velocity jump) and the
+  saltation matrix (relative max norm) are when one foot of the pair lands
   first versus the other.
 
-Then the compliant-feet trend on solo12 (`contactdiff.compliance`): each foot
-on a spring along the shank carrying a foot mass taken from the lower leg, over
-a stiffness × foot-mass grid: coupling and order gap at the touchdown (sticking
-and frictionless feet), and the gap between the two one-sided derivatives of
-the base's state (pose and velocity) HORIZON seconds later, where the
-stiffness acts (at the touchdown itself the spring is at rest and the
-stiffness enters nothing).
+Each number is the largest over the robot's touchdown states; the table gives
+how many there are. ``--states standing`` measures instead one trot-like
+touchdown built from the standing pose (`contactdiff.order_gap.diagonal_touchdown`:
+no efforts, the other pair in the air).
+
+Then the compliant-feet trend on solo12 (`contactdiff.compliance`), at the
+standing-pose touchdown whatever ``--states`` says (compliant feet change the
+robot, so the trot would need its own simulation): each foot on a spring along
+the shank carrying a foot mass taken from the lower leg, over a stiffness ×
+foot-mass grid: coupling and order gap at the touchdown (sticking and
+frictionless feet), and the gap between the two one-sided derivatives of the
+base's state (pose and velocity) HORIZON seconds later, where the stiffness
+acts (at the touchdown itself the spring is at rest and the stiffness enters
+nothing).
 
     python scripts/quadruped_decoupling_table.py [--json] [--plot out.png] [--robots solo12 a1]
-                                                 [--states standing|trot] [--no-trend]
+                                                 [--states trot|standing] [--no-trend]
 """
 
 from __future__ import annotations
@@ -33,6 +42,7 @@ import importlib.util
 import json
 import math
 import sys
+from typing import NamedTuple
 
 import numpy as np
 
@@ -67,21 +77,51 @@ SIM = dict(rtol=1e-8, atol=1e-10)
 
 
 # -- the state source ------------------------------------------------------------------
-STATE_SOURCES = ("standing", "trot")
-TROT_STRIDES = 2             # simulated strides of the trot
-TROT_MAX_PARTNER_GAP = 0.01  # m: a pair counts as landing together if the partner is this close
-TROT_MIN_SPEED = 0.02        # m/s: slower landings are re-contacts (chatter), not a foot's touchdown
+STATE_SOURCES = ("trot", "standing")
+# Simulated strides of the trot, from rest (`contactdiff.trot`); the first touchdown of the
+# run (about 60 ms in) counts like any other.
+TROT_STRIDES = 2
+# m: a pair counts as landing together if the partner foot is at most this far above the
+# ground when the first one lands (under a third of the smallest step height, solo12's
+# 3.5 cm); closing it turns the partner's leg joints by a few degrees at most.
+TROT_MAX_PARTNER_GAP = 0.01
+# m/s: slower landings are the micro re-contacts that follow an impact, not a foot's touchdown
+# (the trots' feet land at tenths of a metre per second).
+TROT_MIN_SPEED = 0.02
+CLOSE_TOL = 1e-13            # m: partner gap left after closing it along its leg
 
 
-def touchdown_states(name: str, source: str = "standing"):
-    """Scene, diagonal touchdown states ``[(q, v, pair, mode)]`` and a label, for robot ``name``.
+class TouchdownState(NamedTuple):
+    """A diagonal touchdown: both feet of ``pair`` closed and approaching.
 
-    ``source="standing"``: a trot-like touchdown built from the standing pose
-    (`contactdiff.order_gap.diagonal_touchdown`). ``source="trot"``: the diagonal
-    touchdown events of the simulated trot of `contactdiff.trot` (see
-    `trot_touchdowns`), falling back to the standing pose (with a note) when the
-    module is missing, its simulation fails or it has no clean diagonal touchdown.
+    q (nq,), v (nv,): configuration and velocity just before (tangent space);
+    pair: contact indices of the landing feet; mode: contact indices already
+    active (the other pair's stance feet); t: time (s) at which the efforts are
+    evaluated (the trot controller is clock-driven); partner_gap: how far (m) the
+    partner foot was above the ground before its gap was closed (0 when it
+    landed at the same event, or for the standing-pose state).
     """
+
+    q: np.ndarray
+    v: np.ndarray
+    pair: tuple[int, int]
+    mode: tuple[int, ...]
+    t: float = 0.0
+    partner_gap: float = 0.0
+
+
+def touchdown_states(name: str, source: str = "trot"):
+    """Scene, diagonal touchdown states (`TouchdownState`) and a label, for robot ``name``.
+
+    ``source="trot"`` (default): the diagonal touchdown events of the simulated
+    trot of `contactdiff.trot` (see `trot_touchdowns`), falling back to the
+    standing pose (with a note on stderr) when the module is missing, its
+    simulation fails or it has no clean diagonal touchdown. ``source="standing"``:
+    a trot-like touchdown built from the standing pose
+    (`contactdiff.order_gap.diagonal_touchdown`), on `Scene.from_robot` (no efforts).
+    """
+    if source not in STATE_SOURCES:
+        raise cd.InvalidInputError(f"unknown state source {source!r}; valid: {', '.join(STATE_SOURCES)}")
     if source == "trot" and importlib.util.find_spec("contactdiff.trot") is None:
         print(f"note: {name}: contactdiff.trot is missing; standing-pose touchdown instead", file=sys.stderr)
     elif source == "trot":
@@ -95,44 +135,64 @@ def touchdown_states(name: str, source: str = "standing"):
         print(f"note: {name}: trot not used ({reason}); standing-pose touchdown instead", file=sys.stderr)
     scene = cd.Scene.from_robot(cd.load_robot(name))
     q, v, pair = diagonal_touchdown(scene)
-    return scene, [(q, v, pair, ())], "standing-pose diagonal touchdown"
+    return scene, [TouchdownState(q, v, pair, ())], "standing-pose diagonal touchdown"
 
 
-def trot_touchdowns(name: str):
-    """Diagonal touchdowns of the simulated trot of ``name``.
+def trot_touchdowns(name: str, strides: float = TROT_STRIDES):
+    """Diagonal touchdowns of the simulated trot of ``name`` over ``strides`` periods.
 
-    At each touchdown event in which a foot of a diagonal pair lands while its
-    partner is in the air: if the partner lands at the same event, the event's
-    state; if it is still above the ground by at most TROT_MAX_PARTNER_GAP, the
-    event's state with the partner's gap closed along its leg (Gauss-Newton on its
-    leg joints), so that both feet touch as at a simultaneous landing. Both feet
-    must approach faster than TROT_MIN_SPEED. ``mode`` is the stance of the other
-    pair at that instant.
+    The simulated trot does not land a diagonal pair at one instant: one foot
+    lands first (the controller's ``lag`` and the mechanics), the other a few to
+    tens of milliseconds later. At each touchdown event in which a foot of a
+    diagonal pair lands while neither foot of that pair is active:
+
+    * the event's state, if the partner lands at the same event;
+    * else, if the partner is above the ground by at most TROT_MAX_PARTNER_GAP
+      and approaching, the event's state with the partner's gap closed along its
+      own leg (Gauss-Newton on its leg joints, to CLOSE_TOL; base, velocity and
+      the other legs unchanged): both feet touch, as at the simultaneous landing
+      whose order gap is measured, at a state within that distance of the
+      trot's.
+
+    Both feet must approach faster than TROT_MIN_SPEED (slower landings are the
+    micro re-contacts that follow an impact). ``mode`` is the stance of the
+    other pair at that instant; a state in which one of its feet slides (normal
+    row only) is skipped, since `order_gap` takes sticking modes. ``t`` is the
+    event time: the controller's torques depend on it.
+
+    Returns:
+        ``(scene, [TouchdownState, ...])`` in time order.
     """
     from contactdiff.trot import trot_parameters, trot_scene
 
     scene = trot_scene(name)
-    traj = cd.simulate(scene, TROT_STRIDES * trot_parameters(name)["period"])
+    traj = cd.simulate(scene, strides * trot_parameters(name)["period"])
     index = scene.contact_index
+    kin = scene.kinematics
+    sliding = set(traj.segments[0].sliding) if traj.segments else set()
     states = []
     for event in traj.events:
-        if event.kind != "touchdown":
+        sliding_before, sliding = sliding, set(event.sliding)
+        if event.kind != "touchdown" or sliding_before & set(event.mode_before):
             continue
         fired = {index(c) for c in event.contacts}
         before = {index(c) for c in event.mode_before}
         for pair in diagonal_pairs(scene):
             if not fired & set(pair) or before & set(pair):
                 continue
-            q = event.q.copy()
+            q, partner_gap = event.q.copy(), 0.0
             for partner in set(pair) - fired:
+                kin.update(q, np.zeros(scene.nv))
+                partner_gap = scene.contacts[partner].gap(kin)
                 q = _close_gap(scene, q, partner)
                 if q is None:
                     break
             if q is None:
                 continue
-            scene.kinematics.update(q, event.v_minus)
-            if all(scene.contacts[k].rows(scene.kinematics)[0] @ event.v_minus < -TROT_MIN_SPEED for k in pair):
-                states.append((q, event.v_minus.copy(), pair, tuple(sorted(before - set(pair)))))
+            kin.update(q, event.v_minus)
+            if all(scene.contacts[k].rows(kin)[0] @ event.v_minus < -TROT_MIN_SPEED for k in pair):
+                states.append(TouchdownState(q, event.v_minus.copy(), pair, tuple(sorted(before - set(pair))),
+                                             float(event.t), float(partner_gap)))
     return scene, states
 
 
@@ -149,7 +209,7 @@ def _close_gap(scene, q, contact: int):
     for _ in range(50):
         kin.update(q, zero)
         gap = c.gap(kin)
-        if abs(gap) <= 1e-13:
+        if abs(gap) <= CLOSE_TOL:
             return q
         row = c.rows(kin)[0][cols]
         step = np.zeros(scene.nv)
@@ -163,9 +223,9 @@ def measure(scene, states, armature: float) -> dict:
     """Checker numbers and order gap at the touchdown states (worst over the states)."""
     scene = scene.with_armature(armature) if armature else scene
     names = scene.contact_names
-    report = cd.check_decoupling(scene, states=[(q, v) for q, v, _, _ in states])
+    report = cd.check_decoupling(scene, states=[(s.q, s.v) for s in states])
     row = {"armature": armature, "max_coupling": report.max_coupling}
-    pairs = {frozenset(names[k] for k in pair) for _, _, pair, _ in states}
+    pairs = {frozenset(names[k] for k in s.pair) for s in states}
     row["pair_coupling"] = max(p.max for p in report.pairs if frozenset(p.contacts) in pairs)
     mass = [t for t in report.terms if t.condition == "mass matrix"]
     worst_mass = max(mass, key=lambda t: t.value)
@@ -174,29 +234,47 @@ def measure(scene, states, armature: float) -> dict:
     row["other_terms"] = max((t.value for t in report.terms if t.condition not in ("mass matrix", "gap")),
                              default=0.0)
     row["verdict"] = report.verdict
-    gaps = [order_gap(scene, q, v, pair, mode=mode) for q, v, pair, mode in states]
+    gaps = [order_gap(scene, s.q, s.v, s.pair, mode=s.mode, t=s.t) for s in states]
     row["outcome_gap"] = max(g.outcome for g in gaps)
     row["saltation_gap"] = max(g.saltation for g in gaps)
     row["saltation_spread"] = max(g.saltation_spread for g in gaps)
+    row["per_state"] = [{"outcome": g.outcome, "saltation": g.saltation, "saltation_spread": g.saltation_spread,
+                         "impact_jump": g.impact_jump, "mode_after": {"->".join(k): list(m)
+                                                                      for k, m in g.mode_after.items()}}
+                        for g in gaps]
     row["modes_after"] = sorted({m for g in gaps for m in map(tuple, g.mode_after.values())})
     return row
 
 
-def robot_table(robots, source: str = "standing") -> list[dict]:
+def describe_states(scene, states) -> list[dict]:
+    """Per state: time, landing pair, other pair's stance, closed partner gap, landing speeds."""
+    kin, names = scene.kinematics, scene.contact_names
+    out = []
+    for s in states:
+        kin.update(s.q, s.v)
+        out.append({"t": s.t, "pair": [names[k] for k in s.pair], "mode": [names[k] for k in s.mode],
+                    "partner_gap": s.partner_gap,
+                    "landing_speeds": [float(-scene.contacts[k].rows(kin)[0] @ s.v) for k in s.pair]})
+    return out
+
+
+def robot_table(robots, source: str = "trot") -> list[dict]:
+    """One row per robot and armature (0 and the robot's ARMATURES bracket)."""
     rows = []
     for name in robots:
         scene, states, source_label = touchdown_states(name, source)
+        described = describe_states(scene, states)
         low, high = ARMATURES[name]
         for armature in sorted({0.0, low, high}):
             row = measure(scene, states, armature)
-            row.update(robot=name, source=source_label, states=len(states),
-                       pair=[scene.contact_names[k] for k in states[0][2]])
+            row.update(robot=name, source=source_label, states=len(states), touchdowns=described)
             rows.append(row)
     return rows
 
 
 def trend_table() -> list[dict]:
-    """Compliant feet on solo12 over foot mass × stiffness, at TREND_ARMATURE."""
+    """Compliant feet on solo12 over foot mass × stiffness, at TREND_ARMATURE, at the
+    standing-pose diagonal touchdown (`diagonal_touchdown`; no trot, no efforts)."""
     robot = cd.load_robot(TREND_ROBOT)
     rows = []
     for friction in ("stick", "none"):
@@ -228,20 +306,26 @@ def _e(x) -> str:
 
 
 def print_tables(rows, trend) -> None:
-    sources = sorted({(r["source"], r["states"]) for r in rows})
-    print("touchdown: " + "; ".join(f"{label} ({n} state{'s' * (n > 1)} per robot)" for label, n in sources)
-          + "; a diagonal pair lands, sticking plastic feet\n")
-    print("| robot | armature (kg m²) | pair coupling | max coupling (6 pairs) | worst M term (body/limb) "
+    sources = sorted({r["source"] for r in rows})
+    print("touchdown: " + "; ".join(sources) + "; a diagonal pair lands, sticking plastic feet; "
+          "states = touchdown states per robot (each number is the largest over them)\n")
+    print("| robot | states | armature (kg m²) | pair coupling | max coupling (6 pairs) | worst M term (body/limb) "
           "| order gap: outcome | order gap: saltation | saltation spread |")
-    print("|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|")
     for r in rows:
-        print(f"| {r['robot']} | {_e(r['armature'])} | {_e(r['pair_coupling'])} | {_e(r['max_coupling'])} "
-              f"| {_e(r['mass_term'])} | {_e(r['outcome_gap'])} | {_e(r['saltation_gap'])} "
-              f"| {_e(r['saltation_spread'])} |")
+        print(f"| {r['robot']} | {r['states']} | {_e(r['armature'])} | {_e(r['pair_coupling'])} "
+              f"| {_e(r['max_coupling'])} | {_e(r['mass_term'])} | {_e(r['outcome_gap'])} "
+              f"| {_e(r['saltation_gap'])} | {_e(r['saltation_spread'])} |")
     gap_terms = sorted({r["gap_term"] for r in rows})
     print(f"\ngap term (foot height depends on coordinates outside its leg): {', '.join(map(_e, gap_terms))} "
           f"on every robot; effort terms: {_e(max(r['other_terms'] for r in rows))}; verdicts: "
           + ", ".join(sorted({r['verdict'] for r in rows})))
+    print("\ntouchdown states (time; landing pair; partner gap closed; landing speeds; other pair's stance):")
+    for r in {r["robot"]: r for r in rows}.values():
+        print(f"  {r['robot']}: " + "; ".join(
+            f"t={d['t']:.4f} s {'+'.join(d['pair'])} {d['partner_gap'] * 1e3:.1f} mm "
+            f"{'/'.join(f'{s:.2f}' for s in d['landing_speeds'])} m/s [{', '.join(d['mode'])}]"
+            for d in r["touchdowns"]))
     if not trend:
         return
     print(f"\ncompliant feet on {TREND_ROBOT} (armature {TREND_ARMATURE:g} kg m², foot mass taken from the shank, "
@@ -298,8 +382,8 @@ def plot_trend(trend, path: str) -> None:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--robots", nargs="+", default=list(cd.QUADRUPEDS), choices=list(cd.QUADRUPEDS))
-    parser.add_argument("--states", choices=STATE_SOURCES, default="standing",
-                        help="touchdown states: built from the standing pose, or the simulated trot's")
+    parser.add_argument("--states", choices=STATE_SOURCES, default="trot",
+                        help="touchdown states: the simulated trot's (default), or one built from the standing pose")
     parser.add_argument("--no-trend", action="store_true", help="skip the compliant-feet trend on solo12")
     parser.add_argument("--json", action="store_true")
     parser.add_argument("--plot", metavar="PNG", help="draw the compliant-feet trend")

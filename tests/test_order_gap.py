@@ -268,9 +268,10 @@ def test_order_gap_rejects_bad_input():
 @pytest.mark.slow
 @pytest.mark.quadrupeds
 def test_quadruped_decoupling_table_script():
-    """The README table's script: on every robot and armature the sticking diagonal
-    touchdown keeps both feet closed, so the outcome gap is zero to round-off (the
-    nested-projection argument above) while the saltation matrices differ; couplings
+    """The README table's script, with its standing-pose source: on every robot and
+    armature the sticking diagonal touchdown keeps both feet closed, so the outcome
+    gap is zero to round-off (the nested-projection argument above) while the
+    saltation matrices differ; couplings
     are in [0, 1]; on solo12 with compliant feet the pair coupling falls with the
     foot mass at every stiffness and does not depend on the stiffness (the spring
     is at rest at touchdown: only M and the contact rows enter the coupling)."""
@@ -281,7 +282,7 @@ def test_quadruped_decoupling_table_script():
     spec = importlib.util.spec_from_file_location("quadruped_decoupling_table", path)
     script = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(script)
-    rows = script.robot_table(cd.QUADRUPEDS)
+    rows = script.robot_table(cd.QUADRUPEDS, "standing")
     assert {r["robot"] for r in rows} == set(cd.QUADRUPEDS)
     for r in rows:
         assert 0 <= r["pair_coupling"] <= r["max_coupling"] <= 1
