@@ -51,8 +51,8 @@ from .errors import IntegrationError, InvalidInputError, check_number
 from .events import hermite_minimum, locate_crossing, simultaneous_group
 from .impacts import choose_mode, liftoff_mode, resolve_impact
 from .scene import Scene
-from .sensitivity import (force_time_rate, gap_gradient, impact_reset_jacobian, liftoff_saltation,
-                          saltation, simultaneous_saltation, vector_field)
+from .sensitivity import (gap_gradient, impact_reset_jacobian, liftoff_guard, liftoff_saltation, saltation,
+                          simultaneous_saltation, vector_field)
 from .steppers import METHODS, PinocchioGroup, make_stepper
 from .stiffness import EXPLICIT, MethodChooser, spectral_radius
 from .trajectory import Event, Segment, Trajectory
@@ -540,24 +540,23 @@ class _HybridRun:
             # (a simultaneous lift-off) the saltation is the product of the single
             # lift-offs in turn (each releasing contact's guard in the mode left by the
             # earlier ones): a sticking contact's force jump is not carried by another's guard
-            xi = self._liftoff_sequence(t, q, v, mode, releasing, new_mode)
-            sol, der = self.dyn.solve(q, v, t, mode, derivatives=True)
-            row = sol.row_slices[mode.index(releasing[0])].start
-            Dh = np.concatenate([der.forces_dq[row], der.forces_dv[row]])
-            self._attach_sensitivity(event, xi, Dh, np.concatenate([v, sol.ddq]),
-                                     force_time_rate(self.dyn, q, v, t, mode, row))
+            guard = liftoff_guard(dyn, t, q, v, mode, releasing[0])
+            xi = self._liftoff_sequence(t, q, v, mode, releasing, new_mode, guard)
+            self._attach_sensitivity(event, xi, *guard)
         self.events.append(event)
         return new_mode, v
 
-    def _liftoff_sequence(self, t, q, v, mode, releasing, new_mode) -> np.ndarray:
+    def _liftoff_sequence(self, t, q, v, mode, releasing, new_mode, first_guard) -> np.ndarray:
         """Saltation of the lift-off of ``releasing`` from ``mode``, one contact after the
-        other in the given order at the same state (no jump: each force is zero there)."""
+        other in the given order at the same state (no jump: each force is zero there);
+        ``first_guard`` is the first one's `liftoff_guard`."""
         xi, current = np.eye(2 * self.scene.nv), tuple(mode)
         for n, k in enumerate(releasing):
             slide = self.dyn.sliding_key(k) if not self.dyn.is_sliding(k) else None
             after = tuple(new_mode) if n == len(releasing) - 1 else tuple(sorted(
                 [i for i in current if i != k] + ([slide] if slide in new_mode else [])))
-            xi = liftoff_saltation(self.dyn, t, q, v, current, k, after) @ xi
+            guard = first_guard if n == 0 else None
+            xi = liftoff_saltation(self.dyn, t, q, v, current, k, after, guard) @ xi
             current = after
         return xi
 
@@ -574,24 +573,23 @@ class _HybridRun:
                 f"grazing touchdown of {', '.join(self.names[i] for i in grazing)} at t = {t:.17g}: "
                 f"normal speed {max(abs(speeds[i]) for i in grazing):.3g} m/s <= grazing_speed "
                 f"{self.grazing_speed:g}; the flow is not differentiable there")
-        e = np.array([self.dyn.contact(k).restitution for k in closed])
+        dyn = self.dyn
+        e = np.array([dyn.contact(k).restitution for k in closed])
         zeno = [i for i in touching if self.contacts[i].restitution > 0 and abs(speeds[i]) < self.zeno_speed]
         for i in zeno:
             e[closed.index(i)] = 0.0
-        dyn = self.dyn
         impact = resolve_impact(dyn, q, v_minus, closed, e)
         v_plus = impact.v_plus
         scale = max(1.0, float(np.max(np.abs(impact.normal_speeds_before))))
-        # impact.contacts: the keys of closed, a contact whose slip could not be stopped sliding
-        leaving = set(dyn.contacts_of(releasing))
-        staying = [k for k, s in zip(impact.contacts, impact.normal_speeds_after)
+        leaving = set(dyn.contacts_of(releasing))  # a releasing contact leaves whatever its key
+        staying = [k for k, s in zip(closed, impact.normal_speeds_after)
                    if s <= _SPEED_TOL * scale and dyn.contact_index(k) not in leaving]
         # The Zeno rule for impact cascades: a closed contact that this impact would
         # lift slower than zeno_speed does not leave (with several sticking feet an
         # impact at one foot lifts another by a little, whose return lifts a third,
         # and so on, a geometric series of ever slower impacts); its separating speed
         # is removed M-orthogonally if the mode keeps it
-        settling = [k for k, s in zip(impact.contacts, impact.normal_speeds_after)
+        settling = [k for k, s in zip(closed, impact.normal_speeds_after)
                     if _SPEED_TOL * scale < s < self.zeno_speed
                     and dyn.contact_index(k) not in leaving | set(touching)]
         new_mode = choose_mode(dyn, q, v_plus, t, staying + settling)

@@ -143,7 +143,7 @@ def touchdown(dyn: ModeDynamics, t: float, q: np.ndarray, v_minus: np.ndarray, m
     closed = sorted(set(mode) | set(contacts))
     impact = resolve_impact(dyn, q, v_minus, closed, restitution)
     scale = max(1.0, float(np.max(np.abs(impact.normal_speeds_before))))
-    staying = [k for k, s in zip(impact.contacts, impact.normal_speeds_after) if s <= 1e-12 * scale]
+    staying = [i for i, s in zip(closed, impact.normal_speeds_after) if s <= 1e-12 * scale]
     mode_after = choose_mode(dyn, q, impact.v_plus, t, staying)
     DR = impact_reset_jacobian(dyn, q, v_minus, impact)
     guard = contacts[0] if guard is None else guard
@@ -153,16 +153,25 @@ def touchdown(dyn: ModeDynamics, t: float, q: np.ndarray, v_minus: np.ndarray, m
     return Touchdown(saltation(DR, Dh, F_minus, F_plus), impact.v_plus, mode_after, impact)
 
 
-def liftoff_saltation(dyn: ModeDynamics, t: float, q: np.ndarray, v: np.ndarray, mode: Sequence[int],
-                      contact: int, mode_after: Sequence[int]) -> np.ndarray:
-    """Saltation matrix of the lift-off of ``contact`` (guard: its normal force, reset: identity)."""
+def liftoff_guard(dyn: ModeDynamics, t: float, q: np.ndarray, v: np.ndarray, mode: Sequence[int],
+                  contact: int) -> tuple[np.ndarray, np.ndarray, float]:
+    """The lift-off guard of ``contact`` (a key of ``mode``), its normal force:
+    ``(Dh, F-, h_t)`` with ``Dh`` its gradient (2nv,), ``F-`` the field of ``mode``
+    and ``h_t`` its explicit time rate (`force_time_rate`)."""
     mode = tuple(mode)
     sol, der = dyn.solve(q, v, t, mode, derivatives=True)
     row = sol.row_slices[mode.index(contact)].start
     Dh = np.concatenate([der.forces_dq[row], der.forces_dv[row]])
-    F_minus = np.concatenate([v, sol.ddq])
+    return Dh, np.concatenate([v, sol.ddq]), force_time_rate(dyn, q, v, t, mode, row)
+
+
+def liftoff_saltation(dyn: ModeDynamics, t: float, q: np.ndarray, v: np.ndarray, mode: Sequence[int],
+                      contact: int, mode_after: Sequence[int], guard=None) -> np.ndarray:
+    """Saltation matrix of the lift-off of ``contact`` (guard: its normal force, reset:
+    identity); ``guard`` is its `liftoff_guard` if already computed."""
+    Dh, F_minus, h_t = liftoff_guard(dyn, t, q, v, mode, contact) if guard is None else guard
     F_plus = vector_field(dyn, q, v, t, mode_after)
-    return saltation(np.eye(len(F_minus)), Dh, F_minus, F_plus, force_time_rate(dyn, q, v, t, mode, row))
+    return saltation(np.eye(len(F_minus)), Dh, F_minus, F_plus, h_t)
 
 
 @dataclass
