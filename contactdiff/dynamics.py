@@ -25,7 +25,7 @@ import numpy as np
 import pinocchio as pin
 from scipy.linalg.lapack import dposv as _dposv
 
-from .errors import SolverError
+from .errors import InvalidInputError, SolverError
 from .rigid_contacts import RigidContactMode
 from .rigid_contacts import eligible as rigid_eligible
 from .scene import Scene
@@ -88,8 +88,8 @@ class ModeDynamics:
         """The bound contact (or sliding view) of a contact key."""
         view = self._views[key]
         if view is None:
-            raise ValueError(f"contact {self.scene.contacts[key - self.n_contacts].name!r} is not "
-                             "sticking, so it has no sliding state")
+            raise InvalidInputError(f"contact {self.scene.contacts[key - self.n_contacts].name!r} is not "
+                                    "sticking, so it has no sliding state")
         return view
 
     def contact_index(self, key: int) -> int:
