@@ -57,6 +57,9 @@ class ImpactResult:
             or where the contact was not approaching).
         active: positions in ``contacts`` of the contacts whose rows carry impulse
             (the complementarity problem's active set).
+        tangential_only: positions in ``contacts`` of the sticking contacts in the
+            relaxed infinite-friction state: tangential impulse only, slip stopped,
+            normal impulse zero (module doc).
         rows: the row layout of ``contacts`` (`ContactRows`).
     """
 
@@ -69,6 +72,7 @@ class ImpactResult:
     restitution: np.ndarray
     active: tuple[int, ...] = ()
     rows: ContactRows | None = None
+    tangential_only: tuple[int, ...] = ()
 
 
 def _rows(dyn: ModeDynamics, contacts: Sequence[int]):
@@ -137,7 +141,7 @@ def resolve_impact(dyn: ModeDynamics, q: np.ndarray, v_minus: np.ndarray, contac
     v_plus = v_minus + MinvAT @ solution.x
     normal = list(rows.normal)
     return ImpactResult(v_plus, solution.x[normal].copy(), solution.x, contacts, Av[normal],
-                        (A @ v_plus)[normal], e, solution.active, rows)
+                        (A @ v_plus)[normal], e, solution.active, rows, solution.tangential_only)
 
 
 def choose_mode(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float,

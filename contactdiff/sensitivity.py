@@ -69,41 +69,40 @@ def impact_reset_jacobian(dyn: ModeDynamics, q: np.ndarray, v_minus: np.ndarray,
                           impact: ImpactResult) -> np.ndarray:
     """``DR`` of the impact reset ``(q, v-) -> (q, v+)`` (2nv × 2nv), tangent space.
 
-    Differentiates the equations of the impact's active rows with the active set
-    held fixed: ``M (v+ - v-) = A^T Λ``, ``A_n v+ = -e A_n v-``, ``A_t v+ = 0``.
+    Differentiates the equations of the rows that carry impulse, with the
+    complementarity states held fixed: ``M (v+ - v-) = A^T Λ``, and on an
+    active contact ``A_n v+ = -e A_n v-``, ``A_t v+ = 0``; on a tangential-only
+    contact (the relaxed infinite-friction state) ``A_t v+ = 0`` with ``Λ_n = 0``.
     """
     model, nv = dyn.model, dyn.model.nv
-    contacts = [dyn.contact(impact.contacts[k]) for k in impact.active]
+    held = sorted(set(impact.active) | set(impact.tangential_only))
     DR = np.eye(2 * nv)
-    if not contacts:
+    if not held:
         return DR
     kin = dyn.kin
     kin.update(q, v_minus, derivatives=True)
-    A = np.vstack([c.rows(kin) for c in contacts])
-    m = A.shape[0]
-    # impulses and restitution of the active rows, in the same stacking
-    lam, e_rows, start = [], [], 0
-    for k in range(len(impact.contacts)):
-        size = dyn.contact(impact.contacts[k]).n_rows
-        if k in impact.active:
-            lam.append(impact.row_impulses[start:start + size])
-            e_rows += [impact.restitution[k]] + [0.0] * (size - 1)
-        start += size
-    lam, E = np.concatenate(lam), np.diag(e_rows)
+    offsets = np.cumsum([0] + [dyn.contact(k).n_rows for k in impact.contacts])
     v_plus = impact.v_plus
     M = pin.crba(model, dyn.data, q)
     dMdv_dq = (pin.computeRNEADerivatives(model, dyn.data, q, np.zeros(nv), v_plus - v_minus)[0]
                - pin.computeGeneralizedGravityDerivatives(model, dyn.data, q))
     rhs_q = -dMdv_dq
-    con_q = np.zeros((m, nv))
-    row = 0
-    for c in contacts:
-        s = slice(row, row + c.n_rows)
-        rhs_q += c.rows_transpose_dq(kin, lam[s])
-        con_q[s] = -c.rows_times_dq(kin, v_plus) - E[s, s] @ c.rows_times_dq(kin, v_minus)
-        row += c.n_rows
+    A_rows, con_q, e_rows = [], [], []
+    for k in held:
+        c = dyn.contact(impact.contacts[k])
+        # a tangential-only contact keeps its tangential rows only; its normal impulse is 0
+        kept = slice(0, c.n_rows) if k in impact.active else slice(1, c.n_rows)
+        e_k = impact.restitution[k] if k in impact.active else 0.0
+        rhs_q += c.rows_transpose_dq(kin, impact.row_impulses[offsets[k]:offsets[k + 1]])
+        A_rows.append(c.rows(kin)[kept])
+        e_block = np.zeros(c.n_rows)
+        e_block[0] = e_k
+        con_q.append((-c.rows_times_dq(kin, v_plus) - e_block[:, None] * c.rows_times_dq(kin, v_minus))[kept])
+        e_rows.append(e_block[kept])
+    A, E = np.vstack(A_rows), np.diag(np.concatenate(e_rows))
+    m = A.shape[0]
     K = np.block([[M, -A.T], [A, np.zeros((m, m))]])
-    rhs = np.block([[rhs_q, M], [con_q, -E @ A]])
+    rhs = np.block([[rhs_q, M], [np.vstack(con_q), -E @ A]])
     X = np.linalg.lstsq(K, rhs, rcond=None)[0] if np.linalg.matrix_rank(K) < nv + m else np.linalg.solve(K, rhs)
     DR[nv:, :nv] = X[:nv, :nv]
     DR[nv:, nv:] = X[:nv, nv:]
