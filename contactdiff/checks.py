@@ -179,10 +179,13 @@ def check_decoupling(source: Scene | Robot | str | Path, *, samples: int = 20, s
         tol: relative size below which a coupling or term counts as zero.
         spread: half-width of the uniform random perturbation of every coordinate
             around the reference pose (rad or m), and of the random velocities.
-        states: optional ``(q, v)`` pairs (e.g. touchdown states of a gait) at which
-            to measure instead: the couplings at each ``q`` as given (no projection)
-            and the limb terms at each ``(q, v)``; ``samples`` and ``seed`` are then
-            not used. Each ``q`` has ``nq`` entries, each ``v`` ``nv``.
+        states: optional ``(q, v)`` pairs or ``(q, v, t)`` triples (e.g. touchdown
+            states of a gait, ``t`` in s, 0 if left out) at which to measure
+            instead: the couplings at each ``q`` as given (no projection) and the
+            limb terms at each ``(q, v)``, with the efforts at time ``t`` (a
+            clock-driven controller's gains and targets depend on it); ``samples``
+            and ``seed`` are then not used. Each ``q`` has ``nq`` entries, each
+            ``v`` ``nv``.
 
     Returns:
         A `DecouplingReport`.
@@ -205,7 +208,7 @@ def check_decoupling(source: Scene | Robot | str | Path, *, samples: int = 20, s
         notes.append(f"measured at {len(states)} given state(s), not at sampled poses")
     if armature and not scene.robot.actuated:
         notes.append(f"robot {scene.robot.name!r} has no actuated joints: armature changes nothing")
-    poses = None if states is None else [q for q, _ in states]
+    poses = None if states is None else [q for q, _, _ in states]
     pairs = [checker.pair_coupling(i, j, samples, poses)
              for i, j in itertools.combinations(range(len(scene.contacts)), 2)]
     terms = checker.assumption_terms(samples, states)
@@ -234,22 +237,28 @@ def check_decoupling(source: Scene | Robot | str | Path, *, samples: int = 20, s
         pairs=pairs, terms=terms, verdict=verdict, notes=notes)
 
 
-def _given_states(scene: Scene, states) -> list[tuple[np.ndarray, np.ndarray]]:
-    """``states`` as a non-empty list of finite ``(q, v)`` arrays of the scene's sizes."""
+def _given_states(scene: Scene, states) -> list[tuple[np.ndarray, np.ndarray, float]]:
+    """``states`` as a non-empty list of finite ``(q, v, t)`` of the scene's sizes
+    (``t = 0`` where a pair was given)."""
     nq, nv = scene.robot.nq, scene.nv
     try:
-        pairs = [(np.array(q, dtype=float), np.array(v, dtype=float)) for q, v in states]
+        given = [tuple(s) for s in states]
+        if any(len(s) not in (2, 3) for s in given):
+            raise ValueError
+        triples = [(np.array(s[0], dtype=float), np.array(s[1], dtype=float),
+                    float(s[2]) if len(s) == 3 else 0.0) for s in given]
     except (TypeError, ValueError):
-        raise InvalidInputError(f"states must be (q, v) pairs of numbers, got {states!r}") from None
-    if not pairs:
+        raise InvalidInputError(f"states must be (q, v) pairs or (q, v, t) triples of numbers, "
+                                f"got {states!r}") from None
+    if not triples:
         raise InvalidInputError("states must hold at least one (q, v) pair, got none")
-    for k, (q, v) in enumerate(pairs):
+    for k, (q, v, t) in enumerate(triples):
         if q.shape != (nq,) or v.shape != (nv,):
             raise InvalidInputError(f"states[{k}]: q must have shape ({nq},) and v ({nv},); "
                                     f"got {q.shape} and {v.shape}")
-        if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
-            raise InvalidInputError(f"states[{k}] has non-finite entries: q={q}, v={v}")
-    return pairs
+        if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v)) and np.isfinite(t)):
+            raise InvalidInputError(f"states[{k}] has non-finite entries: q={q}, v={v}, t={t}")
+    return triples
 
 
 def _as_scene(source) -> Scene:
@@ -336,26 +345,27 @@ class _Checker:
                             float(np.median(values)), len(values))
 
     # -- limb assumption -----------------------------------------------------------------
-    def _effort_jacobian(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """``[d f/dq, d f/dv]`` of ``f = tau - nle`` (nv × 2nv)."""
+    def _effort_jacobian(self, q: np.ndarray, v: np.ndarray, t: float = 0.0) -> np.ndarray:
+        """``[d f/dq, d f/dv]`` of ``f = tau - nle`` at time ``t`` (s) (nv × 2nv)."""
         self.kin.update(q, v, derivatives=True)
-        dtau_dq, dtau_dv = self.scene.tau_derivatives(self.kin, 0.0)
+        dtau_dq, dtau_dv = self.scene.tau_derivatives(self.kin, t)
         dn_dq, dn_dv, _ = pin.computeRNEADerivatives(self.model, self.data, q, v, np.zeros(self.model.nv))
         return np.hstack([dtau_dq - dn_dq, dtau_dv - dn_dv])
 
     def assumption_terms(self, samples: int, states=None) -> list[Term]:
-        """Terms over projected poses with random velocities, or at ``states`` ((q, v) pairs)."""
+        """Terms over projected poses with random velocities at t = 0, or at ``states``
+        ((q, v, t) triples)."""
         nv, names = self.model.nv, self.scene.contact_names
         if states is None:
             all_closed = list(range(len(self.scene.contacts)))
             poses = self._poses(all_closed, samples) or [self.scene.q0]
-            states = [(q, self.rng.uniform(-self.spread, self.spread, nv)) for q in poses]
+            states = [(q, self.rng.uniform(-self.spread, self.spread, nv), 0.0) for q in poses]
         blocks = [("body", self.body)] + [(f"limb {n}", l) for n, l in zip(names, self.limbs)]
         owners = [()] + [(n,) for n in names]
         # largest relative size of each term over the poses, keyed by block/limb indices
         mass, dep, effort, additive = {}, {}, {}, {}
         gap = np.zeros(len(names))
-        for q, v in states:
+        for q, v, t in states:
             M = pin.crba(self.model, self.data, q)
             diag = np.sqrt(np.abs(np.diag(M)))
             scale = np.where(diag > 0, diag, 1.0)
@@ -381,7 +391,7 @@ class _Checker:
                 if outside:
                     gap[i] = max(gap[i], float(np.max(np.abs(row[outside])) / max(np.max(np.abs(row)), 1e-300)))
             # efforts
-            Df = self._effort_jacobian(q, v)
+            Df = self._effort_jacobian(q, v, t)
             fscale = max(float(np.max(np.abs(Df))), 1.0)
             for i, limb in enumerate(self.limbs):
                 other = sorted(set().union(*(l for k, l in enumerate(self.limbs) if k != i)))
@@ -392,7 +402,7 @@ class _Checker:
             body = sorted(self.body)
             if body:
                 for i, j in itertools.combinations(range(len(self.limbs)), 2):
-                    value = self._mixed_body_derivative(q, v, body, self.limbs[i], self.limbs[j]) / fscale
+                    value = self._mixed_body_derivative(q, v, t, body, self.limbs[i], self.limbs[j]) / fscale
                     additive[(i, j)] = max(additive.get((i, j), 0.0), value)
         terms = []
         for (ia, ib), value in mass.items():
@@ -422,7 +432,7 @@ class _Checker:
                            - pin.crba(self.model, self.data, self.robot.integrate(q, -e))) / (2 * _FD_STEP)
         return dM
 
-    def _mixed_body_derivative(self, q, v, body, limb_i, limb_j) -> float:
+    def _mixed_body_derivative(self, q, v, t, body, limb_i, limb_j) -> float:
         """Largest ``|d² f_body / dx_i dx_j|`` over coordinates ``x_i`` of limb i and
         ``x_j`` of limb j (positions and velocities): central differences in ``x_j``
         of the analytic first derivatives in ``x_i``."""
@@ -434,6 +444,6 @@ class _Checker:
             e[k] = _FD_STEP
             for plus, minus in (((self.robot.integrate(q, e), v), (self.robot.integrate(q, -e), v)),
                                 ((q, v + e), (q, v - e))):
-                diff = self._effort_jacobian(*plus) - self._effort_jacobian(*minus)
+                diff = self._effort_jacobian(*plus, t) - self._effort_jacobian(*minus, t)
                 worst = max(worst, float(np.max(np.abs(diff[np.ix_(body, cols)]))) / (2 * _FD_STEP))
         return worst

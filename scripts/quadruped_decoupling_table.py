@@ -223,7 +223,7 @@ def measure(scene, states, armature: float) -> dict:
     """Checker numbers and order gap at the touchdown states (worst over the states)."""
     scene = scene.with_armature(armature) if armature else scene
     names = scene.contact_names
-    report = cd.check_decoupling(scene, states=[(s.q, s.v) for s in states])
+    report = cd.check_decoupling(scene, states=[(s.q, s.v, s.t) for s in states])
     row = {"armature": armature, "max_coupling": report.max_coupling}
     pairs = {frozenset(names[k] for k in s.pair) for s in states}
     row["pair_coupling"] = max(p.max for p in report.pairs if frozenset(p.contacts) in pairs)

@@ -224,8 +224,41 @@ def test_check_decoupling_at_states_agrees_with_sampled_reference():
     assert given.pairs[0].max == pytest.approx(sampled.pairs[0].reference, rel=1e-12)
 
 
+def test_check_decoupling_takes_each_state_time():
+    """A clock-driven cross-limb effort ``tau_rear_z = K t q_front_z`` couples the
+    limbs of the soft trot only at t != 0: the limb term is ``K t`` over the effort
+    Jacobian's largest entry (set by the foot springs, larger than ``K t`` here), so
+    it is 0 at t = 0 and doubles from t = 1 s to t = 2 s (up to the 1e-10 error of
+    the effort's FD Jacobian); states given as pairs are at t = 0."""
+    base = cd.load_scene("planar_trot_soft")
+    names = [base.model.names[j] for j in range(1, base.model.njoints)]
+    front_z, rear_z = names.index("front_foot_z"), names.index("rear_foot_z")
+    gain = 7.0  # N/(m s)
+
+    def cross(q, v, t):
+        tau = np.zeros(base.nv)
+        tau[rear_z] = gain * t * q[front_z]
+        return tau
+
+    scene = cd.Scene(base.robot, base.contact_specs, base.effort_specs + (cd.UserEffort(cross, name="cross"),),
+                     q0=base.q0, v0=base.v0)
+    q, v = base.q0, base.v0
+
+    def rear_term(*state):
+        report = cd.check_decoupling(scene, states=[state])
+        return report, next(t.value for t in report.terms if t.where == "limb rear_foot depends on other limbs")
+
+    (pair, zero_pair), (at_zero, zero) = rear_term(q, v), rear_term(q, v, 0.0)
+    (_, one), (at_two, two) = rear_term(q, v, 1.0), rear_term(q, v, 2.0)
+    assert zero == zero_pair == 0.0 and pair.verdict == at_zero.verdict == "decoupled"
+    assert one > 1e-3 and two == pytest.approx(2 * one, rel=1e-8)
+    assert at_two.verdict == "orthogonal only"
+
+
 @pytest.mark.parametrize("states, match", [
     ([], "at least one"),
+    ([(np.zeros(3), np.zeros(3), np.nan)], "non-finite"),
+    ([(np.zeros(3),)], "pairs or"),
     ([(np.zeros(2), np.zeros(3))], "shape"),
     ([(np.array([0.0, np.nan, 0.0]), np.zeros(3))], "non-finite"),
     (5, "pairs"),
