@@ -3,8 +3,8 @@
     contactdiff check SOURCE [--samples N] [--seed S] [--armature X] [--tol T] [--json]
     contactdiff simulate SOURCE --t-final T [--q JOINT=VALUE ...] [--v JOINT=VALUE ...]
                         [--method M] [--rtol R] [--atol A] [--json] [--plot out.png]
-    contactdiff stride SOURCE --foot NAME [--newton N] [--t0 T] [--period T] [--neutral x,y,yaw]
-                        [--json]
+    contactdiff stride SOURCE --foot NAME [--newton N] [--warmup SECONDS] [--t0 T] [--period T]
+                        [--neutral x,y,yaw] [--min-flight S] [--json]
 
 SOURCE is a scene (TOML path or a name of robots/) or a robot (URDF path or
 example-robot-data name; its feet get ground contacts). Errors print one line
@@ -115,6 +115,12 @@ def build_parser() -> argparse.ArgumentParser:
     stride.add_argument("--min-stride", type=float, default=None,
                         help="shortest stride (s): earlier re-landings of the foot are skipped "
                              "(default: half the clock period of a clock-driven scene, else 0)")
+    stride.add_argument("--min-flight", type=float, default=None,
+                        help="shortest flight (s) before a touchdown that ends a stride: re-landings of "
+                             "impact cascades are skipped (default: 5 %% of the clock period, else 0)")
+    stride.add_argument("--warmup", type=float, default=0.0, metavar="SECONDS",
+                        help="simulate this long before the search: a stable gait settles on its own "
+                             "(default 0)")
     stride.add_argument("--period", type=float, default=None,
                         help="clock period (s) of a clock-driven scene (default: from its controller)")
     stride.add_argument("--neutral", default=None, metavar="MOVES",
@@ -141,7 +147,8 @@ def _run_stride(args) -> int:
         neutral = ""
     gait = find_periodic_gait(scene, args.foot, t=args.t0, iterations=args.newton, tol=args.tol,
                               neutral=neutral, period=args.period, t_max=args.t_max,
-                              min_stride=args.min_stride, method=args.method, rtol=args.rtol, atol=args.atol)
+                              min_stride=args.min_stride, min_flight=args.min_flight, warmup=args.warmup,
+                              method=args.method, rtol=args.rtol, atol=args.atol)
     print(json.dumps(gait.to_dict(), indent=2) if args.json else gait.format())
     return 0
 

@@ -68,8 +68,13 @@ contacts. Events inside a stride are differentiable only where the limbs are
 decoupled (`Event.differentiable`).
 
 **Chattering.** A foot of a rigid robot may land again microseconds after its
-touchdown (another foot's impact jolts it); ``min_stride`` (default half the
-clock period of a clock-driven scene) skips such re-landings.
+touchdown, or after another foot's impact has jolted it off the ground while it
+stood (an impact cascade); such a re-landing is not the gait's touchdown, and
+a map through it would jump wherever the cascade appears or vanishes. A
+touchdown therefore ends a stride only after the foot has been off the ground
+for ``min_flight`` (default 5 % of the clock period of a clock-driven scene,
+20 ms for a 0.4-s trot against cascade flights of microseconds) and at least
+``min_stride`` after the start (default half the clock period).
 
 `contactdiff.integrator` has no public hook to stop at an event, so the stride
 is run by a subclass of its hybrid loop that stops after the foot's touchdown
@@ -98,11 +103,15 @@ from .trajectory import Trajectory
 NEUTRAL_NAMES = ("x", "y", "yaw")
 """Neutral moves: world translations along x and y, rotation about the vertical (free-flyer)."""
 
+MIN_FLIGHT_SHARE = 0.05
+"""Default ``min_flight`` of a clock-driven scene, as a share of its clock period."""
+
 SECTION_TOL = 1e-9
 """Largest gap (m) of the foot at a state given as a point of the section; it is then closed exactly."""
 
 _SYMMETRY_TOL = 1e-9  # relative change of gaps and accelerations under a neutral move that counts as none
 _IMPACT_KINDS = ("touchdown", "bounce")
+_NOT_SMOOTH_NOTES = ("not differentiable", "Zeno", "grazing")  # integrator notes on non-smooth events
 _SIMULATE_DEFAULTS = {name: p.default for name, p in inspect.signature(simulate).parameters.items()
                       if p.kind is inspect.Parameter.KEYWORD_ONLY and name != "t0"}
 
@@ -231,7 +240,12 @@ class PeriodicGait:
                 "moduli": [float(abs(m)) for m in self.multipliers],
                 "neutral": list(self.neutral), "converged": self.converged, "drift": dict(self.drift),
                 "differentiable": self.stride.differentiable, "simultaneous": list(self.stride.simultaneous),
-                "run_time": self.run_time}
+                "why_not_differentiable": self.why_not_differentiable(), "run_time": self.run_time}
+
+    def why_not_differentiable(self) -> list[str]:
+        """The stride's notes on its non-differentiable events (simultaneous landings
+        whose orders disagree, cascades ended by the Zeno rule, grazing)."""
+        return [n for n in self.stride.trajectory.notes if n.startswith(_NOT_SMOOTH_NOTES)]
 
     def format(self) -> str:
         s = self.stride
@@ -257,7 +271,10 @@ class PeriodicGait:
         verdict = "stable (all inside the unit circle)" if top < 1 - 1e-9 else "not asymptotically stable"
         lines.append(f"  largest |λ| = {top:.8g}: {verdict}")
         if not s.differentiable:
-            lines.append("  note: an event of the stride is not differentiable (see the trajectory's notes)")
+            why = self.why_not_differentiable()
+            lines.append("  note: an event of the stride is not differentiable; the multipliers are those of "
+                         "the branch taken" + (":" if why else ""))
+            lines += [f"    {n}" for n in why[:4]] + ([f"    ... {len(why) - 4} more"] if len(why) > 4 else [])
         if s.simultaneous:
             lines.append(f"  note: {', '.join(s.simultaneous)} land(s) at the same instant as {self.foot}: the "
                          "stride map is discontinuous there and these are one-sided multipliers (the other "
@@ -422,13 +439,17 @@ class _StrideRun(_HybridRun):
     reset Jacobian of an impact at ``t0`` by the full saltation matrix of the
     foot's guard (see the module docstring)."""
 
-    def __init__(self, scene, foot: int, t0, t_max, q0, v0, min_stride: float = 0.0, **options):
+    def __init__(self, scene, foot: int, t0, t_max, q0, v0, min_stride: float = 0.0, min_flight: float = 0.0,
+                 **options):
         unknown = sorted(set(options) - set(_SIMULATE_DEFAULTS))
         if unknown:
             raise InvalidInputError(f"unknown simulation option(s) {', '.join(unknown)}; "
                                     f"valid: {', '.join(sorted(_SIMULATE_DEFAULTS))}")
         super().__init__(scene, t0, t_max, q0, v0, **(_SIMULATE_DEFAULTS | options))
-        self.foot, self.t_earliest = foot, t0 + min_stride
+        self.foot, self.t_earliest, self.min_flight = foot, t0 + min_stride, min_flight
+        # last time the foot was on the ground (s); the start counts as such, so a
+        # foot a few nanometres up after a restart does not "land" at once
+        self.last_contact = t0
         self.hit = None  # (event, mode before as indices, Φ just before)
         self.start = None  # (mode before, v+ after the start impact)
 
@@ -471,10 +492,18 @@ class _StrideRun(_HybridRun):
         new_mode, v_plus = super()._event(t, q, v, mode, fired)
         for event in self.events[n:]:
             if (self.names[self.foot] in event.contacts and event.kind not in ("lift-off", "slip")
-                    and t >= self.t_earliest and self.hit is None):
+                    and t >= self.t_earliest and t - self.last_contact >= self.min_flight and self.hit is None):
                 self.hit = (event, tuple(mode), None if phi_minus is None else phi_minus.copy())
                 self.t_final = t  # the loop ends after this event
+            if self._touches(event):
+                self.last_contact = event.t
         return new_mode, v_plus
+
+    def _touches(self, event) -> bool:
+        """Whether the foot is on the ground at ``event`` (before, in or after it)."""
+        name = self.names[self.foot]
+        return (name in event.contacts or name in event.impulses or name in event.mode_before
+                or name in event.mode_after)
 
 
 def _foot_index(scene: Scene, foot: str) -> int:
@@ -501,7 +530,8 @@ def onto_section(scene: Scene, foot: str, q: np.ndarray, tol: float = 1e-15) -> 
 
 
 def stride_map(scene: Scene, foot: str, q, v, t: float = 0.0, *, t_max: float = 10.0,
-               min_stride: float | None = None, period: float | None = None, jacobian: bool = True,
+               min_stride: float | None = None, min_flight: float | None = None,
+               period: float | None = None, jacobian: bool = True,
                rtol: float = 1e-10, atol: float = 1e-12, method: str = "DOP853", max_events: int = 1000,
                **options) -> Stride:
     """The stride map of ``foot``: from just before one of its touchdowns to just before the next.
@@ -518,6 +548,10 @@ def stride_map(scene: Scene, foot: str, q, v, t: float = 0.0, *, t_max: float = 
             microseconds after its touchdown when another foot's impact jolts it).
             Default: half the clock period for a clock-driven scene, else 0. The map
             stays smooth as long as no touchdown of the foot comes near that time.
+        min_flight: shortest flight (s) before a touchdown that ends the stride:
+            re-landings after a shorter time off the ground (impact cascades) do
+            not. Default `MIN_FLIGHT_SHARE` of the clock period for a clock-driven
+            scene, else 0.
         period: clock period (s); default: the period of the scene's clock-driven
             efforts (`scene_period`), or an autonomous scene; False forces autonomous.
         jacobian: compute the Jacobian, the touchdown-time gradient and the
@@ -557,22 +591,34 @@ def stride_map(scene: Scene, foot: str, q, v, t: float = 0.0, *, t_max: float = 
     if min_stride >= t_max:
         raise InvalidInputError(f"stride map: min_stride ({min_stride:g} s) must be below t_max ({t_max:g} s)")
     return _run_stride(scene, i, q, v, t, t + t_max, clock, jacobian, require_start=True, min_stride=min_stride,
+                       min_flight=_min_flight(min_flight, clock, "stride map"),
                        rtol=rtol, atol=atol, method=method, max_events=max_events, **options)
 
 
+def _min_flight(value, clock: float | None, where: str) -> float:
+    if value is None:
+        return MIN_FLIGHT_SHARE * clock if clock else 0.0
+    return check_number(where, "min_flight", value, minimum=0.0)
+
+
 def first_touchdown(scene: Scene, foot: str, q=None, v=None, t: float = 0.0, *, t_max: float = 10.0,
-                    rtol: float = 1e-10, atol: float = 1e-12, method: str = "DOP853",
-                    max_events: int = 1000, **options) -> tuple[float, np.ndarray, np.ndarray]:
+                    min_flight: float | None = None, rtol: float = 1e-10, atol: float = 1e-12,
+                    method: str = "DOP853", max_events: int = 1000,
+                    **options) -> tuple[float, np.ndarray, np.ndarray]:
     """Simulate from ``(q, v, t)`` (default the scene's initial state) to the first
-    touchdown of ``foot`` after ``t``; return ``(t, q, v)`` just before its impact: a
-    point of the section to start `stride_map` or `find_periodic_gait` from."""
+    touchdown of ``foot`` after ``t`` that follows a flight of at least ``min_flight``
+    (s; default as in `stride_map`; the flight is counted from ``t`` at the
+    earliest, so a landing sooner than that after ``t`` is skipped); return
+    ``(t, q, v)`` just before its impact: a point of the section to start
+    `stride_map` or `find_periodic_gait` from."""
     i = _foot_index(scene, foot)
     t = check_number("first touchdown", "t", t)
     q = scene.q0 if q is None else np.array(q, dtype=float)
     v = scene.v0 if v is None else np.array(v, dtype=float)
     s = _run_stride(scene, i, q, v, t, t + check_number("first touchdown", "t_max", t_max, minimum=0.0),
-                    None, False, require_start=False, rtol=rtol, atol=atol, method=method,
-                    max_events=max_events, **options)
+                    None, False, require_start=False,
+                    min_flight=_min_flight(min_flight, scene_period(scene), "first touchdown"),
+                    rtol=rtol, atol=atol, method=method, max_events=max_events, **options)
     return s.t, s.q, s.v
 
 
@@ -651,6 +697,7 @@ def _reduced_residual(scene, stride, B, neutral, clock) -> tuple[np.ndarray, dic
 def find_periodic_gait(scene: Scene, foot: str, q=None, v=None, t: float = 0.0, *,
                        iterations: int = 8, tol: float = 1e-9, neutral: Sequence[str] | None = None,
                        period: float | None = None, t_max: float = 10.0, min_stride: float | None = None,
+                       min_flight: float | None = None, warmup: float = 0.0,
                        line_search: int = 4, rtol: float = 1e-10, atol: float = 1e-12,
                        method: str = "DOP853", **options) -> PeriodicGait:
     """Approach a periodic gait by Newton's method on the stride map, reduced state.
@@ -671,12 +718,16 @@ def find_periodic_gait(scene: Scene, foot: str, q=None, v=None, t: float = 0.0, 
         scene, foot: the scene and the contact whose touchdowns define the section.
         q, v, t: start; if not on the section (default: the scene's initial state),
             it is first carried to the foot's next touchdown (`first_touchdown`).
+        warmup: time (s) simulated from the start before that (no sensitivities): a
+            stable gait settles towards its cycle on its own, by a factor of about
+            the largest multiplier's modulus per stride, and Newton then starts near it.
         iterations: largest number of Newton steps.
         tol: stop when ``|r|`` is below this (mixed units, see `PeriodicGait.residuals`).
         neutral: neutral moves removed (default: those the scene admits, `available_neutral`).
         period: clock period (s); default from the scene (`scene_period`).
         t_max: longest stride (s).
-        min_stride: shortest stride (s), see `stride_map`.
+        min_stride, min_flight: shortest stride and shortest flight before the
+            touchdown that ends it (s), see `stride_map`.
         line_search: halvings of a Newton step before the fixed-point fallback.
         rtol, atol, method, **options: simulation options.
 
@@ -688,15 +739,20 @@ def find_periodic_gait(scene: Scene, foot: str, q=None, v=None, t: float = 0.0, 
     iterations = int(check_number("find_periodic_gait", "iterations", iterations, minimum=0))
     tol = check_number("find_periodic_gait", "tol", tol, minimum=0.0)
     clock = _resolve_period(scene, period)
-    sim = dict(t_max=t_max, min_stride=min_stride, period=False if clock is None else clock, rtol=rtol,
-               atol=atol, method=method, **options)
+    warmup = check_number("find_periodic_gait", "warmup", warmup, minimum=0.0)
+    sim = dict(t_max=t_max, min_stride=min_stride, min_flight=min_flight, period=False if clock is None else clock,
+               rtol=rtol, atol=atol, method=method, **options)
     q = scene.q0 if q is None else np.array(q, dtype=float)
     v = scene.v0 if v is None else np.array(v, dtype=float)
+    if warmup > 0:
+        settled = simulate(scene, t + warmup, q, v, t0=t, rtol=rtol, atol=atol, method=method, **options)
+        t, q, v = settled.t, settled.q, settled.v
     kin = scene.kinematics
     kin.update(q, v)
-    if abs(scene.contacts[i].gap(kin)) > SECTION_TOL or not scene.contacts[i].rows(kin)[0] @ v < 0:
-        t, q, v = first_touchdown(scene, foot, q, v, t, t_max=t_max, rtol=rtol, atol=atol, method=method,
-                                  **options)
+    if warmup > 0 or abs(scene.contacts[i].gap(kin)) > SECTION_TOL or not scene.contacts[i].rows(kin)[0] @ v < 0:
+        t, q, v = first_touchdown(scene, foot, q, v, t, t_max=t_max,
+                                  min_flight=_min_flight(min_flight, clock, "find_periodic_gait"),
+                                  rtol=rtol, atol=atol, method=method, **options)
     neutral = _check_neutral(scene, neutral, q, v, t)
 
     def evaluate(q, v, t):

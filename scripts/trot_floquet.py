@@ -1,14 +1,16 @@
 """Approach a periodic trot of a quadruped and print its Floquet multipliers.
 
-    python scripts/trot_floquet.py [--robot solo12] [--foot FL_FOOT] [--warmup 4]
-                                   [--newton 4] [--rtol 1e-8] [--atol 1e-10] [--json]
+    python scripts/trot_floquet.py [--robot solo12] [--foot FL_FOOT] [--warmup 20]
+                                   [--newton 4] [--rtol 1e-10] [--atol 1e-12] [--json]
 
 The trot scene (`contactdiff.trot.trot_scene`: a clock-driven PD trot, sticking
 plastic feet) starts standing at phase 0. The script
 
-1. simulates ``--warmup`` clock periods without sensitivities (the gait settles
-   towards its limit cycle), then runs on to the next touchdown of ``--foot``
-   (a point of the section: the state just before that foot's impact);
+1. simulates ``--warmup`` clock periods without sensitivities (a stable gait
+   settles towards its limit cycle by about its largest multiplier's modulus
+   per period), then runs on to the next touchdown of ``--foot`` after a swing
+   (a point of the section: the state just before that foot's impact; the
+   re-landings of impact cascades are skipped, see `stride_map`'s min_flight);
 2. runs ``--newton`` damped Newton iterations on the stride map of that foot
    (`contactdiff.stride.find_periodic_gait`: state and clock phase, with the
    neutral moves x, y, yaw removed), each stride with its Jacobian;
@@ -37,11 +39,11 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--robot", default="solo12")
     parser.add_argument("--foot", default=None, help="section foot (default: the scene's first contact)")
-    parser.add_argument("--warmup", type=int, default=4, help="clock periods simulated before the search")
+    parser.add_argument("--warmup", type=int, default=20, help="clock periods simulated before the search")
     parser.add_argument("--newton", type=int, default=4, help="Newton iterations")
     parser.add_argument("--tol", type=float, default=1e-8, help="residual at which Newton stops")
-    parser.add_argument("--rtol", type=float, default=1e-8)
-    parser.add_argument("--atol", type=float, default=1e-10)
+    parser.add_argument("--rtol", type=float, default=1e-10)
+    parser.add_argument("--atol", type=float, default=1e-12)
     parser.add_argument("--method", default="DOP853")
     parser.add_argument("--no-period-map", action="store_true", help="skip the stroboscopic check")
     parser.add_argument("--json", action="store_true")

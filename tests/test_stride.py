@@ -267,7 +267,7 @@ def test_period_map_has_the_same_multipliers():
 # ----------------------------------------------------------------------------------
 # finite differences of the stride map
 # ----------------------------------------------------------------------------------
-def _fd_on_section(scene, foot, stride, basis_columns, clock=False, min_stride=None, eps=EPS):
+def _fd_on_section(scene, foot, stride, basis_columns, clock=False, min_stride=None, min_flight=None, eps=EPS):
     """Central FD of (x', t') along section coordinates (and the start time if ``clock``)."""
     nv, model = scene.nv, scene.model
     kinds = [(e.kind, e.contacts) for e in stride.trajectory.events]
@@ -275,7 +275,8 @@ def _fd_on_section(scene, foot, stride, basis_columns, clock=False, min_stride=N
     def run(d, dt, eps):
         q = onto_section(scene, foot, pin.integrate(model, stride.q0, eps * d[:nv]))
         s = stride_map(scene, foot, q, stride.v0 + eps * d[nv:2 * nv], stride.t0 + eps * dt,
-                       period=stride.period or False, min_stride=min_stride, jacobian=False, **TOL)
+                       period=stride.period or False, min_stride=min_stride, min_flight=min_flight,
+                       jacobian=False, **TOL)
         assert [(e.kind, e.contacts) for e in s.trajectory.events] == kinds  # same event sequence
         return s
 
@@ -380,10 +381,10 @@ def test_stride_jacobian_fd_free_flyer_clock_driven():
     scene = cd.Scene(bouncing.robot, bouncing.contact_specs, [cd.UserEffort(pd, pd_jacobian, name="clock PD")],
                      gravity=[0, 0, -9.81], q0=bouncing.q0, v0=bouncing.v0, name="solo12_bouncing_clock")
     t, q, v = first_touchdown(scene, "FR_FOOT", **TOL)
-    s = stride_map(scene, "FR_FOOT", q, v, t, period=period, min_stride=0.0, **TOL)
+    s = stride_map(scene, "FR_FOOT", q, v, t, period=period, min_stride=0.0, min_flight=0.0, **TOL)
     assert [(e.kind, e.contacts) for e in s.trajectory.events] == [("bounce", ("FR_FOOT",))] * 2
     B = section_basis(scene, "FR_FOOT", s.q0)
-    fd_x, fd_t = _fd_on_section(scene, "FR_FOOT", s, B, clock=True, min_stride=0.0)
+    fd_x, fd_t = _fd_on_section(scene, "FR_FOOT", s, B, clock=True, min_stride=0.0, min_flight=0.0)
     analytic_x = np.column_stack([s.jacobian @ B, s.start_time_column])
     analytic_t = np.append(s.time_gradient @ B, s.start_time_derivative)
     assert_fd("stride map with clock, d(x', t')/d(x0, t0) (solo12)", analytic_x, fd_x, rtol=FD_RTOL)
@@ -453,6 +454,82 @@ def test_bad_options():
         stride_map(scene, "rear_foot", q, v, t, rtoll=1e-8)
     with pytest.raises(cd.InvalidInputError, match="no clock-driven effort"):
         period_map(scene)
+
+
+def test_warmup_starts_at_the_touchdown_after_it():
+    """Ball dropped from 1 m, g = 1, e = 0.8: touchdowns at sqrt(2) and
+    sqrt(2) (1 + 2e) s (closed form as above). A warm-up of 1 s starts the search
+    at the first, one of 2 s at the second (speed e sqrt(2))."""
+    scene, e = _ball(0.8), 0.8
+    for warmup, t_expected, v_expected in ((1.0, math.sqrt(2), -math.sqrt(2)),
+                                           (2.0, math.sqrt(2) * (1 + 2 * e), -e * math.sqrt(2))):
+        gait = find_periodic_gait(scene, "ball", iterations=0, warmup=warmup)
+        assert gait.t == pytest.approx(t_expected, abs=1e-9)
+        assert gait.v[0] == pytest.approx(v_expected, abs=1e-9)
+    with pytest.raises(cd.InvalidInputError, match="warmup"):
+        find_periodic_gait(scene, "ball", warmup=-1.0)
+
+
+# ----------------------------------------------------------------------------------
+# impact cascades: the section is the gait's touchdown, not a re-landing
+# ----------------------------------------------------------------------------------
+def _flight_before(events, foot, t):
+    """Time (s) the foot was off the ground before its touchdown at ``t``, from the
+    event list of a plain simulation starting with the foot on the ground."""
+    last = 0.0
+    for e in events:
+        if e.t >= t:
+            break
+        if foot in e.contacts or foot in e.impulses or foot in e.mode_before or foot in e.mode_after:
+            last = e.t
+    return t - last
+
+
+def test_min_flight_skips_cascade_relandings():
+    """solo12's trot from rest: HR_FOOT stands at t = 0; the swing foot FR lands at
+    about 0.06 s and its impact lifts HR, which lands again microseconds later (an
+    impact cascade). The first touchdown with ``min_flight=0`` is that re-landing;
+    with the default (5 % of the 0.4-s clock) it is HR's landing after its swing.
+    Both are checked against the event list of a plain simulation."""
+    scene = cd.load_scene("solo12_trot")
+    opts = dict(rtol=1e-8, atol=1e-10, t_max=0.4)
+    events = cd.simulate(scene, 0.4, **{k: opts[k] for k in ("rtol", "atol")}).events
+    landings = [e.t for e in events if "HR_FOOT" in e.contacts and e.kind in ("touchdown", "bounce")]
+    every, _, _ = first_touchdown(scene, "HR_FOOT", min_flight=0.0, **opts)
+    gait, _, _ = first_touchdown(scene, "HR_FOOT", **opts)
+    assert every == pytest.approx(landings[0], abs=1e-9)
+    assert _flight_before(events, "HR_FOOT", landings[0]) < 1e-4  # s: a cascade re-landing
+    main = next(t for t in landings if _flight_before(events, "HR_FOOT", t) >= 0.05 * 0.4)
+    assert gait == pytest.approx(main, abs=1e-9)
+    assert _flight_before(events, "HR_FOOT", main) > 0.1  # s: a swing
+    with pytest.raises(cd.InvalidInputError, match="min_flight"):
+        first_touchdown(scene, "HR_FOOT", min_flight=-1.0, **opts)
+
+
+def test_trot_stride_skips_cascades_and_names_its_non_smooth_events():
+    """From HR_FOOT's landing after its swing, the stride ends at its next such
+    landing about one clock period later (0.4 s; the trot is not yet periodic),
+    not at one of the cascade re-landings in between (gaps of microseconds to
+    0.2 s). The cascades' simultaneous re-landings of coupled feet are not
+    differentiable; `why_not_differentiable` names each of them."""
+    scene = cd.load_scene("solo12_trot")
+    opts = dict(rtol=1e-8, atol=1e-10, t_max=0.8)
+    t, q, v = first_touchdown(scene, "HR_FOOT", **opts)
+    gait = find_periodic_gait(scene, "HR_FOOT", q, v, t, iterations=0, **opts)
+    stride = gait.stride
+    assert abs(stride.stride_time - 0.4) < 0.05
+    events = stride.trajectory.events
+    relandings = [e for e in events[1:] if "HR_FOOT" in e.contacts and e.kind in ("touchdown", "bounce")]
+    assert len(relandings) >= 2 and all(_flight_before(events, "HR_FOOT", e.t) < 1e-3 for e in relandings[:-1])
+    assert relandings[-1].t == stride.t
+    rough = [e for e in events if not e.differentiable]
+    assert rough and not stride.differentiable
+    why = gait.why_not_differentiable()
+    assert len(why) == len(rough)
+    for e, note in zip(rough, why):
+        assert f"{e.t:.12g}" in note
+    assert gait.to_dict()["why_not_differentiable"] == why
+    assert "not differentiable; the multipliers are those of the branch taken:" in gait.format()
 
 
 # ----------------------------------------------------------------------------------
