@@ -541,6 +541,12 @@ def test_cli_stride_json(capsys):
     assert out["moduli"] == pytest.approx([0.8], abs=1e-9)
     assert out["stride_time"] == pytest.approx(1.6 * math.sqrt(2), abs=1e-9)
     assert out["neutral"] == [] and out["steps"] == ["start"]
+    # a 2-s warm-up starts at the second touchdown, sqrt(2) (1 + 2e) s (closed form, e = 0.8)
+    assert cli_main(["stride", "ball", "--foot", "ball", "--warmup", "2", "--min-flight", "0.1", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["t"] == pytest.approx(math.sqrt(2) * 2.6, abs=1e-9) and out["why_not_differentiable"] == []
+    assert cli_main(["stride", "ball", "--foot", "ball", "--min-flight", "-1"]) == 2
+    assert "min_flight must be >= 0" in capsys.readouterr().err
 
 
 def test_cli_stride_neutral_option(capsys):
@@ -560,3 +566,24 @@ def test_cli_stride_text_and_errors(capsys):
     assert "unknown contact 'knee'; valid: ball" in capsys.readouterr().err
     assert cli_main(["stride", "ball", "--foot", "ball", "--t-max", "0.5"]) == 2
     assert "did not touch down" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_solo12_trot_is_periodic_and_both_maps_agree():
+    """solo12's trot settles on its own (20 clock periods of warm-up) and Newton
+    brings the stride-map residual below 1e-6 with a stride of one clock period.
+    At a periodic gait the stride map (section: FL_FOOT's touchdown) and the
+    stroboscopic map over one period from mid-stride have the same nonzero
+    multipliers (two Poincare maps of one orbit); they agree to the residual's
+    order, asserted at 1e-3 relative. All inside the unit circle: stable."""
+    scene = cd.load_scene("solo12_trot")
+    opts = dict(rtol=1e-10, atol=1e-12, t_max=1.6)
+    gait = find_periodic_gait(scene, "FL_FOOT", warmup=8.0, iterations=2, **opts)
+    assert gait.residuals[-1] < 1e-6
+    assert gait.stride.stride_time == pytest.approx(0.4, abs=1e-8)
+    stride_moduli = np.sort(np.abs(gait.multipliers))[::-1][:6]
+    mid = gait.t + 0.2
+    q, v = gait.stride.trajectory.at(mid)
+    pm = period_map(scene, q, v, mid, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(np.sort(np.abs(pm.multipliers))[::-1][:6], stride_moduli, rtol=1e-3)
+    assert stride_moduli[0] < 1.0
