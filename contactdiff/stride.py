@@ -111,7 +111,7 @@ SECTION_TOL = 1e-9
 
 _SYMMETRY_TOL = 1e-9  # relative change of gaps and accelerations under a neutral move that counts as none
 _IMPACT_KINDS = ("touchdown", "bounce")
-_NOT_SMOOTH_NOTES = ("not differentiable", "Zeno", "grazing")  # integrator notes on non-smooth events
+_NOT_SMOOTH_NOTES = ("not differentiable", "Zeno: impact cascade ended", "grazing")  # notes on non-smooth events
 _SIMULATE_DEFAULTS = {name: p.default for name, p in inspect.signature(simulate).parameters.items()
                       if p.kind is inspect.Parameter.KEYWORD_ONLY and name != "t0"}
 
