@@ -81,7 +81,6 @@ def impact_reset_jacobian(dyn: ModeDynamics, q: np.ndarray, v_minus: np.ndarray,
         return DR
     kin = dyn.kin
     kin.update(q, v_minus, derivatives=True)
-    offsets = np.cumsum([0] + [dyn.contact(k).n_rows for k in impact.contacts])
     v_plus = impact.v_plus
     M = pin.crba(model, dyn.data, q)
     dMdv_dq = (pin.computeRNEADerivatives(model, dyn.data, q, np.zeros(nv), v_plus - v_minus)[0]
@@ -93,7 +92,7 @@ def impact_reset_jacobian(dyn: ModeDynamics, q: np.ndarray, v_minus: np.ndarray,
         # a tangential-only contact keeps its tangential rows only; its normal impulse is 0
         kept = slice(0, c.n_rows) if k in impact.active else slice(1, c.n_rows)
         e_k = impact.restitution[k] if k in impact.active else 0.0
-        rhs_q += c.rows_transpose_dq(kin, impact.row_impulses[offsets[k]:offsets[k + 1]])
+        rhs_q += c.rows_transpose_dq(kin, impact.row_impulses[impact.rows.rows_of([k])])
         A_rows.append(c.rows(kin)[kept])
         e_block = np.zeros(c.n_rows)
         e_block[0] = e_k
