@@ -17,7 +17,8 @@ from .contacts import Contact
 from .dynamics import ModeDynamics
 from .efforts import JointSpring, Spring, UserEffort
 from .errors import (ContactDiffError, InconsistentStateError, IntegrationError,
-                     InvalidInputError, ModelLoadError, SolverError, UnknownNameError)
+                     InvalidInputError, ModelLoadError, SolverError, StoppedRunError,
+                     TooManyStepsError, UnknownNameError, UnknownRobotError)
 from .integrator import GrazingError, TooManyEventsError, simulate
 from .models import trot_touchdown
 from .robot import QUADRUPEDS, Robot, load_robot
@@ -34,4 +35,5 @@ __all__ = [
     "Scene", "SolverError", "Spring", "UnknownNameError", "UserEffort", "check_decoupling",
     "load_robot", "load_scene", "load_source",
     "StrideError", "find_periodic_gait", "stride_map",
+    "StoppedRunError", "TooManyStepsError", "UnknownRobotError",
 ]

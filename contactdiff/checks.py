@@ -33,6 +33,7 @@ import numpy as np
 import pinocchio as pin
 
 from .errors import InvalidInputError
+from .feet import FootRule
 from .robot import Robot
 from .scene import Scene, load_source
 
@@ -84,7 +85,12 @@ class Term:
 
 @dataclass
 class DecouplingReport:
-    """Everything `check_decoupling` measured; ``to_dict()`` is the JSON form."""
+    """Everything `check_decoupling` measured; ``to_dict()`` is the JSON form.
+
+    ``verdict`` is ``None`` when there is nothing to check (fewer than two
+    contacts); ``reason`` then says why. ``feet`` says how a robot's feet were
+    chosen (empty for a scene file's contacts).
+    """
 
     scene: str
     robot: str
@@ -96,8 +102,10 @@ class DecouplingReport:
     limbs: dict[str, list[str]]
     pairs: list[PairCoupling]
     terms: list[Term]
-    verdict: str
+    verdict: str | None
     notes: list[str] = field(default_factory=list)
+    feet: str = ""
+    reason: str = ""
 
     @property
     def max_coupling(self) -> float:
@@ -115,8 +123,13 @@ class DecouplingReport:
     def format(self) -> str:
         """A readable multi-line report."""
         lines = [f"decoupling check: scene {self.scene} (robot {self.robot}"
-                 + (f", armature {self.armature:g}" if self.armature else "") + ")",
-                 f"  body: {', '.join(self.body) or '(none)'}"]
+                 + (f", armature {self.armature:g}" if self.armature else "") + ")"]
+        if self.feet:
+            lines.append(f"  {self.feet}")
+        if self.verdict is None:
+            return "\n".join(lines + ["", f"verdict: none - nothing to check: {self.reason}"]
+                             + [f"  note: {n}" for n in self.notes])
+        lines.append(f"  body: {', '.join(self.body) or '(none)'}")
         for name, coords in self.limbs.items():
             lines.append(f"  limb of {name}: {', '.join(coords) or '(none: its gap moves with the body)'}")
         lines.append("")
@@ -191,15 +204,18 @@ def check_decoupling(source: Scene | Robot | str | Path, *, samples: int = 20, s
         A `DecouplingReport`.
     """
     scene = _as_scene(source)
-    samples = int(samples)
-    if samples < 0:
-        raise InvalidInputError(f"samples must be >= 0, got {samples}")
+    samples = _whole("samples", samples)
+    seed = _whole("seed", seed)
     if not (np.isfinite(tol) and tol > 0):
         raise InvalidInputError(f"tol must be a positive number, got {tol!r}")
-    if not scene.contacts:
-        raise InvalidInputError(f"scene {scene.name!r} has no contacts; there is nothing to check")
     if armature:
         scene = scene.with_armature(armature)
+    feet = scene.foot_choice.describe() if scene.foot_choice else ""
+    if len(scene.contacts) < 2:
+        return DecouplingReport(
+            scene=scene.name, robot=scene.robot.name, armature=float(armature), tol=float(tol),
+            samples=0, seed=int(seed), body=[], limbs={}, pairs=[], terms=[], verdict=None,
+            feet=feet, reason=_nothing_to_check(scene))
     checker = _Checker(scene, np.random.default_rng(seed), spread)
     notes = []
     if states is not None:
@@ -234,7 +250,28 @@ def check_decoupling(source: Scene | Robot | str | Path, *, samples: int = 20, s
         body=[model.names[j] for j in checker.joints_of(checker.body)],
         limbs={names[i]: [model.names[j] for j in checker.joints_of(limb)]
                for i, limb in enumerate(checker.limbs)},
-        pairs=pairs, terms=terms, verdict=verdict, notes=notes)
+        pairs=pairs, terms=terms, verdict=verdict, notes=notes, feet=feet)
+
+
+def _nothing_to_check(scene: Scene) -> str:
+    """Why a scene with fewer than two contacts has no verdict, with the way out."""
+    names = scene.contact_names
+    text = f"fewer than two contacts ({len(names)}{': ' + ', '.join(names) if names else ''})"
+    rule = scene.foot_choice.rule if scene.foot_choice else None
+    if rule is FootRule.FIXED_BASE:
+        text += (f"; robot {scene.robot.name!r} has a fixed base and gets no feet: load it with a "
+                 "floating base (--floating-base, floating_base=True) or choose feet (--feet, feet=)")
+    elif rule is FootRule.LOWEST_END_FRAMES:
+        text += (f"; {'no limb of the robot ends' if not names else 'no other limb ends'} near the ground "
+                 "at the reference pose: choose feet by hand (--feet, feet=) to check other frames")
+    return text
+
+
+def _whole(name: str, value) -> int:
+    """``value`` as an integer >= 0, else `InvalidInputError` naming ``name``."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
+        raise InvalidInputError(f"check_decoupling: {name} must be an integer >= 0, got {value!r}")
+    return int(value)
 
 
 def _given_states(scene: Scene, states) -> list[tuple[np.ndarray, np.ndarray, float]]:

@@ -25,6 +25,10 @@ class UnknownNameError(InvalidInputError, KeyError):
         return str(self.args[0]) if self.args else ""
 
 
+class UnknownRobotError(UnknownNameError):
+    """A robot source is neither a URDF file nor a known model name."""
+
+
 class ModelLoadError(ContactDiffError):
     """A URDF or scene file is missing, unreadable or malformed."""
 
@@ -35,6 +39,20 @@ class InconsistentStateError(ContactDiffError):
 
 class IntegrationError(ContactDiffError):
     """The integrator cannot continue (step size underflow, no convergence)."""
+
+
+class StoppedRunError(IntegrationError):
+    """A run stopped before its final time by a budget of the user's; ``.trajectory``
+    holds the run up to there (events, segments, statistics)."""
+
+    def __init__(self, message: str, trajectory):
+        super().__init__(message)
+        self.trajectory = trajectory
+
+
+class TooManyStepsError(StoppedRunError):
+    """More than ``max_steps`` accepted steps: a runaway run (steps far shorter than
+    the horizon, e.g. a body spinning at 1e6 rad/s)."""
 
 
 class SolverError(ContactDiffError):

@@ -16,6 +16,9 @@ from __future__ import annotations
 
 import math
 import os
+import re
+import sys
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from xml.etree import ElementTree
@@ -23,16 +26,14 @@ from xml.etree import ElementTree
 import numpy as np
 import pinocchio as pin
 
-from .errors import InvalidInputError, ModelLoadError, unknown_name
+from .errors import InvalidInputError, ModelLoadError, UnknownRobotError, unknown_name
+from .feet import FootChoice, FootRule, choose_feet
 
 ROBOTS_DIR = Path(__file__).resolve().parent / "robots"
 """Folder of the project's own URDF and scene files."""
 
 QUADRUPEDS = ("solo12", "anymal", "a1", "go1", "go2", "hyq")
 """example-robot-data quadrupeds whose feet and standing pose are known to load."""
-
-_FOOT_FRAME_TYPES = (pin.FrameType.BODY, pin.FrameType.OP_FRAME)
-
 
 @dataclass
 class Robot:
@@ -44,8 +45,10 @@ class Robot:
         urdf: path of the URDF file the model came from ("" if built in code).
         floating_base: whether the root joint is a free-flyer.
         q_ref: reference configuration (SRDF "standing" pose if known, else neutral).
-        feet: foot frame names found automatically (one per leaf joint), may be empty.
+        feet: foot frame names (chosen automatically or by hand, see `contactdiff.feet`),
+            may be empty.
         actuated: names of the joints that carry a motor (armature is added to these).
+        foot_choice: how the feet were chosen (`FootChoice`), for reports.
     """
 
     model: pin.Model
@@ -55,12 +58,15 @@ class Robot:
     q_ref: np.ndarray | None = None
     feet: tuple[str, ...] = ()
     actuated: tuple[str, ...] = ()
+    foot_choice: FootChoice | None = None
     _data: pin.Data | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         if self.q_ref is None:
             self.q_ref = pin.neutral(self.model)
         self.q_ref = np.array(self.q_ref, dtype=float)
+        if self.foot_choice is None:
+            self.foot_choice = FootChoice(tuple(self.feet), FootRule.GIVEN)
 
     # -- sizes and scratch data ---------------------------------------------------
     @property
@@ -145,7 +151,7 @@ class Robot:
     def copy(self) -> Robot:
         """A copy whose model can be changed (gravity, armature) without touching this one."""
         return Robot(pin.Model(self.model), self.name, self.urdf, self.floating_base,
-                     self.q_ref.copy(), self.feet, self.actuated)
+                     self.q_ref.copy(), self.feet, self.actuated, self.foot_choice)
 
     def with_armature(self, armature: float) -> Robot:
         """A copy with reflected rotor inertia ``armature`` (kg m² or kg) on every actuated joint."""
@@ -179,7 +185,8 @@ def example_robot_data_names() -> list[str]:
     return sorted(n for n, loader in ROBOTS.items() if loader.urdf_filename)
 
 
-def load_robot(source: str | Path, floating_base: bool | None = None) -> Robot:
+def load_robot(source: str | Path, floating_base: bool | None = None,
+               feet: Sequence[str] | None = None) -> Robot:
     """Load a robot for dynamics only (no meshes).
 
     Args:
@@ -189,41 +196,96 @@ def load_robot(source: str | Path, floating_base: bool | None = None) -> Robot:
         floating_base: add a free-flyer root joint. ``None`` takes the model's
             own choice: True for example-robot-data legged robots, False for
             the project's planar models and for URDF paths.
+        feet: foot frames chosen by hand; ``None`` chooses them automatically
+            for a floating base (the lowest end frames at the reference pose,
+            see `contactdiff.feet`) and gives a fixed base none.
 
     Returns:
-        The `Robot`, with its reference pose and its feet found automatically.
+        The `Robot`, with its reference pose and its feet (``robot.foot_choice``
+        says how they were chosen).
 
     Raises:
-        UnknownNameError: ``source`` is neither a file nor a known name.
-        ModelLoadError: the URDF is missing or cannot be parsed.
+        UnknownRobotError: ``source`` is neither a file nor a known name (the
+            known names are listed).
+        UnknownNameError: a given foot is not a frame (the frames are listed).
+        ModelLoadError: the URDF is missing, not a file or cannot be parsed, or
+            example-robot-data cannot load the model.
     """
+    if feet is not None:
+        feet = _frame_list(feet)
     if _is_path(source):
-        return _from_urdf(Path(source), bool(floating_base), Path(source).stem)
+        return _from_urdf(Path(source), bool(floating_base), Path(source).stem, feet=feet)
     if not isinstance(source, str):
         raise InvalidInputError(f"robot source must be a URDF path or a name, got {source!r}")
     own = ROBOTS_DIR / f"{source}.urdf"
     if own.is_file():
-        return _from_urdf(own, bool(floating_base), source)
+        return _from_urdf(own, bool(floating_base), source, feet=feet)
     from example_robot_data.robots_loader import ROBOTS
 
     loader = ROBOTS.get(source)
-    if loader is None or not loader.urdf_filename:
-        raise unknown_name("robot", source, own_robot_names() + example_robot_data_names())
-    return _from_example_robot_data(source, loader, floating_base)
+    if loader is None:
+        known = own_robot_names() + example_robot_data_names()
+        raise UnknownRobotError(str(unknown_name("robot", source, known)))
+    if not loader.urdf_filename:
+        raise ModelLoadError(_unloadable_reason(source, loader))
+    return _from_example_robot_data(source, loader, floating_base, feet)
+
+
+def _frame_list(feet) -> tuple[str, ...]:
+    if isinstance(feet, str):
+        feet = [f.strip() for f in feet.split(",") if f.strip()]
+    try:
+        names = tuple(feet)
+    except TypeError:
+        raise InvalidInputError(f"feet must be frame names, got {feet!r}") from None
+    if not names or not all(isinstance(n, str) and n for n in names):
+        raise InvalidInputError(f"feet must be one or more frame names, got {feet!r}")
+    if len(set(names)) != len(names):
+        raise InvalidInputError(f"feet must be distinct frames, got {list(names)}")
+    return names
+
+
+def _unloadable_reason(name: str, loader) -> str:
+    """Why example-robot-data's model ``name`` cannot be loaded here (it has no URDF)."""
+    import example_robot_data
+
+    described = next((f"{kind} file {getattr(loader, attr)}" for kind, attr in
+                      (("SDF", "sdf_filename"), ("MJCF", "mjcf_filename"))
+                      if getattr(loader, attr, "")), "no URDF file")
+    try:
+        example_robot_data.load(name)
+    except Exception as exc:  # noqa: BLE001 - any failure of the loader is the reason
+        failure = f"its loader fails: {type(exc).__name__}: {exc}"
+    else:
+        failure = "it has no URDF, the only format contactdiff reads"
+    return (f"example-robot-data's robot {name!r} cannot be loaded: it is described by a "
+            f"{described}, and {failure}")
 
 
 def _from_urdf(path: Path, floating_base: bool, name: str, srdf: str = "",
-               posture: str = "standing") -> Robot:
-    if not path.is_file():
+               posture: str = "standing", feet: Sequence[str] | None = None) -> Robot:
+    if path.is_dir():
+        raise ModelLoadError(f"URDF path {str(path)!r} is a directory, not a URDF file")
+    if not path.exists():
         raise ModelLoadError(f"URDF file {str(path)!r} does not exist")
-    try:
-        if floating_base:
-            model = pin.buildModelFromUrdf(str(path), pin.JointModelFreeFlyer())
-        else:
-            model = pin.buildModelFromUrdf(str(path))
-    except (RuntimeError, ValueError) as exc:
-        raise ModelLoadError(f"cannot read URDF {str(path)!r}: {exc}") from None
+    if not path.is_file():
+        raise ModelLoadError(f"URDF path {str(path)!r} is not a regular file")
     _check_numbers(path)
+    with _captured_stderr() as captured:
+        try:
+            if floating_base:
+                model = pin.buildModelFromUrdf(str(path), pin.JointModelFreeFlyer())
+            else:
+                model = pin.buildModelFromUrdf(str(path))
+        except (RuntimeError, ValueError) as exc:
+            error = exc
+        else:
+            error = None
+    if error is not None:
+        detail = " ".join(line.strip() for line in captured.lines() if line.strip())
+        detail = re.sub(r" at line \d+ in \S+", "", detail)  # the parser's own source position
+        raise ModelLoadError(f"cannot read URDF {str(path)!r}: {error}"
+                             + (f" ({detail})" if detail else "")) from None
     _check_inertias(model, path)
     q_ref = pin.neutral(model)
     if srdf:
@@ -233,8 +295,36 @@ def _from_urdf(path: Path, floating_base: bool, name: str, srdf: str = "",
     _check_mass_matrix(model, q_ref, path)
     root = 2 if floating_base else 1
     actuated = tuple(model.names[j] for j in range(root, model.njoints)) if floating_base else ()
-    feet = tuple(find_feet(model)) if floating_base else ()
-    return Robot(model, name, str(path), floating_base, q_ref, feet, actuated)
+    choice, q_ref = choose_feet(model, q_ref, floating_base, feet)
+    return Robot(model, name, str(path), floating_base, q_ref, choice.feet, actuated, choice)
+
+
+class _captured_stderr:
+    """Capture what C++ code writes to file descriptor 2 (urdfdom's parser prints
+    its errors there before raising), to put it into our one-line error."""
+
+    def __enter__(self):
+        import tempfile
+
+        self._file = tempfile.TemporaryFile(mode="w+b")
+        try:
+            sys.stderr.flush()
+            self._saved = os.dup(2)
+            os.dup2(self._file.fileno(), 2)
+        except OSError:  # no file descriptor 2 (embedded interpreters): leave it alone
+            self._saved = None
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self._saved is not None:
+            os.dup2(self._saved, 2)
+            os.close(self._saved)
+
+    def lines(self) -> list[str]:
+        self._file.seek(0)
+        text = self._file.read().decode(errors="replace")
+        self._file.close()
+        return text.splitlines()
 
 
 _NAME_ATTRIBUTES = {"name", "link", "joint", "filename", "type"}  # never numbers, even "nan"
@@ -248,6 +338,7 @@ def _check_numbers(path: Path) -> None:
         root = ElementTree.parse(path).getroot()
     except ElementTree.ParseError as exc:
         raise ModelLoadError(f"cannot read URDF {str(path)!r}: {exc}") from None
+    parents = {child: parent for parent in root.iter() for child in parent}
     for element in root.iter():
         for key, text in element.attrib.items():
             if key in _NAME_ATTRIBUTES:
@@ -258,11 +349,19 @@ def _check_numbers(path: Path) -> None:
                 except ValueError:
                     continue  # names, file paths
                 if not math.isfinite(value):
-                    owner = element.get("name") or next(
-                        (p.get("name") for p in root.iter() if element in list(p)), "?")
                     raise ModelLoadError(
-                        f"URDF {str(path)!r}: <{element.tag} {key}={text!r}> in {owner!r} is not "
-                        "a finite number")
+                        f"URDF {str(path)!r}: <{element.tag} {key}={text!r}> in {_owner(element, parents)} "
+                        "is not a finite number")
+
+
+def _owner(element, parents) -> str:
+    """``<link name='x'>`` (or joint, ...) that holds ``element``: the nearest named ancestor."""
+    node = element
+    while node is not None:
+        if node.get("name"):
+            return f"<{node.tag} name={node.get('name')!r}>"
+        node = parents.get(node)
+    return "the robot"
 
 
 def _check_inertias(model: pin.Model, path: Path) -> None:
@@ -301,7 +400,8 @@ def _tangent_names(model: pin.Model) -> list[str]:
     return labels
 
 
-def _from_example_robot_data(name: str, loader, floating_base: bool | None) -> Robot:
+def _from_example_robot_data(name: str, loader, floating_base: bool | None,
+                             feet: Sequence[str] | None = None) -> Robot:
     from example_robot_data import getModelPath
 
     rel = os.path.join(loader.path, loader.urdf_subpath, loader.urdf_filename)
@@ -310,24 +410,4 @@ def _from_example_robot_data(name: str, loader, floating_base: bool | None) -> R
     if loader.srdf_filename:
         srdf = os.path.join(root, loader.path, loader.srdf_subpath, loader.srdf_filename)
     floating = loader.free_flyer if floating_base is None else bool(floating_base)
-    return _from_urdf(Path(root) / rel, floating, name, srdf, loader.ref_posture)
-
-
-def find_feet(model: pin.Model) -> list[str]:
-    """Foot frames of a legged model: for each leaf joint, a frame named ``*foot*``
-    attached to it, else its frame farthest from the joint.
-
-    Returns:
-        Frame names in joint order (empty if no leaf carries a body or operational frame).
-    """
-    parents = {model.parents[j] for j in range(1, model.njoints)}
-    feet = []
-    for jid in range(1, model.njoints):
-        if jid in parents:
-            continue
-        frames = [f for f in model.frames if f.parentJoint == jid and f.type in _FOOT_FRAME_TYPES]
-        named = [f for f in frames if "foot" in f.name.lower()]
-        frames = named or sorted(frames, key=lambda f: -np.linalg.norm(f.placement.translation))
-        if frames:
-            feet.append(frames[0].name)
-    return feet
+    return _from_urdf(Path(root) / rel, floating, name, srdf, loader.ref_posture, feet)

@@ -17,8 +17,9 @@ import pinocchio as pin
 
 from .contacts import FRICTION_MODES, BoundContact, Contact
 from .efforts import JointSpring, Spring, UserEffort, bind_efforts
-from .errors import (InconsistentStateError, InvalidInputError, ModelLoadError,
-                     UnknownNameError, unknown_name)
+from .errors import (InconsistentStateError, InvalidInputError, ModelLoadError, UnknownRobotError,
+                     unknown_name)
+from .feet import FootChoice, up_direction
 from .gait_controller import TrotController
 from .kinematics import Kinematics
 from .robot import (ROBOTS_DIR, Robot, example_robot_data_names, load_robot,
@@ -26,6 +27,9 @@ from .robot import (ROBOTS_DIR, Robot, example_robot_data_names, load_robot,
 
 PENETRATION_TOL = 1e-9
 """Largest penetration (m) an initial state may have: a closed contact, not an error."""
+
+UNIT_NORM_TOL = 1e-6
+"""How far from 1 the norm of a quaternion or unit complex number of a state may be."""
 
 
 class Scene:
@@ -73,6 +77,7 @@ class Scene:
         self.q0 = self._configuration(q0)
         self.v0 = self._velocity(v0)
         self._kinematics: Kinematics | None = None
+        self.foot_choice: FootChoice | None = None  # set by from_robot: how its feet were chosen
         self.check_state(self.q0, self.v0)
 
     # -- basic facts -----------------------------------------------------------------
@@ -148,6 +153,7 @@ class Scene:
             if not np.all(np.isfinite(x)):
                 bad = [n for n, ok in zip(self._labels(label), np.isfinite(x)) if not ok]
                 raise InvalidInputError(f"initial {label} has non-finite entries at {', '.join(bad)}: {x}")
+        self._check_unit_coordinates(q)
         gaps = self.gaps(q)
         for name, gap in zip(self.contact_names, gaps):
             if gap < -PENETRATION_TOL:
@@ -155,6 +161,27 @@ class Scene:
                     f"initial state penetrates contact {name!r}: gap {gap:.6g} m < 0; "
                     "raise the robot or lower the contact offset")
         return gaps
+
+    def _check_unit_coordinates(self, q: np.ndarray) -> None:
+        """Refuse a quaternion (free-flyer, spherical joint) or unit complex number
+        (unbounded revolute, planar joint) whose norm is not 1 within `UNIT_NORM_TOL`:
+        Pinocchio would turn it into a rotation that is not one, or a zero
+        quaternion into no rotation at all."""
+        model = self.model
+        if self.robot.is_vector_space or pin.isNormalized(model, q, UNIT_NORM_TOL):
+            return
+        for jid in range(1, model.njoints):
+            joint = model.joints[jid]
+            if joint.nq == joint.nv:
+                continue
+            alone = pin.neutral(model)
+            alone[joint.idx_q:joint.idx_q + joint.nq] = q[joint.idx_q:joint.idx_q + joint.nq]
+            if not pin.isNormalized(model, alone, UNIT_NORM_TOL):
+                raise InvalidInputError(
+                    f"initial q of joint {model.names[jid]!r} ({joint.shortname()}) holds a quaternion or "
+                    f"unit complex number whose norm is not 1 (within {UNIT_NORM_TOL:g}): "
+                    f"{q[joint.idx_q:joint.idx_q + joint.nq].tolist()}; a free-flyer is "
+                    "[x, y, z, qx, qy, qz, qw] with qx² + qy² + qz² + qw² = 1")
 
     def _labels(self, kind: str) -> list[str]:
         return self.robot.tangent_names() if kind == "v" else self.robot.configuration_names()
@@ -187,7 +214,9 @@ class Scene:
     # -- variants ----------------------------------------------------------------------
     def with_robot(self, robot: Robot) -> Scene:
         """The same scene on another robot model (e.g. one with armature)."""
-        return Scene(robot, self.contact_specs, self.effort_specs, None, self.q0, self.v0, self.name)
+        scene = Scene(robot, self.contact_specs, self.effort_specs, None, self.q0, self.v0, self.name)
+        scene.foot_choice = self.foot_choice
+        return scene
 
     def with_armature(self, armature: float) -> Scene:
         """The same scene with rotor inertia ``armature`` on the robot's actuated joints."""
@@ -207,17 +236,17 @@ class Scene:
     @classmethod
     def from_robot(cls, robot: Robot, restitution: float = 0.0, friction: str = "stick",
                    name: str | None = None) -> Scene:
-        """A robot standing on the ground: one contact per foot, each offset so the
-        reference pose touches the ground (feet found by `robot.find_feet`)."""
-        if not robot.feet:
-            raise InvalidInputError(
-                f"robot {robot.name!r} has no feet found automatically; build a Scene with "
-                "explicit contacts (frames: " + ", ".join(robot.frame_names) + ")")
+        """A robot standing on the ground: one contact per foot (``robot.feet``, see
+        `contactdiff.feet`), normal along the vertical ``-g / |g|`` and offset so the
+        reference pose touches the ground. A robot without feet gets no contacts."""
+        up = up_direction(robot.model)
         kin = Kinematics(robot.model)
         kin.update(robot.q_ref, np.zeros(robot.nv))
-        contacts = [Contact(foot, offset=float(kin.position(robot.frame_id(foot))[2]),
+        contacts = [Contact(foot, normal=tuple(up), offset=float(up @ kin.position(robot.frame_id(foot))),
                             restitution=restitution, friction=friction) for foot in robot.feet]
-        return cls(robot, contacts, name=name or robot.name)
+        scene = cls(robot, contacts, name=name or robot.name)
+        scene.foot_choice = robot.foot_choice
+        return scene
 
 
 def _vector3(name: str, value) -> np.ndarray:
@@ -285,6 +314,37 @@ def scene_names() -> list[str]:
     return sorted(p.stem for p in ROBOTS_DIR.glob("*.toml"))
 
 
+def driving_scenes(robot_name: str) -> list[str]:
+    """Scene names of ``robots/`` whose files put efforts on robot ``robot_name``."""
+    found = []
+    for path in sorted(ROBOTS_DIR.glob("*.toml")):
+        try:
+            doc = tomllib.loads(path.read_text())
+        except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+            continue
+        if doc.get("robot") == robot_name and any(k in doc for k in ("trot", "spring", "joint_spring")):
+            found.append(path.stem)
+    return found
+
+
+def passive_note(scene: Scene) -> str | None:
+    """A warning for a robot with motors but no efforts (it folds under gravity), naming
+    the scenes that drive it; None for any other scene."""
+    robot = scene.robot
+    if scene.efforts or not robot.actuated:
+        return None
+    scenes = driving_scenes(robot.name)
+    text = (f"robot {robot.name!r} has no efforts: its {len(robot.actuated)} joints are passive, so it folds "
+            "under gravity")
+    from .trot import TROT_PARAMETERS  # here: the trot module imports this one
+
+    drivers = list(scenes)
+    if robot.name in TROT_PARAMETERS:
+        drivers.append(f"contactdiff.trot.trot_scene({robot.name!r}) in Python")
+    return text + ("; scenes that drive it: " + ", ".join(drivers) if drivers else
+                   "; add efforts to drive it (a [trot] controller, springs, or a UserEffort)")
+
+
 def load_scene(source: str | Path) -> Scene:
     """Read a scene from a TOML file or a scene name of ``robots/``.
 
@@ -301,8 +361,12 @@ def load_scene(source: str | Path) -> Scene:
         if not own.is_file():
             raise unknown_name("scene", str(source), scene_names())
         path = own
-    if not path.is_file():
+    if path.is_dir():
+        raise ModelLoadError(f"scene path {str(path)!r} is a directory, not a TOML file")
+    if not path.exists():
         raise ModelLoadError(f"scene file {str(path)!r} does not exist")
+    if not path.is_file():
+        raise ModelLoadError(f"scene path {str(path)!r} is not a regular file")
     try:
         doc = tomllib.loads(path.read_text())
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
@@ -346,22 +410,33 @@ def load_scene(source: str | Path) -> Scene:
                  doc.get("name", path.stem))
 
 
-def load_source(source: str | Path, floating_base: bool | None = None) -> Scene:
+def load_source(source: str | Path, floating_base: bool | None = None,
+                feet: Sequence[str] | None = None) -> Scene:
     """Any SOURCE of the command line as a scene.
 
     A ``.toml`` path or a scene name of ``robots/`` is read with `load_scene`;
-    anything else is loaded with `load_robot` and given ground contacts at its
-    feet (`Scene.from_robot`).
+    anything else is loaded with `load_robot` (``floating_base`` and ``feet`` as
+    there) and given ground contacts at its feet (`Scene.from_robot`).
+
+    Raises:
+        InvalidInputError: ``floating_base`` or ``feet`` given with a scene, whose
+            file sets its robot and contacts.
     """
     if str(source).endswith(".toml") or (ROBOTS_DIR / f"{source}.toml").is_file():
+        given = [k for k, v in (("floating_base", floating_base), ("feet", feet)) if v is not None]
+        if given:
+            raise InvalidInputError(
+                f"{' and '.join(given)} apply to a robot; scene {str(source)!r} sets its robot's base "
+                "and its contacts in its file")
         return load_scene(source)
     try:
-        robot = load_robot(source, floating_base)
-    except UnknownNameError:
+        robot = load_robot(source, floating_base, feet)
+    except UnknownRobotError:
         scenes = scene_names()
         robots = [n for n in own_robot_names() + example_robot_data_names() if n not in scenes]
         raise unknown_name("scene or robot", str(source), scenes + robots) from None
     return Scene.from_robot(robot)
 
 
-__all__ = ["Scene", "load_scene", "load_source", "scene_names", "FRICTION_MODES"]
+__all__ = ["Scene", "load_scene", "load_source", "scene_names", "driving_scenes", "passive_note",
+           "FRICTION_MODES"]

@@ -149,9 +149,11 @@ def test_contact_that_cannot_move_along_its_normal():
         cd.Scene(cd.load_robot("ball"), [cd.Contact("ball", normal=(1, 0, 0))], q0={"z": 1.0})
 
 
-def test_robot_without_feet_needs_explicit_contacts():
-    with pytest.raises(cd.InvalidInputError, match="no feet"):
-        cd.Scene.from_robot(cd.load_robot("ball"))
+def test_fixed_base_robot_gets_no_feet_and_the_check_says_how_to_give_them():
+    scene = cd.Scene.from_robot(cd.load_robot("ball"))
+    assert scene.contacts == []
+    report = cd.check_decoupling(scene, samples=1)
+    assert report.verdict is None and "fixed base" in report.reason and "--floating-base" in report.reason
 
 
 def test_user_effort_of_wrong_shape_is_refused():
