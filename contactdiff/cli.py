@@ -7,35 +7,82 @@
                         [--neutral x,y,yaw] [--min-flight S] [--json]
 
 SOURCE is a scene (TOML path or a name of robots/) or a robot (URDF path or
-example-robot-data name; its feet get ground contacts). Errors print one line
-and exit with status 2.
+example-robot-data name; its feet get ground contacts, chosen automatically or
+with --feet; --floating-base gives a URDF path a free-flyer base). Errors print
+one line and exit with status 2; Ctrl-C exits with 130; a closed output pipe
+ends the command quietly. Long runs draw a progress bar on stderr (a terminal).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
+import time
+from pathlib import Path
 
-from .errors import ContactDiffError
-
-
-def _positive_int(text: str) -> int:
-    value = int(text)
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"must be >= 0, got {value}")
-    return value
+from .errors import ContactDiffError, InvalidInputError
 
 
-def _nonnegative_float(text: str) -> float:
-    value = float(text)
-    if not value >= 0 or value == float("inf"):
-        raise argparse.ArgumentTypeError(f"must be a finite number >= 0, got {text}")
-    return value
+class _Number:
+    """An argparse type: a number (``int`` or ``float``) in a range, with a message
+    that names the range rather than a Python function."""
+
+    def __init__(self, kind: type, minimum: float | None = None, *, strict: bool = False,
+                 what: str | None = None):
+        self.kind, self.minimum, self.strict = kind, minimum, strict
+        self.what = what or ("an integer" if kind is int else "a finite number")
+
+    def __call__(self, text: str):
+        try:
+            value = self.kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"must be {self._range()}, got {text!r}") from None
+        if value != value or value in (float("inf"), float("-inf")) or (
+                self.minimum is not None and (value <= self.minimum if self.strict else value < self.minimum)):
+            raise argparse.ArgumentTypeError(f"must be {self._range()}, got {text!r}")
+        return value
+
+    def _range(self) -> str:
+        if self.minimum is None:
+            return self.what
+        return f"{self.what} {'>' if self.strict else '>='} {self.minimum:g}"
+
+
+_COUNT = _Number(int, 0)
+_SEED = _Number(int, 0, what="an integer seed")
+_NONNEGATIVE = _Number(float, 0.0)
+_POSITIVE = _Number(float, 0.0, strict=True)
+_FINITE = _Number(float)
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with one-line errors: the message and where to read more, no usage block."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+def _add_source(parser: argparse.ArgumentParser) -> None:
+    """SOURCE and the options that say how a robot stands on its feet."""
+    parser.add_argument("source", metavar="SOURCE",
+                        help="scene (TOML path or robots/ name) or robot (URDF path or "
+                             "example-robot-data name such as solo12)")
+    parser.add_argument("--feet", metavar="FRAME,FRAME,...",
+                        help="a robot's foot frames, chosen by hand (default: the lowest end frames "
+                             "at its reference pose)")
+    parser.add_argument("--floating-base", action="store_true", default=None,
+                        help="load a URDF path with a free-flyer base (its feet are then found)")
+
+
+def _add_plot(parser: argparse.ArgumentParser, help_text: str) -> None:
+    parser.add_argument("--plot", metavar="FILE", help=help_text + " (any format matplotlib writes: "
+                                                                    "png, pdf, svg, ...)")
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="contactdiff",
         description="Differentiability through contact: check robots for limb decoupling.")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -43,28 +90,27 @@ def build_parser() -> argparse.ArgumentParser:
         "check", help="decoupling / orthogonality report of a scene or robot",
         description="Measure how far a scene is from the paper's assumptions: inverse-mass "
                     "coupling of every contact pair, and limbs decoupled through the body.")
-    check.add_argument("source", metavar="SOURCE",
-                       help="scene (TOML path or robots/ name) or robot (URDF path or "
-                            "example-robot-data name such as solo12)")
-    check.add_argument("--samples", type=_positive_int, default=20,
+    _add_source(check)
+    check.add_argument("--samples", type=_COUNT, default=20,
                        help="random poses besides the reference (default 20)")
-    check.add_argument("--seed", type=int, default=0, help="seed of the random poses (default 0)")
-    check.add_argument("--armature", type=_nonnegative_float, default=0.0,
+    check.add_argument("--seed", type=_SEED, default=0, help="seed of the random poses, >= 0 (default 0)")
+    check.add_argument("--armature", type=_NONNEGATIVE, default=0.0,
                        help="rotor inertia added to actuated joints, kg m^2; the report "
                             "is compared with the one without it")
-    check.add_argument("--tol", type=float, default=1e-9,
+    check.add_argument("--tol", type=_POSITIVE, default=1e-9,
                        help="relative size below which a coupling counts as zero (default 1e-9)")
     check.add_argument("--json", action="store_true", help="print the report as JSON")
     check.set_defaults(run=_run_check)
 
+    from .integrator import ATOL_MAX, MAX_STEPS, RTOL_MAX, RTOL_MIN
     from .steppers import METHODS
 
     sim = sub.add_parser(
         "simulate", help="event-driven simulation: events, final state",
         description="Integrate a scene event by event (touchdown, lift-off, bounce) and "
                     "print its events and final state.")
-    sim.add_argument("source", metavar="SOURCE", help="scene or robot, as for check")
-    sim.add_argument("--t-final", type=float, required=True, help="final time (s)")
+    _add_source(sim)
+    sim.add_argument("--t-final", type=_FINITE, required=True, help="final time (s)")
     sim.add_argument("--q", action="append", default=[], metavar="JOINT=VALUE",
                      help="initial joint coordinate (repeatable); comma-separated for multi-dof joints")
     sim.add_argument("--v", action="append", default=[], metavar="JOINT=VALUE",
@@ -72,14 +118,18 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--method", default="auto", choices=("auto",) + tuple(METHODS),
                      help="stepper: auto (DOP853, switching to Radau while stiff; the default), "
                           "or one used throughout")
-    sim.add_argument("--rtol", type=float, default=1e-8, help="relative tolerance (default 1e-8)")
-    sim.add_argument("--atol", type=float, default=1e-10, help="absolute tolerance (default 1e-10)")
+    sim.add_argument("--rtol", type=_FINITE, default=1e-8,
+                     help=f"relative tolerance in [{RTOL_MIN:.3g}, {RTOL_MAX:g}] (default 1e-8)")
+    sim.add_argument("--atol", type=_FINITE, default=1e-10,
+                     help=f"absolute tolerance in (0, {ATOL_MAX:g}] (m, rad, m/s; default 1e-10)")
+    sim.add_argument("--max-steps", type=_COUNT, default=MAX_STEPS,
+                     help="step budget: a run needing more accepted steps stops with an error "
+                          f"(default {MAX_STEPS})")
     sim.add_argument("--jacobian", action="store_true",
                      help="also compute the flow Jacobian d x(T)/d x0 and every saltation matrix")
     sim.add_argument("--json", action="store_true", help="print the trajectory summary as JSON")
-    sim.add_argument("--plot", metavar="PNG",
-                     help="draw contact gaps over time with events marked; for a floating base, "
-                          "the contact timeline and the base height, roll and pitch")
+    _add_plot(sim, "draw contact gaps over time with events marked; for a floating base, "
+                   "the contact timeline and the base height, roll and pitch")
     sim.set_defaults(run=_run_simulate)
 
     bench = sub.add_parser(
@@ -89,9 +139,10 @@ def build_parser() -> argparse.ArgumentParser:
                     "project's scenes, and the cost of flow Jacobians against finite differences.")
     bench.add_argument("--scenes", nargs="+", metavar="SCENE", help="scenes to run (default all)")
     bench.add_argument("--quick", action="store_true", help="a tiny sweep of a few seconds (tests, CI)")
-    bench.add_argument("--repeats", type=int, default=3, help="timing repeats, median kept (default 3)")
+    bench.add_argument("--repeats", type=_Number(int, 1), default=3,
+                       help="timing repeats, median kept (default 3)")
     bench.add_argument("--json", action="store_true", help="print the results as JSON")
-    bench.add_argument("--plot", metavar="PNG", help="write the log-log error vs run time plot")
+    _add_plot(bench, "write the log-log error vs run time plot")
     bench.add_argument("--studies", action="store_true",
                        help="also run the stiff and extreme-case studies and measure what a scene "
                             "costs beyond its needs (with --quick: seconds; without: minutes)")
@@ -104,24 +155,24 @@ def build_parser() -> argparse.ArgumentParser:
                     "gait; the Floquet multipliers (eigenvalues in section coordinates, neutral moves "
                     "removed). The start is the scene's initial state carried to the foot's first "
                     "touchdown.")
-    stride.add_argument("source", metavar="SOURCE", help="scene or robot, as for check")
+    _add_source(stride)
     stride.add_argument("--foot", required=True, help="contact whose touchdowns define the section")
-    stride.add_argument("--newton", type=_positive_int, default=0, metavar="N",
+    stride.add_argument("--newton", type=_COUNT, default=0, metavar="N",
                         help="Newton iterations towards a periodic gait (default 0: one stride)")
-    stride.add_argument("--tol", type=_nonnegative_float, default=1e-9,
+    stride.add_argument("--tol", type=_NONNEGATIVE, default=1e-9,
                         help="residual at which Newton stops (default 1e-9)")
-    stride.add_argument("--t0", type=float, default=0.0, help="start time (s, default 0)")
-    stride.add_argument("--t-max", type=float, default=10.0, help="longest stride (s, default 10)")
-    stride.add_argument("--min-stride", type=float, default=None,
+    stride.add_argument("--t0", type=_FINITE, default=0.0, help="start time (s, default 0)")
+    stride.add_argument("--t-max", type=_FINITE, default=10.0, help="longest stride (s, default 10)")
+    stride.add_argument("--min-stride", type=_FINITE, default=None,
                         help="shortest stride (s): earlier re-landings of the foot are skipped "
                              "(default: half the clock period of a clock-driven scene, else 0)")
-    stride.add_argument("--min-flight", type=float, default=None,
+    stride.add_argument("--min-flight", type=_FINITE, default=None,
                         help="shortest flight (s) before a touchdown that ends a stride: re-landings of "
                              "impact cascades are skipped (default: 5 %% of the clock period, else 0)")
-    stride.add_argument("--warmup", type=float, default=0.0, metavar="SECONDS",
+    stride.add_argument("--warmup", type=_FINITE, default=0.0, metavar="SECONDS",
                         help="simulate this long before the search: a stable gait settles on its own "
                              "(default 0)")
-    stride.add_argument("--period", type=float, default=None,
+    stride.add_argument("--period", type=_FINITE, default=None,
                         help="clock period (s) of a clock-driven scene (default: from its controller)")
     stride.add_argument("--neutral", default=None, metavar="MOVES",
                         help="neutral moves removed, comma-separated from x, y, yaw, or 'none' "
@@ -131,8 +182,8 @@ def build_parser() -> argparse.ArgumentParser:
     stride.add_argument("--v", action="append", default=[], metavar="JOINT=VALUE",
                         help="initial joint velocity (repeatable)")
     stride.add_argument("--method", default="DOP853", choices=METHODS, help="stepper (default DOP853)")
-    stride.add_argument("--rtol", type=float, default=1e-10, help="relative tolerance (default 1e-10)")
-    stride.add_argument("--atol", type=float, default=1e-12, help="absolute tolerance (default 1e-12)")
+    stride.add_argument("--rtol", type=_FINITE, default=1e-10, help="relative tolerance (default 1e-10)")
+    stride.add_argument("--atol", type=_FINITE, default=1e-12, help="absolute tolerance (default 1e-12)")
     stride.add_argument("--json", action="store_true", help="print the result as JSON")
     stride.set_defaults(run=_run_stride)
     return parser
@@ -145,40 +196,61 @@ def _run_stride(args) -> int:
     neutral = args.neutral
     if neutral is not None and neutral.strip().lower() == "none":
         neutral = ""
-    gait = find_periodic_gait(scene, args.foot, t=args.t0, iterations=args.newton, tol=args.tol,
-                              neutral=neutral, period=args.period, t_max=args.t_max,
-                              min_stride=args.min_stride, min_flight=args.min_flight, warmup=args.warmup,
-                              method=args.method, rtol=args.rtol, atol=args.atol)
-    print(json.dumps(gait.to_dict(), indent=2) if args.json else gait.format())
+    with _ProgressBar("stride search", None) as bar:
+        gait = find_periodic_gait(scene, args.foot, t=args.t0, iterations=args.newton, tol=args.tol,
+                                  neutral=neutral, period=args.period, t_max=args.t_max,
+                                  min_stride=args.min_stride, min_flight=args.min_flight, warmup=args.warmup,
+                                  method=args.method, rtol=args.rtol, atol=args.atol, progress=bar)
+    _print(json.dumps(gait.to_dict(), indent=2) if args.json else gait.format())
     return 0
 
 
 def _run_bench(args) -> int:
     from .bench import run_bench
 
+    if args.plot:
+        _check_plot_path(args.plot)
     result = run_bench(scenes=args.scenes, repeats=args.repeats, quick=args.quick, studies=args.studies)
     if args.plot:
         result.plot(args.plot)
-    print(json.dumps(result.to_dict(), indent=2) if args.json else result.format())
+    _print(json.dumps(result.to_dict(), indent=2) if args.json else result.format())
     if args.plot and not args.json:
-        print(f"plot written to {args.plot}")
+        _print(f"plot written to {args.plot}")
     return 0
 
 
+def _check_plot_path(path: str) -> None:
+    """Refuse a plot file that cannot be written, before any work is done: no
+    matplotlib, a folder that does not exist, or a format matplotlib cannot write."""
+    try:
+        from matplotlib.figure import Figure
+    except ImportError:
+        raise InvalidInputError("--plot needs matplotlib: pip install 'contactdiff[plot]'") from None
+    target = Path(path)
+    folder = target.parent
+    if not folder.is_dir():
+        raise InvalidInputError(f"--plot {path!r}: folder {str(folder)!r} does not exist")
+    if target.is_dir():
+        raise InvalidInputError(f"--plot {path!r} is a folder; give a file name such as {str(target / 'plot.png')!r}")
+    formats = Figure().canvas.get_supported_filetypes()
+    suffix = target.suffix.lower().lstrip(".")
+    if suffix and suffix not in formats:
+        raise InvalidInputError(f"--plot {path!r}: unknown format {suffix!r}; valid: {', '.join(sorted(formats))}")
+
+
 def _scene_from_args(args):
-    """The scene of ``args.source`` with the initial state changed by ``--q`` / ``--v``."""
+    """The scene of ``args.source`` (with ``--feet``, ``--floating-base``) with the
+    initial state changed by ``--q`` / ``--v``."""
     from .scene import load_source
 
-    scene = load_source(args.source)
-    q0, v0 = _assignments(args.q, "--q"), _assignments(args.v, "--v")
+    scene = load_source(args.source, floating_base=args.floating_base, feet=args.feet)
+    q0, v0 = _assignments(getattr(args, "q", []), "--q"), _assignments(getattr(args, "v", []), "--v")
     if q0 or v0:
         scene = scene.with_state(q0 or None, v0 or None)
     return scene
 
 
 def _assignments(items: list[str], flag: str) -> dict:
-    from .errors import InvalidInputError
-
     out = {}
     for item in items:
         name, sep, value = item.partition("=")
@@ -195,21 +267,64 @@ def _assignments(items: list[str], flag: str) -> dict:
 def _run_simulate(args) -> int:
     from .integrator import simulate
 
+    if args.plot:
+        _check_plot_path(args.plot)
     scene = _scene_from_args(args)
-    traj = simulate(scene, args.t_final, method=args.method, rtol=args.rtol, atol=args.atol,
-                    jacobian=args.jacobian)
+    with _ProgressBar(f"simulate {scene.name}", (0.0, args.t_final)) as bar:
+        traj = simulate(scene, args.t_final, method=args.method, rtol=args.rtol, atol=args.atol,
+                        jacobian=args.jacobian, max_steps=args.max_steps, progress=bar)
     if args.plot:
         from .plotting import plot_gait, plot_gaps
 
         # floating base: contact timeline, base height and attitude; else contact gaps
         (plot_gait if scene.robot.floating_base else plot_gaps)(traj, scene, args.plot)
     if args.json:
-        print(json.dumps(traj.summary(), indent=2))
+        _print(json.dumps(traj.summary(), indent=2))
         return 0
-    print(_format_trajectory(traj, scene))
+    _print(_format_trajectory(traj, scene))
     if args.plot:
-        print(f"plot written to {args.plot}")
+        _print(f"plot written to {args.plot}")
     return 0
+
+
+class _ProgressBar:
+    """A progress bar on stderr (only on a terminal, and only once a run has lasted a
+    second), fed by `simulate`'s ``progress(t, events, steps)`` callback: simulated
+    time against the horizon, events and accepted steps. Without a horizon
+    (``span=None``: a search of many runs) it counts steps."""
+
+    _EVERY = 0.2  # s of wall time between redraws: the callback is called every step
+
+    def __init__(self, label: str, span: tuple[float, float] | None):
+        self.label, self.span = label, span
+        self.bar = None
+        self.last = 0.0
+
+    def __enter__(self):
+        from tqdm import tqdm
+
+        total = None if self.span is None else self.span[1] - self.span[0]
+        fmt = "{desc} {percentage:3.0f}%|{bar}| [{elapsed}<{remaining}]" if total else "{desc} [{elapsed}]"
+        self.bar = tqdm(total=total, desc=self.label, file=sys.stderr, delay=1.0, disable=None,
+                        bar_format=fmt, leave=False, dynamic_ncols=True)
+        return self
+
+    def __call__(self, t: float, events: int, steps: int) -> None:
+        now = time.monotonic()
+        if now - self.last < self._EVERY or self.bar.disable:
+            return
+        self.last = now
+        if self.span is None:
+            self.bar.set_description_str(f"{self.label}: t = {t:.4g} s, {events} events, "
+                                         f"{steps} steps in this run", refresh=False)
+            self.bar.update(0)
+            return
+        self.bar.set_description_str(f"{self.label}: t = {t:.4g} / {self.span[1]:g} s, {events} events, "
+                                     f"{steps} steps", refresh=False)
+        self.bar.update((t - self.span[0]) - self.bar.n)
+
+    def __exit__(self, *exc) -> None:
+        self.bar.close()
 
 
 def _format_trajectory(traj, scene) -> str:
@@ -266,9 +381,8 @@ def _format_jacobian(traj, scene) -> list[str]:
 
 def _run_check(args) -> int:
     from .checks import check_decoupling
-    from .scene import load_source
 
-    scene = load_source(args.source)
+    scene = _scene_from_args(args)
     options = dict(samples=args.samples, seed=args.seed, tol=args.tol)
     report = check_decoupling(scene, armature=args.armature, **options)
     baseline = check_decoupling(scene, **options) if args.armature else None
@@ -276,24 +390,42 @@ def _run_check(args) -> int:
         out = report.to_dict()
         if baseline is not None:
             out["without_armature"] = baseline.to_dict()
-        print(json.dumps(out, indent=2))
+        _print(json.dumps(out, indent=2))
         return 0
-    print(report.format())
-    if baseline is not None:
-        print(f"\narmature {args.armature:g}: max coupling {baseline.max_coupling:.3e} -> "
-              f"{report.max_coupling:.3e}; verdict {baseline.verdict} -> {report.verdict}")
+    _print(report.format())
+    if baseline is not None and report.verdict is not None:
+        _print(f"\narmature {args.armature:g}: max coupling {baseline.max_coupling:.3e} -> "
+               f"{report.max_coupling:.3e}; verdict {baseline.verdict} -> {report.verdict}")
     return 0
 
 
+def _print(text: str) -> None:
+    print(text, flush=True)  # flushed here, so that a closed pipe raises inside main's guard
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Run the command line; return the exit status (0 ok, 2 bad input or model)."""
+    """Run the command line; return the exit status (0 ok, 2 bad input or model,
+    130 interrupted, 141 output pipe closed)."""
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # --help, or a bad argument (its line is printed)
+        return exc.code
     try:
         return args.run(args)
     except ContactDiffError as exc:
         print(f"contactdiff {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print(f"\ncontactdiff {args.command}: interrupted", file=sys.stderr)
+        return 130
+    except BrokenPipeError:
+        # the reader went away (| head): say nothing, and keep Python's own flush at
+        # exit from raising again on the closed stdout
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+        return 141
 
 
 if __name__ == "__main__":  # pragma: no cover

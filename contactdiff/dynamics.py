@@ -25,7 +25,7 @@ import numpy as np
 import pinocchio as pin
 from scipy.linalg.lapack import dposv as _dposv
 
-from .errors import InvalidInputError, SolverError
+from .errors import InvalidInputError, SolverError, check_number
 from .rigid_contacts import RigidContactMode
 from .rigid_contacts import eligible as rigid_eligible
 from .scene import Scene
@@ -111,6 +111,7 @@ class ModeDynamics:
         """Contacts, row slices and (if eligible) the Pinocchio constraint mode of ``active``."""
         entry = self._modes.get(active)
         if entry is None:
+            self._check_mode(active)
             contacts = [self.contact(k) for k in active]
             slices, start = [], 0
             for c in contacts:
@@ -120,9 +121,52 @@ class ModeDynamics:
             entry = self._modes[active] = (contacts, tuple(slices), rigid)
         return entry
 
+    def _check_mode(self, active: tuple) -> None:
+        """Refuse a mode that is not a tuple of distinct valid contact keys."""
+        n = self.n_contacts
+        valid = (f"keys 0..{n - 1} (contacts {', '.join(self.scene.contact_names)}) and "
+                 f"n + i = {n}..{2 * n - 1} for sticking contact i sliding") if n else "none: the scene has no contacts"
+        for key in active:
+            if isinstance(key, bool) or not isinstance(key, (int, np.integer)) or not 0 <= key < 2 * n:
+                raise InvalidInputError(f"mode {active!r}: {key!r} is not a contact key; valid: {valid}")
+        indices = [self.contact_index(k) for k in active]
+        if len(set(indices)) != len(indices):
+            raise InvalidInputError(f"mode {active!r} names a contact twice (sticking and sliding, or repeated)")
+
+    def _check_state(self, q, v, t, tau) -> None:
+        """Name the bad argument of a `solve` that failed inside Pinocchio or numpy."""
+        model = self.model
+        for name, x, size in (("q", q, model.nq), ("v", v, model.nv)) + (() if tau is None else (("tau", tau, model.nv),)):
+            arr = np.asarray(x)
+            if arr.shape != (size,) or not np.issubdtype(arr.dtype, np.number):
+                raise InvalidInputError(f"ModeDynamics.solve: {name} must be {size} numbers, got shape "
+                                        f"{arr.shape} ({x!r})")
+            if not np.all(np.isfinite(arr)):
+                raise InvalidInputError(f"ModeDynamics.solve: {name} must be finite, got {x!r}")
+        check_number("ModeDynamics.solve", "t", t)
+
     def solve(self, q: np.ndarray, v: np.ndarray, t: float, active: Sequence[int] = (),
               *, derivatives: bool = False, tau: np.ndarray | None = None
               ) -> ModeSolution | tuple[ModeSolution, ModeDerivatives]:
+        """Accelerations and forces in mode ``active`` at ``(q, v)`` (see `_solve`).
+
+        Raises:
+            InvalidInputError: ``q``, ``v`` or ``tau`` of the wrong size or not finite,
+                or ``active`` not a mode of contact keys (the message lists them).
+        """
+        try:
+            return self._solve(q, v, t, active, derivatives, tau)
+        except (ValueError, TypeError, IndexError, RuntimeError) as exc:
+            if isinstance(exc, InvalidInputError):
+                raise
+            # checked only on failure: the hot path pays nothing for it
+            self._check_mode(tuple(active))
+            self._check_state(q, v, t, tau)
+            raise
+
+    def _solve(self, q: np.ndarray, v: np.ndarray, t: float, active: Sequence[int] = (),
+               derivatives: bool = False, tau: np.ndarray | None = None
+               ) -> ModeSolution | tuple[ModeSolution, ModeDerivatives]:
         """Accelerations and forces in mode ``active`` at ``(q, v)``.
 
         Args:

@@ -40,6 +40,7 @@ the integration error cannot tell a touch from a miss); a bounce slower than
 from __future__ import annotations
 
 from collections import OrderedDict
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -47,10 +48,10 @@ import pinocchio as pin
 from scipy.optimize import minimize_scalar
 
 from .dynamics import ModeDynamics
-from .errors import IntegrationError, InvalidInputError, check_number
+from .errors import IntegrationError, InvalidInputError, StoppedRunError, TooManyStepsError, check_number
 from .events import hermite_minimum, locate_crossing, simultaneous_group
 from .impacts import choose_mode, liftoff_mode, resolve_impact
-from .scene import Scene
+from .scene import Scene, passive_note
 from .sensitivity import (gap_gradient, impact_reset_jacobian, liftoff_guard, liftoff_saltation, saltation,
                           simultaneous_saltation, vector_field)
 from .steppers import METHODS, PinocchioGroup, make_stepper
@@ -62,18 +63,23 @@ class GrazingError(IntegrationError):
     """A contact closed with (nearly) zero normal speed and ``on_grazing="raise"``."""
 
 
-class TooManyEventsError(IntegrationError):
+class TooManyEventsError(StoppedRunError):
     """More than ``max_events`` events; ``.trajectory`` holds the run up to there."""
-
-    def __init__(self, message: str, trajectory: Trajectory):
-        super().__init__(message)
-        self.trajectory = trajectory
 
 
 _GRAZING_MODES = ("event", "raise")
 AUTO = "auto"
 SIMULATE_METHODS = (AUTO,) + METHODS
 """Valid ``method`` names of `simulate`: ``"auto"`` (`contactdiff.stiffness`) or a stepper."""
+MAX_STEPS = 200_000
+"""Default step budget of `simulate` (accepted steps)."""
+RTOL_MIN = 100 * np.finfo(float).eps
+"""Smallest relative tolerance: below it the steps' own round-off exceeds the tolerance."""
+RTOL_MAX = 0.1
+"""Largest relative tolerance: beyond it a step's error estimate no longer means anything."""
+ATOL_MAX = 0.1
+"""Largest absolute tolerance (m, rad, m/s): beyond it the error of a step can exceed the
+sizes of the robots the tolerance guards (foot heights, link lengths)."""
 _SWITCH_NOTES = 10  # notes for the first switches of method="auto" (all are in the stats)
 _SPEED_TOL = 1e-12  # m/s: a post-impact normal speed below this (scaled) counts as zero
 _DIP_FRACTION = 0.5  # search a step for a dip when its Hermite minimum is below this share of the end gaps
@@ -142,7 +148,8 @@ def simulate(scene: Scene, t_final: float, q0=None, v0=None, *, t0: float = 0.0,
              jacobian: bool = False, max_events: int = 10_000, simultaneous_tol: float = 1e-9,
              zeno_speed: float = 1e-6, grazing_speed: float = 1e-9, on_grazing: str = "event",
              grazing_gap: float | None = None, project_tol: float | None = None,
-             max_step: float = np.inf) -> Trajectory:
+             max_step: float = np.inf, max_steps: int = MAX_STEPS,
+             progress: Callable[[float, int, int], None] | None = None) -> Trajectory:
     """Compute the hybrid trajectory of ``scene`` from ``t0`` to ``t_final``.
 
     Args:
@@ -150,7 +157,8 @@ def simulate(scene: Scene, t_final: float, q0=None, v0=None, *, t0: float = 0.0,
         t_final: final time (s), > t0.
         q0, v0: initial state (arrays or joint-name mappings); default the scene's.
         t0: initial time (s).
-        rtol, atol: error tolerances of each step (relative; absolute in m, rad, m/s).
+        rtol, atol: error tolerances of each step (relative, in [`RTOL_MIN`,
+            `RTOL_MAX`]; absolute in m, rad, m/s, in (0, `ATOL_MAX`]).
         method: ``"auto"`` (explicit DOP853, switching to Radau IIA while the explicit
             steps are limited by stability rather than accuracy, see
             `contactdiff.stiffness`; the steps of each are in ``traj.stats``) or a
@@ -172,15 +180,44 @@ def simulate(scene: Scene, t_final: float, q0=None, v0=None, *, t0: float = 0.0,
         project_tol: active-gap drift (m) beyond which the state is projected back
             onto the constraints; default ``atol``.
         max_step: largest step (s).
+        max_steps: largest number of accepted steps before `TooManyStepsError`
+            (its ``.trajectory`` holds the run so far); the default `MAX_STEPS`
+            lets a quadruped trot run for two minutes of simulated time (about
+            1,500 steps per second) and stops a runaway run (steps far shorter
+            than the horizon: a body spinning at 1e6 rad/s needs 1e-6-s steps).
+        progress: called after every accepted step as ``progress(t, events, steps)``
+            (time in s, events and accepted steps so far), e.g. to draw a progress
+            bar; ``None`` for none.
 
     Returns:
         The `Trajectory`.
+
+    Raises:
+        InvalidInputError: a bad argument (the message names it and its valid range).
+        TooManyEventsError, TooManyStepsError: a budget ran out (the run so far
+            is on the error's ``.trajectory``).
+        IntegrationError: the stepper cannot go on (step size underflow).
     """
     run = _HybridRun(scene, t0, t_final, q0, v0, rtol=rtol, atol=atol, method=method,
                      jacobian=jacobian, max_events=max_events, simultaneous_tol=simultaneous_tol,
                      zeno_speed=zeno_speed, grazing_speed=grazing_speed, on_grazing=on_grazing,
-                     grazing_gap=grazing_gap, project_tol=project_tol, max_step=max_step)
+                     grazing_gap=grazing_gap, project_tol=project_tol, max_step=max_step,
+                     max_steps=max_steps, progress=progress)
     return run.run()
+
+
+def _tolerance(name: str, value, low: float, high: float, *, open_low: bool = False) -> float:
+    x = check_number("simulate", name, value)
+    if not (low < x if open_low else low <= x) or x > high:
+        interval = f"({low:g}, {high:g}]" if open_low else f"[{low:.3g}, {high:g}]"
+        raise InvalidInputError(f"simulate: {name} must be in {interval}, got {value!r}")
+    return x
+
+
+def _count(name: str, value) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
+        raise InvalidInputError(f"simulate: {name} must be an integer >= 0, got {value!r}")
+    return int(value)
 
 
 def _positive(name: str, value, *, allow_zero: bool = False) -> float:
@@ -193,7 +230,7 @@ def _positive(name: str, value, *, allow_zero: bool = False) -> float:
 class _HybridRun:
     def __init__(self, scene, t0, t_final, q0, v0, *, rtol, atol, method, jacobian, max_events,
                  simultaneous_tol, zeno_speed, grazing_speed, on_grazing, grazing_gap, project_tol,
-                 max_step):
+                 max_step, max_steps=None, progress=None):
         if not isinstance(scene, Scene):
             raise InvalidInputError(f"scene must be a Scene (see load_scene), got {scene!r}")
         if method not in SIMULATE_METHODS:
@@ -205,10 +242,13 @@ class _HybridRun:
         if not self.t_final > self.t0:
             raise InvalidInputError(f"simulate: t_final must be after t0 = {self.t0}, got {t_final!r}")
         self.scene = scene.with_state(q0, v0) if (q0 is not None or v0 is not None) else scene
-        self.rtol, self.atol = _positive("rtol", rtol), _positive("atol", atol)
-        if isinstance(max_events, bool) or not isinstance(max_events, (int, np.integer)) or max_events < 0:
-            raise InvalidInputError(f"simulate: max_events must be an integer >= 0, got {max_events!r}")
-        self.max_events = int(max_events)
+        self.rtol = _tolerance("rtol", rtol, RTOL_MIN, RTOL_MAX)
+        self.atol = _tolerance("atol", atol, 0.0, ATOL_MAX, open_low=True)
+        self.max_events = _count("max_events", max_events)
+        self.max_steps = _count("max_steps", MAX_STEPS if max_steps is None else max_steps)
+        if progress is not None and not callable(progress):
+            raise InvalidInputError(f"simulate: progress must be a callable or None, got {progress!r}")
+        self.progress = progress
         self.simultaneous_tol = _positive("simultaneous_tol", simultaneous_tol, allow_zero=True)
         self.zeno_speed = _positive("zeno_speed", zeno_speed, allow_zero=True)
         self.grazing_speed = _positive("grazing_speed", grazing_speed, allow_zero=True)
@@ -224,7 +264,7 @@ class _HybridRun:
         self.gap_tol = 1e-12  # m: a contact with |gap| below this is closed
         self.events: list[Event] = []
         self.segments: list[Segment] = []
-        self.notes: list[str] = []
+        self.notes: list[str] = [note] if (note := passive_note(self.scene)) else []
         self.max_drift = 0.0
         self.n_projections = 0
         self.n_near_misses = 0
@@ -295,8 +335,17 @@ class _HybridRun:
         self.segments.append(segment)
         gaps, rates = self._gaps_and_rates(stepper.q, stepper.v)
         forces = field.normal_forces(stepper.t, stepper.q, stepper.v)
+        steps = 0
         while stepper.t < self.t_final:
+            if steps == self.max_steps:
+                raise TooManyStepsError(
+                    f"max_steps = {self.max_steps} steps taken by t = {stepper.t:.6g} s of "
+                    f"t_final = {self.t_final:g} s (last step {stepper.t - stepper.t_old:.3g} s); "
+                    "raise max_steps, or look for a runaway state", self._trajectory(stepper, "max_steps"))
             stepper.step()
+            steps += 1
+            if self.progress is not None:
+                self.progress(stepper.t, len(self.events), steps)
             h = stepper.t - stepper.t_old
             dense = stepper.dense(lazy=True)  # DOP853's extra stages only if a guard needs them
             segment.pieces.append(dense)

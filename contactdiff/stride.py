@@ -116,6 +116,13 @@ _SIMULATE_DEFAULTS = {name: p.default for name, p in inspect.signature(simulate)
                       if p.kind is inspect.Parameter.KEYWORD_ONLY and name != "t0"}
 
 
+def _positive_duration(owner: str, name: str, value) -> float:
+    x = check_number(owner, name, value, minimum=0.0)
+    if x <= 0:
+        raise InvalidInputError(f"{owner}: {name} must be > 0 s, got {value!r}")
+    return x
+
+
 class StrideError(IntegrationError):
     """A stride did not end in a transversal touchdown of the foot: it never came
     back within ``t_max``, or it came back grazing (zero normal speed) or in a
@@ -568,9 +575,7 @@ def stride_map(scene: Scene, foot: str, q, v, t: float = 0.0, *, t_max: float = 
     """
     i = _foot_index(scene, foot)
     t = check_number("stride map", "t", t)
-    t_max = check_number("stride map", "t_max", t_max, minimum=0.0)
-    if t_max <= 0:
-        raise InvalidInputError(f"stride map: t_max must be > 0 s, got {t_max!r}")
+    t_max = _positive_duration("stride map", "t_max", t_max)
     clock = _resolve_period(scene, period)
     q, v = np.array(q, dtype=float), np.array(v, dtype=float)
     scene.check_state(q, v)
@@ -615,7 +620,7 @@ def first_touchdown(scene: Scene, foot: str, q=None, v=None, t: float = 0.0, *, 
     t = check_number("first touchdown", "t", t)
     q = scene.q0 if q is None else np.array(q, dtype=float)
     v = scene.v0 if v is None else np.array(v, dtype=float)
-    s = _run_stride(scene, i, q, v, t, t + check_number("first touchdown", "t_max", t_max, minimum=0.0),
+    s = _run_stride(scene, i, q, v, t, t + _positive_duration("first touchdown", "t_max", t_max),
                     None, False, require_start=False,
                     min_flight=_min_flight(min_flight, scene_period(scene), "first touchdown"),
                     rtol=rtol, atol=atol, method=method, max_events=max_events, **options)

@@ -33,3 +33,109 @@ def test_unknown_source_exits_2_with_the_valid_names(capsys):
 def test_missing_scene_file_exits_2(capsys, tmp_path):
     assert main(["check", str(tmp_path / "missing.toml")]) == 2
     assert "does not exist" in capsys.readouterr().err
+
+
+# -- a new user's bad inputs: one named line on stderr, exit status 2, no traceback ------
+import os  # noqa: E402
+import signal  # noqa: E402
+import subprocess  # noqa: E402
+import sys  # noqa: E402
+
+import pytest  # noqa: E402
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["check", "solo12", "--seed", "-5"], "--seed: must be an integer seed >= 0, got '-5'"),
+    (["check", "solo12", "--samples", "abc"], "--samples: must be an integer >= 0, got 'abc'"),
+    (["check", "solo12", "--tol", "0"], "--tol: must be a finite number > 0"),
+    (["simulate", "ball", "--t-final", "1", "--rtol", "10"], "rtol must be in [2.22e-14, 0.1], got 10.0"),
+    (["simulate", "ball", "--t-final", "1", "--atol", "0"], "atol must be in (0, 0.1], got 0.0"),
+    (["simulate", "ball", "--t-final", "nan"], "--t-final: must be a finite number"),
+    (["stride", "ball", "--foot", "ball", "--t-max", "0"], "t_max must be > 0 s, got 0.0"),
+    (["check", "/dev/null"], "'/dev/null' is not a regular file"),
+    (["simulate", "solo12", "--t-final", "1", "--q", "root_joint=0,0,0.3,0,0,0,0"],
+     "joint 'root_joint' (JointModelFreeFlyer) holds a quaternion or unit complex number whose norm is not 1"),
+    (["simulate", "planar_trot_soft", "--t-final", "2", "--v", "body_pitch=1e6", "--max-steps", "50"],
+     "max_steps = 50 steps taken by t = "),
+])
+def test_bad_input_is_one_named_line(argv, message, capsys):
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err, err
+    assert err.count("\n") == 1, err
+
+
+def test_a_directory_as_source_is_named(capsys, tmp_path):
+    assert main(["check", str(tmp_path)]) == 2
+    assert "is a directory, not a URDF file" in capsys.readouterr().err
+    (tmp_path / "s.toml").mkdir()
+    assert main(["check", str(tmp_path / "s.toml")]) == 2
+    assert "is a directory, not a TOML file" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("command", [["simulate", "ball", "--t-final", "0.1"], ["bench", "--quick", "--scenes", "ball"]])
+def test_plot_target_is_checked_before_any_work(command, capsys, tmp_path, monkeypatch):
+    pytest.importorskip("matplotlib")
+    import contactdiff.bench
+    import contactdiff.integrator
+
+    def never(*args, **kwargs):
+        raise AssertionError("the run started before the plot file was checked")
+    monkeypatch.setattr(contactdiff.integrator, "simulate", never)
+    monkeypatch.setattr(contactdiff.bench, "run_bench", never)
+    assert main(command + ["--plot", str(tmp_path / "missing" / "x.png")]) == 2
+    assert "folder" in capsys.readouterr().err
+    assert main(command + ["--plot", str(tmp_path / "x.docx")]) == 2
+    err = capsys.readouterr().err
+    assert "unknown format 'docx'" in err and "png" in err
+
+
+def test_urdf_errors_name_the_link_and_print_nothing_else(capfd, tmp_path):
+    """A non-finite number inside an unnamed element is reported with its link (not
+    'in None'); the URDF parser's own lines do not reach the terminal."""
+    bad = tmp_path / "nan.urdf"
+    bad.write_text('<robot name="r"><link name="arm"><inertial><origin xyz="0 0 nan"/><mass value="1"/>'
+                   '<inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial></link></robot>')
+    assert main(["check", str(bad)]) == 2
+    err = capfd.readouterr().err
+    assert "in <link name='arm'>" in err and "None" not in err
+    broken = tmp_path / "tree.urdf"
+    broken.write_text('<robot name="r"><link name="a"/><joint name="j" type="fixed"><parent link="a"/>'
+                      '<child link="missing"/></joint></robot>')
+    assert main(["check", str(broken)]) == 2
+    err = capfd.readouterr().err
+    assert err.count("\n") == 1 and "child link [missing] of joint [j] not found" in err, err
+
+
+def test_a_passive_robot_is_named_with_the_scenes_that_drive_it(capsys):
+    assert main(["simulate", "solo12", "--t-final", "0.05"]) == 0
+    out = capsys.readouterr().out
+    assert "robot 'solo12' has no efforts" in out and "solo12_trot" in out
+
+
+def _cli(*argv, **kwargs):
+    """Run the command line in a new interpreter (signals and pipes need a process)."""
+    code = ("import signal, sys; signal.signal(signal.SIGINT, signal.default_int_handler); "
+            "from contactdiff.cli import main; sys.exit(main(sys.argv[1:]))")
+    return subprocess.Popen([sys.executable, "-c", code, *argv], stderr=subprocess.PIPE, text=True, **kwargs)
+
+
+def test_ctrl_c_ends_with_one_line_and_status_130():
+    """A runaway run (1e6 rad/s) interrupted once it is under way."""
+    proc = _cli("simulate", "planar_trot_soft", "--t-final", "2", "--v", "body_pitch=1e6",
+                stdout=subprocess.DEVNULL)
+    import time
+    time.sleep(4.0)  # s: import and start; the run itself needs far longer
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130
+    assert err.strip() == "contactdiff simulate: interrupted"
+
+
+def test_a_closed_pipe_ends_quietly():
+    read, write = os.pipe()
+    os.close(read)  # the reader is gone before anything is written (| head that exits)
+    proc = _cli("check", "ball", stdout=write)
+    os.close(write)
+    _, err = proc.communicate(timeout=60)
+    assert err == "" and proc.returncode == 141

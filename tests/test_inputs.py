@@ -161,3 +161,61 @@ def test_user_effort_of_wrong_shape_is_refused():
     scene = cd.Scene(robot, efforts=[cd.UserEffort(lambda q, v, t: np.zeros(2), name="bad")])
     with pytest.raises(cd.InvalidInputError, match="bad: function returned shape"):
         cd.ModeDynamics(scene).solve(scene.q0, scene.v0, 0.0)
+
+
+# -- tolerances, budgets and states that cannot be meant ------------------------------
+@pytest.mark.parametrize("options, message", [
+    (dict(rtol=1.0), r"rtol must be in \[2.22e-14, 0.1\], got 1.0"),
+    (dict(rtol=1e-16), r"rtol must be in \[2.22e-14, 0.1\]"),
+    (dict(atol=0.0), r"atol must be in \(0, 0.1\], got 0.0"),
+    (dict(atol=1.0), r"atol must be in \(0, 0.1\]"),
+    (dict(max_steps=-1), "max_steps must be an integer >= 0"),
+    (dict(max_steps=2.5), "max_steps must be an integer >= 0"),
+    (dict(progress="yes"), "progress must be a callable or None"),
+])
+def test_simulate_refuses_options_that_cannot_be_meant(options, message):
+    with pytest.raises(cd.InvalidInputError, match=message):
+        cd.simulate(cd.load_scene("ball"), 1.0, **options)
+
+
+def test_a_runaway_run_stops_at_its_step_budget_with_the_run_so_far():
+    """A body pitching at 1e6 rad/s needs steps of about 1e-6 s: 40 steps reach
+    only a few tens of microseconds of the 2-s horizon."""
+    scene = cd.load_scene("planar_trot_soft").with_state(v0={"body_pitch": 1e6})
+    seen = []
+    with pytest.raises(cd.TooManyStepsError, match="max_steps = 40 steps taken") as err:
+        cd.simulate(scene, 2.0, max_steps=40, progress=lambda t, events, steps: seen.append((t, events, steps)))
+    traj = err.value.trajectory
+    assert traj.termination == "max_steps" and traj.stats["steps"] == 40
+    assert 0.0 < traj.t < 1e-3 and np.all(np.isfinite(traj.q))
+    assert [s for _, _, s in seen] == list(range(1, 41))  # one call per accepted step
+    assert np.all(np.diff([t for t, _, _ in seen]) > 0) and seen[-1][0] == traj.t
+
+
+def test_zero_quaternion_is_refused_up_front():
+    scene = cd.Scene.from_robot(cd.load_robot("solo12"))
+    q = scene.q0.copy()
+    q[3:7] = 0.0
+    with pytest.raises(cd.InvalidInputError, match="root_joint.*norm is not 1"):
+        cd.simulate(scene, 0.1, q0=q)
+    with pytest.raises(cd.InvalidInputError, match="root_joint.*norm is not 1"):
+        scene.with_state({"root_joint": [0, 0, 0.3, 0, 0, 0, 0]})
+
+
+def test_check_refuses_a_negative_seed():
+    with pytest.raises(cd.InvalidInputError, match="seed must be an integer >= 0, got -1"):
+        cd.check_decoupling("planar_trot_soft", seed=-1)
+
+
+@pytest.mark.parametrize("args, message", [
+    ((np.zeros(3), None, 0.0, ()), r"q must be 7 numbers, got shape \(3,\)"),
+    ((None, np.ones(2), 0.0, ()), r"v must be 7 numbers, got shape \(2,\)"),
+    ((None, None, 0.0, (7,)), "7 is not a contact key; valid: keys 0..1"),
+    ((None, None, 0.0, (-1,)), "-1 is not a contact key"),
+    ((None, None, 0.0, (0, 0)), "names a contact twice"),
+])
+def test_mode_dynamics_names_bad_arguments(args, message):
+    scene = cd.load_scene("planar_trot_soft")
+    q, v, t, active = args
+    with pytest.raises(cd.InvalidInputError, match=message):
+        cd.ModeDynamics(scene).solve(scene.q0 if q is None else q, scene.v0 if v is None else v, t, active)
