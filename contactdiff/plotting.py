@@ -58,16 +58,27 @@ def plot_gaps(traj: Trajectory, scene, path: str | Path, n_samples: int = 800) -
 
 
 def plot_gait(traj: Trajectory, scene, path: str | Path, n_samples: int = 1500) -> Path:
-    """Gait figure of a floating-base scene, saved as PNG: a contact timeline (one row
-    per contact, a bar wherever it is active), and the base height (m) and its roll and
-    pitch (rad, Pinocchio's roll-pitch-yaw of the base orientation) against time (s),
-    with touchdowns (red) and lift-offs (green) marked.
+    """Save `gait_figure` to ``path`` (any format matplotlib writes)."""
+    plt = _pyplot()
+    fig = gait_figure(traj, scene, n_samples)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return Path(path)
+
+
+def gait_figure(traj: Trajectory, scene, n_samples: int = 1500):
+    """Gait figure of a floating-base scene: a contact timeline (one row per contact, a
+    bar wherever it is active, touchdowns marked red and lift-offs green, with a
+    legend), and the base height (m) and its roll and pitch (rad, Pinocchio's
+    roll-pitch-yaw of the base orientation) against time (s).
 
     Args:
         traj: the trajectory.
         scene: the scene it was computed on (a free-flyer robot).
-        path: output file.
         n_samples: points per curve.
+
+    Returns:
+        The matplotlib ``Figure``.
     """
     import pinocchio as pin
 
@@ -86,9 +97,11 @@ def plot_gait(traj: Trajectory, scene, path: str | Path, n_samples: int = 1500) 
     ax_c.set_ylim(len(names) - 0.5, -0.5)
     ax_c.set_title(f"{traj.scene_name}: feet on the ground, base height and attitude")
     for kind, color in (("touchdown", "tab:red"), ("lift-off", "tab:green")):
-        for e in traj.events:
-            if e.kind == kind:
-                ax_c.plot([e.t] * len(e.contacts), [names.index(c) for c in e.contacts], "|", color=color, ms=9)
+        marks = [(e.t, names.index(c)) for e in traj.events if e.kind == kind for c in e.contacts]
+        if marks:
+            ax_c.plot(*zip(*marks), "|", color=color, ms=9, label=kind)
+    if ax_c.get_legend_handles_labels()[0]:
+        ax_c.legend(loc="upper right", fontsize=8, ncols=2, framealpha=0.9)
     ax_z.plot(times, qs[:, 2], color="k", lw=1.2)
     ax_z.set_ylabel("base height (m)")
     ax_a.plot(times, rpy[:, 0], label="roll", lw=1.2)
@@ -97,6 +110,4 @@ def plot_gait(traj: Trajectory, scene, path: str | Path, n_samples: int = 1500) 
     ax_a.set_ylabel("base attitude (rad)")
     ax_a.set_xlabel("time (s)")
     ax_a.legend(loc="best", fontsize=8)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return Path(path)
+    return fig

@@ -344,6 +344,15 @@ def print_tables(rows, trend) -> None:
 
 
 def plot_trend(trend, path: str) -> None:
+    import matplotlib.pyplot as plt
+
+    fig = trend_figure(trend)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def trend_figure(trend):
+    """The foot-mass trend (rows of `compliance_trend`) as a two-panel figure."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -365,6 +374,7 @@ def plot_trend(trend, path: str) -> None:
         ax.axhline(rigid["stick"][key], color=style, ls=":", lw=1)
     ax.axhline(rigid["none"]["saltation_gap"], color="C2", ls=":", lw=1)
     ax.set_xlabel("foot mass (g)")
+    ax.set_ylabel("relative size (dimensionless)")
     ax.set_title("at touchdown (dotted: rigid feet)")
     ax.legend(fontsize=8)
     ax = axes[1]
@@ -372,11 +382,11 @@ def plot_trend(trend, path: str) -> None:
         ax.loglog(masses, series("stick", "later_base_saltation_gap", k), "o-", label=f"k = {k:g} N/m")
     ax.axhline(rigid["stick"]["later_base_saltation_gap"], color="k", ls=":", lw=1, label="rigid feet")
     ax.set_xlabel("foot mass (g)")
+    ax.set_ylabel("relative derivative gap (dimensionless)")
     ax.set_title(f"base-state derivative gap {HORIZON * 1e3:g} ms later (sticking feet)")
     ax.legend(fontsize=8)
     fig.suptitle(f"{TREND_ROBOT} with compliant feet, armature {TREND_ARMATURE:g} kg m²")
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    return fig
 
 
 def main(argv=None) -> int:

@@ -111,3 +111,14 @@ def test_state_sources(script):
     assert states[0].t == 0.0 and states[0].partner_gap == 0.0 and states[0].mode == ()
     with pytest.raises(InvalidInputError, match="standing"):
         script.touchdown_states("solo12", "gallop")
+
+
+def test_trend_figure_labels_both_axes_of_both_panels(script):
+    """Synthetic rows (one value per key and size): the figure is about its axes."""
+    pytest.importorskip("matplotlib")
+    rows = [{"friction": f, "foot_mass": m, "stiffness": k, "pair_coupling": 1e-2, "saltation_gap": 1e-3,
+             "later_base_saltation_gap": 1e-4}
+            for f in ("stick", "none") for m in (*script.TREND_FOOT_MASSES, None)
+            for k in (script.TREND_STIFFNESSES if m is not None else (None,))]
+    fig = script.trend_figure(rows)
+    assert all(ax.get_xlabel() and ax.get_ylabel() for ax in fig.axes)

@@ -280,6 +280,18 @@ def test_anymal_trots(anymal_trot):
     check_trot(*anymal_trot)
 
 
+def test_gait_figure_says_what_its_ticks_mean(solo12_trot):
+    """The timeline's red and green ticks (touchdowns, lift-offs) have a legend."""
+    pytest.importorskip("matplotlib")
+    from contactdiff.plotting import gait_figure
+
+    scene, traj = solo12_trot
+    fig = gait_figure(traj, scene, n_samples=50)
+    timeline = fig.axes[0]
+    assert [t.get_text() for t in timeline.get_legend().get_texts()] == ["touchdown", "lift-off"]
+    assert all(ax.get_ylabel() for ax in fig.axes[1:])
+
+
 def test_trot_cli_plot_and_json(tmp_path, capsys):
     import json
 
