@@ -239,7 +239,20 @@ def check_trot(scene, traj):
     assert np.abs(np.linalg.norm(qs[:, 3:7], axis=1) - 1.0).max() < 1e-12
     assert np.abs(np.linalg.norm(traj.q[3:7]) - 1.0) < 1e-12
     gaps = np.array([scene.gaps(q) for q in qs])
-    assert gaps.min() > -1e-9  # m: no foot sinks (integration error only)
+    # m: no foot sinks. A closed foot is held at the acceleration level and projected back
+    # once its drift exceeds project_tol (= atol = 1e-10 m); an open one touches down
+    # where its gap crosses zero on the dense output. 1e-9 m leaves 10 x project_tol for
+    # the dense output between step ends; a foot let under the ground by the sinking
+    # rule's band (10 (atol + rtol |q|_inf), 1e-7 m here) is far outside it
+    assert gaps.min() > -1e-9
+    # and at every landing, not only at sampled times: the gap just before the impact is
+    # the located zero of the guard (Brent to 4 eps max(1, t) in time at a normal speed
+    # below 1 m/s: 3e-15 m), above gap_tol = -1e-12 m (the integrator's "closed")
+    for e in traj.events:
+        if e.impulses:
+            q_before, _ = traj.at(e.t, side="left")
+            g = scene.gaps(q_before)
+            assert min(g[names.index(c)] for c in e.contacts) > -1e-12, (e.t, e.kind, e.contacts)
 
     # a foot that slips (its release would let it sink) slides until its own lift-off,
     # and a lifted foot does not come straight back (the chatter of a released sticking
