@@ -426,8 +426,8 @@ def load_source(source: str | Path, floating_base: bool | None = None,
         given = [k for k, v in (("floating_base", floating_base), ("feet", feet)) if v is not None]
         if given:
             raise InvalidInputError(
-                f"{' and '.join(given)} apply to a robot; scene {str(source)!r} sets its robot's base "
-                "and its contacts in its file")
+                f"{' and '.join(given)} {'apply' if len(given) > 1 else 'applies'} to a robot; scene "
+                f"{str(source)!r} sets its robot's base and its contacts in its file")
         return load_scene(source)
     try:
         robot = load_robot(source, floating_base, feet)

@@ -107,7 +107,7 @@ def test_feet_given_by_hand_and_a_wrong_name_lists_the_frames(tmp_path, capsys):
     assert main(["check", "solo12", "--feet", "FL_FOOT,nope"]) == 2
     assert "unknown foot frame 'nope'" in capsys.readouterr().err
     assert main(["check", "ball", "--feet", "ball"]) == 2  # a scene file sets its own contacts
-    assert "apply to a robot" in capsys.readouterr().err
+    assert "feet applies to a robot" in capsys.readouterr().err
 
 
 # -- example-robot-data models ---------------------------------------------------------
