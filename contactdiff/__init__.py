@@ -12,19 +12,19 @@ Public names (stable):
     stride_map, find_periodic_gait gait stability: stride map, periodic gait, Floquet multipliers
 """
 
-from .checks import DecouplingReport, check_decoupling
-from .contacts import Contact
-from .dynamics import ModeDynamics
-from .efforts import JointSpring, Spring, UserEffort
+from .analysis.decoupling import DecouplingReport, check_decoupling
+from .model.contacts import Contact
+from .dynamics.mode import ModeDynamics
+from .model.efforts import JointSpring, Spring, UserEffort
 from .errors import (ContactDiffError, InconsistentStateError, IntegrationError,
                      InvalidInputError, ModelLoadError, SolverError, StoppedRunError,
                      TooManyStepsError, UnknownNameError, UnknownRobotError)
-from .integrator import GrazingError, TooManyEventsError, simulate
-from .models import trot_touchdown
-from .robot import QUADRUPEDS, Robot, load_robot
-from .scene import Scene, load_scene, load_source
-from .stride import StrideError, find_periodic_gait, stride_map
-from .trajectory import Event, Segment, Trajectory
+from .integration.hybrid import GrazingError, TooManyEventsError, simulate
+from .paper import trot_touchdown
+from .model.robot import QUADRUPEDS, Robot, load_robot
+from .model.scene import Scene, load_scene, load_source
+from .analysis.gait.stride import StrideError, find_periodic_gait, stride_map
+from .integration.trajectory import Event, Segment, Trajectory
 
 __version__ = "0.1.0"
 

@@ -102,8 +102,8 @@ def build_parser() -> argparse.ArgumentParser:
     check.add_argument("--json", action="store_true", help="print the report as JSON")
     check.set_defaults(run=_run_check)
 
-    from .integrator import ATOL_MAX, MAX_STEPS, RTOL_MAX, RTOL_MIN
-    from .steppers import METHODS
+    from .integration.hybrid import ATOL_MAX, MAX_STEPS, RTOL_MAX, RTOL_MIN
+    from .integration.steppers import METHODS
 
     sim = sub.add_parser(
         "simulate", help="event-driven simulation: events, final state",
@@ -190,7 +190,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _run_stride(args) -> int:
-    from .stride import find_periodic_gait
+    from .analysis.gait.stride import find_periodic_gait
 
     scene = _scene_from_args(args)
     neutral = args.neutral
@@ -206,7 +206,7 @@ def _run_stride(args) -> int:
 
 
 def _run_bench(args) -> int:
-    from .bench import run_bench
+    from .bench.runner import run_bench
 
     if args.plot:
         _check_plot_path(args.plot)
@@ -241,7 +241,7 @@ def _check_plot_path(path: str) -> None:
 def _scene_from_args(args):
     """The scene of ``args.source`` (with ``--feet``, ``--floating-base``) with the
     initial state changed by ``--q`` / ``--v``."""
-    from .scene import load_source
+    from .model.scene import load_source
 
     scene = load_source(args.source, floating_base=args.floating_base, feet=args.feet)
     q0, v0 = _assignments(getattr(args, "q", []), "--q"), _assignments(getattr(args, "v", []), "--v")
@@ -265,7 +265,7 @@ def _assignments(items: list[str], flag: str) -> dict:
 
 
 def _run_simulate(args) -> int:
-    from .integrator import simulate
+    from .integration.hybrid import simulate
 
     if args.plot:
         _check_plot_path(args.plot)
@@ -380,7 +380,7 @@ def _format_jacobian(traj, scene) -> list[str]:
 
 
 def _run_check(args) -> int:
-    from .checks import check_decoupling
+    from .analysis.decoupling import check_decoupling
 
     scene = _scene_from_args(args)
     options = dict(samples=args.samples, seed=args.seed, tol=args.tol)

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import ContactDiffError
-from .trajectory import Trajectory
+from .integration.trajectory import Trajectory
 
 
 def _pyplot():

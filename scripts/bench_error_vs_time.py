@@ -2,7 +2,7 @@
 
     python scripts/bench_error_vs_time.py [--repeats N] [--json out.json]
 
-Runs `contactdiff.bench.run_bench` on every scene, writes
+Runs `contactdiff.bench.runner.run_bench` on every scene, writes
 docs/bench_error_vs_time.png and prints the tables (ratios measured in this run).
 """
 
@@ -12,7 +12,7 @@ import argparse
 import json
 from pathlib import Path
 
-from contactdiff.bench import run_bench
+from contactdiff.bench.runner import run_bench
 
 ROOT = Path(__file__).resolve().parents[1]
 

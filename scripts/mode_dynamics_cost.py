@@ -16,8 +16,8 @@ import timeit
 import numpy as np
 import pinocchio as pin
 
-from contactdiff.dynamics import ModeDynamics
-from contactdiff.scene import load_scene
+from contactdiff.dynamics.mode import ModeDynamics
+from contactdiff.model.scene import load_scene
 
 
 def _us(fn, number: int = 300) -> float:

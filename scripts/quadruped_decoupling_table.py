@@ -1,7 +1,7 @@
 """How decoupled is a real robot: the checker and the order gap at a trot's diagonal touchdowns.
 
 For each example-robot-data quadruped, at the diagonal touchdowns of its
-simulated trot (`contactdiff.trot.trot_scene`; sticking, plastic feet; the
+simulated trot (`contactdiff.control.trot_scenes.trot_scene`; sticking, plastic feet; the
 state source is `touchdown_states`, the selection `trot_touchdowns`), with and
 without reflected rotor inertia (armature, kg m² on every actuated joint,
 swept over the values in ARMATURES):
@@ -10,7 +10,7 @@ swept over the values in ARMATURES):
   |G_ij| / sqrt(G_ii G_jj), the largest over all six foot pairs, and the
   limb-assumption terms (worst mass-matrix term; the gap term is 1 on every
   floating-base robot, since a foot's height moves with the base);
-* the order gap (`contactdiff.order_gap`, at the event's time, with the other
+* the order gap (`contactdiff.analysis.order_gap`, at the event's time, with the other
   pair's stance feet active): how different the post-impact velocity
   (kinetic-energy norm, relative to the impact's velocity jump) and the
   saltation matrix (relative max norm) are when one foot of the pair lands
@@ -18,10 +18,10 @@ swept over the values in ARMATURES):
 
 Each number is the largest over the robot's touchdown states; the table gives
 how many there are. ``--states standing`` measures instead one trot-like
-touchdown built from the standing pose (`contactdiff.order_gap.diagonal_touchdown`:
+touchdown built from the standing pose (`contactdiff.analysis.order_gap.diagonal_touchdown`:
 no efforts, the other pair in the air).
 
-Then the compliant-feet trend on solo12 (`contactdiff.compliance`), at the
+Then the compliant-feet trend on solo12 (`contactdiff.model.compliance`), at the
 standing-pose touchdown whatever ``--states`` says (compliant feet change the
 robot, so the trot would need its own simulation): each foot on a spring along
 the shank carrying a foot mass taken from the lower leg, over a stiffness ×
@@ -47,8 +47,8 @@ from typing import NamedTuple
 import numpy as np
 
 import contactdiff as cd
-from contactdiff.compliance import add_compliant_feet, compliant_state
-from contactdiff.order_gap import diagonal_pairs, diagonal_touchdown, order_gap
+from contactdiff.model.compliance import add_compliant_feet, compliant_state
+from contactdiff.analysis.order_gap import diagonal_pairs, diagonal_touchdown, order_gap
 
 # Reflected rotor inertia I_rotor · N² (kg m²) at each actuated joint: (low, high) bracket per robot.
 ARMATURES = {
@@ -78,7 +78,7 @@ SIM = dict(rtol=1e-8, atol=1e-10)
 
 # -- the state source ------------------------------------------------------------------
 STATE_SOURCES = ("trot", "standing")
-# Simulated strides of the trot, from rest (`contactdiff.trot`); the first touchdown of the
+# Simulated strides of the trot, from rest (`contactdiff.control.trot_scenes`); the first touchdown of the
 # run (about 60 ms in) counts like any other.
 TROT_STRIDES = 2
 # m: a pair counts as landing together if the partner foot is at most this far above the
@@ -114,21 +114,21 @@ def touchdown_states(name: str, source: str = "trot"):
     """Scene, diagonal touchdown states (`TouchdownState`) and a label, for robot ``name``.
 
     ``source="trot"`` (default): the diagonal touchdown events of the simulated
-    trot of `contactdiff.trot` (see `trot_touchdowns`), falling back to the
+    trot of `contactdiff.control.trot_scenes` (see `trot_touchdowns`), falling back to the
     standing pose (with a note on stderr) when the module is missing, its
     simulation fails or it has no clean diagonal touchdown. ``source="standing"``:
     a trot-like touchdown built from the standing pose
-    (`contactdiff.order_gap.diagonal_touchdown`), on `Scene.from_robot` (no efforts).
+    (`contactdiff.analysis.order_gap.diagonal_touchdown`), on `Scene.from_robot` (no efforts).
     """
     if source not in STATE_SOURCES:
         raise cd.InvalidInputError(f"unknown state source {source!r}; valid: {', '.join(STATE_SOURCES)}")
-    if source == "trot" and importlib.util.find_spec("contactdiff.trot") is None:
-        print(f"note: {name}: contactdiff.trot is missing; standing-pose touchdown instead", file=sys.stderr)
+    if source == "trot" and importlib.util.find_spec("contactdiff.control.trot_scenes") is None:
+        print(f"note: {name}: contactdiff.control.trot_scenes is missing; standing-pose touchdown instead", file=sys.stderr)
     elif source == "trot":
         try:
             scene, states = trot_touchdowns(name)
             if states:
-                return scene, states, "trot touchdowns (contactdiff.trot)"
+                return scene, states, "trot touchdowns (contactdiff.control.trot_scenes)"
             reason = "no diagonal touchdown in the simulated strides"
         except (cd.ContactDiffError, ValueError, np.linalg.LinAlgError) as exc:
             reason = f"{type(exc).__name__}: {exc}"
@@ -163,7 +163,7 @@ def trot_touchdowns(name: str, strides: float = TROT_STRIDES):
     Returns:
         ``(scene, [TouchdownState, ...])`` in time order.
     """
-    from contactdiff.trot import trot_parameters, trot_scene
+    from contactdiff.control.trot_scenes import trot_parameters, trot_scene
 
     scene = trot_scene(name)
     traj = cd.simulate(scene, strides * trot_parameters(name)["period"])

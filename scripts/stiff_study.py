@@ -1,6 +1,6 @@
 """Cost against leg stiffness for Radau, DOP853 and method="auto" (docs/stiff_cost.png).
 
-planar_trot_soft with both leg springs scaled by 1 ... 1e7 (contactdiff.studies.stiffness_sweep),
+planar_trot_soft with both leg springs scaled by 1 ... 1e7 (contactdiff.bench.extreme_cases.stiffness_sweep),
 run to t = 1.2 (touchdown at t = 1) at rtol 1e-8, atol 1e-10:
 
 * legs with damping ratio 1: the fast motion decays, the problem is stiff;
@@ -24,8 +24,8 @@ import math
 import sys
 from pathlib import Path
 
-from contactdiff import studies
-from contactdiff.footprint import measure_footprint
+from contactdiff.bench import extreme_cases as studies
+from contactdiff.bench.footprint import measure_footprint
 
 FIGURE = Path(__file__).resolve().parent.parent / "docs" / "stiff_cost.png"
 SCALES = (1, 10, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7)

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 import contactdiff as cd
-from contactdiff.baselines import solve_ivp_baseline, time_stepping_baseline
-from contactdiff.bench import ball_closed_form, run_bench, state_error, time_at_error
+from contactdiff.bench.baselines import solve_ivp_baseline, time_stepping_baseline
+from contactdiff.bench.runner import ball_closed_form, run_bench, state_error, time_at_error
 from contactdiff.cli import main
 from contactdiff.errors import InvalidInputError
 

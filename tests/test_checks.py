@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import contactdiff as cd
-from contactdiff.checks import COUPLED, DECOUPLED, ORTHOGONAL_ONLY
+from contactdiff.analysis.decoupling import COUPLED, DECOUPLED, ORTHOGONAL_ONLY
 
 
 @pytest.mark.parametrize("name", ["planar_trot_soft", "two_limb"])

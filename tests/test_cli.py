@@ -76,13 +76,13 @@ def test_a_directory_as_source_is_named(capsys, tmp_path):
 @pytest.mark.parametrize("command", [["simulate", "ball", "--t-final", "0.1"], ["bench", "--quick", "--scenes", "ball"]])
 def test_plot_target_is_checked_before_any_work(command, capsys, tmp_path, monkeypatch):
     pytest.importorskip("matplotlib")
-    import contactdiff.bench
-    import contactdiff.integrator
+    import contactdiff.bench.runner
+    import contactdiff.integration.hybrid
 
     def never(*args, **kwargs):
         raise AssertionError("the run started before the plot file was checked")
-    monkeypatch.setattr(contactdiff.integrator, "simulate", never)
-    monkeypatch.setattr(contactdiff.bench, "run_bench", never)
+    monkeypatch.setattr(contactdiff.integration.hybrid, "simulate", never)
+    monkeypatch.setattr(contactdiff.bench.runner, "run_bench", never)
     assert main(command + ["--plot", str(tmp_path / "missing" / "x.png")]) == 2
     assert "folder" in capsys.readouterr().err
     assert main(command + ["--plot", str(tmp_path / "x.docx")]) == 2

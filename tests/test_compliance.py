@@ -1,4 +1,4 @@
-"""Compliant feet (`contactdiff.compliance`): the transform and how decoupling moves with it.
+"""Compliant feet (`contactdiff.model.compliance`): the transform and how decoupling moves with it.
 
 Reference values:
 
@@ -20,9 +20,9 @@ import pinocchio as pin
 import pytest
 
 import contactdiff as cd
-from contactdiff.compliance import SPRING_SUFFIX, add_compliant_feet, compliant_state
+from contactdiff.model.compliance import SPRING_SUFFIX, add_compliant_feet, compliant_state
 from contactdiff.errors import InvalidInputError, UnknownNameError
-from contactdiff.order_gap import diagonal_touchdown, order_gap
+from contactdiff.analysis.order_gap import diagonal_touchdown, order_gap
 
 try:
     from helpers import assert_fd, fd_dq, fd_dv, random_state

@@ -30,7 +30,7 @@ import pytest
 
 import contactdiff as cd
 from contactdiff.errors import InvalidInputError
-from contactdiff.order_gap import diagonal_pairs, order_gap
+from contactdiff.analysis.order_gap import diagonal_pairs, order_gap
 
 SCRIPT = Path(__file__).resolve().parent.parent / "scripts" / "quadruped_decoupling_table.py"
 
@@ -45,7 +45,7 @@ def script():
 
 @pytest.fixture(scope="module")
 def solo12_trot(script):
-    from contactdiff.trot import trot_parameters
+    from contactdiff.control.trot_scenes import trot_parameters
 
     strides = 0.5
     scene, states = script.trot_touchdowns("solo12", strides=strides)

@@ -13,12 +13,12 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from contactdiff.contacts import Contact
-from contactdiff.dynamics import ModeDynamics
-from contactdiff.efforts import JointSpring, Spring, UserEffort
-from contactdiff.kinematics import Kinematics
-from contactdiff.robot import load_robot
-from contactdiff.scene import Scene, load_source
+from contactdiff.model.contacts import Contact
+from contactdiff.dynamics.mode import ModeDynamics
+from contactdiff.model.efforts import JointSpring, Spring, UserEffort
+from contactdiff.model.kinematics import Kinematics
+from contactdiff.model.robot import load_robot
+from contactdiff.model.scene import Scene, load_source
 
 try:
     from helpers import EPS, assert_fd, fd_dq, fd_dv, random_state, second_derivative_along

@@ -14,12 +14,12 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from contactdiff.contacts import Contact
-from contactdiff.dynamics import ModeDynamics
-from contactdiff.efforts import JointSpring, Spring
-from contactdiff.kinematics import Kinematics
-from contactdiff.robot import Robot, load_robot
-from contactdiff.scene import Scene, load_source
+from contactdiff.model.contacts import Contact
+from contactdiff.dynamics.mode import ModeDynamics
+from contactdiff.model.efforts import JointSpring, Spring
+from contactdiff.model.kinematics import Kinematics
+from contactdiff.model.robot import Robot, load_robot
+from contactdiff.model.scene import Scene, load_source
 
 try:
     from helpers import random_state, second_derivative_along
@@ -481,7 +481,7 @@ def test_rigid_contact_path_matches_python_kkt(monkeypatch, mode, normal):
     row by row in Python must give the same accelerations and row forces (normal first,
     then the tangents of `tangent_basis`), and the same derivatives: the two share no code
     beyond Pinocchio's kinematics, so agreement checks the force rotation and signs."""
-    import contactdiff.dynamics as dynamics_module
+    import contactdiff.dynamics.mode as dynamics_module
 
     robot = load_robot("solo12")
     contacts = [Contact(f, normal=normal, offset=-1.0, friction="stick") for f in robot.feet]  # never penetrating

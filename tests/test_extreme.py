@@ -2,7 +2,7 @@
 named error; never a silent wrong answer.
 
 Reference values come from closed forms derived in the docstrings (here or in
-`contactdiff.studies`), from physical laws (energy of an elastic ball, static
+`contactdiff.bench.extreme_cases`), from physical laws (energy of an elastic ball, static
 equilibrium) or from finite differences (a flow Jacobian against the outcome of
 a perturbed run). Zeno limits and most bad-input errors are in test_integrator.py
 and test_inputs.py; this file extends them where the issue asks more.
@@ -17,10 +17,11 @@ import pinocchio as pin
 import pytest
 
 import contactdiff as cd
-from contactdiff import studies
-from contactdiff.integrator import GrazingError, simulate
-from contactdiff.steppers import PinocchioGroup
-from contactdiff.stiffness import spectral_radius
+from contactdiff.model.robot import ROBOTS_DIR
+from contactdiff.bench import extreme_cases as studies
+from contactdiff.integration.hybrid import GrazingError, simulate
+from contactdiff.integration.steppers import PinocchioGroup
+from contactdiff.integration.method_choice import spectral_radius
 
 TIGHT = dict(rtol=1e-12, atol=1e-14)
 
@@ -383,7 +384,7 @@ def test_bad_simulate_numbers(option, value):
 ])
 def test_non_finite_toml_values(tmp_path, entry, where):
     """TOML's own nan and inf literals, in every numeric field of a scene file."""
-    (tmp_path / "b.urdf").write_text((cd.robot.ROBOTS_DIR / "ball.urdf").read_text())
+    (tmp_path / "b.urdf").write_text((ROBOTS_DIR / "ball.urdf").read_text())
     path = tmp_path / "s.toml"
     text = 'robot = "b.urdf"\n'
     text = (entry + text) if entry.startswith("gravity") else (text + entry)
@@ -396,7 +397,7 @@ def test_non_finite_toml_values(tmp_path, entry, where):
 def test_nan_inertia_in_urdf_is_refused(tmp_path):
     """ixx = "nan": the parser silently drops the whole rotational inertia (iyy = 7 is
     lost too), a wrong model; it must be refused."""
-    text = (cd.robot.ROBOTS_DIR / "two_limb.urdf").read_text()
+    text = (ROBOTS_DIR / "two_limb.urdf").read_text()
     text = text.replace('ixx="0" ixy="0"', 'ixx="nan" ixy="0"', 1).replace('iyy="0"', 'iyy="7"', 1)
     path = tmp_path / "bad.urdf"
     path.write_text(text)

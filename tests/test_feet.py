@@ -14,7 +14,7 @@ import pytest
 
 import contactdiff as cd
 from contactdiff.cli import main
-from contactdiff.feet import BAND_FRACTION, BAND_MIN, FootRule
+from contactdiff.model.feet import BAND_FRACTION, BAND_MIN, FootRule
 
 # A floating body with two legs and an arm, written so that every height is known:
 # the body at the origin, legs hanging straight down to feet at z = -LEG, the arm

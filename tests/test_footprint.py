@@ -9,7 +9,7 @@ import pinocchio as pin
 import pytest
 
 import contactdiff as cd
-from contactdiff import footprint
+from contactdiff.bench import footprint
 
 
 @pytest.mark.parametrize("name,t_final", [("planar_trot_soft", 1.8), ("solo12_drop", 0.3), ("ball", 3.0)])
@@ -90,7 +90,7 @@ def test_bench_studies_flag_puts_both_in_the_output(monkeypatch, capsys):
     their own tests in test_extreme.py)."""
     import json
 
-    from contactdiff import studies
+    from contactdiff.bench import extreme_cases as studies
     from contactdiff.cli import main
 
     row = studies.StudyRow("zeno", "ball", "e = 0.5", "auto", 1e-6, "limit time", 0.01, 3, 30, "ok", True)

@@ -24,8 +24,8 @@ import pinocchio as pin
 import pytest
 
 import contactdiff as cd
-from contactdiff.dynamics import ModeDynamics
-from contactdiff.impacts import resolve_impact
+from contactdiff.dynamics.mode import ModeDynamics
+from contactdiff.dynamics.impacts import resolve_impact
 
 try:
     from test_slip import LEG_URDF

@@ -1,4 +1,4 @@
-"""Impact law and mode choice (contactdiff.impacts) on real scenes, by property.
+"""Impact law and mode choice (contactdiff.dynamics.impacts) on real scenes, by property.
 
 States are random (hypothesis draws a seed; numpy builds the vectors): a random
 configuration whose chosen contacts are projected onto the ground (gap 0), and a
@@ -26,7 +26,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import contactdiff as cd
-from contactdiff.impacts import choose_mode, resolve_impact
+from contactdiff.dynamics.impacts import choose_mode, resolve_impact
 
 REL = 1e-8
 SETTINGS = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -347,7 +347,7 @@ def test_choose_mode_soft_trot_foot_pulled_up(pull, expected):
 def test_choose_mode_with_the_integrator():
     """The same release through simulate: a rigid trot standing on both feet with
     tau = 2 starts on the rear foot only and pivots front-up (pitch rate > 0)."""
-    from contactdiff.integrator import simulate
+    from contactdiff.integration.hybrid import simulate
     traj = simulate(_rigid_with_pitch_torque(2.0), 0.1, rtol=1e-12, atol=1e-14)
     assert traj.modes[0] == ("rear_foot",)
     assert traj.v[2] > 0

@@ -29,8 +29,8 @@ from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
 import contactdiff as cd
-from contactdiff.integrator import GrazingError, TooManyEventsError, simulate
-from contactdiff.steppers import METHODS
+from contactdiff.integration.hybrid import GrazingError, TooManyEventsError, simulate
+from contactdiff.integration.steppers import METHODS
 
 TIGHT = dict(rtol=1e-12, atol=1e-14)
 SQ2 = math.sqrt(2.0)

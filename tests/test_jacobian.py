@@ -42,9 +42,9 @@ from scipy.spatial.transform import Rotation
 
 import contactdiff as cd
 from contactdiff.cli import main as cli_main
-from contactdiff.dynamics import ModeDynamics
-from contactdiff.integrator import simulate
-from contactdiff.sensitivity import liftoff_saltation, saltation_matrices
+from contactdiff.dynamics.mode import ModeDynamics
+from contactdiff.integration.hybrid import simulate
+from contactdiff.integration.sensitivity import liftoff_saltation, saltation_matrices
 
 try:
     from helpers import assert_fd

@@ -1,4 +1,4 @@
-"""Tests of contactdiff.lcp: the contact complementarity problem.
+"""Tests of contactdiff.dynamics.complementarity: the contact complementarity problem.
 
 Reference values are derived by hand in comments; the property tests check
 the conditions and the physics (energy, signs) directly, never the solver's
@@ -13,7 +13,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from contactdiff.errors import InvalidInputError, SolverError
-from contactdiff.lcp import ContactRows, LCPSolution, impact_rhs, solve_contact_lcp
+from contactdiff.dynamics.complementarity import ContactRows, LCPSolution, impact_rhs, solve_contact_lcp
 
 METHODS = ("auto", "enumerate", "pivot", "nnls")
 PROPS = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])

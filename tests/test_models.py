@@ -17,10 +17,10 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from contactdiff.contacts import Contact
-from contactdiff.kinematics import Kinematics
-from contactdiff.robot import QUADRUPEDS, load_robot
-from contactdiff.scene import Scene, load_scene, load_source
+from contactdiff.model.contacts import Contact
+from contactdiff.model.kinematics import Kinematics
+from contactdiff.model.robot import QUADRUPEDS, load_robot
+from contactdiff.model.scene import Scene, load_scene, load_source
 
 PITCHES = (0.0, 0.3, -0.7, 1.2)
 

@@ -27,7 +27,7 @@ import pytest
 
 import contactdiff as cd
 from contactdiff.errors import InvalidInputError, UnknownNameError
-from contactdiff.order_gap import GAP_TOL, diagonal_pairs, diagonal_touchdown, order_gap
+from contactdiff.analysis.order_gap import GAP_TOL, diagonal_pairs, diagonal_touchdown, order_gap
 
 try:
     from helpers import assert_fd

@@ -16,10 +16,10 @@ import numpy as np
 import pytest
 
 import contactdiff as cd
-from contactdiff.dynamics import ModeDynamics
-from contactdiff.impacts import resolve_impact
-from contactdiff.sensitivity import impact_reset_jacobian
-from contactdiff.trot import trot_scene
+from contactdiff.dynamics.mode import ModeDynamics
+from contactdiff.dynamics.impacts import resolve_impact
+from contactdiff.integration.sensitivity import impact_reset_jacobian
+from contactdiff.control.trot_scenes import trot_scene
 
 try:
     from helpers import assert_fd, fd_dq, fd_dv

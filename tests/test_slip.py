@@ -21,8 +21,8 @@ import pinocchio as pin
 import pytest
 
 import contactdiff as cd
-from contactdiff.dynamics import ModeDynamics
-from contactdiff.sensitivity import force_time_rate
+from contactdiff.dynamics.mode import ModeDynamics
+from contactdiff.integration.sensitivity import force_time_rate
 
 try:
     from helpers import assert_fd
@@ -223,6 +223,6 @@ def test_mode_choice_slides_where_sticking_has_no_solution(leg_run):
     model, data = scene.model, scene.model.createData()
     J, drift = _foot_normal_row(model, data, q, v, model.getFrameId("foot"))
     assert J @ pin.aba(model, data, q, v, _lift(q, v, t)) + drift < 0.0  # free sinks
-    from contactdiff.impacts import choose_mode
+    from contactdiff.dynamics.impacts import choose_mode
     assert choose_mode(dyn, q, v, t, [0]) == (dyn.sliding_key(0),)
     assert dyn.solve(q, v, t, (dyn.sliding_key(0),)).forces.shape == (1,)

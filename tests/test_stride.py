@@ -56,7 +56,7 @@ from scipy.optimize import brentq
 
 import contactdiff as cd
 from contactdiff.cli import main as cli_main
-from contactdiff.stride import (StrideError, available_neutral, find_periodic_gait, first_touchdown,
+from contactdiff.analysis.gait.stride import (StrideError, available_neutral, find_periodic_gait, first_touchdown,
                                 floquet_multipliers, neutral_directions, onto_section, period_map,
                                 section_basis, stride_map)
 

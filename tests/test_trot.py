@@ -15,9 +15,9 @@ from helpers import assert_fd, fd_dq, fd_dv
 
 import contactdiff as cd
 from contactdiff.errors import InvalidInputError, UnknownNameError
-from contactdiff.gait_controller import PAIR_A, PAIR_B, TrotController, find_legs
-from contactdiff.kinematics import Kinematics
-from contactdiff.trot import TROT_PARAMETERS, stance_intervals, trot_scene
+from contactdiff.control.trot_controller import PAIR_A, PAIR_B, TrotController, find_legs
+from contactdiff.model.kinematics import Kinematics
+from contactdiff.control.trot_scenes import TROT_PARAMETERS, stance_intervals, trot_scene
 
 T_FINAL = 3.0  # s: several strides (7.5 periods of solo12, 6 of anymal)
 

@@ -47,7 +47,7 @@ import numpy as np
 import pinocchio as pin
 
 from .efforts import JointSpring, Spring, UserEffort
-from .errors import InvalidInputError, check_number, unknown_name
+from ..errors import InvalidInputError, check_number, unknown_name
 from .robot import Robot
 from .scene import Scene
 

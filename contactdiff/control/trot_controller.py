@@ -1,7 +1,7 @@
 """A clock-driven trot controller for quadrupeds: PD torques tracking a periodic
 joint-space reference, with a scheduled feed-forward load.
 
-`TrotController` is an effort spec like those of `contactdiff.efforts`
+`TrotController` is an effort spec like those of `contactdiff.model.efforts`
 (``bind(robot)`` returns an evaluator with ``tau(kin, t)`` and
 ``derivatives(kin, t)``). On every joint of a leg it applies
 
@@ -102,10 +102,10 @@ import numpy as np
 import pinocchio as pin
 from scipy.interpolate import CubicSpline
 
-from .efforts import central_time_difference
-from .errors import InvalidInputError, check_number
-from .kinematics import Kinematics
-from .robot import Robot
+from ..model.efforts import central_time_difference
+from ..errors import InvalidInputError, check_number
+from ..model.kinematics import Kinematics
+from ..model.robot import Robot
 
 PAIR_A, PAIR_B = "A", "B"
 """Diagonal pairs: A = front-left + hind-right (mid-stance at phase 0), B = front-right + hind-left."""

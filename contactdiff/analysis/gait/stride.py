@@ -29,7 +29,7 @@ eigenvalues of ``P`` restricted to the section, ``Bᵀ P B`` with ``B`` an
 orthonormal basis of ``ker Dh0`` (section coordinates).
 
 **Clock-driven scenes.** A controller on a clock of period ``T`` (an effort
-with a ``period`` attribute, e.g. `contactdiff.gait_controller.TrotController`)
+with a ``period`` attribute, e.g. `contactdiff.control.trot_controller.TrotController`)
 makes the scene T-periodic in time, not autonomous: the state of the map is
 then ``(x, τ)`` with the phase ``τ = t mod T`` (s). Starting later by ``dt0``
 from the same state shifts the whole run: ``∂x(t)/∂t0 = -Φ_flow F0+`` at fixed
@@ -76,7 +76,7 @@ for ``min_flight`` (default 5 % of the clock period of a clock-driven scene,
 20 ms for a 0.4-s trot against cascade flights of microseconds) and at least
 ``min_stride`` after the start (default half the clock period).
 
-`contactdiff.integrator` has no public hook to stop at an event, so the stride
+`contactdiff.integration.hybrid` has no public hook to stop at an event, so the stride
 is run by a subclass of its hybrid loop that stops after the foot's touchdown
 and keeps the flow Jacobian just before it.
 """
@@ -92,13 +92,13 @@ from dataclasses import dataclass, field
 import numpy as np
 import pinocchio as pin
 
-from .dynamics import ModeDynamics
-from .errors import InconsistentStateError, IntegrationError, InvalidInputError, check_number
-from .impacts import choose_mode
-from .integrator import _HybridRun, simulate
-from .scene import Scene
-from .sensitivity import gap_gradient, saltation, touchdown, vector_field
-from .trajectory import Trajectory
+from ...dynamics.mode import ModeDynamics
+from ...errors import InconsistentStateError, IntegrationError, InvalidInputError, check_number
+from ...dynamics.impacts import choose_mode
+from ...integration.hybrid import _HybridRun, simulate
+from ...model.scene import Scene
+from ...integration.sensitivity import gap_gradient, saltation, touchdown, vector_field
+from ...integration.trajectory import Trajectory
 
 NEUTRAL_NAMES = ("x", "y", "yaw")
 """Neutral moves: world translations along x and y, rotation about the vertical (free-flyer)."""

@@ -35,13 +35,13 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 import pinocchio as pin
 
-from .bench import state_error as bench_state_error
-from .contacts import Contact
-from .efforts import JointSpring, Spring
-from .errors import ContactDiffError
-from .integrator import simulate
-from .models import trot_touchdown
-from .scene import Scene, load_scene
+from .runner import state_error as bench_state_error
+from ..model.contacts import Contact
+from ..model.efforts import JointSpring, Spring
+from ..errors import ContactDiffError
+from ..integration.hybrid import simulate
+from ..paper import trot_touchdown
+from ..model.scene import Scene, load_scene
 
 SQ2 = math.sqrt(2.0)
 DEFAULT_TOL = dict(rtol=1e-8, atol=1e-10)

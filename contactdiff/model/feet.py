@@ -39,7 +39,7 @@ from enum import Enum
 import numpy as np
 import pinocchio as pin
 
-from .errors import unknown_name
+from ..errors import unknown_name
 
 TIE_HEIGHT = 1e-3
 """m: frames of one end this close in height count as equally low (names decide)."""

@@ -46,11 +46,11 @@ from dataclasses import dataclass, field
 import numpy as np
 import pinocchio as pin
 
-from .dynamics import ModeDynamics
-from .errors import InvalidInputError, check_number
-from .impacts import resolve_impact
-from .scene import Scene
-from .sensitivity import ORDER_TOL, simultaneous_saltation, touchdown
+from ..dynamics.mode import ModeDynamics
+from ..errors import InvalidInputError, check_number
+from ..dynamics.impacts import resolve_impact
+from ..model.scene import Scene
+from ..integration.sensitivity import ORDER_TOL, simultaneous_saltation, touchdown
 
 GAP_TOL = 1e-9
 """Largest |gap| (m) at which a contact counts as closed for an order gap."""
@@ -272,7 +272,7 @@ def _carry_forward(scene: Scene, result: OrderGap, horizon: float, jacobian: boo
                    m_norm, scale) -> None:
     """Simulate each outcome ``horizon`` seconds from the event (the simulator picks
     the mode from the closed contacts and the post-impact velocity)."""
-    from .integrator import simulate  # the integrator imports much; only needed here
+    from ..integration.hybrid import simulate  # the integrator imports much; only needed here
 
     options = {"rtol": 1e-10, "atol": 1e-12, **options}
     starts = dict(result.v_after)
@@ -389,6 +389,6 @@ def diagonal_touchdown(scene: Scene, *, down_speed: float = 0.2, forward_speed: 
 
 
 def _key_name(names, key: int) -> str:
-    """Name of a contact key (`contactdiff.dynamics`): a sliding contact is marked."""
+    """Name of a contact key (`contactdiff.dynamics.mode`): a sliding contact is marked."""
     n = len(names)
     return names[key] if key < n else f"{names[key - n]} (sliding)"

@@ -27,9 +27,9 @@ from dataclasses import dataclass, field
 import numpy as np
 import pinocchio as pin
 
-from .dynamics import ModeDynamics
-from .impacts import ImpactResult, choose_mode, resolve_impact
-from .scene import Scene
+from ..dynamics.mode import ModeDynamics
+from ..dynamics.impacts import ImpactResult, choose_mode, resolve_impact
+from ..model.scene import Scene
 
 ORDER_TOL = 1e-8
 """Relative agreement (max-norm) below which the saltation matrices of all orders

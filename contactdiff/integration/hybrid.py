@@ -2,8 +2,8 @@
 
 `simulate` integrates a `Scene` event by event:
 
-1. In mode ``J`` the stepper (`contactdiff.steppers`) integrates the KKT flow of
-   `contactdiff.dynamics`.
+1. In mode ``J`` the stepper (`contactdiff.integration.steppers`) integrates the KKT flow of
+   `contactdiff.dynamics.mode`.
 2. After every accepted step each guard of the mode is checked over the step:
    the gap of every inactive contact (downward through 0, including a dip
    below 0 and back within the step, found from the cubic Hermite interpolant
@@ -12,7 +12,7 @@
 3. The earliest crossing is located on the dense output with Brent's method to
    full precision in time; guards crossing within ``simultaneous_tol`` of it
    form one simultaneous event. The stepper is cut at that time.
-4. Touchdowns apply the impact law (`contactdiff.impacts`) to every closed
+4. Touchdowns apply the impact law (`contactdiff.dynamics.impacts`) to every closed
    contact; the next mode follows from the force-level complementarity.
    Lift-offs change the mode without a jump. A sticking contact whose normal
    force vanishes while its release would let it sink (the tangential force it
@@ -24,7 +24,7 @@
 
 With ``method="auto"`` the stepper is DOP853 while its steps are limited by
 accuracy and Radau IIA while they would be limited by stability
-(`contactdiff.stiffness`); a switch restarts the stepper at the current point
+(`contactdiff.integration.method_choice`); a switch restarts the stepper at the current point
 (no jump; the flow Jacobian carries over).
 
 Admissibility: a penetrating initial state is an error; closed contacts at the
@@ -47,15 +47,15 @@ import numpy as np
 import pinocchio as pin
 from scipy.optimize import minimize_scalar
 
-from .dynamics import ModeDynamics
-from .errors import IntegrationError, InvalidInputError, StoppedRunError, TooManyStepsError, check_number
+from ..dynamics.mode import ModeDynamics
+from ..errors import IntegrationError, InvalidInputError, StoppedRunError, TooManyStepsError, check_number
 from .events import hermite_minimum, locate_crossing, simultaneous_group
-from .impacts import choose_mode, liftoff_mode, resolve_impact
-from .scene import Scene, passive_note
+from ..dynamics.impacts import choose_mode, liftoff_mode, resolve_impact
+from ..model.scene import Scene, passive_note
 from .sensitivity import (gap_gradient, impact_reset_jacobian, liftoff_guard, liftoff_saltation, saltation,
                           simultaneous_saltation, vector_field)
 from .steppers import METHODS, PinocchioGroup, make_stepper
-from .stiffness import EXPLICIT, MethodChooser, spectral_radius
+from .method_choice import EXPLICIT, MethodChooser, spectral_radius
 from .trajectory import Event, Segment, Trajectory
 
 
@@ -70,7 +70,7 @@ class TooManyEventsError(StoppedRunError):
 _GRAZING_MODES = ("event", "raise")
 AUTO = "auto"
 SIMULATE_METHODS = (AUTO,) + METHODS
-"""Valid ``method`` names of `simulate`: ``"auto"`` (`contactdiff.stiffness`) or a stepper."""
+"""Valid ``method`` names of `simulate`: ``"auto"`` (`contactdiff.integration.method_choice`) or a stepper."""
 MAX_STEPS = 200_000
 """Default step budget of `simulate` (accepted steps)."""
 RTOL_MIN = 100 * np.finfo(float).eps
@@ -88,7 +88,7 @@ _DIP_FRACTION = 0.5  # search a step for a dip when its Hermite minimum is below
 @dataclass
 class _Guard:
     kind: str  # "gap" (inactive contact) or "force" (active contact)
-    contact: int  # scene index for "gap", contact key (`contactdiff.dynamics`) for "force"
+    contact: int  # scene index for "gap", contact key (`contactdiff.dynamics.mode`) for "force"
 
 
 class _Below(Exception):
@@ -161,7 +161,7 @@ def simulate(scene: Scene, t_final: float, q0=None, v0=None, *, t0: float = 0.0,
             `RTOL_MAX`]; absolute in m, rad, m/s, in (0, `ATOL_MAX`]).
         method: ``"auto"`` (explicit DOP853, switching to Radau IIA while the explicit
             steps are limited by stability rather than accuracy, see
-            `contactdiff.stiffness`; the steps of each are in ``traj.stats``) or a
+            `contactdiff.integration.method_choice`; the steps of each are in ``traj.stats``) or a
             stepper of ``steppers.METHODS`` used throughout (``"Radau"`` for stiff scenes).
         jacobian: also compute the flow Jacobian ``traj.jacobian`` (d x(t_final) /
             d x0, tangent space) and each event's saltation matrix and time gradient.

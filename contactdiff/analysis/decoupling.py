@@ -32,10 +32,10 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from .errors import InvalidInputError
-from .feet import FootRule
-from .robot import Robot
-from .scene import Scene, load_source
+from ..errors import InvalidInputError
+from ..model.feet import FootRule
+from ..model.robot import Robot
+from ..model.scene import Scene, load_source
 
 DECOUPLED, ORTHOGONAL_ONLY, COUPLED = "decoupled", "orthogonal only", "coupled"
 VERDICTS = (DECOUPLED, ORTHOGONAL_ONLY, COUPLED)

@@ -3,7 +3,7 @@
 `trot_scene(robot)` puts a quadruped on flat ground with four sticking,
 plastic foot contacts (each offset so the starting pose touches the ground,
 as in ``solo12_drop.toml``) and drives it with a `TrotController`
-(`contactdiff.gait_controller`): PD torques tracking a clock-driven,
+(`contactdiff.control.trot_controller`): PD torques tracking a clock-driven,
 periodic joint-space reference in which the diagonal pairs front-left +
 hind-right and front-right + hind-left alternate stance and swing.
 
@@ -21,12 +21,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from .contacts import Contact
-from .errors import InvalidInputError, unknown_name
-from .gait_controller import TrotController, TrotControllerEvaluator
-from .kinematics import Kinematics
-from .robot import QUADRUPEDS, Robot, load_robot
-from .scene import Scene
+from ..model.contacts import Contact
+from ..errors import InvalidInputError, unknown_name
+from .trot_controller import TrotController, TrotControllerEvaluator
+from ..model.kinematics import Kinematics
+from ..model.robot import QUADRUPEDS, Robot, load_robot
+from ..model.scene import Scene
 
 GRAVITY = 9.81
 """Gravity of the trot scenes (m/s², along -z)."""

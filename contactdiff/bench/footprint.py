@@ -34,12 +34,12 @@ from contextlib import contextmanager
 import numpy as np
 import pinocchio as pin
 
-from .dynamics import ModeDynamics
-from .efforts import Spring
-from .integrator import simulate
-from .kinematics import Kinematics
-from .robot import load_robot
-from .scene import Scene, load_scene
+from ..dynamics.mode import ModeDynamics
+from ..model.efforts import Spring
+from ..integration.hybrid import simulate
+from ..model.kinematics import Kinematics
+from ..model.robot import load_robot
+from ..model.scene import Scene, load_scene
 
 DERIVATIVE_FUNCTIONS = (
     "computeABADerivatives", "computeRNEADerivatives", "computeGeneralizedGravityDerivatives",

@@ -2,7 +2,7 @@
 
 Impact law (Newton restitution per contact, with complementarity): all contacts
 closed at the instant take part; the impulses ``Λ`` (N s) solve the contact
-complementarity problem of `contactdiff.lcp` with ``v+ = v- + M^-1 A^T Λ`` and
+complementarity problem of `contactdiff.dynamics.complementarity` with ``v+ = v- + M^-1 A^T Λ`` and
 post-impact normal velocities ``w_k = A_k v+ + e_k A_k v- >= 0``,
 ``Λ_k w_k = 0``. Tangential rows of sticking contacts stop the tangential
 velocity (plastic); restitution acts on normal rows only.
@@ -17,7 +17,7 @@ contact's tangents would need a pulling normal force, releasing it lets it
 sink: a Painleve-type inconsistency of infinite friction). Coulomb friction
 carries no tangential force at zero normal force, so the fewest sticking
 contacts needed are then made to *slide*: they keep their normal row only
-(keys of `contactdiff.dynamics`), and frictionless rows always have a
+(keys of `contactdiff.dynamics.mode`), and frictionless rows always have a
 solution. A sliding contact stays sliding until its normal force vanishes
 (the integrator's ``slip`` event makes the same choice at a lift-off).
 
@@ -26,7 +26,7 @@ Impacts keep the infinite-friction limit where sticking has no solution
 stopped by a tangential impulse with no normal one, which may lift it. Sliding
 there instead would leave its slip speed (measured up to 0.56 m/s on ANYmal's
 trot) to persist, frictionless, through its whole stance.
-Contacts are given as keys throughout (see `contactdiff.dynamics`).
+Contacts are given as keys throughout (see `contactdiff.dynamics.mode`).
 """
 
 from __future__ import annotations
@@ -38,9 +38,9 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from .dynamics import ModeDynamics
-from .errors import SolverError
-from .lcp import ContactRows, impact_rhs, solve_contact_lcp
+from .mode import ModeDynamics
+from ..errors import SolverError
+from .complementarity import ContactRows, impact_rhs, solve_contact_lcp
 
 
 @dataclass

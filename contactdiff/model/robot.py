@@ -26,11 +26,22 @@ from xml.etree import ElementTree
 import numpy as np
 import pinocchio as pin
 
-from .errors import InvalidInputError, ModelLoadError, UnknownRobotError, unknown_name
+from ..errors import InvalidInputError, ModelLoadError, UnknownRobotError, unknown_name
 from .feet import FootChoice, FootRule, choose_feet
 
-ROBOTS_DIR = Path(__file__).resolve().parent / "robots"
-"""Folder of the project's own URDF and scene files."""
+def _robots_dir() -> Path:
+    """The package ``contactdiff.robots`` of an installed wheel or an editable install,
+    else (a source checkout imported from its folder) ``robots/`` beside ``contactdiff/``."""
+    try:
+        from importlib.resources import files
+
+        return Path(str(files("contactdiff.robots")))
+    except ModuleNotFoundError:
+        return Path(__file__).resolve().parents[2] / "robots"
+
+
+ROBOTS_DIR = _robots_dir()
+"""Folder of the project's own URDF and scene files (top-level ``robots/``)."""
 
 QUADRUPEDS = ("solo12", "anymal", "a1", "go1", "go2", "hyq")
 """example-robot-data quadrupeds whose feet and standing pose are known to load."""
@@ -45,7 +56,7 @@ class Robot:
         urdf: path of the URDF file the model came from ("" if built in code).
         floating_base: whether the root joint is a free-flyer.
         q_ref: reference configuration (SRDF "standing" pose if known, else neutral).
-        feet: foot frame names (chosen automatically or by hand, see `contactdiff.feet`),
+        feet: foot frame names (chosen automatically or by hand, see `contactdiff.model.feet`),
             may be empty.
         actuated: names of the joints that carry a motor (armature is added to these).
         foot_choice: how the feet were chosen (`FootChoice`), for reports.
@@ -198,7 +209,7 @@ def load_robot(source: str | Path, floating_base: bool | None = None,
             the project's planar models and for URDF paths.
         feet: foot frames chosen by hand; ``None`` chooses them automatically
             for a floating base (the lowest end frames at the reference pose,
-            see `contactdiff.feet`) and gives a fixed base none.
+            see `contactdiff.model.feet`) and gives a fixed base none.
 
     Returns:
         The `Robot`, with its reference pose and its feet (``robot.foot_choice``

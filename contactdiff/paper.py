@@ -15,7 +15,7 @@ import numpy as np
 import pinocchio as pin
 
 from .errors import InvalidInputError
-from .scene import Scene, load_scene
+from .model.scene import Scene, load_scene
 
 TROT_MODELS = ("soft", "rigid")
 

@@ -25,10 +25,10 @@ import numpy as np
 import pinocchio as pin
 from scipy.linalg.lapack import dposv as _dposv
 
-from .errors import InvalidInputError, SolverError, check_number
-from .rigid_contacts import RigidContactMode
-from .rigid_contacts import eligible as rigid_eligible
-from .scene import Scene
+from ..errors import InvalidInputError, SolverError, check_number
+from .constraint_dynamics import RigidContactMode
+from .constraint_dynamics import eligible as rigid_eligible
+from ..model.scene import Scene
 
 
 @dataclass

@@ -17,10 +17,10 @@ import pinocchio as pin
 
 from .contacts import FRICTION_MODES, BoundContact, Contact
 from .efforts import JointSpring, Spring, UserEffort, bind_efforts
-from .errors import (InconsistentStateError, InvalidInputError, ModelLoadError, UnknownRobotError,
+from ..errors import (InconsistentStateError, InvalidInputError, ModelLoadError, UnknownRobotError,
                      unknown_name)
 from .feet import FootChoice, up_direction
-from .gait_controller import TrotController
+from ..control.trot_controller import TrotController
 from .kinematics import Kinematics
 from .robot import (ROBOTS_DIR, Robot, example_robot_data_names, load_robot,
                     own_robot_names)
@@ -237,7 +237,7 @@ class Scene:
     def from_robot(cls, robot: Robot, restitution: float = 0.0, friction: str = "stick",
                    name: str | None = None) -> Scene:
         """A robot standing on the ground: one contact per foot (``robot.feet``, see
-        `contactdiff.feet`), normal along the vertical ``-g / |g|`` and offset so the
+        `contactdiff.model.feet`), normal along the vertical ``-g / |g|`` and offset so the
         reference pose touches the ground. A robot without feet gets no contacts."""
         up = up_direction(robot.model)
         kin = Kinematics(robot.model)
@@ -336,11 +336,11 @@ def passive_note(scene: Scene) -> str | None:
     scenes = driving_scenes(robot.name)
     text = (f"robot {robot.name!r} has no efforts: its {len(robot.actuated)} joints are passive, so it folds "
             "under gravity")
-    from .trot import TROT_PARAMETERS  # here: the trot module imports this one
+    from ..control.trot_scenes import TROT_PARAMETERS  # here: the trot module imports this one
 
     drivers = list(scenes)
     if robot.name in TROT_PARAMETERS:
-        drivers.append(f"contactdiff.trot.trot_scene({robot.name!r}) in Python")
+        drivers.append(f"contactdiff.control.trot_scenes.trot_scene({robot.name!r}) in Python")
     return text + ("; scenes that drive it: " + ", ".join(drivers) if drivers else
                    "; add efforts to drive it (a [trot] controller, springs, or a UserEffort)")
 
@@ -395,7 +395,7 @@ def load_scene(source: str | Path) -> Scene:
         _check_keys(f"{where} [[joint_spring]] #{i + 1}", entry, _JOINT_SPRING_KEYS,
                     required=("joint", "stiffness"))
         efforts.append(JointSpring(**entry))
-    if "trot" in doc:  # a TrotController (contactdiff.gait_controller) on the legs
+    if "trot" in doc:  # a TrotController (contactdiff.control.trot_controller) on the legs
         _check_keys(f"{where} [trot]", doc["trot"], _TROT_KEYS)
         stance = doc["trot"].get("stance", {})
         if not isinstance(stance, Mapping):

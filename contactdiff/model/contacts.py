@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import InvalidInputError, check_number
+from ..errors import InvalidInputError, check_number
 from .kinematics import Kinematics
 from .robot import Robot
 

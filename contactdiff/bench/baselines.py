@@ -1,7 +1,7 @@
 """Baselines for the benchmarks, on the same dynamics as `contactdiff.simulate`.
 
 Both use `ModeDynamics` (accelerations and forces of a contact mode) and the
-same contact complementarity problem (`contactdiff.lcp`), so a comparison with
+same contact complementarity problem (`contactdiff.dynamics.complementarity`), so a comparison with
 `simulate` measures the integration scheme, not the model.
 
 `solve_ivp_baseline`
@@ -23,7 +23,7 @@ same contact complementarity problem (`contactdiff.lcp`), so a comparison with
        Coriolis), ``v* = v_n + dt a_free``;
     2. candidate contacts: gap ``<= gap_threshold`` or predicted to penetrate,
        ``gap + dt A_n v* < 0``;
-    3. impulses ``Λ`` from the contact LCP of `contactdiff.lcp` with
+    3. impulses ``Λ`` from the contact LCP of `contactdiff.dynamics.complementarity` with
        ``v_{n+1} = v* + M^-1 A^T Λ``, Newton restitution ``w_n = A_n v_{n+1} +
        e A_n v* >= 0`` on normal rows (``e`` the contact's, 0 if not approaching),
        tangential rows of sticking contacts stopped;
@@ -46,11 +46,11 @@ import pinocchio as pin
 from scipy.integrate import solve_ivp
 from scipy.linalg import cho_factor, cho_solve
 
-from .dynamics import ModeDynamics
-from .errors import IntegrationError, InvalidInputError
-from .impacts import choose_mode, liftoff_mode, resolve_impact
-from .lcp import ContactRows, impact_rhs, solve_contact_lcp
-from .scene import Scene
+from ..dynamics.mode import ModeDynamics
+from ..errors import IntegrationError, InvalidInputError
+from ..dynamics.impacts import choose_mode, liftoff_mode, resolve_impact
+from ..dynamics.complementarity import ContactRows, impact_rhs, solve_contact_lcp
+from ..model.scene import Scene
 
 
 @dataclass
@@ -121,7 +121,7 @@ def solve_ivp_baseline(scene: Scene, t_final: float, rtol: float = 1e-8, atol: f
 
     def guards(mode):
         """``((kind, key or contact), event function)`` of every guard of ``mode`` (keys
-        of `contactdiff.dynamics`: a sliding contact's force guard has its sliding key)."""
+        of `contactdiff.dynamics.mode`: a sliding contact's force guard has its sliding key)."""
         events = []
         for k, key in enumerate(mode):
             ev = (lambda t, y, k=k, mode=mode: f.solve(y[:nv], y[nv:], t, mode).normal_forces()[k])

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import InvalidInputError
+from ..errors import InvalidInputError
 
 EVENT_KINDS = ("touchdown", "lift-off", "slip", "bounce", "grazing", "zeno")
 """``touchdown``: contacts close and stay closed (impact); ``lift-off``: an active

@@ -41,10 +41,10 @@ import numpy as np
 import pinocchio as pin
 
 from .baselines import solve_ivp_baseline, time_stepping_baseline
-from .errors import ContactDiffError, InvalidInputError, unknown_name
-from .integrator import simulate
-from .models import trot_touchdown
-from .scene import Scene, load_scene
+from ..errors import ContactDiffError, InvalidInputError, unknown_name
+from ..integration.hybrid import simulate
+from ..paper import trot_touchdown
+from ..model.scene import Scene, load_scene
 
 LONG_RUN = 2.0  # s: a run longer than this is timed once
 TARGETS = (1e-6, 1e-9)
@@ -67,7 +67,7 @@ COLORS = {"ours-DOP853": "tab:blue", "ours-Radau": "tab:green", "solve_ivp-DOP85
 
 
 def _solo12_trot() -> Scene:
-    from .trot import trot_scene  # the trot's robot table loads only when benchmarked
+    from ..control.trot_scenes import trot_scene  # the trot's robot table loads only when benchmarked
 
     return trot_scene("solo12")
 
@@ -435,8 +435,8 @@ def run_bench(scenes: Sequence[str] | None = None, methods: Sequence[str] | None
         progress: draw a progress bar on stderr.
         quick: a tiny sweep (a few seconds), for tests and CI.
         derivatives: also measure the cost of flow Jacobians and finite differences.
-        studies: also run the stiff and extreme-case studies (`contactdiff.studies`) and
-            the "only what a scene needs" measurements (`contactdiff.footprint`);
+        studies: also run the stiff and extreme-case studies (`contactdiff.bench.extreme_cases`) and
+            the "only what a scene needs" measurements (`contactdiff.bench.footprint`);
             ``quick`` keeps them to seconds.
     """
     scenes = list(scenes) if scenes else list(QUICK_SCENES if quick else SCENES)
@@ -510,7 +510,7 @@ def run_bench(scenes: Sequence[str] | None = None, methods: Sequence[str] | None
                                       "note": note})
     if studies:
         from .footprint import measure_footprint
-        from .studies import run_studies
+        from .extreme_cases import run_studies
 
         result.studies = run_studies(quick=quick)
         result.footprint = measure_footprint(quick=quick)
