@@ -1,0 +1,361 @@
+"""Radau IIA of order 5, implicit, for stiff scenes (simplified Newton, analytic Jacobian)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.linalg.lapack import dgetrf, dgetrs, zgetrf, zgetrs
+
+from .dense import DenseOutput
+from ..errors import IntegrationError, InvalidInputError
+from .stepper import _EPS, _MAX_FACTOR, _MIN_FACTOR, Stepper, _rms, _rms_cols
+
+_S6 = 6**0.5
+_RC = np.array([(4 - _S6) / 10, (4 + _S6) / 10, 1.0])
+_RA = np.array([
+    [(88 - 7 * _S6) / 360, (296 - 169 * _S6) / 1800, (-2 + 3 * _S6) / 225],
+    [(296 + 169 * _S6) / 1800, (88 + 7 * _S6) / 360, (-2 - 3 * _S6) / 225],
+    [(16 - _S6) / 36, (16 + _S6) / 36, 1 / 9],
+])
+_RE = np.array([-13 - 7 * _S6, -13 + 7 * _S6, -1]) / 3
+# A^-1 = T diag(mu_real, mu_complex pair) T^-1 decouples the Newton systems.
+_MU_REAL = 3 + 3 ** (2 / 3) - 3 ** (1 / 3)
+_MU_COMPLEX = 3 + 0.5 * (3 ** (1 / 3) - 3 ** (2 / 3)) - 0.5j * (3 ** (5 / 6) + 3 ** (7 / 6))
+_RT = np.array([
+    [0.09443876248897524, -0.14125529502095421, 0.03002919410514742],
+    [0.25021312296533332, 0.20412935229379994, -0.38294211275726192],
+    [1, 1, 0],
+])
+_RTI = np.array([
+    [4.17871859155190428, 0.32768282076106237, 0.52337644549944951],
+    [-4.17871859155190428, -0.32768282076106237, 0.47662355450055044],
+    [0.50287263494578682, -2.57192694985560522, 0.59603920482822492],
+])
+_RTI_REAL = _RTI[0]
+_RTI_COMPLEX = _RTI[1] + 1j * _RTI[2]
+# Collocation polynomial in monomials: Z^T P gives y(x) - y_old for x = 1..3 powers.
+_RP = np.array([
+    [13 / 3 + 7 * _S6 / 3, -23 / 3 - 22 * _S6 / 3, 10 / 3 + 5 * _S6],
+    [13 / 3 - 7 * _S6 / 3, -23 / 3 + 22 * _S6 / 3, 10 / 3 - 5 * _S6],
+    [1 / 3, -8 / 3, 10 / 3],
+])
+_NEWTON_MAXITER = 6
+
+
+def _predict_factor(h_abs, h_abs_old, err, err_old) -> float:
+    """Gustafsson's predictive step-size controller (Hairer–Wanner II, IV.8)."""
+    if err_old is None or h_abs_old is None or err == 0:
+        mult = 1.0
+    else:
+        mult = h_abs / h_abs_old * (err_old / err) ** 0.25
+    return min(1.0, mult) * err**-0.25 if err > 0 else math.inf
+
+
+class Radau(Stepper):
+    """Radau IIA, 3 stages, order 5, for stiff systems (after scipy's ``radau.py``).
+
+    Simplified Newton iterations on the collocation system with the
+    transformation to one real and one complex linear system. The Newton
+    matrix uses the approximate Jacobian ``[[0, I], [J_q, J_v]]`` of the chart
+    field (it neglects d(dxi/dt)/dxi = O(|v|), which only slows Newton
+    slightly), so the 2nv systems reduce to nv x nv Schur complements
+    ``alpha^2 I - alpha J_v - J_q``. LU factors are reused while ``h`` and the
+    Jacobian are unchanged (the controller keeps ``h`` when it would grow by
+    less than 20%). Error estimate (3rd order), controller and dense output
+    (the cubic collocation polynomial) as in scipy.
+
+    The flow Jacobian differentiates the stage equations:
+    ``(I - h (A ⊗ I) diag(DF_j)) dY = 1 ⊗ phi_n``, ``phi_{n+1} = dY_3``, with
+    ``DF_j`` at the converged stages (a dense solve of size 6nv).
+
+    That is Radau IIA applied to the linear ODE ``phi' = DF(t) phi`` (``DF``
+    sampled at the stages), so with ``variational_error_control`` its own
+    embedded estimator applies unchanged to the stage increments
+    ``dZ_i = dY_i - phi_n``: ``err_phi = (gamma/h I - J)^-1 (DF_n phi_n +
+    sum_i e_i dZ_i / h)``, with the state's LU factors, its filtered variant
+    after a rejection, and ``DF_n`` the exact Jacobian at the step's start
+    (the previous step's last stage, so no extra evaluation). It is what the
+    state's estimator gives for the augmented system ``(y, phi)`` with the
+    block-diagonal Newton matrix; ``J`` only filters the estimate, the
+    cancellation to ``O(h^4)`` is in the bracket. The 6nv solve and the three
+    stage Jacobians are then done per attempt (only for attempts whose state
+    error passes) instead of per accepted step.
+
+    Attributes:
+        n_lu: number of LU factorisations (pairs).
+    """
+
+    method = "Radau"
+    error_order = 3
+
+    def _setup(self) -> None:
+        self.n_lu = 0
+        self.newton_tol = max(10 * _EPS / self.rtol, min(0.03, self.rtol**0.5))
+        self._J = self._call_jac(self.t, self.q, self.v)
+        self._current_jac = True
+        self._lu = None  # (h, J, lu_real, piv_real, lu_complex, piv_complex)
+        self._sol: DenseOutput | None = None
+        self._h_abs_old = self._err_old = None
+        self._y_old = self._qc_old = self._Z = None
+        self._df_start = None  # (J_q, J_v, G) at the current point, when known
+
+    # -- linear algebra on (alpha I - [[0, I], [J_q, J_v]]) --------------------
+
+    def _factor(self, h: float, J) -> None:
+        Jq, Jv = J
+        eye = np.eye(self.nv)
+        ar, ac = _MU_REAL / h, _MU_COMPLEX / h
+        lur, pivr, info_r = dgetrf(ar * ar * eye - ar * Jv - Jq)
+        luc, pivc, info_c = zgetrf(ac * ac * eye - ac * Jv - Jq)
+        self.n_lu += 1
+        singular = info_r != 0 or info_c != 0
+        self._lu = (h, J, lur, pivr, luc, pivc, singular)
+
+    def _solve(self, r: np.ndarray, real: bool) -> np.ndarray:
+        """Solve ``(alpha I - J) x = r`` via the Schur complement on the velocity block."""
+        h, (Jq, _), lur, pivr, luc, pivc, _ = self._lu
+        nv = self.nv
+        r1, r2 = r[:nv], r[nv:]
+        if real and r.ndim == 2:  # phi's error estimate: one column at a time, because
+            # OpenBLAS threads getrs with several right-hand sides, which costs ~0.1 ms a
+            # call on small busy machines (10x the whole step in tests)
+            alpha = _MU_REAL / h
+            b = alpha * r2 + Jq @ r1
+            w = np.empty_like(b)
+            for j in range(b.shape[1]):
+                w[:, j] = dgetrs(lur, pivr, b[:, j])[0]
+        elif real:
+            alpha = _MU_REAL / h
+            w, _ = dgetrs(lur, pivr, alpha * r2 + Jq @ r1)
+        else:
+            alpha = _MU_COMPLEX / h
+            w, _ = zgetrs(luc, pivc, alpha * r2 + Jq @ r1)
+        x = np.empty(r.shape, dtype=w.dtype)
+        x[:nv] = (r1 + w) / alpha
+        x[nv:] = w
+        return x
+
+    def _ensure_lu(self, h: float) -> None:
+        if self._lu is None or self._lu[0] != h or self._lu[1] is not self._J:
+            self._factor(h, self._J)
+
+    # -- Newton on the collocation system ----------------------------------------
+
+    def _newton(self, t: float, y: np.ndarray, h: float, Z0: np.ndarray, scale: np.ndarray, qc):
+        if self._lu[6]:
+            return False, 1, Z0, None
+        nv = self.nv
+        Mr, Mc = _MU_REAL / h, _MU_COMPLEX / h
+        W = _RTI @ Z0
+        Z = Z0
+        F = np.empty((3, self.n))
+        ch = h * _RC
+        dW = np.empty_like(W)
+        dW_norm_old = rate = None
+        converged = False
+        k = 0
+        for k in range(_NEWTON_MAXITER):
+            for i in range(3):
+                self._eval_into(t + ch[i], y + Z[i], F[i], qc)
+            if not np.isfinite(F).all():
+                for i in range(3):
+                    self._nonfinite_stage(t + ch[i], y + Z[i], F[i, nv:])
+                break
+            f_real = _RTI_REAL @ F - Mr * W[0]
+            f_complex = _RTI_COMPLEX @ F - Mc * (W[1] + 1j * W[2])
+            dW[0] = self._solve(f_real, True)
+            dWc = self._solve(f_complex, False)
+            dW[1], dW[2] = dWc.real, dWc.imag
+            dW_norm = _rms(dW / scale)
+            if dW_norm_old is not None:
+                rate = dW_norm / dW_norm_old
+            # stop when diverging or when the predicted final error cannot reach newton_tol
+            if rate is not None and (
+                rate >= 1 or rate ** (_NEWTON_MAXITER - k) / (1 - rate) * dW_norm > self.newton_tol
+            ):
+                break
+            W += dW
+            Z = _RT @ W
+            if dW_norm == 0 or (rate is not None and rate / (1 - rate) * dW_norm < self.newton_tol):
+                converged = True
+                break
+            dW_norm_old = dW_norm
+        return converged, k + 1, Z, rate
+
+    def _predict(self, t: float, h: float, y: np.ndarray, qc) -> np.ndarray:
+        """Newton starting guess from the previous step's collocation polynomial."""
+        sol = self._sol
+        if sol is None:
+            return np.zeros((3, self.n))
+        ts = t + h * _RC
+        if qc is None:
+            return sol._y(ts) - y
+        Z0 = np.empty((3, self.n))
+        qs, vs = sol(ts)
+        for i in range(3):  # the old polynomial lives in the previous chart
+            Z0[i, : self.nv] = self.group.difference(qc, qs[i])
+        Z0[:, self.nv :] = vs - y[self.nv :]
+        return Z0
+
+    def step(self) -> None:
+        min_step, _ = self._begin_step()
+        t, y, f = self.t, self._y, self._f
+        qc = None if self._vs else self.q
+        nv = self.nv
+        if self.h_abs > self.max_step:
+            h_abs, h_abs_old, err_old = self.max_step, None, None
+        elif self.h_abs < min_step:
+            h_abs, h_abs_old, err_old = min_step, None, None
+        else:
+            h_abs, h_abs_old, err_old = self.h_abs, self._h_abs_old, self._err_old
+        mag_n = self._mag(y, qc)
+        scale_newton = self.atol + self.rtol * mag_n
+        control = self.phi is not None and self.variational_error_control
+        phi_new = J_end = df_end = None
+        rejected = False
+        while True:
+            if h_abs < min_step:
+                raise self._underflow(h_abs, min_step)
+            t_new = min(t + h_abs, self.t_bound)
+            h = t_new - t
+            h_abs = h
+            Z0 = self._predict(t, h, y, qc)
+            while True:
+                self._ensure_lu(h)
+                converged, n_iter, Z, rate = self._newton(t, y, h, Z0, scale_newton, qc)
+                if converged or self._current_jac:
+                    break
+                self._J = self._call_jac(t, self.q, self.v)
+                self._current_jac = True
+            if not converged:
+                h_abs *= 0.5
+                self.n_rejected += 1
+                continue
+            y_new = y + Z[2]
+            q_new = y_new[:nv] if qc is None else self.group.integrate(qc, y_new[:nv])
+            ZE = (_RE @ Z) / h
+            err_vec = self._solve(f + ZE, True)
+            scale = self.atol + self.rtol * np.maximum(mag_n, self._mag(y_new, q_new))
+            err = _rms(err_vec / scale)
+            safety = 0.9 * (2 * _NEWTON_MAXITER + 1) / (2 * _NEWTON_MAXITER + n_iter)
+            if rejected and err > 1:  # Hairer's filtered estimate, more reliable after a rejection
+                fe = np.empty(self.n)
+                ye = y + err_vec
+                self._eval_into(t, ye, fe, qc)
+                if np.isfinite(fe).all():
+                    err = _rms(self._solve(fe + ZE, True) / scale)
+            if not math.isfinite(err):
+                err = math.inf
+            if control and err <= 1:
+                phi_new, df_end, err_phi = self._controlled_variational(t, h, y, Z, qc, rejected)
+                J_end = df_end[:2]
+                err = max(err, err_phi)
+            if err > 1:
+                factor = _predict_factor(h_abs, h_abs_old, err, err_old)
+                h_abs *= max(_MIN_FACTOR, safety * factor if math.isfinite(err) else 0.0)
+                rejected = True
+                self.n_rejected += 1
+                continue
+            break
+
+        recompute_jac = n_iter > 2 and rate is not None and rate > 1e-3
+        factor = min(_MAX_FACTOR, safety * _predict_factor(h_abs, h_abs_old, err, err_old))
+        if not recompute_jac and factor < 1.2:
+            factor = 1.0  # keep h so that the LU factors stay valid
+
+        # Final state and derivative at t_new (the last Newton evaluation was not at the converged Z).
+        a_new = np.asarray(self.accel(t_new, q_new, y_new[nv:]), dtype=float)
+        self.n_accel += 1
+        self._nonfinite_stage(t_new, y_new, a_new)
+        if self.phi is not None and not control:
+            phi_new, J_end = self._variational(t, h, y, Z, qc, self.phi)
+        # the last stage is the new point: its DF starts phi's next error estimate
+        self._df_start = df_end if control else None
+        if recompute_jac:
+            self._J = J_end if J_end is not None else self._call_jac(t_new, q_new, y_new[nv:])
+            self._current_jac = True
+        else:
+            self._current_jac = False
+
+        self._y_old, self._qc_old, self._Z = y, qc, Z
+        self._h_abs_old, self._err_old = h_abs, err
+        self._accept_state(t_new, y_new, q_new, a_new)
+        self.phi = phi_new
+        self.h_abs = h_abs * factor
+        self._sol = DenseOutput(t, t_new, h, y, _RP.T @ Z, None if self._vs else self.group, qc, nv)
+
+    def _variational_stages(self, t: float, h: float, y: np.ndarray, Z: np.ndarray, qc, P0: np.ndarray):
+        """Differentiate the stage equations; return (dY (3, n, m), (J_q, J_v, G) at the last stage)."""
+        nv, n = self.nv, self.n
+        M = np.eye(3 * n)
+        DF = np.zeros((n, n))
+        DF[:nv, nv:] = np.eye(nv)
+        df = None
+        for j in range(3):
+            Yj = y + Z[j]
+            qj = Yj[:nv] if qc is None else self.group.integrate(qc, Yj[:nv])
+            df = self._stage_df(t + _RC[j] * h, qj, Yj[nv:])
+            if df[2] is not None:
+                DF[:nv, :nv] = df[2]
+            DF[nv:, :nv], DF[nv:, nv:] = df[0], df[1]
+            for i in range(3):
+                M[i * n : (i + 1) * n, j * n : (j + 1) * n] -= (h * _RA[i, j]) * DF
+        dY = np.linalg.solve(M, np.tile(P0, (3, 1)))
+        return dY.reshape(3, n, P0.shape[1]), df
+
+    def _variational(self, t: float, h: float, y: np.ndarray, Z: np.ndarray, qc, P0: np.ndarray):
+        """Return (phi_{n+1}, (J_q, J_v) at the last stage)."""
+        dY, df = self._variational_stages(t, h, y, Z, qc, P0)
+        return dY[2], df[:2]
+
+    def _controlled_variational(self, t: float, h: float, y: np.ndarray, Z: np.ndarray, qc, rejected: bool):
+        """phi_{n+1} of an attempt, (J_q, J_v) at its end and phi's error norm (Radau's estimator)."""
+        P0 = self.phi
+        dY, df_end = self._variational_stages(t, h, y, Z, qc, P0)
+        phi_new = dY[2]
+        if self._df_start is None:
+            self._df_start = self._stage_df(t, self.q, self.v)
+        df_n = self._df_start
+        ZE = np.tensordot(_RE / h, dY - P0, axes=1)
+        err_vec = self._solve(self._df_apply(df_n, P0) + ZE, True)
+        scale = self._phi_scale(P0, phi_new)
+        err = _rms_cols(err_vec / scale)
+        if rejected and err > 1:  # linearisation of the state's filtered estimate
+            err = _rms_cols(self._solve(self._df_apply(df_n, P0 + err_vec) + ZE, True) / scale)
+        return phi_new, df_end, err
+
+    def _redo_variational(self, h: float) -> np.ndarray:
+        t, y, qc = self.t_old, self._y_old, self._qc_old
+        scale = self.atol + self.rtol * self._mag(y, qc)
+        Z0 = self._sol._y(t + h * _RC) - y  # same chart: an excellent guess
+        for attempt in range(2):
+            self._ensure_lu(h)
+            converged, _, Z, _ = self._newton(t, y, h, Z0, scale, qc)
+            if converged:
+                break
+            q_old = y[: self.nv] if qc is None else qc
+            self._J = self._call_jac(t, q_old, y[self.nv :])
+        else:
+            raise IntegrationError(
+                f"Radau: Newton failed when re-taking the step from t={float(t)!r} with h={float(h)!r}"
+            )
+        return self._variational(t, h, y, Z, qc, self.phi_old)[0]
+
+    def dense(self, lazy: bool = False) -> DenseOutput:
+        # the collocation polynomial costs nothing extra: lazy changes nothing
+        if self.t_old is None or self._sol is None:
+            raise InvalidInputError("dense() needs a step taken since the last (re)start")
+        return self._sol
+
+    def _after_truncate(self) -> None:
+        self._df_start = None
+
+    def _after_restart(self) -> None:
+        self._df_start = None
+        self._sol = None
+        self._h_abs_old = self._err_old = None
+        self._J = self._call_jac(self.t, self.q, self.v)
+        self._current_jac = True
+        self._lu = None
+

@@ -1,0 +1,545 @@
+"""The stepper base class: error-controlled one-step integration with dense output.
+
+The state is a Pinocchio configuration ``q`` (size ``nq``; a Lie-group element
+when the model has a free-flyer, spherical, planar or continuous joint) and a
+velocity ``v`` (size ``nv``) driven by ``dv/dt = accel(t, q, v)`` and
+``dq/dt = v`` in Pinocchio's sense, ``q(t + dt) = q(t) ⊕ dt·v + O(dt²)``.
+
+Lie groups are handled by Runge–Kutta–Munthe-Kaas in a chart re-centred at the
+start of every step: ``q = q_n ⊕ xi`` with ``xi(t_n) = 0`` and
+``dxi/dt = Jr(xi)^-1 v`` (exact dexpinv), so every Runge–Kutta method keeps its
+order; ``q_{n+1} = q_n ⊕ xi_{n+1}``. On vector spaces the chart is the identity
+and the steppers integrate ``y = (q, v)`` directly without any chart call.
+
+A stepper is driven one accepted step at a time by the hybrid loop::
+
+    st = make_stepper("DOP853", accel, PinocchioGroup(model), t0, q0, v0,
+                      rtol=1e-10, atol=1e-12)
+    st.step()                       # one accepted step [st.t_old, st.t]
+    dense = st.dense()              # (q, v) = dense(t) on that interval
+    st.truncate(t_event)            # keep the step only up to an event
+    st.restart(t_event, q_plus, v_plus, phi=Xi @ st.phi)   # after a jump
+
+Units and frames: time in the model's unit (s); ``q`` and ``v`` in Pinocchio's
+units and frames (m, rad, quaternion components; m/s and rad/s in each joint's
+local frame). The flow Jacobian ``phi`` (``2nv x m``) maps perturbations at the
+initial point to tangent perturbations ``(δq, δv)`` at the current point,
+``q ⊕ δq`` (Pinocchio's convention, DESIGN.md §2); by default its local error
+is controlled together with the state's (``variational_error_control``).
+Integration runs forward in time only.
+
+Callbacks receive arrays that this module never modifies afterwards, so they
+may keep references to them (e.g. for caching).
+"""
+
+from __future__ import annotations
+
+import abc
+import math
+from typing import Callable
+
+import numpy as np
+
+from ..errors import IntegrationError, InvalidInputError
+from .dense import DenseOutput
+from .lie import _as_group
+
+AccelFn = Callable[[float, np.ndarray, np.ndarray], np.ndarray]
+"""``accel(t, q, v) -> dv/dt`` (nv,), in the joints' local frames."""
+JacFn = Callable[[float, np.ndarray, np.ndarray], "tuple[np.ndarray, np.ndarray]"]
+"""``jac(t, q, v) -> (J_q, J_v)``: d accel / d q (tangent, ``q ⊕ δq``) and d accel / d v, nv x nv each."""
+
+_EPS = np.finfo(float).eps
+_SAFETY = 0.9
+_MIN_FACTOR = 0.2  # largest allowed step decrease after a rejection
+_MAX_FACTOR = 10.0  # largest allowed step increase
+
+
+
+def _scalar(name: str, x, *, allow_inf: bool = False) -> float:
+    try:
+        val = float(x)
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"{name} must be a real number, got {x!r}") from None
+    if math.isnan(val) or (math.isinf(val) and not allow_inf):
+        raise InvalidInputError(f"{name} must be finite, got {x!r}")
+    return val
+
+
+def _vector(name: str, x, n: int) -> np.ndarray:
+    try:
+        arr = np.array(x, dtype=float)
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"{name} must be a real vector of length {n}, got {x!r}") from None
+    if arr.shape != (n,):
+        raise InvalidInputError(f"{name} must have shape ({n},), got shape {arr.shape}")
+    if not np.isfinite(arr).all():
+        bad = np.flatnonzero(~np.isfinite(arr))
+        raise InvalidInputError(f"{name} must be finite; entries {bad.tolist()} are {arr[bad].tolist()}")
+    return arr
+
+
+def _combine(weights: np.ndarray, stack: np.ndarray) -> np.ndarray:
+    """``sum_s weights[s] stack[s]`` for a stack of matrices, as one matrix-vector
+    product (``np.tensordot``'s Python-level reshaping costs more at these sizes)."""
+    return (weights @ stack.reshape(len(weights), -1)).reshape(stack.shape[1:])
+
+
+def _rms(x: np.ndarray) -> float:
+    return math.sqrt(float(np.vdot(x, x)) / x.size)
+
+
+def _rms_cols(x: np.ndarray) -> float:
+    """Largest RMS over the rows of a column of ``x`` (n x m); inf if not finite."""
+    err = math.sqrt(float(np.max(np.einsum("ij,ij->j", x, x))) / x.shape[0])
+    return err if math.isfinite(err) else math.inf
+
+
+
+class Stepper(abc.ABC):
+    """One-step integrator with error control and dense output (base class).
+
+    The base validates the options, holds the current point, and does what every
+    method shares: `truncate` to an event time, `restart` after a jump, the
+    first-step heuristic, the chart's stage evaluations and the flow Jacobian's
+    linear algebra. A new method is a subclass that implements (enforced with
+    `abc`):
+
+    * ``step()``: one *accepted* step from ``(t, q, v, phi)``, retrying with a
+      smaller ``h`` internally after a rejection. Start with `_begin_step` (it
+      raises at ``t_bound`` and gives the smallest and first ``h``), never step
+      past ``t_bound``, raise `_underflow` when ``h`` falls below the smallest
+      step, count rejections in ``n_rejected``, and end with `_accept_state`
+      (it moves ``t_old, q_old, v_old, phi_old`` and counts ``n_steps``). Set
+      ``phi`` for the end point when ``phi`` is not None (with
+      ``variational_error_control``, accept only steps whose `_phi_scale`-scaled
+      error of ``phi`` is also <= 1). Evaluate the field with `_eval_into` (it
+      counts ``n_accel``) and its Jacobian with `_call_jac` (it counts ``n_jac``).
+    * ``dense(lazy=False)``: a `DenseOutput` of the last step on ``[t_old, t]``
+      that stays valid after further steps.
+    * ``_redo_variational(h)``: ``phi`` at ``t_old + h`` propagated from
+      ``phi_old`` over a step of size ``h`` (used by `truncate`).
+
+    and sets the class attributes ``method`` (its name) and ``error_order`` (the
+    local error is ``O(h^(error_order + 1))``). Optional hooks: ``_setup()``
+    (buffers, after the base's ``__init__`` has set the point),
+    ``_after_truncate()`` and ``_after_restart()`` (drop caches that belong to
+    the abandoned step). States are ``y = (xi, v)`` in the chart at ``q`` of the
+    step's start (``y = (q, v)`` on a vector space; see `contactdiff.integration.lie`).
+
+    Args:
+        accel: ``accel(t, q, v) -> dv/dt`` (nv,).
+        group: configuration space (`VectorSpace`, `PinocchioGroup`) or a
+            ``pinocchio.Model``.
+        t0: initial time (s).
+        q0: initial configuration (nq,).
+        v0: initial velocity (nv,).
+        rtol: relative tolerance (>= 100 eps).
+        atol: absolute tolerance, scalar or (2nv,) for ``(δq, δv)``, > 0.
+            The error of a step is the RMS norm of the local error in
+            ``(xi, v)`` divided by ``atol + rtol * |y|`` (scipy's norm).
+        jac: ``jac(t, q, v) -> (J_q, J_v)``; needed for ``variational``; for
+            `Radau` a forward-difference Jacobian is used when omitted.
+        first_step: initial step (s); None selects it (Hairer's heuristic).
+        max_step: largest step (s).
+        t_bound: steps never go beyond this time (s).
+        variational: initial flow Jacobian ``phi`` (2nv x m) to propagate with
+            the same steps, or None.
+        variational_error_control: with ``variational``, also control the
+            local error of ``phi`` ("full error control", as CVODES'
+            ``errconS``): every attempted step computes the stage increments
+            of ``phi``, forms the method's embedded error estimate for them and
+            is accepted only if both the state's and ``phi``'s error norms are
+            <= 1; the step size is chosen from the larger. Without it the steps
+            are chosen for the state alone, which can be far too long for
+            ``phi`` when the state is easy but its linearisation is not (a
+            spring at its rest length along the trajectory, free motion on a
+            Lie group). It never changes how ``phi`` is propagated (on vector
+            spaces ``phi`` stays the exact derivative of the discrete flow),
+            only which steps are accepted.
+        variational_atol: absolute tolerance of ``phi``, scalar or (2nv,) per
+            row; None uses ``atol`` per row. Each column of ``phi`` is the
+            response ``(δq, δv)`` to a unit initial perturbation, so its rows
+            carry the state's units and the state's ``atol`` is the natural
+            absolute floor (CVODES' default ``atolS = atol / pbar`` with
+            ``pbar = 1``). The error of ``phi`` is the RMS over the rows of
+            each column of its local error divided by
+            ``variational_atol + rtol * |phi|`` (entrywise), maximised over
+            the columns (CVODES' norm for a set of sensitivities).
+
+    Attributes:
+        t, q, v, phi: current time, state and flow Jacobian (phi None if off).
+        t_old, q_old, v_old, phi_old: the same at the start of the last step.
+        n_steps, n_rejected, n_accel, n_jac: accepted steps, rejected step
+            attempts, calls of ``accel`` and Jacobian evaluations.
+    """
+
+    method: str = ""
+    error_order: int = 0  # error ~ h^(error_order + 1); for the first-step heuristic
+
+    def __init__(
+        self,
+        accel: AccelFn,
+        group,
+        t0: float,
+        q0,
+        v0,
+        *,
+        rtol: float = 1e-6,
+        atol=1e-9,
+        jac: JacFn | None = None,
+        first_step: float | None = None,
+        max_step: float = np.inf,
+        t_bound: float = np.inf,
+        variational=None,
+        variational_error_control: bool = True,
+        variational_atol=None,
+    ) -> None:
+        if not callable(accel):
+            raise InvalidInputError(f"accel must be callable accel(t, q, v), got {accel!r}")
+        if jac is not None and not callable(jac):
+            raise InvalidInputError(f"jac must be callable jac(t, q, v) -> (J_q, J_v) or None, got {jac!r}")
+        self.group = _as_group(group)
+        self.nq, self.nv = int(self.group.nq), int(self.group.nv)
+        if self.nv < 1:
+            raise InvalidInputError(f"group must have nv >= 1, got nv={self.nv}")
+        self.n = 2 * self.nv
+        self._vs = bool(self.group.is_vector_space)
+        self.accel, self.jac = accel, jac
+
+        t0 = _scalar("t0", t0)
+        self.q = _vector("q0", q0, self.nq)
+        self.v = _vector("v0", v0, self.nv)
+        rtol = _scalar("rtol", rtol)
+        if rtol < 100 * _EPS:
+            raise InvalidInputError(f"rtol must be >= 100*eps = {100 * _EPS:.3g}, got {rtol!r}")
+        self.rtol = rtol
+        atol_arr = np.array(atol, dtype=float)
+        if atol_arr.shape not in ((), (self.n,)):
+            raise InvalidInputError(f"atol must be a scalar or have shape ({self.n},), got shape {atol_arr.shape}")
+        if not (np.isfinite(atol_arr).all() and (atol_arr > 0).all()):
+            raise InvalidInputError(f"atol must be positive and finite, got {atol!r}")
+        self.atol = float(atol_arr) if atol_arr.ndim == 0 else atol_arr
+        self.max_step = _scalar("max_step", max_step, allow_inf=True)
+        if not self.max_step > 0:
+            raise InvalidInputError(f"max_step must be > 0, got {max_step!r}")
+        self.t_bound = _scalar("t_bound", t_bound, allow_inf=True)
+        if self.t_bound < t0:
+            raise InvalidInputError(f"t_bound must be >= t0 = {t0!r} (forward integration only), got {t_bound!r}")
+        self.variational_error_control = bool(variational_error_control)
+        if variational_atol is None:
+            self._atol_phi = self.atol if atol_arr.ndim == 0 else self.atol[:, None]
+        else:
+            va = np.array(variational_atol, dtype=float)
+            if va.shape not in ((), (self.n,)):
+                raise InvalidInputError(
+                    f"variational_atol must be a scalar or have shape ({self.n},), got shape {va.shape}")
+            if not (np.isfinite(va).all() and (va > 0).all()):
+                raise InvalidInputError(f"variational_atol must be positive and finite, got {variational_atol!r}")
+            self._atol_phi = float(va) if va.ndim == 0 else va[:, None]
+        self.t = t0
+        self.phi = None if variational is None else self._check_phi(variational)
+
+        self.n_steps = self.n_rejected = self.n_accel = self.n_jac = 0
+        self.t_old = self.q_old = self.v_old = self.phi_old = None
+        self._y = self._point_y(self.q, self.v)
+        self._f = self._point_f(self.t, self.q, self.v)
+        self._setup()
+        if first_step is None:
+            self.h_abs = self._initial_step()
+        else:
+            self.h_abs = _scalar("first_step", first_step)
+            if self.h_abs <= 0:
+                raise InvalidInputError(f"first_step must be > 0, got {first_step!r}")
+
+    # -- public API ---------------------------------------------------------
+
+    @property
+    def h_next(self) -> float:
+        """Size of the next step to try (s)."""
+        return min(self.h_abs, self.max_step)
+
+    @abc.abstractmethod
+    def step(self) -> None:
+        """Take one accepted step (retrying internally after rejections).
+
+        Raises:
+            IntegrationError: step-size underflow, Newton failure, ``t`` already
+                at ``t_bound``, or non-finite ``accel``/``jac`` output.
+        """
+
+    @abc.abstractmethod
+    def dense(self, lazy: bool = False) -> DenseOutput:
+        """Interpolant of the last step on ``[t_old, t]``; with ``lazy`` any extra
+        vector-field evaluations it needs are deferred until it is first read."""
+
+    def truncate(self, t: float) -> None:
+        """Keep the last step only up to ``t`` (an event time).
+
+        The state becomes the dense output at ``t`` exactly (so a guard located
+        on the dense output is zero at the new state). With a flow Jacobian,
+        the step is re-taken with ``h = t - t_old`` from the step's start and
+        the variational equation is propagated over it; its state differs from
+        the dense value by the local error only (O(tol)), which is negligible
+        for the Jacobian.
+
+        Args:
+            t: time in ``[t_old, t]`` of the last step (s).
+        """
+        if self.t_old is None:
+            raise InvalidInputError("truncate() needs a step taken since the last (re)start")
+        t = _scalar("t", t)
+        if not self.t_old <= t <= self.t:
+            raise InvalidInputError(f"truncate time t={t!r} is outside the last step [{self.t_old!r}, {self.t!r}]")
+        if t == self.t:
+            return
+        dense = self.dense()
+        if t == self.t_old:
+            q, v = self.q_old, self.v_old
+        else:
+            q, v = dense(t)
+            q, v = np.array(q), np.array(v)
+        if self.phi is not None:
+            self.phi = self.phi_old if t == self.t_old else self._redo_variational(t - self.t_old)
+        dense.t = t
+        self.t, self.q, self.v = t, q, v
+        self._y = self._point_y(q, v)
+        self._f = self._point_f(t, q, v)
+        self._after_truncate()
+
+    def restart(self, t: float, q, v, phi=None, *, accel: AccelFn | None = None, jac: JacFn | None = None,
+                t_bound: float | None = None) -> None:
+        """Start again from a new state (after a jump or a mode change).
+
+        The step-size estimate is kept; Jacobian, LU factors and the dense
+        output of the previous step are dropped.
+
+        Args:
+            t: time (s).
+            q: configuration (nq,).
+            v: velocity (nv,).
+            phi: new flow Jacobian (2nv x m), e.g. ``Xi @ stepper.phi``; None
+                keeps the current one (an identity jump).
+            accel: new vector field (mode change); None keeps the current one.
+            jac: new Jacobian callback; None keeps the current one.
+            t_bound: new bound (s); None keeps the current one.
+        """
+        if accel is not None:
+            if not callable(accel):
+                raise InvalidInputError(f"accel must be callable accel(t, q, v), got {accel!r}")
+            self.accel = accel
+        if jac is not None:
+            if not callable(jac):
+                raise InvalidInputError(f"jac must be callable jac(t, q, v) -> (J_q, J_v), got {jac!r}")
+            self.jac = jac
+        t = _scalar("t", t)
+        q = _vector("q", q, self.nq)
+        v = _vector("v", v, self.nv)
+        if t_bound is not None:
+            self.t_bound = _scalar("t_bound", t_bound, allow_inf=True)
+        if self.t_bound < t:
+            raise InvalidInputError(f"t_bound = {self.t_bound!r} is before the restart time t = {t!r}")
+        if phi is not None:
+            self.phi = self._check_phi(phi)
+        self.t, self.q, self.v = t, q, v
+        self.t_old = self.q_old = self.v_old = self.phi_old = None
+        self._y = self._point_y(q, v)
+        self._f = self._point_f(t, q, v)
+        self._after_restart()
+
+    # -- hooks for subclasses -------------------------------------------------
+
+    def _setup(self) -> None:
+        pass
+
+    def _after_truncate(self) -> None:
+        pass
+
+    def _after_restart(self) -> None:
+        pass
+
+    @abc.abstractmethod
+    def _redo_variational(self, h: float) -> np.ndarray:
+        """``phi`` at ``t_old + h``, propagated from ``phi_old`` over one step of size ``h``."""
+
+    # -- shared machinery -----------------------------------------------------
+
+    def _check_phi(self, phi) -> np.ndarray:
+        if self.jac is None:
+            raise InvalidInputError("a flow Jacobian (variational/phi) needs jac(t, q, v) -> (J_q, J_v)")
+        arr = np.array(phi, dtype=float)
+        if arr.ndim != 2 or arr.shape[0] != self.n:
+            raise InvalidInputError(f"phi must have shape ({self.n}, m), got shape {arr.shape}")
+        if not np.isfinite(arr).all():
+            raise InvalidInputError("phi must be finite")
+        return arr
+
+    def _point_y(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """``y`` of a point in its own chart: ``(q, v)`` or ``(0, v)``."""
+        if self._vs:
+            return np.concatenate((q, v))
+        y = np.zeros(self.n)
+        y[self.nv :] = v
+        return y
+
+    def _point_f(self, t: float, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """``dy/dt = (v, accel)`` at a point in its own chart (validates ``accel``)."""
+        a = self.accel(t, q, v)
+        self.n_accel += 1
+        a = np.asarray(a, dtype=float)
+        if a.shape != (self.nv,):
+            raise InvalidInputError(f"accel must return shape ({self.nv},), got shape {a.shape}")
+        if not np.isfinite(a).all():
+            raise IntegrationError(f"accel returned non-finite values at t={float(t)!r}: {a.tolist()}")
+        return np.concatenate((v, a))
+
+    def _mag(self, y: np.ndarray, q: np.ndarray | None) -> np.ndarray:
+        """Sizes that ``rtol`` is relative to, per component of ``y``."""
+        if self._vs:
+            return np.abs(y)
+        return np.concatenate((self.group.magnitude(q), np.abs(y[self.nv :])))
+
+    def _eval_into(self, t: float, y: np.ndarray, out: np.ndarray, qc, accel=None) -> np.ndarray:
+        """Write ``F(t, y)`` in the chart at ``qc`` (None: vector space) into ``out``; return the stage ``q``.
+
+        ``accel`` overrides the current vector field (a lazy interpolant evaluates
+        the field of the step it belongs to)."""
+        nv = self.nv
+        v = y[nv:]
+        if qc is None:
+            q = y[:nv]
+            out[:nv] = v
+        else:
+            xi = y[:nv]
+            q = self.group.integrate(qc, xi)
+            out[:nv] = self.group.chart_velocity(qc, xi, v)
+        out[nv:] = (self.accel if accel is None else accel)(t, q, v)
+        self.n_accel += 1
+        return q
+
+    def _nonfinite_stage(self, t: float, y: np.ndarray, fa: np.ndarray) -> None:
+        """Raise if ``accel`` returned non-finite values for a finite state."""
+        if not np.isfinite(fa).all() and np.isfinite(y).all():
+            raise IntegrationError(
+                f"accel returned non-finite values at t={float(t)!r} (v={y[self.nv:].tolist()}); "
+                "the vector field must be finite at every finite state"
+            )
+
+    def _call_jac(self, t: float, q: np.ndarray, v: np.ndarray):
+        """``(J_q, J_v)`` from the user's callback, or forward differences if none."""
+        self.n_jac += 1
+        if self.jac is None:
+            return self._fd_jac(t, q, v)
+        Jq, Jv = self.jac(t, q, v)
+        Jq = np.asarray(Jq, dtype=float)
+        Jv = np.asarray(Jv, dtype=float)
+        shape = (self.nv, self.nv)
+        if Jq.shape != shape or Jv.shape != shape:
+            raise InvalidInputError(f"jac must return two {shape} arrays, got shapes {Jq.shape} and {Jv.shape}")
+        if not math.isfinite(Jq.sum() + Jv.sum()):  # one reduction; a sum is NaN/inf iff an entry is (or overflows)
+            raise IntegrationError(f"jac returned non-finite values at t={float(t)!r}")
+        return Jq, Jv
+
+    def _fd_jac(self, t: float, q: np.ndarray, v: np.ndarray):
+        """Forward differences in the tangent space (only for Radau's Newton matrix)."""
+        nv = self.nv
+        a0 = np.asarray(self.accel(t, q, v), dtype=float)
+        Jq, Jv = np.empty((nv, nv)), np.empty((nv, nv))
+        mq = np.abs(q[:nv]) if self._vs else self.group.magnitude(q)
+        for k in range(nv):
+            e = math.sqrt(_EPS) * max(1.0, mq[k])
+            dq = np.zeros(nv)
+            dq[k] = e
+            qk = q + dq if self._vs else self.group.integrate(q, dq)
+            Jq[:, k] = (np.asarray(self.accel(t, qk, v), dtype=float) - a0) / e
+            e = math.sqrt(_EPS) * max(1.0, abs(v[k]))
+            vk = v.copy()
+            vk[k] += e
+            Jv[:, k] = (np.asarray(self.accel(t, q, vk), dtype=float) - a0) / e
+        self.n_accel += 1 + 2 * nv
+        return Jq, Jv
+
+    def _df(self, t: float, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """Full tangent-space Jacobian ``[[G, I], [J_q, J_v]]`` (2nv x 2nv) of the flow."""
+        nv = self.nv
+        Jq, Jv = self._call_jac(t, q, v)
+        A = np.zeros((self.n, self.n))
+        A[:nv, nv:] = np.eye(nv)
+        if not self._vs:
+            A[:nv, :nv] = self.group.velocity_jacobian_q(q, v)
+        A[nv:, :nv] = Jq
+        A[nv:, nv:] = Jv
+        return A
+
+    def _stage_df(self, t: float, q: np.ndarray, v: np.ndarray):
+        """``(J_q, J_v, G)`` of the tangent-space field at a point; ``G = -ad(v)`` (None on vector spaces)."""
+        Jq, Jv = self._call_jac(t, q, v)
+        return Jq, Jv, None if self._vs else self.group.velocity_jacobian_q(q, v)
+
+    def _df_apply(self, df, P: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """``[[G, I], [J_q, J_v]] @ P`` for ``df = (J_q, J_v, G)``, into ``out`` if given."""
+        Jq, Jv, G = df
+        nv = self.nv
+        if out is None:
+            out = np.empty(P.shape)
+        top, bot = P[:nv], P[nv:]
+        out[:nv] = bot
+        if G is not None:
+            out[:nv] += G @ top
+        out[nv:] = Jq @ top + Jv @ bot
+        return out
+
+    def _phi_scale(self, P0: np.ndarray, P1: np.ndarray) -> np.ndarray:
+        """Entrywise ``variational_atol + rtol * max(|phi_n|, |phi_n+1|)``."""
+        return self._atol_phi + self.rtol * np.maximum(np.abs(P0), np.abs(P1))
+
+    def _initial_step(self) -> float:
+        """Hairer–Nørsett–Wanner's starting step (as scipy's ``select_initial_step``)."""
+        interval = self.t_bound - self.t
+        if interval == 0.0:
+            return min(1.0, self.max_step)  # nothing to integrate; any positive value
+        y0, f0 = self._y, self._f
+        scale = self.atol + self.rtol * self._mag(y0, self.q)
+        d0 = _rms(self._mag(y0, self.q) / scale)
+        d1 = _rms(f0 / scale)
+        h0 = 1e-6 if d0 < 1e-5 or d1 < 1e-5 else 0.01 * d0 / d1
+        h0 = min(h0, interval)
+        y1 = y0 + h0 * f0
+        f1 = np.empty(self.n)
+        self._eval_into(self.t + h0, y1, f1, None if self._vs else self.q)
+        self._nonfinite_stage(self.t + h0, y1, f1[self.nv :])
+        d2 = _rms((f1 - f0) / scale) / h0
+        if d1 <= 1e-15 and d2 <= 1e-15:
+            h1 = max(1e-6, h0 * 1e-3)
+        else:
+            h1 = (0.01 / max(d1, d2)) ** (1.0 / (self.error_order + 1))
+        return min(100 * h0, h1, interval, self.max_step)
+
+    def _begin_step(self) -> tuple[float, float]:
+        """Check that a step is possible; return (min_step, first h to try)."""
+        t = self.t
+        if t >= self.t_bound:
+            raise IntegrationError(f"cannot step: t = {t!r} is already at t_bound = {self.t_bound!r}")
+        min_step = 10.0 * abs(np.nextafter(t, np.inf) - t)
+        return min_step, max(min(self.h_abs, self.max_step), min_step)
+
+    def _underflow(self, h_abs: float, min_step: float) -> IntegrationError:
+        return IntegrationError(
+            f"{self.method}: step size underflow at t={float(self.t)!r}: h={h_abs:.3g} < {min_step:.3g} "
+            f"(rtol={self.rtol:g}); the vector field may be singular or non-smooth here"
+        )
+
+    def _accept_state(self, t_new: float, y_new: np.ndarray, q_new: np.ndarray, a_new: np.ndarray) -> None:
+        """Move the current point to the end of the accepted step."""
+        self.t_old, self.q_old, self.v_old, self.phi_old = self.t, self.q, self.v, self.phi
+        self.t = t_new
+        nv = self.nv
+        if self._vs:
+            self._y = y_new
+            self.q, self.v = y_new[:nv], y_new[nv:]
+        else:
+            self.q, self.v = q_new, y_new[nv:]
+            self._y = self._point_y(q_new, self.v)
+        self._f = np.concatenate((self.v, a_new))
+        self.n_steps += 1
+
