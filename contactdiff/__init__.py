@@ -1,39 +1,46 @@
 """contactdiff: differentiability through contact for legged robots and manipulators.
 
-Public names (stable):
+The public names, by concept (each lives in the subpackage named beside it):
 
-    load_robot, Robot              robot models (URDF, robots/ names, example-robot-data)
-    Scene, load_scene, load_source scenes: robot + contacts + efforts + gravity + x0
-    Contact, Spring, JointSpring, UserEffort
-    ModeDynamics                   accelerations and contact forces in any contact mode
-    check_decoupling               the paper's assumptions, measured
-    simulate, Trajectory           event-driven hybrid simulation
-    trot_touchdown                 the paper's Fig. 1 scenes at any initial pitch
-    stride_map, find_periodic_gait gait stability: stride map, periodic gait, Floquet multipliers
+    model        load_robot, Robot, QUADRUPEDS, Scene, load_scene, load_source,
+                 Contact, JointSpring, Spring, UserEffort, Effort
+    control      trot_scene (the trot controller's scenes of the quadrupeds)
+    paper        trot_touchdown (the paper's Fig. 1 scenes at any initial pitch)
+    dynamics     ModeDynamics (accelerations and contact forces in any contact mode)
+    integration  simulate, SimulateOptions, HybridLoop, Trajectory, Event, Segment,
+                 NonSmooth, Termination, RunStats
+    analysis     check_decoupling, DecouplingReport, order_gap, stride_map,
+                 find_periodic_gait, first_touchdown, period_map
+    errors       ContactDiffError and its subclasses
 """
 
 from .analysis.decoupling import DecouplingReport, check_decoupling
-from .model.contacts import Contact
+from .analysis.gait.stride import find_periodic_gait, first_touchdown, period_map, stride_map
+from .analysis.order_gap import order_gap
+from .control.trot_scenes import trot_scene
 from .dynamics.mode import ModeDynamics
-from .model.efforts import JointSpring, Spring, UserEffort
-from .errors import (ContactDiffError, InconsistentStateError, IntegrationError,
-                     InvalidInputError, ModelLoadError, SolverError, StoppedRunError,
-                     TooManyStepsError, UnknownNameError, UnknownRobotError)
-from .integration.hybrid import GrazingError, TooManyEventsError, simulate
-from .paper import trot_touchdown
+from .errors import (ContactDiffError, GrazingError, InconsistentStateError, IntegrationError,
+                     InvalidInputError, ModelLoadError, SolverError, StoppedRunError, StrideError,
+                     TooManyEventsError, TooManyStepsError, UnknownNameError, UnknownRobotError)
+from .integration.hybrid import HybridLoop, simulate
+from .integration.options import SimulateOptions
+from .integration.trajectory import Event, NonSmooth, RunStats, Segment, Termination, Trajectory
+from .model.contacts import Contact
+from .model.efforts import Effort, JointSpring, Spring, UserEffort
 from .model.robot import QUADRUPEDS, Robot, load_robot
-from .model.scene import Scene, load_scene, load_source
-from .analysis.gait.stride import StrideError, find_periodic_gait, stride_map
-from .integration.trajectory import Event, Segment, Trajectory
+from .model.scene import Scene
+from .model.scene_file import load_scene, load_source
+from .paper import trot_touchdown
 
 __version__ = "0.1.0"
 
 __all__ = [
-    "Contact", "ContactDiffError", "DecouplingReport", "Event", "GrazingError", "Segment",
-    "TooManyEventsError", "Trajectory", "simulate", "trot_touchdown", "InconsistentStateError", "IntegrationError",
-    "InvalidInputError", "JointSpring", "ModeDynamics", "ModelLoadError", "QUADRUPEDS", "Robot",
-    "Scene", "SolverError", "Spring", "UnknownNameError", "UserEffort", "check_decoupling",
-    "load_robot", "load_scene", "load_source",
-    "StrideError", "find_periodic_gait", "stride_map",
-    "StoppedRunError", "TooManyStepsError", "UnknownRobotError",
+    "check_decoupling", "Contact", "ContactDiffError", "DecouplingReport", "Effort", "Event",
+    "find_periodic_gait", "first_touchdown", "GrazingError", "HybridLoop",
+    "InconsistentStateError", "IntegrationError", "InvalidInputError", "JointSpring", "load_robot",
+    "load_scene", "load_source", "ModeDynamics", "ModelLoadError", "NonSmooth", "order_gap",
+    "period_map", "QUADRUPEDS", "Robot", "RunStats", "Scene", "Segment", "simulate", "SimulateOptions",
+    "SolverError", "Spring", "StoppedRunError", "stride_map", "StrideError", "Termination",
+    "TooManyEventsError", "TooManyStepsError", "Trajectory", "trot_scene", "trot_touchdown",
+    "UnknownNameError", "UnknownRobotError", "UserEffort",
 ]

@@ -102,7 +102,7 @@ def build_parser() -> argparse.ArgumentParser:
     check.add_argument("--json", action="store_true", help="print the report as JSON")
     check.set_defaults(run=_run_check)
 
-    from .integration.hybrid import ATOL_MAX, MAX_STEPS, RTOL_MAX, RTOL_MIN
+    from .integration.options import ATOL_MAX, MAX_STEPS, RTOL_MAX, RTOL_MIN
     from .integration.steppers import METHODS
 
     sim = sub.add_parser(
@@ -241,7 +241,7 @@ def _check_plot_path(path: str) -> None:
 def _scene_from_args(args):
     """The scene of ``args.source`` (with ``--feet``, ``--floating-base``) with the
     initial state changed by ``--q`` / ``--v``."""
-    from .model.scene import load_source
+    from .model.scene_file import load_source
 
     scene = load_source(args.source, floating_base=args.floating_base, feet=args.feet)
     q0, v0 = _assignments(getattr(args, "q", []), "--q"), _assignments(getattr(args, "v", []), "--v")
@@ -346,10 +346,10 @@ def _format_trajectory(traj, scene) -> str:
         lines.append(f"  v {label:<24} {x: .12g}")
     lines.append("")
     s = traj.stats
-    lines.append(f"steps {s['steps']} (rejected {s['rejected_steps']}), dynamics evaluations "
-                 f"{s['dynamics_evaluations']}, largest active-gap drift {traj.max_drift:.2e} m")
-    if s.get("steps_by_method"):
-        lines.append(f"method {s['method']}: " + ", ".join(f"{m} {n} steps" for m, n in s["steps_by_method"].items()))
+    lines.append(f"steps {s.steps} (rejected {s.rejected_steps}), dynamics evaluations "
+                 f"{s.dynamics_evaluations}, largest active-gap drift {traj.max_drift:.2e} m")
+    if s.steps_by_method:
+        lines.append(f"method {s.method}: " + ", ".join(f"{m} {n} steps" for m, n in s.steps_by_method.items()))
     lines += [f"note: {n}" for n in traj.notes]
     if traj.jacobian is not None:
         lines += [""] + _format_jacobian(traj, scene)

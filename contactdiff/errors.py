@@ -55,22 +55,70 @@ class TooManyStepsError(StoppedRunError):
     the horizon, e.g. a body spinning at 1e6 rad/s)."""
 
 
+class TooManyEventsError(StoppedRunError):
+    """More than ``max_events`` events; ``.trajectory`` holds the run up to there."""
+
+
+class GrazingError(IntegrationError):
+    """A contact closed with (nearly) zero normal speed and ``on_grazing="raise"``."""
+
+
+class StrideError(IntegrationError):
+    """A stride did not end in a transversal touchdown of the foot: it never came
+    back within ``t_max``, or it came back grazing (zero normal speed) or in a
+    Zeno sequence."""
+
+
 class SolverError(ContactDiffError):
     """A complementarity or linear-algebra subproblem has no valid solution."""
 
 
-def check_number(owner: str, name: str, value, *, minimum: float | None = None) -> float:
-    """``value`` as a finite float (>= ``minimum`` if given), else `InvalidInputError`
-    naming ``owner`` and ``name`` and showing the value."""
+def check_number(owner: str, name: str, value, *, minimum: float | None = None,
+                 allow_inf: bool = False) -> float:
+    """``value`` as a finite float (>= ``minimum`` if given; ``allow_inf`` admits
+    ±inf), else `InvalidInputError` naming ``owner`` and ``name`` and showing the value.
+
+    The project's one set of input checks: `check_number`, `check_count`,
+    `check_vector`; every module validates through them."""
     try:
         x = float(value)
     except (TypeError, ValueError):
         raise InvalidInputError(f"{owner}: {name} must be a number, got {value!r}") from None
-    if x != x or x in (float("inf"), float("-inf")):
+    if x != x or (x in (float("inf"), float("-inf")) and not allow_inf):
         raise InvalidInputError(f"{owner}: {name} must be finite, got {value!r}")
     if minimum is not None and x < minimum:
         raise InvalidInputError(f"{owner}: {name} must be >= {minimum:g}, got {value!r}")
     return x
+
+
+def check_count(owner: str, name: str, value, *, minimum: int = 0) -> int:
+    """``value`` as an ``int`` >= ``minimum`` (not a bool, not a float), else
+    `InvalidInputError` naming ``owner`` and ``name`` and showing the value."""
+    import numbers
+
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < minimum:
+        raise InvalidInputError(f"{owner}: {name} must be an integer >= {minimum}, got {value!r}")
+    return int(value)
+
+
+def check_vector(owner: str, name: str, value, size: int, labels=None):
+    """``value`` as a float array of shape ``(size,)`` with finite entries, else
+    `InvalidInputError` naming ``owner``, ``name`` and the first bad entry (by its
+    label, e.g. a joint name, where ``labels`` are given)."""
+    import numpy as np
+
+    try:
+        arr = np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"{owner}: {name} must be {size} real numbers, got {value!r}") from None
+    if arr.shape != (size,):
+        raise InvalidInputError(f"{owner}: {name} has shape {arr.shape}; expected ({size},): {size} entries, "
+                                f"got {value!r}")
+    if not np.isfinite(arr).all():
+        i = int(np.flatnonzero(~np.isfinite(arr))[0])
+        where = f" ({labels[i]})" if labels is not None else ""
+        raise InvalidInputError(f"{owner}: {name}[{i}]{where} is {float(arr[i])!r}; entries must be finite")
+    return arr
 
 
 def unknown_name(kind: str, name: object, valid) -> UnknownNameError:

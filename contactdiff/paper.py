@@ -15,7 +15,8 @@ import numpy as np
 import pinocchio as pin
 
 from .errors import InvalidInputError
-from .model.scene import Scene, load_scene
+from .model.scene import Scene
+from .model.scene_file import load_scene
 
 TROT_MODELS = ("soft", "rigid")
 

@@ -111,3 +111,36 @@ def gait_figure(traj: Trajectory, scene, n_samples: int = 1500):
     ax_a.set_xlabel("time (s)")
     ax_a.legend(loc="best", fontsize=8)
     return fig
+
+
+def plot_bench(result, path: str | Path) -> Path:
+    """A `BenchResult`'s error against run time: log-log, one panel per scene, one
+    line per method (colours of ``contactdiff.bench.runner.COLORS``), saved to ``path``."""
+    import math
+
+    from .bench.runner import COLORS, METHODS
+
+    plt = _pyplot()
+    scenes = list(result.references)
+    cols = min(3, len(scenes))
+    rows = math.ceil(len(scenes) / cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(4.5 * cols, 3.8 * rows), squeeze=False)
+    for ax, scene in zip(axes.flat, scenes):
+        for method in METHODS:
+            pts = sorted((r["time"], max(r["error"], 1e-17)) for r in result.runs
+                         if r["scene"] == scene and r["method"] == method and not r["failed"]
+                         and math.isfinite(r["error"]))
+            if pts:
+                ax.loglog([p[0] for p in pts], [p[1] for p in pts], "o-", label=method, ms=4,
+                          color=COLORS[method])
+        ax.set_title(scene)
+        ax.set_xlabel("run time (s)")
+        ax.set_ylabel("final-state error")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=7)
+    for ax in list(axes.flat)[len(scenes):]:
+        ax.set_visible(False)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return Path(path)

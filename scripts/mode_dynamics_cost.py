@@ -17,7 +17,7 @@ import numpy as np
 import pinocchio as pin
 
 from contactdiff.dynamics.mode import ModeDynamics
-from contactdiff.model.scene import load_scene
+from contactdiff.model.scene_file import load_scene
 
 
 def _us(fn, number: int = 300) -> float:

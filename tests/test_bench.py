@@ -9,7 +9,8 @@ import pytest
 
 import contactdiff as cd
 from contactdiff.bench.baselines import solve_ivp_baseline, time_stepping_baseline
-from contactdiff.bench.runner import ball_closed_form, run_bench, state_error, time_at_error
+from contactdiff.bench.metrics import state_error, time_at_error
+from contactdiff.bench.runner import ball_closed_form, run_bench
 from contactdiff.cli import main
 from contactdiff.errors import InvalidInputError
 
@@ -35,7 +36,7 @@ def test_solve_ivp_baseline_on_the_ball(ball):
     assert len(out.event_times) == len(ref.event_times)
     assert np.max(np.abs(np.array(out.event_times) - ref.event_times)) < 1e-8
     assert state_error(scene, out.q, out.v, ref.q, ref.v) < 1e-8
-    assert out.stats["dynamics_evaluations"] > 0 and out.stats["steps"] > 0
+    assert out.stats.dynamics_evaluations > 0 and out.stats.steps > 0
 
 
 def test_solve_ivp_baseline_refuses_lie_groups():

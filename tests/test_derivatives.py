@@ -18,7 +18,8 @@ from contactdiff.dynamics.mode import ModeDynamics
 from contactdiff.model.efforts import JointSpring, Spring, UserEffort
 from contactdiff.model.kinematics import Kinematics
 from contactdiff.model.robot import load_robot
-from contactdiff.model.scene import Scene, load_source
+from contactdiff.model.scene import Scene
+from contactdiff.model.scene_file import load_source
 
 try:
     from helpers import EPS, assert_fd, fd_dq, fd_dv, random_state, second_derivative_along

@@ -19,7 +19,8 @@ from contactdiff.dynamics.mode import ModeDynamics
 from contactdiff.model.efforts import JointSpring, Spring
 from contactdiff.model.kinematics import Kinematics
 from contactdiff.model.robot import Robot, load_robot
-from contactdiff.model.scene import Scene, load_source
+from contactdiff.model.scene import Scene
+from contactdiff.model.scene_file import load_source
 
 try:
     from helpers import random_state, second_derivative_along

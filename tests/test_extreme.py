@@ -19,7 +19,8 @@ import pytest
 import contactdiff as cd
 from contactdiff.model.robot import ROBOTS_DIR
 from contactdiff.bench import extreme_cases as studies
-from contactdiff.integration.hybrid import GrazingError, simulate
+from contactdiff.errors import GrazingError
+from contactdiff.integration.hybrid import simulate
 from contactdiff.integration.steppers import PinocchioGroup
 from contactdiff.integration.method_choice import spectral_radius
 
@@ -78,9 +79,9 @@ def test_auto_stays_explicit_on_nominal_scenes(name, t_final):
     scene = cd.load_scene(name)
     auto = simulate(scene, t_final)
     explicit = simulate(scene, t_final, method="DOP853")
-    assert auto.stats["method"] == "auto" and auto.stats["method_switches"] == []
-    assert set(auto.stats["steps_by_method"]) == {"DOP853"}
-    assert auto.stats["steps"] == explicit.stats["steps"]
+    assert auto.stats.method == "auto" and auto.stats.method_switches == []
+    assert set(auto.stats.steps_by_method) == {"DOP853"}
+    assert auto.stats.steps == explicit.stats.steps
     np.testing.assert_allclose(auto.q, explicit.q, rtol=0, atol=1e-13)
     np.testing.assert_allclose(auto.v, explicit.v, rtol=0, atol=1e-13)
 
@@ -97,13 +98,13 @@ def stiff_runs():
 def test_auto_chooses_radau_when_stiff(stiff_runs):
     scene, runs, _ = stiff_runs
     auto = runs["auto"]
-    assert "Radau" in auto.stats["steps_by_method"]
-    assert auto.stats["method_switches"][0][1] == "Radau"
+    assert "Radau" in auto.stats.steps_by_method
+    assert auto.stats.method_switches[0][1] == "Radau"
     assert any("method auto: Radau" in n for n in auto.notes)
     # stability-limited DOP853 needs ~ rho T / 6 steps (rho ~ 6e3 to 9e3 /s here, T = 1.2):
     # auto and Radau far fewer
-    assert runs["DOP853"].stats["steps"] > 5 * auto.stats["steps"]
-    assert runs["DOP853"].stats["steps"] > 2 * runs["Radau"].stats["steps"]
+    assert runs["DOP853"].stats.steps > 5 * auto.stats.steps
+    assert runs["DOP853"].stats.steps > 2 * runs["Radau"].stats.steps
 
 
 def test_stiff_runs_are_correct(stiff_runs):
@@ -130,10 +131,10 @@ def test_auto_keeps_explicit_while_a_stiff_spring_rings():
     returns to DOP853 (cheaper per resolved period) for the rest of the run."""
     scene = studies.stiff_trot(1e4, 0.0)
     auto = simulate(scene, 1.2)
-    switches = auto.stats["method_switches"]
+    switches = auto.stats.method_switches
     assert [m for _, m in switches] == ["Radau", "DOP853"]
     assert switches[0][0] < 1.0 < switches[1][0]
-    assert auto.stats["steps_by_method"]["DOP853"] > 10 * auto.stats["steps_by_method"]["Radau"]
+    assert auto.stats.steps_by_method["DOP853"] > 10 * auto.stats.steps_by_method["Radau"]
     ref = simulate(scene, 1.2, method="DOP853", rtol=1e-11, atol=1e-11)
     assert studies.state_error(scene, auto, ref.q, ref.v) < 1e-5
 
@@ -145,7 +146,7 @@ def test_auto_with_jacobian_through_a_switch():
     scene = studies.stiff_trot(1e4, 1.0)
     opts = dict(rtol=1e-10, atol=1e-10)
     traj = simulate(scene, 0.9, jacobian=True, **opts)  # flight only: Radau after the switch
-    assert "Radau" in traj.stats["steps_by_method"]
+    assert "Radau" in traj.stats.steps_by_method
     model, h = scene.model, 1e-6
     k = scene.robot.scalar_joint("body_z")[1]
     e = np.zeros(scene.nv)
@@ -239,9 +240,9 @@ def test_tangent_approach_is_correct_or_named(dip):
     found = [e for e in traj.events if e.t == pytest.approx(t_c, abs=1e-3)]
     if found:
         assert err <= 10 * (1e-8 + 1e-10) * (1 + 1 / u)
-        assert traj.stats["near_grazing_misses"] == 0
+        assert traj.stats.near_grazing_misses == 0
     else:
-        assert traj.stats["near_grazing_misses"] == 1
+        assert traj.stats.near_grazing_misses == 1
         assert any("near-grazing of ball" in n for n in traj.notes)
         assert err <= 2 * u + 1e-8
         with pytest.raises(GrazingError, match="near-grazing of ball"):
@@ -255,7 +256,7 @@ def test_clear_miss_is_not_flagged():
     10 (atol + rtol |q|) ~ 2e-7 m): no event, no note; exact free motion z = r + cos t."""
     scene, _, _ = studies.tangent_approach(-1e-4)
     traj = simulate(scene, 4.0)
-    assert traj.events == [] and traj.stats["near_grazing_misses"] == 0 and traj.notes == []
+    assert traj.events == [] and traj.stats.near_grazing_misses == 0 and traj.notes == []
     assert traj.q[0] == pytest.approx(1.0 + 1e-4 + math.cos(4.0), abs=1e-7)
 
 
@@ -263,9 +264,9 @@ def test_grazing_gap_option():
     """grazing_gap sets the band: 0 accepts every miss (no note), a wide band flags the
     1e-4 m clear miss; bad values are refused."""
     scene, _, _ = studies.tangent_approach(1e-12)
-    assert simulate(scene, 4.0, grazing_gap=0.0).stats["near_grazing_misses"] == 0
+    assert simulate(scene, 4.0, grazing_gap=0.0).stats.near_grazing_misses == 0
     wide, _, _ = studies.tangent_approach(-1e-4)
-    assert simulate(wide, 4.0, grazing_gap=1e-3).stats["near_grazing_misses"] == 1
+    assert simulate(wide, 4.0, grazing_gap=1e-3).stats.near_grazing_misses == 1
     for bad in (-1.0, math.nan, math.inf):
         with pytest.raises(cd.InvalidInputError, match="grazing_gap"):
             simulate(scene, 1.0, grazing_gap=bad)

@@ -32,7 +32,7 @@ def test_stiff_method_needs_jacobians_only_for_its_newton_matrix():
     scene = cd.load_scene("two_limb")
     run = footprint.derivative_work(scene, 2.0, method="Radau")
     traj = cd.simulate(scene, 2.0, method="Radau")
-    assert 0 < run["derivative_solves"] < traj.stats["steps"] / 5
+    assert 0 < run["derivative_solves"] < traj.stats.steps / 5
 
 
 def test_counting_restores_what_it_wraps():

@@ -186,7 +186,7 @@ def test_a_runaway_run_stops_at_its_step_budget_with_the_run_so_far():
     with pytest.raises(cd.TooManyStepsError, match="max_steps = 40 steps taken") as err:
         cd.simulate(scene, 2.0, max_steps=40, progress=lambda t, events, steps: seen.append((t, events, steps)))
     traj = err.value.trajectory
-    assert traj.termination == "max_steps" and traj.stats["steps"] == 40
+    assert traj.termination == "max_steps" and traj.stats.steps == 40
     assert 0.0 < traj.t < 1e-3 and np.all(np.isfinite(traj.q))
     assert [s for _, _, s in seen] == list(range(1, 41))  # one call per accepted step
     assert np.all(np.diff([t for t, _, _ in seen]) > 0) and seen[-1][0] == traj.t

@@ -29,7 +29,8 @@ from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
 import contactdiff as cd
-from contactdiff.integration.hybrid import GrazingError, TooManyEventsError, simulate
+from contactdiff.errors import GrazingError, TooManyEventsError
+from contactdiff.integration.hybrid import simulate
 from contactdiff.integration.steppers import METHODS
 
 TIGHT = dict(rtol=1e-12, atol=1e-14)

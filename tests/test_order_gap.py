@@ -167,7 +167,7 @@ def test_order_gap_later_derivative_against_finite_differences():
     def final(dx):
         traj = cd.simulate(scene, 1.1, q0=robot.integrate(scene.q0, dx[:nv]), v0=scene.v0 + dx[nv:],
                            method="DOP853", max_step=0.02, **TIGHT)
-        assert traj.stats["rejected_steps"] == 0  # the step sequence does not switch
+        assert traj.stats.rejected_steps == 0  # the step sequence does not switch
         return traj.q, traj.v
     columns = []
     for k in range(2 * nv):

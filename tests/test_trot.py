@@ -15,7 +15,8 @@ from helpers import assert_fd, fd_dq, fd_dv
 
 import contactdiff as cd
 from contactdiff.errors import InvalidInputError, UnknownNameError
-from contactdiff.control.trot_controller import PAIR_A, PAIR_B, TrotController, find_legs
+from contactdiff.control.legs import PAIR_A, PAIR_B, find_legs
+from contactdiff.control.trot_controller import TrotController
 from contactdiff.model.kinematics import Kinematics
 from contactdiff.control.trot_scenes import TROT_PARAMETERS, stance_intervals, trot_scene
 

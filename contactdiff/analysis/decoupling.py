@@ -33,9 +33,11 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import InvalidInputError
+from ..jsonable import to_jsonable
 from ..model.feet import FootRule
 from ..model.robot import Robot
-from ..model.scene import Scene, load_source
+from ..model.scene import Scene
+from ..model.scene_file import load_source
 
 DECOUPLED, ORTHOGONAL_ONLY, COUPLED = "decoupled", "orthogonal only", "coupled"
 VERDICTS = (DECOUPLED, ORTHOGONAL_ONLY, COUPLED)
@@ -118,7 +120,7 @@ class DecouplingReport:
     def to_dict(self) -> dict:
         d = asdict(self)
         d["max_coupling"] = self.max_coupling
-        return _jsonable(d)
+        return to_jsonable(d)
 
     def format(self) -> str:
         """A readable multi-line report."""
@@ -166,16 +168,6 @@ def _table(header, rows) -> list[str]:
     widths = [max(len(str(r[i])) for r in [header, *rows]) for i in range(len(header))]
     fmt = "  " + "  ".join(f"{{:<{w}}}" for w in widths)
     return [fmt.format(*header), fmt.format(*("-" * w for w in widths))] + [fmt.format(*r) for r in rows]
-
-
-def _jsonable(x):
-    if isinstance(x, dict):
-        return {k: _jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, (np.floating, np.integer)):
-        return x.item()
-    return x
 
 
 # -- the checker ------------------------------------------------------------------------

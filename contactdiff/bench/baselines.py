@@ -46,6 +46,7 @@ import pinocchio as pin
 from scipy.integrate import solve_ivp
 from scipy.linalg import cho_factor, cho_solve
 
+from ..integration.trajectory import RunStats
 from ..dynamics.mode import ModeDynamics
 from ..errors import IntegrationError, InvalidInputError
 from ..dynamics.impacts import choose_mode, liftoff_mode, resolve_impact
@@ -61,8 +62,9 @@ class BaselineResult:
         t, q, v: final time and state.
         event_times: times of the events, in order.
         event_contacts: contact names of each event.
-        stats: ``dynamics_evaluations`` (calls of `ModeDynamics.solve`), ``steps``,
-            ``events`` (and ``rhs_evaluations`` for solve_ivp).
+        stats: a `RunStats` with ``dynamics_evaluations`` (calls of
+            `ModeDynamics.solve`), ``steps``, ``events`` and, for solve_ivp,
+            ``stepper_evaluations`` (its right-hand-side calls).
     """
 
     t: float
@@ -70,7 +72,7 @@ class BaselineResult:
     v: np.ndarray
     event_times: list[float] = field(default_factory=list)
     event_contacts: list[tuple[str, ...]] = field(default_factory=list)
-    stats: dict = field(default_factory=dict)
+    stats: RunStats = field(default_factory=RunStats)
 
 
 class _Counted:
@@ -181,8 +183,8 @@ def solve_ivp_baseline(scene: Scene, t_final: float, rtol: float = 1e-8, atol: f
         if len(times) > max_events:
             raise IntegrationError(f"solve_ivp_baseline: more than {max_events} events by t = {t}")
     return BaselineResult(t, q, v, times, fired_names,
-                          {"dynamics_evaluations": f.n, "rhs_evaluations": nfev, "steps": steps,
-                           "events": len(times)})
+                          RunStats(dynamics_evaluations=f.n, stepper_evaluations=nfev, steps=steps,
+                                   events=len(times), method="solve_ivp"))
 
 
 def time_stepping_baseline(scene: Scene, t_final: float, dt: float, *,
@@ -240,7 +242,8 @@ def time_stepping_baseline(scene: Scene, t_final: float, dt: float, *,
         v = v_next
         t = t_final if n == n_steps - 1 else t + h
     return BaselineResult(t, q, v, times, fired_names,
-                          {"dynamics_evaluations": n_steps, "steps": n_steps, "events": len(times)})
+                          RunStats(dynamics_evaluations=n_steps, steps=n_steps, events=len(times),
+                                   method="time-stepping"))
 
 
 __all__ = ["BaselineResult", "solve_ivp_baseline", "time_stepping_baseline"]

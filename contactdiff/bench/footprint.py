@@ -39,7 +39,8 @@ from ..model.efforts import Spring
 from ..integration.hybrid import simulate
 from ..model.kinematics import Kinematics
 from ..model.robot import load_robot
-from ..model.scene import Scene, load_scene
+from ..model.scene import Scene
+from ..model.scene_file import load_scene
 
 DERIVATIVE_FUNCTIONS = (
     "computeABADerivatives", "computeRNEADerivatives", "computeGeneralizedGravityDerivatives",

@@ -43,8 +43,11 @@ import pinocchio as pin
 from .baselines import solve_ivp_baseline, time_stepping_baseline
 from ..errors import ContactDiffError, InvalidInputError, unknown_name
 from ..integration.hybrid import simulate
+from ..jsonable import to_jsonable
+from .metrics import event_error, state_error, time_at_error
 from ..paper import trot_touchdown
-from ..model.scene import Scene, load_scene
+from ..model.scene import Scene
+from ..model.scene_file import load_scene
 
 LONG_RUN = 2.0  # s: a run longer than this is timed once
 TARGETS = (1e-6, 1e-9)
@@ -154,10 +157,10 @@ class BenchResult:
             extra["studies"] = self.studies.to_dict()
         if self.footprint is not None:
             extra["footprint"] = dict(self.footprint)
-        return {"repeats": self.repeats, "runs": [_clean(r) for r in self.runs],
-                "references": {k: _clean(r.to_dict()) for k, r in self.references.items()},
-                "derivatives": [_clean(d) for d in self.derivatives],
-                "ratios": [_clean(r) for r in self.ratios]} | extra
+        return {"repeats": self.repeats, "runs": [to_jsonable(r) for r in self.runs],
+                "references": {k: to_jsonable(r.to_dict()) for k, r in self.references.items()},
+                "derivatives": [to_jsonable(d) for d in self.derivatives],
+                "ratios": [to_jsonable(r) for r in self.ratios]} | extra
 
     def format(self) -> str:
         """The tables as text."""
@@ -209,69 +212,15 @@ class BenchResult:
         return "\n".join(out)
 
     def plot(self, path: str) -> None:
-        """Log-log error vs run time, one panel per scene, one line per method (PNG)."""
-        import matplotlib
+        """Log-log error vs run time, one panel per scene, one line per method
+        (`contactdiff.plotting.plot_bench`)."""
+        from ..plotting import plot_bench
 
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-
-        scenes = list(self.references)
-        cols = min(3, len(scenes))
-        rows = math.ceil(len(scenes) / cols)
-        fig, axes = plt.subplots(rows, cols, figsize=(4.5 * cols, 3.8 * rows), squeeze=False)
-        for ax, scene in zip(axes.flat, scenes):
-            for method in METHODS:
-                pts = sorted((r["time"], max(r["error"], 1e-17)) for r in self.runs
-                             if r["scene"] == scene and r["method"] == method and not r["failed"]
-                             and math.isfinite(r["error"]))
-                if pts:
-                    ax.loglog([p[0] for p in pts], [p[1] for p in pts], "o-", label=method, ms=4,
-                              color=COLORS[method])
-            ax.set_title(scene)
-            ax.set_xlabel("run time (s)")
-            ax.set_ylabel("final-state error")
-            ax.grid(True, which="both", alpha=0.3)
-            ax.legend(fontsize=7)
-        for ax in list(axes.flat)[len(scenes):]:
-            ax.set_visible(False)
-        fig.tight_layout()
-        fig.savefig(path, dpi=120)
-        plt.close(fig)
+        plot_bench(self, path)
 
 
 def _num(x) -> str:
     return "-" if x is None else f"{x:.2e}"
-
-
-def _clean(d: dict) -> dict:
-    """JSON-safe: numpy to Python, non-finite floats to None."""
-    out = {}
-    for k, x in d.items():
-        if isinstance(x, dict):
-            x = _clean(x)
-        elif isinstance(x, np.ndarray):
-            x = x.tolist()
-        elif isinstance(x, (float, np.floating)):
-            x = float(x) if math.isfinite(x) else None
-        elif isinstance(x, np.integer):
-            x = int(x)
-        out[k] = x
-    return out
-
-
-# -- errors -----------------------------------------------------------------------------
-def state_error(scene: Scene, q, v, q_ref, v_ref) -> float:
-    """``max(|q ⊖ q_ref|_inf, |v - v_ref|_inf)``, inf for a non-finite state."""
-    if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
-        return math.inf
-    dq = pin.difference(scene.model, np.asarray(q_ref), np.asarray(q))
-    return float(max(np.max(np.abs(dq)), np.max(np.abs(np.asarray(v) - v_ref))))
-
-
-def event_error(times: Sequence[float], ref: Sequence[float]) -> float | None:
-    """Largest difference of event times matched by order (common prefix), None if none."""
-    n = min(len(times), len(ref))
-    return float(max(abs(a - b) for a, b in zip(times[:n], ref[:n]))) if n else None
 
 
 def ball_closed_form(scene: Scene, t_final: float) -> Reference:
@@ -340,35 +289,6 @@ def _curve(runs, scene, method):
                   and math.isfinite(r["error"]))
 
 
-def time_at_error(points: Sequence[tuple[float, float]], target: float) -> tuple[float | None, str]:
-    """Run time at which a curve of ``(time, error)`` first reaches ``target``.
-
-    Log-log interpolation between the last point above and the first point at or
-    below the target (in order of time). Returns ``(None, note)`` if never reached;
-    if the cheapest point is already below, its time (an upper bound).
-    """
-    pts = sorted(points)
-    for j, (t, e) in enumerate(pts):
-        if e <= target:
-            if j == 0:
-                return t, "upper bound (cheapest run already below)"
-            t0, e0 = pts[j - 1]
-            le0, le1 = math.log(e0), math.log(max(e, 1e-300))
-            s = (math.log(target) - le0) / (le1 - le0)
-            return math.exp(math.log(t0) + s * (math.log(t) - math.log(t0))), ""
-    if not pts:
-        return None, "no runs"
-    best = min(pts, key=lambda p: p[1])
-    note = f"not reached (best {best[1]:.1e} at {1e3 * best[0]:.1f} ms"
-    (t0, e0), (t1, e1) = pts[-2:] if len(pts) > 1 else (pts[0], pts[0])
-    if len(pts) > 1 and e1 < e0 and t1 > t0:  # extend the last segment of the curve
-        t_x = math.exp(math.log(t1) + (math.log(target) - math.log(e1))
-                       * (math.log(t1) - math.log(t0)) / (math.log(e1) - math.log(e0)))
-        note += f"; its last segment extended reaches it at ~{t_x:.3g} s"
-    return None, note + ")"
-
-
-
 def _derivatives(name, scene, t_final, tol, repeats) -> dict:
     model, nv = scene.model, scene.nv
     plain, t_plain = _timed(lambda: simulate(scene, t_final, **tol), repeats)
@@ -391,8 +311,8 @@ def _derivatives(name, scene, t_final, tol, repeats) -> dict:
         return np.array(cols).T
 
     row = {"scene": name, "nv": nv, "tol": dict(tol), "time_plain": t_plain, "time_jacobian": t_jac,
-           "steps_plain": int(plain.stats["steps"]), "steps_jacobian": int(jac.stats["steps"]),
-           "derivative_evaluations": int(jac.stats["derivative_evaluations"]),
+           "steps_plain": int(plain.stats.steps), "steps_jacobian": int(jac.stats.steps),
+           "derivative_evaluations": int(jac.stats.derivative_evaluations),
            "fd_runs": 4 * nv, "jacobian_over_plain": t_jac / t_plain,
            "differentiable": bool(jac.differentiable), "fd_skipped": None}
     closed = [c.name for c, g in zip(scene.contacts, scene.gaps(scene.q0)) if g <= 2 * FD_EPS]
@@ -470,8 +390,8 @@ def run_bench(scenes: Sequence[str] | None = None, methods: Sequence[str] | None
             stats = out.stats
             row.update(error=state_error(scene, out.q, out.v, ref.q, ref.v),
                        event_error=event_error(times, ref.event_times), n_events=len(times),
-                       time=elapsed, dynamics_evaluations=int(stats["dynamics_evaluations"]),
-                       steps=int(stats["steps"]), failed=None)
+                       time=elapsed, dynamics_evaluations=int(stats.dynamics_evaluations),
+                       steps=int(stats.steps), failed=None)
         except ContactDiffError as exc:
             row.update(error=math.inf, event_error=None, n_events=0, time=math.nan,
                        dynamics_evaluations=0, steps=0, failed=str(exc))

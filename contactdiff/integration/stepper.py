@@ -40,7 +40,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..errors import IntegrationError, InvalidInputError
+from ..errors import IntegrationError, InvalidInputError, check_number, check_vector
 from .dense import DenseOutput
 from .lie import _as_group
 
@@ -57,26 +57,11 @@ _MAX_FACTOR = 10.0  # largest allowed step increase
 
 
 def _scalar(name: str, x, *, allow_inf: bool = False) -> float:
-    try:
-        val = float(x)
-    except (TypeError, ValueError):
-        raise InvalidInputError(f"{name} must be a real number, got {x!r}") from None
-    if math.isnan(val) or (math.isinf(val) and not allow_inf):
-        raise InvalidInputError(f"{name} must be finite, got {x!r}")
-    return val
+    return check_number("stepper", name, x, allow_inf=allow_inf)
 
 
 def _vector(name: str, x, n: int) -> np.ndarray:
-    try:
-        arr = np.array(x, dtype=float)
-    except (TypeError, ValueError):
-        raise InvalidInputError(f"{name} must be a real vector of length {n}, got {x!r}") from None
-    if arr.shape != (n,):
-        raise InvalidInputError(f"{name} must have shape ({n},), got shape {arr.shape}")
-    if not np.isfinite(arr).all():
-        bad = np.flatnonzero(~np.isfinite(arr))
-        raise InvalidInputError(f"{name} must be finite; entries {bad.tolist()} are {arr[bad].tolist()}")
-    return arr
+    return check_vector("stepper", name, x, n)
 
 
 def _combine(weights: np.ndarray, stack: np.ndarray) -> np.ndarray:

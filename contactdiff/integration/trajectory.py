@@ -10,7 +10,8 @@ from __future__ import annotations
 
 import bisect
 import json
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
+from enum import Enum, StrEnum
 from pathlib import Path
 
 import numpy as np
@@ -26,7 +27,65 @@ contact leaves again; ``grazing``: a contact closes with zero normal speed;
 ``zeno``: an impact below the Zeno speed, after which the contact stays closed."""
 
 
-@dataclass
+class NonSmooth(Enum):
+    """Why the flow is not differentiable at an event (it has only a piecewise-linear,
+    Bouligand, derivative there)."""
+
+    ORDER = "the landing orders of a simultaneous touchdown give different saltation matrices"
+    GRAZING = "a contact closed with zero normal speed"
+    ZENO_CASCADE = "an impact cascade was ended by the Zeno rule (a contact lifted slower than zeno_speed kept closed)"
+
+
+class Termination(StrEnum):
+    """Why a run ended."""
+
+    T_FINAL = "t_final"
+    """it reached its final time"""
+    MAX_EVENTS = "max_events"
+    """the event budget ran out (`TooManyEventsError`)"""
+    MAX_STEPS = "max_steps"
+    """the step budget ran out (`TooManyStepsError`)"""
+    STOPPED = "stopped"
+    """a terminal event stopped it (`HybridLoop.on_event`)"""
+
+
+@dataclass(kw_only=True)
+class RunStats:
+    """Counters of one run.
+
+    Attributes:
+        steps, rejected_steps: accepted steps and rejected step attempts.
+        dynamics_evaluations: mode solves by the vector field (stages, guards).
+        stepper_evaluations, jacobian_evaluations: field and Jacobian calls of the steppers.
+        derivative_evaluations: mode solves with derivatives.
+        events, projections: events, and projections back onto the constraints.
+        method: the ``method`` asked for; steps_by_method: accepted steps of each stepper.
+        method_switches: ``[t, method]`` of every switch of ``method="auto"``.
+        stiffness_probes, probe_evaluations: spectral-radius probes of ``"auto"``
+            and the mode solves they cost.
+        near_grazing_misses: near-grazing misses (see `SimulateOptions.grazing_gap`).
+    """
+
+    steps: int = 0
+    rejected_steps: int = 0
+    dynamics_evaluations: int = 0
+    stepper_evaluations: int = 0
+    jacobian_evaluations: int = 0
+    derivative_evaluations: int = 0
+    events: int = 0
+    projections: int = 0
+    method: str = ""
+    steps_by_method: dict[str, int] = field(default_factory=dict)
+    method_switches: list[list] = field(default_factory=list)
+    stiffness_probes: int = 0
+    probe_evaluations: int = 0
+    near_grazing_misses: int = 0
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+@dataclass(kw_only=True)
 class Event:
     """One instant at which the contact mode changes.
 
@@ -43,9 +102,8 @@ class Event:
         saltation: saltation matrix Ξ (2nv × 2nv) when the Jacobian was asked for.
         time_gradient: derivative of the event time with respect to the initial
             state (2nv,), tangent space, when the Jacobian was asked for.
-        differentiable: False where the flow has only a piecewise-linear
-            (Bouligand) derivative: the landing orders of a simultaneous event
-            disagree, or a grazing touchdown.
+        nonsmooth: why the flow is not differentiable here, each `NonSmooth`
+            reason with its remark (empty where it is differentiable).
         saltation_orders: at a simultaneous touchdown, the saltation matrix of
             every landing order (keys: contact names in landing order).
         sliding: the contacts of ``mode_after`` that slide (normal row only).
@@ -64,9 +122,16 @@ class Event:
     normal_speeds: dict[str, float] = field(default_factory=dict)
     saltation: np.ndarray | None = None
     time_gradient: np.ndarray | None = None
-    differentiable: bool = True
+    nonsmooth: dict[NonSmooth, str] = field(default_factory=dict)
     saltation_orders: dict | None = None
     sliding: tuple[str, ...] = ()
+
+    @property
+    def differentiable(self) -> bool:
+        """False where the flow has only a piecewise-linear (Bouligand) derivative:
+        the landing orders of a simultaneous event disagree, a grazing touchdown,
+        or an impact cascade cut off by the Zeno rule (see ``nonsmooth``)."""
+        return not self.nonsmooth
 
     def to_dict(self) -> dict:
         extra = {}
@@ -82,10 +147,11 @@ class Event:
             "impulses": dict(self.impulses), "mode_before": list(self.mode_before),
             "mode_after": list(self.mode_after), "normal_speeds": dict(self.normal_speeds),
             "differentiable": self.differentiable, "sliding": list(self.sliding),
+            "nonsmooth": {reason.name.lower(): remark for reason, remark in self.nonsmooth.items()},
         }
 
 
-@dataclass
+@dataclass(kw_only=True)
 class Segment:
     """Smooth flow in one contact mode between two events (or the ends).
 
@@ -109,7 +175,7 @@ class Segment:
         return np.array(q, dtype=float), np.array(v, dtype=float)
 
 
-@dataclass
+@dataclass(kw_only=True)
 class Trajectory:
     """A hybrid trajectory.
 
@@ -119,10 +185,10 @@ class Trajectory:
         t, q, v: final time and state.
         events: the `Event` list in time order.
         segments: the `Segment` list (one per mode visited, in order).
-        stats: counters (steps, rejected steps, dynamics evaluations, ...).
+        stats: the run's counters (`RunStats`).
         max_drift: largest constraint violation of an active contact found before
             projection, over the run (m).
-        termination: why the run ended (``"t_final"`` normally).
+        termination: why the run ended (a `Termination`; ``"t_final"`` normally).
         notes: human-readable remarks (Zeno ends, grazing, ...).
         jacobian: ``d x(t) / d x0`` (2nv × 2nv, tangent space) if it was asked for.
     """
@@ -136,9 +202,9 @@ class Trajectory:
     v: np.ndarray
     events: list[Event]
     segments: list[Segment]
-    stats: dict
+    stats: RunStats
     max_drift: float = 0.0
-    termination: str = "t_final"
+    termination: Termination = Termination.T_FINAL
     notes: list[str] = field(default_factory=list)
     jacobian: np.ndarray | None = None
 
@@ -176,6 +242,10 @@ class Trajectory:
         states = [self.at(float(t)) for t in times]
         return np.array([s[0] for s in states]), np.array([s[1] for s in states])
 
+    def why_not_differentiable(self) -> list[str]:
+        """The remarks of the events where the flow is not differentiable, in time order."""
+        return [remark for e in self.events for remark in e.nonsmooth.values()]
+
     def summary(self) -> dict:
         """Final state, events and statistics (what ``--json`` prints, without dense data)."""
         return {
@@ -184,8 +254,8 @@ class Trajectory:
             "q": self.q.tolist(), "v": self.v.tolist(),
             "events": [e.to_dict() for e in self.events],
             "modes": [list(m) for m in self.modes],
-            "stats": dict(self.stats), "max_drift": self.max_drift,
-            "termination": self.termination, "notes": list(self.notes),
+            "stats": self.stats.to_dict(), "max_drift": self.max_drift,
+            "termination": str(self.termination), "notes": list(self.notes),
             "differentiable": self.differentiable,
         } | ({"jacobian": self.jacobian.tolist()} if self.jacobian is not None else {})
 

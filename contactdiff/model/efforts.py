@@ -2,10 +2,12 @@
 
 Gravity, Coriolis and centrifugal terms come from Pinocchio (``nle``) and are not
 listed here. Each effort is a robot-independent spec (`JointSpring`, `Spring`,
-`UserEffort`) whose ``bind(robot)`` returns an evaluator with
+`UserEffort`, the trot controller of `contactdiff.control`, or any object that
+follows the `Effort` protocol) whose ``bind(robot)`` returns an evaluator with
 
     tau(kin, t)              -> (nv,)   generalised force (N or N m per coordinate)
     derivatives(kin, t)      -> (dtau/dq, dtau/dv), each (nv × nv), tangent space
+    time_derivative(kin, t)  -> (nv,)   d tau/dt at fixed state
 
 where ``kin`` is a `Kinematics` updated at the state (with ``derivatives=True``
 for the second call).
@@ -16,12 +18,36 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 
 from ..errors import InvalidInputError, check_number
 from .kinematics import Kinematics
 from .robot import Robot
+
+
+@runtime_checkable
+class BoundEffort(Protocol):
+    """An effort bound to a robot: what the scene and the dynamics evaluate."""
+
+    def tau(self, kin: Kinematics, t: float) -> np.ndarray:
+        """Generalised force (nv,) at the state of ``kin`` and time ``t`` (s)."""
+
+    def derivatives(self, kin: Kinematics, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """``(d tau/dq, d tau/dv)``, each (nv × nv), tangent space (``kin`` updated with
+        ``derivatives=True``)."""
+
+    def time_derivative(self, kin: Kinematics, t: float) -> np.ndarray:
+        """``d tau/dt`` (nv,) at fixed state (zero for an autonomous effort)."""
+
+
+@runtime_checkable
+class Effort(Protocol):
+    """A robot-independent effort spec: `Scene` accepts any object with ``bind``."""
+
+    def bind(self, robot: Robot) -> BoundEffort:
+        """The evaluator of this effort on ``robot`` (names resolved, sizes checked)."""
 
 
 @dataclass(frozen=True)

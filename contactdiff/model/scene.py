@@ -1,29 +1,22 @@
 """Scenes: a robot, its contacts, its efforts, gravity and an initial state.
 
-A scene is built in Python (`Scene`) or read from a TOML file (`load_scene`,
-format in the README and DESIGN.md §5). `load_source` turns any command-line
-SOURCE into a scene: a scene file or name, or a robot (URDF path or
-example-robot-data name) whose feet get ground contacts automatically.
+A scene is built in Python (`Scene`, `Scene.from_robot`) or read from a TOML
+file (`contactdiff.model.scene_file`).
 """
 
 from __future__ import annotations
 
-import tomllib
 from collections.abc import Mapping, Sequence
-from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 
 from .contacts import FRICTION_MODES, BoundContact, Contact
-from .efforts import JointSpring, Spring, UserEffort, bind_efforts
-from ..errors import (InconsistentStateError, InvalidInputError, ModelLoadError, UnknownRobotError,
-                     unknown_name)
+from .efforts import Effort, bind_efforts
+from ..errors import InconsistentStateError, InvalidInputError, check_vector, unknown_name
 from .feet import FootChoice, up_direction
-from ..control.trot_controller import TrotController
 from .kinematics import Kinematics
-from .robot import (ROBOTS_DIR, Robot, example_robot_data_names, load_robot,
-                    own_robot_names)
+from .robot import Robot
 
 PENETRATION_TOL = 1e-9
 """Largest penetration (m) an initial state may have: a closed contact, not an error."""
@@ -38,8 +31,9 @@ class Scene:
     Args:
         robot: the `Robot` (its model is copied if gravity changes it).
         contacts: `Contact` specs; their names must be unique.
-        efforts: `JointSpring`, `Spring` or `UserEffort` specs (gravity is not one:
-            it is the model's, set by ``gravity``).
+        efforts: effort specs, each with ``bind(robot)`` (the `Effort` protocol:
+            `JointSpring`, `Spring`, `UserEffort`, the trot controller); gravity is
+            not one: it is the model's, set by ``gravity``.
         gravity: world gravity (m/s², 3 numbers); ``None`` keeps the model's.
         q0, v0: initial state, either full arrays (``nq`` / ``nv``) or mappings
             from joint name to value (a number, or a list for multi-coordinate
@@ -56,7 +50,7 @@ class Scene:
             raise InvalidInputError(f"robot must be a contactdiff Robot (see load_robot), got {robot!r}")
         if gravity is not None:
             robot = robot.copy()
-            robot.model.gravity = pin.Motion(_vector3("gravity", gravity), np.zeros(3))
+            robot.model.gravity = pin.Motion(check_vector("scene", "gravity", gravity, 3), np.zeros(3))
         self.robot = robot
         self.name = name or robot.name
         self.contact_specs = tuple(contacts)
@@ -69,9 +63,10 @@ class Scene:
         if duplicates:
             raise InvalidInputError(f"contact names must be unique; repeated: {', '.join(duplicates)}")
         for e in self.effort_specs:
-            if not isinstance(e, (JointSpring, Spring, UserEffort, TrotController)):
+            if not isinstance(e, Effort):
                 raise InvalidInputError(
-                    f"efforts must be JointSpring, Spring, UserEffort or TrotController objects, got {e!r}")
+                    "efforts must be JointSpring, Spring, UserEffort, TrotController or other objects with "
+                    f"bind(robot) (the Effort protocol), got {e!r}")
         self.contacts: list[BoundContact] = [c.bind(robot) for c in self.contact_specs]
         self.efforts = bind_efforts(self.effort_specs, robot)
         self.q0 = self._configuration(q0)
@@ -198,7 +193,7 @@ class Scene:
             if not self.robot.is_vector_space:
                 q = pin.normalize(self.model, q)
             return q
-        return _array("q0", q0, self.robot.nq)
+        return check_vector("scene", "q0", q0, self.robot.nq, self._labels("q"))
 
     def _velocity(self, v0, base: np.ndarray | None = None) -> np.ndarray:
         v = np.zeros(self.nv) if base is None else base.copy()
@@ -209,7 +204,7 @@ class Scene:
                 joint = self.model.joints[self.robot.joint_id(name)]
                 v[joint.idx_v:joint.idx_v + joint.nv] = _joint_values(name, value, joint.nv, "v")
             return v
-        return _array("v0", v0, self.nv)
+        return check_vector("scene", "v0", v0, self.nv, self._labels("v"))
 
     # -- variants ----------------------------------------------------------------------
     def with_robot(self, robot: Robot) -> Scene:
@@ -249,26 +244,6 @@ class Scene:
         return scene
 
 
-def _vector3(name: str, value) -> np.ndarray:
-    try:
-        x = np.asarray(value, dtype=float).reshape(3)
-    except (TypeError, ValueError):
-        raise InvalidInputError(f"{name} must be 3 numbers, got {value!r}") from None
-    if not np.all(np.isfinite(x)):
-        raise InvalidInputError(f"{name} must be finite, got {value!r}")
-    return x
-
-
-def _array(name: str, value, size: int) -> np.ndarray:
-    try:
-        x = np.array(value, dtype=float).reshape(-1)
-    except (TypeError, ValueError):
-        raise InvalidInputError(f"{name} must be {size} numbers, got {value!r}") from None
-    if x.shape != (size,):
-        raise InvalidInputError(f"{name} must have {size} entries, got {x.shape[0]}")
-    return x
-
-
 def _joint_values(joint: str, value, size: int, kind: str) -> np.ndarray:
     try:
         x = np.array(value, dtype=float).reshape(-1)
@@ -281,162 +256,4 @@ def _joint_values(joint: str, value, size: int, kind: str) -> np.ndarray:
     return x
 
 
-# -- TOML ------------------------------------------------------------------------------
-_TOP_KEYS = ("robot", "floating_base", "gravity", "name", "description", "contact", "spring",
-             "joint_spring", "trot", "initial")
-_TROT_KEYS = TrotController.KEYS
-_CONTACT_KEYS = ("frame", "normal", "offset", "restitution", "friction", "against", "name")
-_SPRING_KEYS = ("frame_a", "frame_b", "stiffness", "damping", "rest_length")
-_JOINT_SPRING_KEYS = ("joint", "stiffness", "damping", "rest")
-_INITIAL_KEYS = ("q", "v")
-
-
-def _check_keys(where: str, table, valid: Sequence[str], required: Sequence[str] = ()) -> None:
-    if not isinstance(table, Mapping):
-        raise InvalidInputError(f"{where} must be a table, got {table!r}")
-    for key in table:
-        if key not in valid:
-            raise unknown_name(f"key in {where}", key, valid)
-    for key in required:
-        if key not in table:
-            raise InvalidInputError(f"{where} is missing the key {key!r} (keys: {', '.join(valid)})")
-
-
-def _entries(doc: Mapping, key: str) -> list:
-    value = doc.get(key, [])
-    if not isinstance(value, list):
-        raise InvalidInputError(f"[[{key}]] must be an array of tables (write [[{key}]]), got {value!r}")
-    return value
-
-
-def scene_names() -> list[str]:
-    """Names of the scene files in the project's ``robots/`` folder."""
-    return sorted(p.stem for p in ROBOTS_DIR.glob("*.toml"))
-
-
-def driving_scenes(robot_name: str) -> list[str]:
-    """Scene names of ``robots/`` whose files put efforts on robot ``robot_name``."""
-    found = []
-    for path in sorted(ROBOTS_DIR.glob("*.toml")):
-        try:
-            doc = tomllib.loads(path.read_text())
-        except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
-            continue
-        if doc.get("robot") == robot_name and any(k in doc for k in ("trot", "spring", "joint_spring")):
-            found.append(path.stem)
-    return found
-
-
-def passive_note(scene: Scene) -> str | None:
-    """A warning for a robot with motors but no efforts (it folds under gravity), naming
-    the scenes that drive it; None for any other scene."""
-    robot = scene.robot
-    if scene.efforts or not robot.actuated:
-        return None
-    scenes = driving_scenes(robot.name)
-    text = (f"robot {robot.name!r} has no efforts: its {len(robot.actuated)} joints are passive, so it folds "
-            "under gravity")
-    from ..control.trot_scenes import TROT_PARAMETERS  # here: the trot module imports this one
-
-    drivers = list(scenes)
-    if robot.name in TROT_PARAMETERS:
-        drivers.append(f"contactdiff.control.trot_scenes.trot_scene({robot.name!r}) in Python")
-    return text + ("; scenes that drive it: " + ", ".join(drivers) if drivers else
-                   "; add efforts to drive it (a [trot] controller, springs, or a UserEffort)")
-
-
-def load_scene(source: str | Path) -> Scene:
-    """Read a scene from a TOML file or a scene name of ``robots/``.
-
-    Raises:
-        ModelLoadError: missing or unparsable file.
-        UnknownNameError: unknown keys, frames, joints or names (with the valid ones).
-        InvalidInputError: bad numbers (non-finite, negative stiffness, restitution
-            outside [0, 1], zero normal).
-        InconsistentStateError: the initial state penetrates a contact.
-    """
-    path = Path(source)
-    if path.suffix != ".toml":
-        own = ROBOTS_DIR / f"{source}.toml"
-        if not own.is_file():
-            raise unknown_name("scene", str(source), scene_names())
-        path = own
-    if path.is_dir():
-        raise ModelLoadError(f"scene path {str(path)!r} is a directory, not a TOML file")
-    if not path.exists():
-        raise ModelLoadError(f"scene file {str(path)!r} does not exist")
-    if not path.is_file():
-        raise ModelLoadError(f"scene path {str(path)!r} is not a regular file")
-    try:
-        doc = tomllib.loads(path.read_text())
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
-        raise ModelLoadError(f"cannot read scene file {str(path)!r}: {exc}") from None
-    where = f"scene {path.name}"
-    _check_keys(where, doc, _TOP_KEYS, required=("robot",))
-    robot_source = doc["robot"]
-    if not isinstance(robot_source, str):
-        raise InvalidInputError(f"{where}: robot must be a file name or robot name, got {robot_source!r}")
-    floating = doc.get("floating_base")
-    if floating is not None and not isinstance(floating, bool):
-        raise InvalidInputError(f"{where}: floating_base must be true or false, got {floating!r}")
-    relative = path.parent / robot_source
-    robot = load_robot(relative if robot_source.endswith(".urdf") else robot_source, floating)
-
-    contacts = []
-    for i, entry in enumerate(_entries(doc, "contact")):
-        _check_keys(f"{where} [[contact]] #{i + 1}", entry, _CONTACT_KEYS, required=("frame",))
-        contacts.append(Contact(**entry))
-    efforts: list = []
-    for i, entry in enumerate(_entries(doc, "spring")):
-        _check_keys(f"{where} [[spring]] #{i + 1}", entry, _SPRING_KEYS,
-                    required=("frame_a", "frame_b", "stiffness"))
-        efforts.append(Spring(**entry))
-    for i, entry in enumerate(_entries(doc, "joint_spring")):
-        _check_keys(f"{where} [[joint_spring]] #{i + 1}", entry, _JOINT_SPRING_KEYS,
-                    required=("joint", "stiffness"))
-        efforts.append(JointSpring(**entry))
-    if "trot" in doc:  # a TrotController (contactdiff.control.trot_controller) on the legs
-        _check_keys(f"{where} [trot]", doc["trot"], _TROT_KEYS)
-        stance = doc["trot"].get("stance", {})
-        if not isinstance(stance, Mapping):
-            raise InvalidInputError(f"{where}: trot.stance must be a table of joint = angle (rad), got {stance!r}")
-        efforts.append(TrotController(**doc["trot"]))
-    initial = doc.get("initial", {})
-    _check_keys(f"{where} [initial]", initial, _INITIAL_KEYS)
-    for key in _INITIAL_KEYS:
-        if key in initial and not isinstance(initial[key], Mapping):
-            raise InvalidInputError(f"{where}: initial.{key} must be a table of joint = value")
-    return Scene(robot, contacts, efforts, doc.get("gravity"), initial.get("q"), initial.get("v"),
-                 doc.get("name", path.stem))
-
-
-def load_source(source: str | Path, floating_base: bool | None = None,
-                feet: Sequence[str] | None = None) -> Scene:
-    """Any SOURCE of the command line as a scene.
-
-    A ``.toml`` path or a scene name of ``robots/`` is read with `load_scene`;
-    anything else is loaded with `load_robot` (``floating_base`` and ``feet`` as
-    there) and given ground contacts at its feet (`Scene.from_robot`).
-
-    Raises:
-        InvalidInputError: ``floating_base`` or ``feet`` given with a scene, whose
-            file sets its robot and contacts.
-    """
-    if str(source).endswith(".toml") or (ROBOTS_DIR / f"{source}.toml").is_file():
-        given = [k for k, v in (("floating_base", floating_base), ("feet", feet)) if v is not None]
-        if given:
-            raise InvalidInputError(
-                f"{' and '.join(given)} {'apply' if len(given) > 1 else 'applies'} to a robot; scene "
-                f"{str(source)!r} sets its robot's base and its contacts in its file")
-        return load_scene(source)
-    try:
-        robot = load_robot(source, floating_base, feet)
-    except UnknownRobotError:
-        scenes = scene_names()
-        robots = [n for n in own_robot_names() + example_robot_data_names() if n not in scenes]
-        raise unknown_name("scene or robot", str(source), scenes + robots) from None
-    return Scene.from_robot(robot)
-
-
-__all__ = ["Scene", "load_scene", "load_source", "scene_names", "driving_scenes", "passive_note",
-           "FRICTION_MODES"]
+__all__ = ["Scene", "PENETRATION_TOL", "UNIT_NORM_TOL", "FRICTION_MODES"]

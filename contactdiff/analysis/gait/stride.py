@@ -76,14 +76,13 @@ for ``min_flight`` (default 5 % of the clock period of a clock-driven scene,
 20 ms for a 0.4-s trot against cascade flights of microseconds) and at least
 ``min_stride`` after the start (default half the clock period).
 
-`contactdiff.integration.hybrid` has no public hook to stop at an event, so the stride
-is run by a subclass of its hybrid loop that stops after the foot's touchdown
-and keeps the flow Jacobian just before it.
+The stride is run by `StrideLoop`, a subclass of the public hybrid loop
+(`contactdiff.integration.hybrid.HybridLoop`) whose ``on_event`` hook makes the
+foot's touchdown a terminal event and keeps the flow Jacobian just before it.
 """
 
 from __future__ import annotations
 
-import inspect
 import math
 import time
 from collections.abc import Sequence
@@ -93,9 +92,10 @@ import numpy as np
 import pinocchio as pin
 
 from ...dynamics.mode import ModeDynamics
-from ...errors import InconsistentStateError, IntegrationError, InvalidInputError, check_number
+from ...errors import InconsistentStateError, InvalidInputError, StrideError, check_number
 from ...dynamics.impacts import choose_mode
-from ...integration.hybrid import _HybridRun, simulate
+from ...integration.hybrid import HybridLoop, simulate
+from ...integration.options import SimulateOptions
 from ...model.scene import Scene
 from ...integration.sensitivity import gap_gradient, saltation, touchdown, vector_field
 from ...integration.trajectory import Trajectory
@@ -111,22 +111,12 @@ SECTION_TOL = 1e-9
 
 _SYMMETRY_TOL = 1e-9  # relative change of gaps and accelerations under a neutral move that counts as none
 _IMPACT_KINDS = ("touchdown", "bounce")
-_NOT_SMOOTH_NOTES = ("not differentiable", "Zeno: impact cascade ended", "grazing")  # notes on non-smooth events
-_SIMULATE_DEFAULTS = {name: p.default for name, p in inspect.signature(simulate).parameters.items()
-                      if p.kind is inspect.Parameter.KEYWORD_ONLY and name != "t0"}
-
 
 def _positive_duration(owner: str, name: str, value) -> float:
     x = check_number(owner, name, value, minimum=0.0)
     if x <= 0:
         raise InvalidInputError(f"{owner}: {name} must be > 0 s, got {value!r}")
     return x
-
-
-class StrideError(IntegrationError):
-    """A stride did not end in a transversal touchdown of the foot: it never came
-    back within ``t_max``, or it came back grazing (zero normal speed) or in a
-    Zeno sequence."""
 
 
 # ----------------------------------------------------------------------------------
@@ -252,7 +242,7 @@ class PeriodicGait:
     def why_not_differentiable(self) -> list[str]:
         """The stride's notes on its non-differentiable events (simultaneous landings
         whose orders disagree, cascades ended by the Zeno rule, grazing)."""
-        return [n for n in self.stride.trajectory.notes if n.startswith(_NOT_SMOOTH_NOTES)]
+        return self.stride.trajectory.why_not_differentiable()
 
     def format(self) -> str:
         s = self.stride
@@ -439,36 +429,34 @@ def _sorted_eigenvalues(A: np.ndarray) -> np.ndarray:
 # ----------------------------------------------------------------------------------
 # the stride map
 # ----------------------------------------------------------------------------------
-class _StrideRun(_HybridRun):
-    """The hybrid loop, stopped at the first touchdown of one contact after ``t0``.
+class StrideLoop(HybridLoop):
+    """The hybrid loop, stopped at the first touchdown of one contact after ``t0``
+    that follows at least ``min_stride`` and a flight of at least ``min_flight``
+    (a terminal event, `HybridLoop.on_event`).
 
     Records the state and flow Jacobian just before that impact, and replaces the
     reset Jacobian of an impact at ``t0`` by the full saltation matrix of the
     foot's guard (see the module docstring)."""
 
-    def __init__(self, scene, foot: int, t0, t_max, q0, v0, min_stride: float = 0.0, min_flight: float = 0.0,
-                 **options):
-        unknown = sorted(set(options) - set(_SIMULATE_DEFAULTS))
-        if unknown:
-            raise InvalidInputError(f"unknown simulation option(s) {', '.join(unknown)}; "
-                                    f"valid: {', '.join(sorted(_SIMULATE_DEFAULTS))}")
-        super().__init__(scene, t0, t_max, q0, v0, **(_SIMULATE_DEFAULTS | options))
+    def __init__(self, scene, foot: int, t0, t_max, q0, v0, options: SimulateOptions,
+                 min_stride: float = 0.0, min_flight: float = 0.0):
+        super().__init__(scene, t0, t_max, q0, v0, options)
         self.foot, self.t_earliest, self.min_flight = foot, t0 + min_stride, min_flight
         # last time the foot was on the ground (s); the start counts as such, so a
         # foot a few nanometres up after a restart does not "land" at once
         self.last_contact = t0
-        self.hit = None  # (event, mode before as indices, Φ just before)
-        self.start = None  # (mode before, v+ after the start impact)
+        self.hit = None  # (event, mode before as keys, Φ just before)
+        self.start = None  # (mode before, F- at the start, contacts landing with the foot)
 
-    def _initial_mode(self, q, v):
+    def initial_mode(self, q, v):
         n = len(self.events)
-        mode, v_plus = super()._initial_mode(q, v)
-        if not (self.jacobian and len(self.events) > n and self.names[self.foot] in self.events[-1].contacts):
+        mode, v_plus = super().initial_mode(q, v)
+        if not (self.options.jacobian and len(self.events) > n and self.names[self.foot] in self.events[-1].contacts):
             return mode, v_plus
         start = self.events[-1]
         closed = [i for i in range(len(self.contacts)) if self.names[i] in start.impulses]
         _, rates = self._gaps_and_rates(start.q, v)
-        landing = [i for i in closed if i != self.foot and rates[i] < -self.grazing_speed]
+        landing = [i for i in closed if i != self.foot and rates[i] < -self.options.grazing_speed]
         before = choose_mode(self.dyn, start.q, v, self.t0,
                              [i for i in closed if i != self.foot and i not in landing])
         F_minus = vector_field(self.dyn, start.q, v, self.t0, before)
@@ -494,17 +482,18 @@ class _StrideRun(_HybridRun):
         self.start = (before, F_minus, tuple(self.names[k] for k in landing))
         return mode, v_plus
 
-    def _event(self, t, q, v, mode, fired):
-        n, phi_minus = len(self.events), self.phi
-        new_mode, v_plus = super()._event(t, q, v, mode, fired)
-        for event in self.events[n:]:
-            if (self.names[self.foot] in event.contacts and event.kind not in ("lift-off", "slip")
-                    and t >= self.t_earliest and t - self.last_contact >= self.min_flight and self.hit is None):
-                self.hit = (event, tuple(mode), None if phi_minus is None else phi_minus.copy())
-                self.t_final = t  # the loop ends after this event
-            if self._touches(event):
-                self.last_contact = event.t
-        return new_mode, v_plus
+    def on_event(self, event, mode_before, phi_before) -> bool:
+        """The foot's touchdown that ends the stride is terminal; every event where the
+        foot is on the ground moves the start of its flight."""
+        stop = False
+        if (self.names[self.foot] in event.contacts and event.kind not in ("lift-off", "slip")
+                and event.t >= self.t_earliest and event.t - self.last_contact >= self.min_flight
+                and self.hit is None):
+            self.hit = (event, tuple(mode_before), phi_before)
+            stop = True
+        if self._touches(event):
+            self.last_contact = event.t
+        return stop
 
     def _touches(self, event) -> bool:
         """Whether the foot is on the ground at ``event`` (before, in or after it)."""
@@ -627,9 +616,11 @@ def first_touchdown(scene: Scene, foot: str, q=None, v=None, t: float = 0.0, *, 
     return s.t, s.q, s.v
 
 
-def _run_stride(scene, i, q, v, t0, t_end, clock, jacobian, require_start, **options) -> Stride:
+def _run_stride(scene, i, q, v, t0, t_end, clock, jacobian, require_start, min_stride: float = 0.0,
+                min_flight: float = 0.0, **options) -> Stride:
     foot = scene.contact_names[i]
-    run = _StrideRun(scene, i, t0, t_end, q, v, jacobian=jacobian, **options)
+    run = StrideLoop(scene, i, t0, t_end, q, v, SimulateOptions(jacobian=jacobian).replace(**options),
+                     min_stride=min_stride, min_flight=min_flight)
     traj = run.run()
     if run.hit is None:
         seen = ", ".join(f"{e.kind} {'+'.join(e.contacts)} at {e.t:.6g}" for e in traj.events[-6:]) or "none"

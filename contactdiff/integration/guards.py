@@ -1,0 +1,190 @@
+"""Guards of a mode over one accepted step: which crossed, when, and near misses.
+
+The guards of mode ``J`` are the gap of every open contact (downward through 0)
+and the normal force of every closed one (downward through 0). After each
+accepted step every guard is checked over the step: a gap that ends below 0, or
+that dips below it and back within the step (found from the cubic Hermite
+interpolant of the end-point gaps and gap rates, and confirmed on the step's
+dense output), and a force that ends below 0. Each crossing is located on the
+dense output with Brent's method to full precision in time. A gap that comes
+down to within the grazing band with zero normal speed and rises again is a
+near-grazing miss: the integration error cannot tell whether it touched.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import Enum
+
+import numpy as np
+from scipy.optimize import minimize_scalar
+
+from .events import hermite_minimum, locate_crossing
+from .options import SimulateOptions
+
+DIP_FRACTION = 0.5
+"""A step is searched for a dip when its Hermite minimum is below this share of the end gaps."""
+
+
+class GuardKind(Enum):
+    """What a guard watches."""
+
+    GAP = "gap"
+    """the gap of an open contact"""
+    FORCE = "force"
+    """the normal force of a closed contact"""
+
+
+@dataclass(frozen=True)
+class Guard:
+    """A guard: its kind and its contact (scene index for a gap, contact key for a force)."""
+
+    kind: GuardKind
+    contact: int
+
+
+@dataclass(frozen=True)
+class NearMiss:
+    """A gap that came down to ``gap`` (m, within ``band``) at ``t`` (s) and rose again."""
+
+    t: float
+    contact: int
+    gap: float
+    band: float
+
+
+class _Below(Exception):
+    """A guard search found a point below its threshold: ``args = (s, value)``."""
+
+
+class GuardFinder:
+    """Finds the guards of a mode that one accepted step crossed.
+
+    Args:
+        scene: the scene (its contacts and kinematics cache).
+        dyn: the scene's `ModeDynamics` (contact keys of a mode).
+        options: the run's `SimulateOptions` (tolerances, grazing band).
+        gap_tol: gap (m) below which a contact counts as closed.
+    """
+
+    def __init__(self, scene, dyn, options: SimulateOptions, gap_tol: float):
+        self.scene, self.dyn, self.options, self.gap_tol = scene, dyn, options, gap_tol
+        self.kin = scene.kinematics
+        self.contacts = scene.contacts
+
+    def crossings(self, stepper, dense, field, mode, start, end) -> tuple[list[tuple[float, Guard]], list[NearMiss]]:
+        """The guards the last step of ``stepper`` crossed, and its near-grazing misses.
+
+        Args:
+            stepper: the stepper after an accepted step ``[t_old, t]``.
+            dense: that step's dense output.
+            field: the mode's vector field (its normal forces on the dense output).
+            mode: the contact keys of the mode.
+            start, end: ``(gaps, gap rates, normal forces)`` at the step's two ends.
+
+        Returns:
+            ``(crossings, misses)``: each crossing as ``(t, Guard)`` located to full
+            precision in time; the misses in the step (gaps that came down within
+            the grazing band with zero normal speed and rose again).
+        """
+        t_a, t_b = stepper.t_old, stepper.t
+        gaps0, rates0, forces0 = start
+        gaps1, rates1, forces1 = end
+        found = []
+        misses = []
+        active = self.dyn.contacts_of(mode)
+        for i, contact in enumerate(self.contacts):
+            if i in active:
+                continue
+
+            def gap(t, i=i):
+                qt, _ = dense(t)
+                self.kin.update(qt, np.zeros(self.scene.nv))
+                return self.contacts[i].gap(self.kin)
+            t_lo, g_lo = t_a, gaps0[i]
+            if gaps1[i] < 0.0:
+                t_hi, g_hi = t_b, gaps1[i]
+            else:
+                s, low = hermite_minimum(gaps0[i], rates0[i], gaps1[i], rates1[i], t_b - t_a)
+                # an interior minimum that comes close to the ground relative to the end
+                # gaps may dip below it: the cubic from end-point data alone can miss a
+                # shallow dip, so search the step's own dense output for its minimum
+                dip = 0.0 < s < 1.0 and low < DIP_FRACTION * min(gaps0[i], gaps1[i])
+                # a gap that turns upward within the step, perhaps just above the ground
+                turning = gaps0[i] > self.gap_tol and rates0[i] < 0.0 <= rates1[i]
+                band = self.grazing_band(stepper.q) if turning else 0.0
+                if not (dip or (turning and min(low, gaps1[i]) <= 2.0 * band)):
+                    continue
+                t_hi, g_hi = self._lowest(gap, t_a, t_b, stop_below=0.0)
+                if g_hi >= 0.0:
+                    if turning and g_hi <= band:
+                        misses.append(NearMiss(t_hi, i, g_hi, band))
+                    continue
+            if g_lo <= self.gap_tol:
+                # the contact has just opened (bounce or lift-off): its gap starts at 0
+                # going up; a new touchdown needs the gap to rise above 0 and come back
+                t_peak, g_peak = self._peak(gap, t_a, t_hi)
+                if t_peak is None:
+                    # it never opened (released at an impact with no separating speed,
+                    # or rising by less than the search resolves) and is sinking: it
+                    # touches down where it passes below the integration error band
+                    # (a shallower dip of the dense output may be its error alone)
+                    shift = max(self.gap_tol, self.grazing_band(stepper.q)) - min(g_lo, 0.0)
+                    if g_hi + shift < 0.0:
+                        found.append((locate_crossing(lambda t: gap(t) + shift, t_a, t_hi, g_lo + shift,
+                                                      g_hi + shift), Guard(GuardKind.GAP, i)))
+                    continue
+                t_lo, g_lo = t_peak, g_peak
+            found.append((locate_crossing(gap, t_lo, t_hi, g_lo, g_hi), Guard(GuardKind.GAP, i)))
+        for k, key in enumerate(mode):
+            if forces1[k] >= 0.0:
+                continue
+
+            def force(t, k=k):
+                qt, vt = dense(t)
+                return field.normal_forces(t, qt, vt)[k]
+            found.append((locate_crossing(force, t_a, t_b, forces0[k], forces1[k]), Guard(GuardKind.FORCE, key)))
+        return found, misses
+
+    def grazing_band(self, q) -> float:
+        """Gap (m) within which a contact that turns back up may have touched, given
+        the integration error: ``grazing_gap``, by default 10 (atol + rtol |q|_inf)."""
+        if self.options.grazing_gap is not None:
+            return self.options.grazing_gap
+        return 10.0 * (self.options.atol + self.options.rtol * float(np.max(np.abs(q))))
+
+    @staticmethod
+    def _lowest(gap, t_a, t_b, stop_below: float = -np.inf):
+        """Lowest point of ``gap`` on the dense output of one step (bounded Brent),
+        searched in time relative to the step start: the bounded method's tolerance
+        includes sqrt(eps) |x|, which in absolute time (t ~ 300) exceeds a short flight.
+
+        The search stops at the first point below ``stop_below``: a caller that
+        only needs a point past a sign change (a bracket) gets it without resolving
+        the minimum. The time tolerance, 1e-9 of the step (or a few ulps of t),
+        puts the minimum's value within ~1e-18 of the step's gap variation.
+        """
+        def f(s):
+            value = gap(t_a + s)
+            if value < stop_below:
+                raise _Below(s, value)
+            return value
+        xatol = max(4 * np.finfo(float).eps * max(1.0, abs(t_b)), 1e-9 * (t_b - t_a))
+        try:
+            low = minimize_scalar(f, bounds=(0.0, t_b - t_a), method="bounded", options={"xatol": xatol})
+        except _Below as below:
+            s, value = below.args
+            return t_a + float(s), float(value)
+        return t_a + float(low.x), float(low.fun)
+
+    def _peak(self, gap, t_a, t_b):
+        """Highest point of a gap that starts closed at ``t_a`` and is negative at ``t_b``.
+
+        Returns ``(t, gap)`` there, or ``(None, None)`` if the gap never opens (rises
+        above 0). A peak in (0, gap_tol] is still a real bounce that comes back: skipping
+        it would leave the contact out of the mode, and it would fall through the
+        ground (e.g. a ball bounce at 1.2e-6 m/s under g = 1 peaks at 7e-13 m); the
+        Zeno rule ends such sequences instead.
+        """
+        t_peak, low = self._lowest(lambda t: -gap(t), t_a, t_b, stop_below=0.0)
+        return (t_peak, -low) if -low > 0.0 else (None, None)

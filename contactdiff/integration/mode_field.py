@@ -1,0 +1,58 @@
+"""The vector field of one contact mode, as a stepper sees it: accelerations, their
+Jacobian, and the mode's normal forces at the last point, with counters."""
+
+from __future__ import annotations
+
+from collections import OrderedDict
+
+import numpy as np
+
+from ..dynamics.mode import ModeDynamics
+
+
+class ModeField:
+    """Vector field of one mode for the stepper, remembering its last forces.
+
+    With ``fused`` (a flow Jacobian by an explicit method) every evaluation also
+    differentiates the mode: the stepper asks for the Jacobian at the very
+    stage points whose accelerations it evaluated, and one solve with
+    derivatives costs less than a plain solve followed by a derivative solve.
+    The derivatives of the last few points are kept for `jac`.
+    """
+
+    _KEEP = 32  # points remembered: more than the stages of one step
+
+    def __init__(self, dyn: ModeDynamics, mode: tuple[int, ...], fused: bool = False):
+        self.dyn, self.mode, self.fused = dyn, mode, fused
+        self.last = None
+        self.n_solve = self.n_derivatives = 0
+        self._derivatives: OrderedDict = OrderedDict()
+
+    def accel(self, t, q, v):
+        self.n_solve += 1
+        if self.fused:
+            sol, der = self._solve_with_derivatives(t, q, v)
+            self._derivatives[(t, q.tobytes(), v.tobytes())] = (der.ddq_dq, der.ddq_dv)
+            if len(self._derivatives) > self._KEEP:
+                self._derivatives.popitem(last=False)
+        else:
+            sol = self.dyn.solve(q, v, t, self.mode)
+        self.last = (t, q, v, sol)
+        return sol.ddq
+
+    def _solve_with_derivatives(self, t, q, v):
+        self.n_derivatives += 1
+        return self.dyn.solve(q, v, t, self.mode, derivatives=True)
+
+    def jac(self, t, q, v):
+        known = self._derivatives.get((t, q.tobytes(), v.tobytes()))
+        if known is not None:
+            return known
+        _, der = self._solve_with_derivatives(t, q, v)
+        return der.ddq_dq, der.ddq_dv
+
+    def normal_forces(self, t, q, v) -> np.ndarray:
+        last = self.last
+        if last is not None and last[0] == t and np.array_equal(last[1], q) and np.array_equal(last[2], v):
+            return last[3].normal_forces()
+        return self.dyn.solve(q, v, t, self.mode).normal_forces()

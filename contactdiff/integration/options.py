@@ -1,0 +1,150 @@
+"""The options of a simulation: one frozen object, validated once.
+
+`SimulateOptions` is what `simulate`, the hybrid loop and the stride map share;
+`simulate(scene, T, rtol=1e-10)` builds one from keywords, and
+``options.replace(rtol=1e-10)`` changes a few fields of an existing one.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from dataclasses import dataclass
+from enum import StrEnum
+
+import numpy as np
+
+from ..errors import InvalidInputError, check_count, check_number
+from .steppers import METHODS
+
+AUTO = "auto"
+SIMULATE_METHODS = (AUTO,) + METHODS
+"""Valid ``method`` names: ``"auto"`` (`contactdiff.integration.method_choice`) or a stepper."""
+MAX_STEPS = 200_000
+"""Default step budget (accepted steps)."""
+RTOL_MIN = 100 * np.finfo(float).eps
+"""Smallest relative tolerance: below it the steps' own round-off exceeds the tolerance."""
+RTOL_MAX = 0.1
+"""Largest relative tolerance: beyond it a step's error estimate no longer means anything."""
+ATOL_MAX = 0.1
+"""Largest absolute tolerance (m, rad, m/s): beyond it the error of a step can exceed the
+sizes of the robots the tolerance guards (foot heights, link lengths)."""
+
+
+class OnGrazing(StrEnum):
+    """What a grazing touchdown or a near-grazing miss does."""
+
+    EVENT = "event"
+    """record a ``grazing`` event (a miss: a note) and go on"""
+    RAISE = "raise"
+    """raise `GrazingError`"""
+
+
+@dataclass(frozen=True, kw_only=True)
+class SimulateOptions:
+    """Options of `simulate` (and of the stride map, which runs the same loop).
+
+    Attributes:
+        rtol, atol: error tolerances of each step (relative, in [`RTOL_MIN`,
+            `RTOL_MAX`]; absolute in m, rad, m/s, in (0, `ATOL_MAX`]).
+        method: ``"auto"`` (explicit DOP853, switching to Radau IIA while the
+            explicit steps are limited by stability rather than accuracy, see
+            `contactdiff.integration.method_choice`; the steps of each are in
+            ``traj.stats``) or a stepper of `METHODS` used throughout
+            (``"Radau"`` for stiff scenes).
+        jacobian: also compute the flow Jacobian ``traj.jacobian`` (d x(t_final) /
+            d x0, tangent space) and each event's saltation matrix and time gradient.
+        max_events: largest number of events before `TooManyEventsError`.
+        max_steps: largest number of accepted steps before `TooManyStepsError`
+            (its ``.trajectory`` holds the run so far); the default `MAX_STEPS`
+            lets a quadruped trot run for two minutes of simulated time (about
+            1,500 steps per second) and stops a runaway run (steps far shorter
+            than the horizon: a body spinning at 1e6 rad/s needs 1e-6-s steps).
+        simultaneous_tol: guards crossing within this time of the first (s) form
+            one simultaneous event.
+        zeno_speed: a contact closing slower than this (m/s) does not bounce: the
+            sequence ends and it stays closed.
+        grazing_speed: a touchdown slower than this (m/s) is grazing.
+        on_grazing: an `OnGrazing` (or its value): ``"event"`` records a grazing
+            event and goes on; ``"raise"`` raises `GrazingError`, also for a
+            near-grazing miss (see ``grazing_gap``).
+        grazing_gap: a contact whose gap comes down to within this distance (m) of
+            0 and turns back up is a near-grazing miss: the integration error cannot
+            tell whether it touched (a note, counted in ``stats.near_grazing_misses``,
+            or `GrazingError`); default 10 (atol + rtol |q|_inf) at that step.
+        project_tol: active-gap drift (m) beyond which the state is projected back
+            onto the constraints; default ``atol``.
+        max_step: largest step (s).
+        progress: called after every accepted step as ``progress(t, events, steps)``
+            (time in s, events and accepted steps so far), e.g. to draw a progress
+            bar; ``None`` for none.
+
+    Raises:
+        InvalidInputError: a bad value (the message names the field and its valid range).
+    """
+
+    rtol: float = 1e-8
+    atol: float = 1e-10
+    method: str = AUTO
+    jacobian: bool = False
+    max_events: int = 10_000
+    max_steps: int = MAX_STEPS
+    simultaneous_tol: float = 1e-9
+    zeno_speed: float = 1e-6
+    grazing_speed: float = 1e-9
+    on_grazing: OnGrazing = OnGrazing.EVENT
+    grazing_gap: float | None = None
+    project_tol: float | None = None
+    max_step: float = np.inf
+    progress: Callable[[float, int, int], None] | None = None
+
+    def __post_init__(self) -> None:
+        set_ = object.__setattr__  # frozen: normalise each field once
+        if self.method not in SIMULATE_METHODS:
+            raise InvalidInputError(f"unknown method {self.method!r}; valid: {', '.join(SIMULATE_METHODS)}")
+        if self.on_grazing not in tuple(OnGrazing):
+            raise InvalidInputError(f"on_grazing must be one of {', '.join(OnGrazing)}; got {self.on_grazing!r}")
+        set_(self, "on_grazing", OnGrazing(self.on_grazing))
+        set_(self, "rtol", _in_range("rtol", self.rtol, RTOL_MIN, RTOL_MAX))
+        set_(self, "atol", _in_range("atol", self.atol, 0.0, ATOL_MAX, open_low=True))
+        set_(self, "jacobian", bool(self.jacobian))
+        set_(self, "max_events", check_count("simulate", "max_events", self.max_events))
+        set_(self, "max_steps", check_count("simulate", "max_steps", self.max_steps))
+        for name in ("simultaneous_tol", "zeno_speed", "grazing_speed"):
+            set_(self, name, check_number("simulate", name, getattr(self, name), minimum=0.0))
+        if self.grazing_gap is not None:
+            set_(self, "grazing_gap", check_number("simulate", "grazing_gap", self.grazing_gap, minimum=0.0))
+        if self.project_tol is not None:
+            set_(self, "project_tol", _in_range("project_tol", self.project_tol, 0.0, np.inf, open_low=True))
+        max_step = self.max_step
+        if not isinstance(max_step, (int, float, np.floating, np.integer)) or isinstance(max_step, bool) \
+                or not max_step > 0:
+            raise InvalidInputError(f"simulate: max_step must be > 0 s, got {max_step!r}")
+        if self.progress is not None and not callable(self.progress):
+            raise InvalidInputError(f"simulate: progress must be a callable or None, got {self.progress!r}")
+
+    def replace(self, **changes) -> SimulateOptions:
+        """A copy with some fields changed; an unknown name lists the valid ones."""
+        unknown = sorted(set(changes) - set(field_names()))
+        if unknown:
+            raise InvalidInputError(f"unknown simulation option(s) {', '.join(unknown)}; "
+                                    f"valid: {', '.join(field_names())}")
+        return dataclasses.replace(self, **changes)
+
+    @property
+    def resolved_project_tol(self) -> float:
+        """``project_tol``, or ``atol`` where it was left at its default."""
+        return self.atol if self.project_tol is None else self.project_tol
+
+
+def field_names() -> list[str]:
+    """Names of the fields of `SimulateOptions`."""
+    return [f.name for f in dataclasses.fields(SimulateOptions)]
+
+
+def _in_range(name: str, value, low: float, high: float, *, open_low: bool = False) -> float:
+    x = check_number("simulate", name, value)
+    if not (low < x if open_low else low <= x) or x > high:
+        interval = f"({low:g}, {high:g}]" if open_low else f"[{low:.3g}, {high:g}]"
+        raise InvalidInputError(f"simulate: {name} must be in {interval}, got {value!r}")
+    return x
