@@ -19,9 +19,21 @@ from .analysis.gait.stride import find_periodic_gait, first_touchdown, period_ma
 from .analysis.order_gap import order_gap
 from .control.trot_scenes import trot_scene
 from .dynamics.mode import ModeDynamics
-from .errors import (ContactDiffError, GrazingError, InconsistentStateError, IntegrationError,
-                     InvalidInputError, ModelLoadError, SolverError, StoppedRunError, StrideError,
-                     TooManyEventsError, TooManyStepsError, UnknownNameError, UnknownRobotError)
+from .errors import (
+    ContactDiffError,
+    GrazingError,
+    InconsistentStateError,
+    IntegrationError,
+    InvalidInputError,
+    ModelLoadError,
+    SolverError,
+    StoppedRunError,
+    StrideError,
+    TooManyEventsError,
+    TooManyStepsError,
+    UnknownNameError,
+    UnknownRobotError,
+)
 from .integration.hybrid import HybridLoop, simulate
 from .integration.options import SimulateOptions
 from .integration.trajectory import Event, NonSmooth, RunStats, Segment, Termination, Trajectory

@@ -82,6 +82,7 @@ def _add_plot(parser: argparse.ArgumentParser, help_text: str) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The ``contactdiff`` argument parser: subcommands check, simulate, bench and stride."""
     parser = _Parser(
         prog="contactdiff",
         description="Differentiability through contact: check robots for limb decoupling.")

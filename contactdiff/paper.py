@@ -1,4 +1,4 @@
-"""The paper's touchdown scenes at any initial pitch (DESIGN.md §6).
+"""The paper's touchdown scenes at any initial pitch (docs/design.md §6).
 
 `trot_touchdown("soft", pitch)` and `trot_touchdown("rigid", pitch)` return the
 scenes of the paper's Fig. 1 with the body pitched by ``pitch`` (rad; positive

@@ -47,8 +47,8 @@ from typing import NamedTuple
 import numpy as np
 
 import contactdiff as cd
-from contactdiff.model.compliance import add_compliant_feet, compliant_state
 from contactdiff.analysis.order_gap import diagonal_pairs, diagonal_touchdown, order_gap
+from contactdiff.model.compliance import add_compliant_feet, compliant_state
 
 # Reflected rotor inertia I_rotor · N² (kg m²) at each actuated joint: (low, high) bracket per robot.
 ARMATURES = {
@@ -123,7 +123,8 @@ def touchdown_states(name: str, source: str = "trot"):
     if source not in STATE_SOURCES:
         raise cd.InvalidInputError(f"unknown state source {source!r}; valid: {', '.join(STATE_SOURCES)}")
     if source == "trot" and importlib.util.find_spec("contactdiff.control.trot_scenes") is None:
-        print(f"note: {name}: contactdiff.control.trot_scenes is missing; standing-pose touchdown instead", file=sys.stderr)
+        print(f"note: {name}: contactdiff.control.trot_scenes is missing; standing-pose touchdown instead",
+              file=sys.stderr)
     elif source == "trot":
         try:
             scene, states = trot_touchdowns(name)

@@ -29,10 +29,10 @@ import time
 
 import numpy as np
 
-from contactdiff.errors import ContactDiffError
-from contactdiff.integration.hybrid import simulate
 from contactdiff.analysis.gait.stride import find_periodic_gait, first_touchdown, period_map
 from contactdiff.control.trot_scenes import trot_scene
+from contactdiff.errors import ContactDiffError
+from contactdiff.integration.hybrid import simulate
 
 
 def main() -> None:

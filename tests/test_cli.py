@@ -73,7 +73,8 @@ def test_a_directory_as_source_is_named(capsys, tmp_path):
     assert "is a directory, not a TOML file" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("command", [["simulate", "ball", "--t-final", "0.1"], ["bench", "--quick", "--scenes", "ball"]])
+@pytest.mark.parametrize("command", [["simulate", "ball", "--t-final", "0.1"],
+                                     ["bench", "--quick", "--scenes", "ball"]])
 def test_plot_target_is_checked_before_any_work(command, capsys, tmp_path, monkeypatch):
     pytest.importorskip("matplotlib")
     import contactdiff.bench.runner

@@ -28,7 +28,7 @@ from contactdiff.cli import main
 from contactdiff.model.robot import ROBOTS_DIR
 
 ROOT = Path(__file__).resolve().parents[1]
-DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]
 _SLOW = re.compile(r"<!--\s*slow\b")
 
 
@@ -65,7 +65,9 @@ def _cases(kind: str):
             items = [text] if kind != "shell" else [x for x in text.splitlines() if x.startswith("contactdiff ")]
             for item in items:
                 marks = [pytest.mark.slow] if slow else []
-                label = f"{path.name}:{line}" + (f":{item.split('#')[0].strip()[:60]}" if kind == "shell" else "")
+                label = f"{path.relative_to(ROOT)}:{line}"
+                if kind == "shell":
+                    label += f":{item.split('#')[0].strip()[:60]}"
                 yield pytest.param(item, id=label, marks=marks)
 
 

@@ -1,6 +1,6 @@
 """The decoupling checker: how far a scene is from the paper's assumptions.
 
-Two conditions, each measured with numbers (DESIGN.md §2, paper §3):
+Two conditions, each measured with numbers (docs/design.md §2, paper §3):
 
 * **Orthogonality** (continuity of the flow): for every pair of contacts, the
   normalised inverse-mass coupling ``G_ij / sqrt(G_ii G_jj)`` with
@@ -115,9 +115,11 @@ class DecouplingReport:
         return max((p.max for p in self.pairs), default=0.0)
 
     def failed_terms(self) -> list[Term]:
+        """The terms of the limb assumption above ``tol`` (``ok`` false), in measured order."""
         return [t for t in self.terms if not t.ok]
 
     def to_dict(self) -> dict:
+        """JSON-ready form: every field, plus ``max_coupling``."""
         d = asdict(self)
         d["max_coupling"] = self.max_coupling
         return to_jsonable(d)
@@ -180,6 +182,8 @@ def check_decoupling(source: Scene | Robot | str | Path, *, samples: int = 20, s
         source: a `Scene`, a `Robot` (ground contacts at its feet) or any SOURCE
             accepted by `load_source`.
         samples: random poses besides the reference (seeded by ``seed``).
+        seed: seed of the random generator (``numpy.random.default_rng``) of the
+            sampled poses and velocities.
         armature: rotor inertia added to the actuated joints (kg m²) before checking.
         tol: relative size below which a coupling or term counts as zero.
         spread: half-width of the uniform random perturbation of every coordinate
@@ -389,7 +393,7 @@ class _Checker:
             all_closed = list(range(len(self.scene.contacts)))
             poses = self._poses(all_closed, samples) or [self.scene.q0]
             states = [(q, self.rng.uniform(-self.spread, self.spread, nv), 0.0) for q in poses]
-        blocks = [("body", self.body)] + [(f"limb {n}", l) for n, l in zip(names, self.limbs)]
+        blocks = [("body", self.body)] + [(f"limb {n}", limb) for n, limb in zip(names, self.limbs)]
         owners = [()] + [(n,) for n in names]
         # largest relative size of each term over the poses, keyed by block/limb indices
         mass, dep, effort, additive = {}, {}, {}, {}
@@ -423,7 +427,7 @@ class _Checker:
             Df = self._effort_jacobian(q, v, t)
             fscale = max(float(np.max(np.abs(Df))), 1.0)
             for i, limb in enumerate(self.limbs):
-                other = sorted(set().union(*(l for k, l in enumerate(self.limbs) if k != i)))
+                other = sorted(set().union(*(other_limb for k, other_limb in enumerate(self.limbs) if k != i)))
                 if limb and other:
                     cols = other + [nv + k for k in other]
                     value = float(np.max(np.abs(Df[np.ix_(sorted(limb), cols)]))) / fscale

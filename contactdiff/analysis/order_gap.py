@@ -46,11 +46,11 @@ from dataclasses import dataclass, field
 import numpy as np
 import pinocchio as pin
 
+from ..dynamics.impacts import resolve_impact
 from ..dynamics.mode import ModeDynamics
 from ..errors import InvalidInputError, check_number
-from ..dynamics.impacts import resolve_impact
-from ..model.scene import Scene
 from ..integration.sensitivity import ORDER_TOL, simultaneous_saltation, touchdown
+from ..model.scene import Scene
 
 GAP_TOL = 1e-9
 """Largest |gap| (m) at which a contact counts as closed for an order gap."""

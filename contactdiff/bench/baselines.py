@@ -46,11 +46,11 @@ import pinocchio as pin
 from scipy.integrate import solve_ivp
 from scipy.linalg import cho_factor, cho_solve
 
-from ..integration.trajectory import RunStats
+from ..dynamics.complementarity import ContactRows, impact_rhs, solve_contact_lcp
+from ..dynamics.impacts import choose_mode, liftoff_mode, resolve_impact
 from ..dynamics.mode import ModeDynamics
 from ..errors import IntegrationError, InvalidInputError
-from ..dynamics.impacts import choose_mode, liftoff_mode, resolve_impact
-from ..dynamics.complementarity import ContactRows, impact_rhs, solve_contact_lcp
+from ..integration.trajectory import RunStats
 from ..model.scene import Scene
 
 
@@ -126,7 +126,9 @@ def solve_ivp_baseline(scene: Scene, t_final: float, rtol: float = 1e-8, atol: f
         of `contactdiff.dynamics.mode`: a sliding contact's force guard has its sliding key)."""
         events = []
         for k, key in enumerate(mode):
-            ev = (lambda t, y, k=k, mode=mode: f.solve(y[:nv], y[nv:], t, mode).normal_forces()[k])
+            def ev(t, y, k=k, mode=mode):
+                return f.solve(y[:nv], y[nv:], t, mode).normal_forces()[k]
+
             events.append((("force", key), ev))
         active = f.dyn.contacts_of(mode)
         for i in (i for i in range(len(contacts)) if i not in active):

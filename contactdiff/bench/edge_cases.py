@@ -19,8 +19,7 @@ from ..model.efforts import JointSpring, Spring
 from ..model.scene import Scene
 from ..model.scene_file import load_scene
 from ..paper import trot_touchdown
-
-from .study_rows import SQ2, DEFAULT_TOL, TIGHT_TOL, StudyRow, _counts, _error_name, _failed, _run
+from .study_rows import DEFAULT_TOL, SQ2, TIGHT_TOL, StudyRow, _counts, _error_name, _failed, _run
 
 
 # -- grazing ---------------------------------------------------------------------------

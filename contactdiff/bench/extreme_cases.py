@@ -28,11 +28,27 @@ The studies:
 
 from __future__ import annotations
 
-from .edge_cases import (bad_input_study, elastic_study, grazing_study, pitch_for_gap_time, simultaneous_study,
-                         slow_drop, tangent_approach, touchdown_gap_time, zeno_study)
-from .stiff_cases import (settled_stance, stiff_trot, stiffness_sweep, tiny_mass_study, two_limb_closed_form,
-                          two_limb_with_mass)
+from .edge_cases import (
+    bad_input_study,
+    elastic_study,
+    grazing_study,
+    pitch_for_gap_time,
+    simultaneous_study,
+    slow_drop,
+    tangent_approach,
+    touchdown_gap_time,
+    zeno_study,
+)
+from .stiff_cases import (
+    settled_stance,
+    stiff_trot,
+    stiffness_sweep,
+    tiny_mass_study,
+    two_limb_closed_form,
+    two_limb_with_mass,
+)
 from .study_rows import StudyResult, StudyRow, state_error
+
 
 # -- all ------------------------------------------------------------------------------------
 def _skip_radau_ringing(scale, method):

@@ -35,8 +35,8 @@ import numpy as np
 import pinocchio as pin
 
 from ..dynamics.mode import ModeDynamics
-from ..model.efforts import Spring
 from ..integration.hybrid import simulate
+from ..model.efforts import Spring
 from ..model.kinematics import Kinematics
 from ..model.robot import load_robot
 from ..model.scene import Scene
@@ -61,6 +61,7 @@ class Footprint(dict):
     """The measurements of `measure_footprint` (a dict: what ``--json`` prints)."""
 
     def format(self) -> str:
+        """The measurements as text (times in ms), one paragraph per measurement present."""
         out = ["== only what a scene needs"]
         d = self.get("derivatives")
         if d:

@@ -40,14 +40,14 @@ from dataclasses import dataclass, field
 import numpy as np
 import pinocchio as pin
 
-from .baselines import solve_ivp_baseline, time_stepping_baseline
 from ..errors import ContactDiffError, InvalidInputError, unknown_name
 from ..integration.hybrid import simulate
 from ..jsonable import to_jsonable
-from .metrics import event_error, state_error, time_at_error
-from ..paper import trot_touchdown
 from ..model.scene import Scene
 from ..model.scene_file import load_scene
+from ..paper import trot_touchdown
+from .baselines import solve_ivp_baseline, time_stepping_baseline
+from .metrics import event_error, state_error, time_at_error
 
 LONG_RUN = 2.0  # s: a run longer than this is timed once
 TARGETS = (1e-6, 1e-9)
@@ -117,6 +117,7 @@ class Reference:
     convergence_events: float | None = None
 
     def to_dict(self) -> dict:
+        """JSON-ready form: ``q`` and ``v`` as lists, event times in s."""
         return {"kind": self.kind, "q": self.q.tolist(), "v": self.v.tolist(),
                 "event_times": list(self.event_times), "convergence": self.convergence,
                 "convergence_events": self.convergence_events}
@@ -152,6 +153,7 @@ class BenchResult:
     footprint: object = None  # footprint.Footprint (only what a scene needs), with --studies
 
     def to_dict(self) -> dict:
+        """JSON-ready form: every measurement, with the studies and footprint when run."""
         extra = {}
         if self.studies is not None:
             extra["studies"] = self.studies.to_dict()
@@ -268,11 +270,14 @@ def _timed(fn, repeats: int):
 
 def _run_one(name, scene, t_final, method, param, repeats):
     if method.startswith("ours-"):
-        fn = lambda: simulate(scene, t_final, rtol=param, atol=param * 1e-2, method=method[5:])
+        def fn():
+            return simulate(scene, t_final, rtol=param, atol=param * 1e-2, method=method[5:])
     elif method == "solve_ivp-DOP853":
-        fn = lambda: solve_ivp_baseline(scene, t_final, rtol=param, atol=param * 1e-2)
+        def fn():
+            return solve_ivp_baseline(scene, t_final, rtol=param, atol=param * 1e-2)
     elif method == "time-stepping":
-        fn = lambda: time_stepping_baseline(scene, t_final, param)
+        def fn():
+            return time_stepping_baseline(scene, t_final, param)
     else:
         raise unknown_name("bench method", method, list(METHODS))
     out, elapsed = _timed(fn, repeats)
@@ -429,8 +434,8 @@ def run_bench(scenes: Sequence[str] | None = None, methods: Sequence[str] | None
                                       "time_ours": best, "ours_method": best_m, "ratio": ratio,
                                       "note": note})
     if studies:
-        from .footprint import measure_footprint
         from .extreme_cases import run_studies
+        from .footprint import measure_footprint
 
         result.studies = run_studies(quick=quick)
         result.footprint = measure_footprint(quick=quick)

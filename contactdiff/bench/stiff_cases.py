@@ -14,7 +14,6 @@ from ..errors import ContactDiffError
 from ..model.efforts import Spring
 from ..model.scene import Scene
 from ..model.scene_file import load_scene
-
 from .study_rows import DEFAULT_TOL, StudyRow, _counts, _failed, _run, state_error
 
 
@@ -85,6 +84,11 @@ def stiffness_sweep(scales=(1, 10, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7), damping_ratio:
         scales: stiffness multipliers.
         damping_ratio: leg damping ratio ζ (0: undamped).
         methods: methods timed at ``tol`` (default rtol 1e-8, atol 1e-10).
+        t_final: end time of every run (s; default 1.2).
+        tol: ``rtol``/``atol`` of the timed runs (default rtol 1e-8, atol 1e-10).
+        reference_method: method of the reference run (default Radau for damped
+            legs, DOP853 for undamped ones).
+        reference_tol: ``rtol``/``atol`` of the reference run (default 1e-11 both).
         skip: ``skip(scale, method) -> reason or None``: runs not made (too slow).
 
     A run is ok when its event sequence is the reference's and its error is at

@@ -52,6 +52,7 @@ class StudyRow:
     details: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
+        """JSON-ready form: every field (times in s)."""
         return to_jsonable(asdict(self))
 
 
@@ -62,10 +63,12 @@ class StudyResult:
     rows: list[StudyRow] = field(default_factory=list)
 
     def to_dict(self) -> dict:
+        """JSON-ready form: the rows and ``all_ok`` (every row's outcome the right one)."""
         return {"rows": [r.to_dict() for r in self.rows],
                 "all_ok": all(r.ok for r in self.rows)}
 
     def format(self) -> str:
+        """One table per study (run times in ms), each with what its errors are measured against."""
         out = []
         for study in dict.fromkeys(r.study for r in self.rows):
             rows = [r for r in self.rows if r.study == study]

@@ -41,6 +41,7 @@ class Leg:
 
     @property
     def label(self) -> str:
+        """The leg's quadrant: ``front-left``, ``front-right``, ``hind-left`` or ``hind-right``."""
         return ("front" if self.front else "hind") + "-" + ("left" if self.left else "right")
 
 
@@ -80,6 +81,7 @@ def find_legs(robot: Robot, q_stance: np.ndarray | None = None) -> list[Leg]:
 
 
 def check_quadruped(robot: Robot) -> None:
+    """Raise `InvalidInputError` unless ``robot`` has a floating base and four feet."""
     if not robot.floating_base or len(robot.feet) != 4:
         raise InvalidInputError(
             f"a trot needs a floating-base robot with four feet; {robot.name!r} has "

@@ -102,8 +102,8 @@ import numpy as np
 import pinocchio as pin
 from scipy.interpolate import CubicSpline
 
-from ..model.efforts import central_time_difference
 from ..errors import InvalidInputError, check_number
+from ..model.efforts import central_time_difference
 from ..model.kinematics import Kinematics
 from ..model.robot import Robot
 from .legs import PAIR_A, PAIR_B, Leg, base_at_origin, check_quadruped, find_legs
@@ -231,6 +231,7 @@ class TrotController:
                                    for name, value in pairs))
 
     def bind(self, robot: Robot) -> TrotControllerEvaluator:
+        """The evaluator of this controller on ``robot`` (its legs found, the schedule precomputed)."""
         return TrotControllerEvaluator(self, robot)
 
 
@@ -428,6 +429,8 @@ class TrotControllerEvaluator:
 
     # -- effort protocol --------------------------------------------------------------
     def tau(self, kin: Kinematics, t: float) -> np.ndarray:
+        """Generalised force (nv,) at the state of ``kin`` and time ``t`` (s): the PD and
+        feed-forward torques on the leg joints (N m), zero elsewhere."""
         s = self.spec
         q_ref, v_ref = self.reference(t)
         out = np.zeros(self.nv)
@@ -441,6 +444,8 @@ class TrotControllerEvaluator:
         return central_time_difference(self, kin, t, 1e-6 * self.spec.period)
 
     def derivatives(self, kin: Kinematics, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """``(d tau/dq, d tau/dv)``, each (nv × nv), tangent space: ``-g kp`` and ``-g kd`` on
+        the diagonal of the leg joints, zero elsewhere."""
         dq, dv = np.zeros((self.nv, self.nv)), np.zeros((self.nv, self.nv))
         g = self.gains(t)
         dq[self.iv, self.iv] = -self.spec.kp * g

@@ -21,12 +21,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..model.contacts import Contact
 from ..errors import InvalidInputError, unknown_name
-from .trot_controller import TrotController, TrotControllerEvaluator
+from ..model.contacts import Contact
 from ..model.kinematics import Kinematics
 from ..model.robot import QUADRUPEDS, Robot, load_robot
 from ..model.scene import Scene
+from .trot_controller import TrotController, TrotControllerEvaluator
 
 GRAVITY = 9.81
 """Gravity of the trot scenes (m/s², along -z)."""

@@ -65,9 +65,20 @@ import numpy as np
 from scipy.optimize import nnls
 
 from ..errors import InvalidInputError
-from .lcp_problem import (_METHODS, AUTO_ENUMERATE_MAX, DEFAULT_TOL, ENUMERATE_MAX, RELAX_ENUMERATE_MAX,
-                          _EIG_RCOND, ContactRows, LCPSolution, _as_real_array, _as_vector,
-                          _Problem, _validate)
+from .lcp_problem import (
+    _EIG_RCOND,
+    _METHODS,
+    AUTO_ENUMERATE_MAX,
+    DEFAULT_TOL,
+    ENUMERATE_MAX,
+    RELAX_ENUMERATE_MAX,
+    ContactRows,
+    LCPSolution,
+    _as_real_array,
+    _as_vector,
+    _Problem,
+    _validate,
+)
 
 __all__ = ["ContactRows", "LCPSolution", "impact_rhs", "solve_contact_lcp", "DEFAULT_TOL",
            "AUTO_ENUMERATE_MAX", "ENUMERATE_MAX", "RELAX_ENUMERATE_MAX"]

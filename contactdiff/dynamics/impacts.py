@@ -38,9 +38,9 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from .mode import ModeDynamics
 from ..errors import SolverError
 from .complementarity import ContactRows, impact_rhs, solve_contact_lcp
+from .mode import ModeDynamics
 
 
 @dataclass
@@ -149,6 +149,10 @@ def choose_mode(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float,
     """Active set among the closed, non-separating ``candidates`` (acceleration-level LCP).
 
     Args:
+        dyn: the scene's `ModeDynamics` (its kinematics cache is moved to ``(q, v)``).
+        q: configuration (nq,).
+        v: velocity (nv,), tangent space.
+        t: time (s), for time-dependent efforts.
         candidates: keys of the contacts that may stay active; a sticking key may be
             turned into its sliding key when no sticking solution exists (module doc).
 

@@ -26,9 +26,9 @@ import pinocchio as pin
 from scipy.linalg.lapack import dposv as _dposv
 
 from ..errors import InvalidInputError, SolverError, check_number
+from ..model.scene import Scene
 from .constraint_dynamics import RigidContactMode
 from .constraint_dynamics import eligible as rigid_eligible
-from ..model.scene import Scene
 
 
 @dataclass
@@ -101,6 +101,7 @@ class ModeDynamics:
         return index + self.n_contacts
 
     def is_sliding(self, key: int) -> bool:
+        """Whether contact key ``key`` is a sliding key (``n_contacts + i``)."""
         return key >= self.n_contacts
 
     def contacts_of(self, mode: Sequence[int]) -> tuple[int, ...]:
@@ -136,7 +137,8 @@ class ModeDynamics:
     def _check_state(self, q, v, t, tau) -> None:
         """Name the bad argument of a `solve` that failed inside Pinocchio or numpy."""
         model = self.model
-        for name, x, size in (("q", q, model.nq), ("v", v, model.nv)) + (() if tau is None else (("tau", tau, model.nv),)):
+        checked = (("q", q, model.nq), ("v", v, model.nv)) + (() if tau is None else (("tau", tau, model.nv),))
+        for name, x, size in checked:
             arr = np.asarray(x)
             if arr.shape != (size,) or not np.issubdtype(arr.dtype, np.number):
                 raise InvalidInputError(f"ModeDynamics.solve: {name} must be {size} numbers, got shape "
@@ -170,7 +172,8 @@ class ModeDynamics:
         """Accelerations and forces in mode ``active`` at ``(q, v)``.
 
         Args:
-            q, v: state (configuration, tangent velocity).
+            q: configuration (nq,).
+            v: velocity (nv,), tangent space.
             t: time (s), passed to time-dependent efforts.
             active: keys of the active contacts (see the module doc).
             derivatives: also return the `ModeDerivatives`.

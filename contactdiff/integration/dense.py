@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+
 class DenseOutput:
     """Interpolant of one accepted step on ``[t_old, t]``.
 

@@ -22,8 +22,10 @@ def hermite_minimum(g0: float, d0: float, g1: float, d1: float, h: float) -> tup
     """Minimum of the cubic Hermite interpolant of a guard over one step.
 
     Args:
-        g0, d0: guard value and time derivative at the step start.
-        g1, d1: the same at the step end.
+        g0: guard value at the step start (the guard's unit, e.g. m for a gap).
+        d0: its time derivative at the step start (unit/s, e.g. m/s).
+        g1: guard value at the step end.
+        d1: its time derivative at the step end.
         h: step length (s).
 
     Returns:

@@ -6,10 +6,11 @@ import math
 
 import numpy as np
 
+from ..errors import InvalidInputError
 from . import tableaus
 from .dense import DenseOutput, LazyDenseOutput
-from ..errors import InvalidInputError
 from .stepper import _MAX_FACTOR, _MIN_FACTOR, _SAFETY, Stepper, _combine, _rms, _rms_cols
+
 
 class ExplicitRK(Stepper):
     """Explicit embedded Runge–Kutta pair with FSAL (base of `RK45`, `DOP853`).
@@ -97,6 +98,8 @@ class ExplicitRK(Stepper):
         return phi_new, err, df_end
 
     def step(self) -> None:
+        """Take one accepted step (`Stepper.step`) of the embedded pair, shrinking the step
+        after each rejection; the flow Jacobian, if carried, is propagated over the step."""
         min_step, h_abs = self._begin_step()
         t, y = self.t, self._y
         qc = None if self._vs else self.q

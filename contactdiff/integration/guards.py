@@ -80,7 +80,10 @@ class GuardFinder:
             dense: that step's dense output.
             field: the mode's vector field (its normal forces on the dense output).
             mode: the contact keys of the mode.
-            start, end: ``(gaps, gap rates, normal forces)`` at the step's two ends.
+            start: ``(gaps, gap rates, normal forces)`` at the step start: gaps (m)
+                and gap rates (m/s) of every scene contact, normal forces (N) of the
+                mode's contacts in the order of ``mode``.
+            end: the same at the step end.
 
         Returns:
             ``(crossings, misses)``: each crossing as ``(t, Guard)`` located to full

@@ -56,12 +56,19 @@ from ..model.scene import Scene
 from ..model.scene_file import passive_note
 from .events import simultaneous_group
 from .guards import Guard, GuardFinder, GuardKind, NearMiss
-from .mode_field import ModeField
 from .method_choice import EXPLICIT, MethodChooser, spectral_radius
+from .mode_field import ModeField
 from .options import AUTO, OnGrazing, SimulateOptions
 from .projection import close, held_velocity, project_state
-from .sensitivity import (gap_gradient, impact_reset_jacobian, liftoff_guard, liftoff_saltation, saltation,
-                          simultaneous_saltation, vector_field)
+from .sensitivity import (
+    gap_gradient,
+    impact_reset_jacobian,
+    liftoff_guard,
+    liftoff_saltation,
+    saltation,
+    simultaneous_saltation,
+    vector_field,
+)
 from .steppers import PinocchioGroup, make_stepper
 from .trajectory import Event, NonSmooth, RunStats, Segment, Termination, Trajectory
 
@@ -81,7 +88,10 @@ def simulate(scene: Scene, t_final: float, q0=None, v0=None, *, t0: float = 0.0,
     Args:
         scene: the `Scene`.
         t_final: final time (s), > t0.
-        q0, v0: initial state (arrays or joint-name mappings); default the scene's.
+        q0: initial configuration: an array (nq,) or a joint-name mapping that changes
+            only the named joints of the scene's; default the scene's.
+        v0: initial velocity: an array (nv,), tangent space, or a joint-name mapping
+            as for ``q0``; default the scene's.
         t0: initial time (s).
         options: a `SimulateOptions`; default ``SimulateOptions()``.
         **option_values: fields of `SimulateOptions` by name, on top of
@@ -325,7 +335,8 @@ class HybridLoop:
             self.notes.append(f"method auto: {method} from t = {stepper.t:.12g} ({why}: "
                               f"h = {stepper.h_abs:.3g} s, spectral radius {rho:.3g} /s)")
         return make_stepper(method, field.accel, self.group, stepper.t, stepper.q, stepper.v,
-                            jac=field.jac, first_step=stepper.h_abs, variational=stepper.phi if self.options.jacobian else None,
+                            jac=field.jac, first_step=stepper.h_abs,
+                            variational=stepper.phi if self.options.jacobian else None,
                             **self._stepper_options())
 
     def _trajectory(self, stepper, termination: Termination) -> Trajectory:
@@ -379,7 +390,7 @@ class HybridLoop:
         touching = [g.contact for g in fired if g.kind is GuardKind.GAP]
         releasing = [g.contact for g in fired if g.kind is GuardKind.FORCE]
         if touching:
-            # every contact closed at the instant takes part (DESIGN §2), also one whose
+            # every contact closed at the instant takes part (docs/design.md §2), also one whose
             # guard did not fire within simultaneous_tol: left out, it would start the
             # next step closed and be skipped by _crossings (no peak), i.e. penetrate
             gaps, _ = self._gaps_and_rates(q, v)

@@ -17,6 +17,7 @@ import numpy as np
 
 from ..errors import InvalidInputError
 
+
 @runtime_checkable
 class LieGroup(Protocol):
     """Configuration space seen by the steppers (all vectors in Pinocchio's tangent convention).
@@ -67,21 +68,27 @@ class VectorSpace:
         self.nq = self.nv = n
 
     def integrate(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
+        """``q + dq``."""
         return q + dq
 
     def difference(self, q0: np.ndarray, q1: np.ndarray) -> np.ndarray:
+        """``q1 - q0``."""
         return q1 - q0
 
     def chart_velocity(self, q0: np.ndarray, xi: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """``v`` itself (a copy): ``Jr = I``."""
         return np.array(v, dtype=float)
 
     def tangent_velocity(self, q0: np.ndarray, xi: np.ndarray, xi_dot: np.ndarray) -> np.ndarray:
+        """``xi_dot`` itself (a copy): ``Jr = I``."""
         return np.array(xi_dot, dtype=float)
 
     def velocity_jacobian_q(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """Zero (n × n): on a vector space ``q' = v`` does not depend on ``q``."""
         return np.zeros((self.nv, self.nv))
 
     def magnitude(self, q: np.ndarray) -> np.ndarray:
+        """``|q|`` per component (n,): what ``rtol`` is relative to."""
         return np.abs(q)
 
     def __repr__(self) -> str:
@@ -151,12 +158,16 @@ class PinocchioGroup:
         self._chart_blocks = [b for b in self._blocks if b[0] != "so2"]
 
     def integrate(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
+        """``q ⊕ dq = pin.integrate(model, q, dq)`` (nq,)."""
         return self._pin.integrate(self.model, q, dq)
 
     def difference(self, q0: np.ndarray, q1: np.ndarray) -> np.ndarray:
+        """``dq`` (nv,) with ``q0 ⊕ dq = q1`` (``pin.difference``)."""
         return self._pin.difference(self.model, q0, q1)
 
     def chart_velocity(self, q0: np.ndarray, xi: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """``dxi/dt = Jr(xi)^-1 v`` (nv,) in the chart ``q = q0 ⊕ xi``: in closed form on SE(3)/SO(3)
+        blocks, by a small solve on SE(2) blocks, ``v`` itself elsewhere."""
         pin = self._pin
         out = np.array(v, dtype=float)
         D = None
@@ -173,6 +184,7 @@ class PinocchioGroup:
         return out
 
     def tangent_velocity(self, q0: np.ndarray, xi: np.ndarray, xi_dot: np.ndarray) -> np.ndarray:
+        """``Jr(xi) xi_dot`` (nv,): the velocity ``v`` of ``q0 ⊕ xi(t)`` (inverse of `chart_velocity`)."""
         pin = self._pin
         out = np.array(xi_dot, dtype=float)
         D = None
@@ -189,6 +201,8 @@ class PinocchioGroup:
         return out
 
     def velocity_jacobian_q(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """d(δq')/dδq of ``q' = v`` linearised in the tangent space (nv × nv): ``-ad(v)`` on each
+        SE(3), SO(3) and SE(2) block, zero elsewhere."""
         G = np.zeros((self.nv, self.nv))
         for kind, _, iv, n in self._chart_blocks:
             s = slice(iv, iv + n)
@@ -202,6 +216,7 @@ class PinocchioGroup:
         return G
 
     def magnitude(self, q: np.ndarray) -> np.ndarray:
+        """Per tangent component, the size of ``q`` that ``rtol`` is relative to (nv,)."""
         # Euclidean coordinates: |q_i|; translations of SE(3)/SE(2) joints: the
         # position's norm; rotation coordinates have no natural size (atol only).
         m = np.zeros(self.nv)

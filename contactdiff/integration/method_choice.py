@@ -62,7 +62,9 @@ def spectral_radius(accel, q: np.ndarray, v: np.ndarray, t: float, group=None,
 
     Args:
         accel: ``accel(t, q, v) -> dv/dt`` (nv,).
-        q, v: state; t: time (s).
+        q: configuration (nq,).
+        v: velocity (nv,), tangent space.
+        t: time (s).
         group: the configuration's Lie group (a `steppers.PinocchioGroup`) or None
             for a vector space (``q ⊕ δq = q + δq``).
         krylov: largest number of products.

@@ -29,6 +29,8 @@ class ModeField:
         self._derivatives: OrderedDict = OrderedDict()
 
     def accel(self, t, q, v):
+        """Accelerations ``ddq`` (nv,) of the mode at time ``t`` (s) and state ``(q, v)``; with
+        ``fused`` also differentiates the mode and keeps the derivatives for `jac`."""
         self.n_solve += 1
         if self.fused:
             sol, der = self._solve_with_derivatives(t, q, v)
@@ -45,6 +47,8 @@ class ModeField:
         return self.dyn.solve(q, v, t, self.mode, derivatives=True)
 
     def jac(self, t, q, v):
+        """``(d ddq/dq, d ddq/dv)``, each (nv × nv), tangent space, at time ``t`` (s) and
+        ``(q, v)`` (kept from a fused `accel` at that point, or solved)."""
         known = self._derivatives.get((t, q.tobytes(), v.tobytes()))
         if known is not None:
             return known
@@ -52,6 +56,8 @@ class ModeField:
         return der.ddq_dq, der.ddq_dv
 
     def normal_forces(self, t, q, v) -> np.ndarray:
+        """Normal forces (N) of the mode's contacts (order of ``mode``) at time ``t`` (s) and
+        ``(q, v)``, reusing the last `accel` solve when it was at that point."""
         last = self.last
         if last is not None and last[0] == t and np.array_equal(last[1], q) and np.array_equal(last[2], v):
             return last[3].normal_forces()

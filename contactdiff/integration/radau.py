@@ -7,8 +7,8 @@ import math
 import numpy as np
 from scipy.linalg.lapack import dgetrf, dgetrs, zgetrf, zgetrs
 
-from .dense import DenseOutput
 from ..errors import IntegrationError, InvalidInputError
+from .dense import DenseOutput
 from .stepper import _EPS, _MAX_FACTOR, _MIN_FACTOR, Stepper, _rms, _rms_cols
 
 _S6 = 6**0.5
@@ -199,6 +199,9 @@ class Radau(Stepper):
         return Z0
 
     def step(self) -> None:
+        """Take one accepted step (`Stepper.step`): simplified Newton on the collocation
+        system, halving the step when Newton fails and shrinking it when the error is
+        too large; the flow Jacobian, if carried, is propagated over the step."""
         min_step, _ = self._begin_step()
         t, y, f = self.t, self._y, self._f
         qc = None if self._vs else self.q
@@ -343,6 +346,7 @@ class Radau(Stepper):
         return self._variational(t, h, y, Z, qc, self.phi_old)[0]
 
     def dense(self, lazy: bool = False) -> DenseOutput:
+        """The collocation polynomial of the last step on ``[t_old, t]`` (``lazy`` changes nothing)."""
         # the collocation polynomial costs nothing extra: lazy changes nothing
         if self.t_old is None or self._sol is None:
             raise InvalidInputError("dense() needs a step taken since the last (re)start")

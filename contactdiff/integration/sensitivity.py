@@ -1,4 +1,4 @@
-"""Saltation matrices: how a perturbation crosses an event (DESIGN.md §2).
+"""Saltation matrices: how a perturbation crosses an event (docs/design.md §2).
 
 At an event with guard ``h`` and reset ``R`` a tangent perturbation ``δx`` just
 before becomes ``Ξ δx`` just after, with
@@ -27,8 +27,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import pinocchio as pin
 
-from ..dynamics.mode import ModeDynamics
 from ..dynamics.impacts import ImpactResult, choose_mode, resolve_impact
+from ..dynamics.mode import ModeDynamics
 from ..model.scene import Scene
 
 ORDER_TOL = 1e-8
@@ -130,7 +130,9 @@ def touchdown(dyn: ModeDynamics, t: float, q: np.ndarray, v_minus: np.ndarray, m
 
     Args:
         dyn: the scene's `ModeDynamics`.
-        t, q, v_minus: event time and state just before.
+        t: event time (s).
+        q: configuration at the event (nq,).
+        v_minus: velocity just before (nv,), tangent space.
         mode: active contacts before.
         contacts: contacts that close at this instant (all take part in the impact
             together with ``mode``).
@@ -211,7 +213,18 @@ def simultaneous_saltation(dyn: ModeDynamics, t: float, q: np.ndarray, v_minus: 
     ``S_k = (F_{J∪k}(q, v+_k) - DR_k F_J(q, v-)) Dh_k / (Dh_k F_J(q, v-))``.
 
     Args:
+        dyn: the scene's `ModeDynamics`.
+        t: event time (s).
+        q: configuration at the event (nq,), with the ``contacts`` closed.
+        v_minus: velocity just before (nv,), tangent space.
+        mode: contact keys active before.
+        contacts: indices of the contacts landing together.
         restitution: optional per-contact override, a mapping from contact index to e.
+        tol: agreement tolerance (relative, max-norm) below which all orders count as
+            equal (``differentiable``).
+
+    Returns:
+        A `SimultaneousSaltation`: every order's matrix, the paper's, their spread.
     """
     mode, contacts = tuple(mode), tuple(contacts)
     override = dict(restitution or {})
@@ -257,7 +270,8 @@ def saltation_matrices(scene: Scene, q: np.ndarray, v_minus: np.ndarray, contact
 
     Args:
         scene: the scene.
-        q, v_minus: configuration with the ``contacts`` closed, and velocity just before.
+        q: configuration (nq,) with the ``contacts`` closed.
+        v_minus: velocity just before (nv,), tangent space.
         contacts: contacts (indices or names) landing together.
         mode: contacts active before (indices or names).
         t: time (s), for time-dependent efforts.

@@ -24,7 +24,7 @@ Units and frames: time in the model's unit (s); ``q`` and ``v`` in Pinocchio's
 units and frames (m, rad, quaternion components; m/s and rad/s in each joint's
 local frame). The flow Jacobian ``phi`` (``2nv x m``) maps perturbations at the
 initial point to tangent perturbations ``(δq, δv)`` at the current point,
-``q ⊕ δq`` (Pinocchio's convention, DESIGN.md §2); by default its local error
+``q ⊕ δq`` (Pinocchio's convention, docs/design.md §2); by default its local error
 is controlled together with the state's (``variational_error_control``).
 Integration runs forward in time only.
 

@@ -29,7 +29,7 @@ Units and frames: time in the model's unit (s); ``q`` and ``v`` in Pinocchio's
 units and frames (m, rad, quaternion components; m/s and rad/s in each joint's
 local frame). The flow Jacobian ``phi`` (``2nv x m``) maps perturbations at the
 initial point to tangent perturbations ``(δq, δv)`` at the current point,
-``q ⊕ δq`` (Pinocchio's convention, DESIGN.md §2); by default its local error
+``q ⊕ δq`` (Pinocchio's convention, docs/design.md §2); by default its local error
 is controlled together with the state's (``variational_error_control``).
 Integration runs forward in time only.
 
@@ -63,7 +63,15 @@ def make_stepper(method: str, accel: AccelFn, group, t0: float, q0, v0, **option
         method: one of `METHODS` (case-insensitive): ``"DOP853"`` (explicit,
             default choice), ``"RK45"`` (explicit, loose tolerances),
             ``"Radau"`` (implicit, stiff springs).
-        accel, group, t0, q0, v0, options: see `Stepper`.
+        accel: ``accel(t, q, v) -> dv/dt`` (nv,).
+        group: configuration space (`VectorSpace`, `PinocchioGroup`) or a
+            ``pinocchio.Model``.
+        t0: initial time (s).
+        q0: initial configuration (nq,).
+        v0: initial velocity (nv,), tangent space.
+        **options: keyword arguments of `Stepper` (``rtol``, ``atol``, ``jac``,
+            ``first_step``, ``max_step``, ``t_bound``, ``variational``, ...; see there
+            for units and defaults).
 
     Raises:
         InvalidInputError: unknown method (the message lists the valid ones) or bad input.

@@ -82,6 +82,7 @@ class RunStats:
     near_grazing_misses: int = 0
 
     def to_dict(self) -> dict:
+        """Every counter as a JSON-ready dict."""
         return asdict(self)
 
 
@@ -134,6 +135,8 @@ class Event:
         return not self.nonsmooth
 
     def to_dict(self) -> dict:
+        """JSON-ready form: arrays as lists, ``differentiable``, ``nonsmooth`` reasons by
+        lower-case name, and the saltation matrices when the Jacobian was asked for."""
         extra = {}
         if self.saltation is not None:
             extra["saltation"] = self.saltation.tolist()
@@ -169,6 +172,8 @@ class Segment:
     sliding: tuple[str, ...] = ()
 
     def at(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """State ``(q, v)`` (nq,), (nv,) at time ``t`` (s) on the dense output of the step
+        containing it (the first or last step's beyond the segment's ends)."""
         starts = [p.t_old for p in self.pieces]
         i = max(0, min(bisect.bisect_right(starts, t) - 1, len(self.pieces) - 1))
         q, v = self.pieces[i](t)

@@ -46,8 +46,8 @@ from collections.abc import Sequence
 import numpy as np
 import pinocchio as pin
 
-from .efforts import JointSpring, Spring, UserEffort
 from ..errors import InvalidInputError, check_number, unknown_name
+from .efforts import JointSpring, Spring, UserEffort
 from .robot import Robot
 from .scene import Scene
 
@@ -250,7 +250,8 @@ def compliant_state(robot: Robot, compliant: Robot, q, v=None) -> tuple[np.ndarr
     Args:
         robot: the original robot.
         compliant: a robot built from it (e.g. ``add_compliant_feet(...).robot``).
-        q: configuration of ``robot`` (nq,); v: velocity (nv,), default zero.
+        q: configuration of ``robot`` (nq,).
+        v: velocity of ``robot`` (nv,), tangent space; default zero.
 
     Returns:
         ``(q, v)`` of ``compliant``.

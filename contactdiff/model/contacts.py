@@ -78,6 +78,7 @@ class Contact:
 
     @property
     def sticking(self) -> bool:
+        """Whether the contact sticks (``friction == "stick"``: no slip while active)."""
         return self.friction == "stick"
 
     def bind(self, robot: Robot) -> BoundContact:
@@ -134,6 +135,7 @@ class BoundContact:
 
     @property
     def sticking(self) -> bool:
+        """Whether this contact sticks: a sticking spec, not its `sliding_view` (normal row only)."""
         return self.spec.sticking and not self.sliding
 
     def sliding_view(self) -> BoundContact:
@@ -149,10 +151,12 @@ class BoundContact:
 
     @property
     def n_rows(self) -> int:
+        """Number of constraint rows: 1 (normal) plus the tangents it holds."""
         return len(self.directions)
 
     @property
     def normal(self) -> np.ndarray:
+        """Unit normal (3,), world frame: the direction of the first row."""
         return self.directions[0]
 
     # -- the point difference p - p' and its derivatives ----------------------------

@@ -73,6 +73,8 @@ class JointSpring:
             object.__setattr__(self, name, check_number(owner, name, getattr(self, name), minimum=minimum))
 
     def bind(self, robot: Robot) -> _BoundJointSpring:
+        """The evaluator of this spring on ``robot`` (the joint's indices resolved; it must
+        be a one-coordinate joint)."""
         return _BoundJointSpring(self, robot)
 
 
@@ -137,6 +139,7 @@ class Spring:
             object.__setattr__(self, name, check_number(owner, name, getattr(self, name), minimum=0.0))
 
     def bind(self, robot: Robot) -> _BoundSpring:
+        """The evaluator of this spring on ``robot`` (both frames resolved, distinct)."""
         return _BoundSpring(self, robot)
 
 
@@ -230,6 +233,8 @@ class UserEffort:
         check_number(self.name, "fd_step", self.fd_step, minimum=1e-15)
 
     def bind(self, robot: Robot) -> _BoundUserEffort:
+        """The evaluator of this effort on ``robot`` (its output checked for shape (nv,) and
+        finiteness at every call)."""
         return _BoundUserEffort(self, robot)
 
 

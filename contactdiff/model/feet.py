@@ -112,6 +112,8 @@ class FootChoice:
         return text
 
     def to_dict(self) -> dict:
+        """JSON-ready form (keys name their units: ``band_m``, ``heights_m``, ``upright_turn_rad``),
+        with the `describe` line."""
         return {"feet": list(self.feet), "rule": self.rule.name.lower(), "band_m": self.band,
                 "heights_m": dict(self.heights), "upright_turn_rad": self.upright_turn,
                 "left_out": [{"frame": x.frame, "height_m": x.height, "reason": x.reason}

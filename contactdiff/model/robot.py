@@ -29,6 +29,7 @@ import pinocchio as pin
 from ..errors import InvalidInputError, ModelLoadError, UnknownRobotError, unknown_name
 from .feet import FootChoice, FootRule, choose_feet
 
+
 def _robots_dir() -> Path:
     """The package ``contactdiff.robots`` of an installed wheel or an editable install,
     else (a source checkout imported from its folder) ``robots/`` beside ``contactdiff/``."""
@@ -82,10 +83,12 @@ class Robot:
     # -- sizes and scratch data ---------------------------------------------------
     @property
     def nq(self) -> int:
+        """Configuration size (a free-flyer counts 7: position and quaternion)."""
         return self.model.nq
 
     @property
     def nv(self) -> int:
+        """Tangent (velocity) size (a free-flyer counts 6)."""
         return self.model.nv
 
     @property
@@ -117,6 +120,7 @@ class Robot:
     # -- names -----------------------------------------------------------------------
     @property
     def frame_names(self) -> list[str]:
+        """Names of the model's frames, in frame-index order."""
         return [f.name for f in self.model.frames]
 
     @property

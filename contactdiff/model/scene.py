@@ -11,9 +11,9 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 import pinocchio as pin
 
+from ..errors import InconsistentStateError, InvalidInputError, check_vector, unknown_name
 from .contacts import FRICTION_MODES, BoundContact, Contact
 from .efforts import Effort, bind_efforts
-from ..errors import InconsistentStateError, InvalidInputError, check_vector, unknown_name
 from .feet import FootChoice, up_direction
 from .kinematics import Kinematics
 from .robot import Robot
@@ -78,14 +78,17 @@ class Scene:
     # -- basic facts -----------------------------------------------------------------
     @property
     def model(self) -> pin.Model:
+        """The robot's ``pinocchio.Model`` (with this scene's gravity)."""
         return self.robot.model
 
     @property
     def nv(self) -> int:
+        """Tangent (velocity) size of the robot."""
         return self.robot.nv
 
     @property
     def contact_names(self) -> list[str]:
+        """Names of the contacts, in scene order (the contact indices)."""
         return [c.name for c in self.contacts]
 
     def contact_index(self, name: str) -> int:

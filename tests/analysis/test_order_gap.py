@@ -24,15 +24,11 @@ import math
 import numpy as np
 import pinocchio as pin
 import pytest
+from helpers import assert_fd
 
 import contactdiff as cd
-from contactdiff.errors import InvalidInputError, UnknownNameError
 from contactdiff.analysis.order_gap import GAP_TOL, diagonal_pairs, diagonal_touchdown, order_gap
-
-try:
-    from helpers import assert_fd
-except ModuleNotFoundError:  # tests/ imported as a package
-    from tests.helpers import assert_fd
+from contactdiff.errors import InvalidInputError, UnknownNameError
 
 TIGHT = dict(rtol=1e-12, atol=1e-14)
 
@@ -329,7 +325,7 @@ def test_quadruped_decoupling_table_script():
     import importlib.util
     from pathlib import Path
 
-    path = Path(__file__).resolve().parent.parent / "scripts" / "quadruped_decoupling_table.py"
+    path = Path(__file__).resolve().parents[2] / "scripts" / "quadruped_decoupling_table.py"
     spec = importlib.util.spec_from_file_location("quadruped_decoupling_table", path)
     script = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(script)

@@ -1,6 +1,6 @@
 """The paper's planar models and the real quadrupeds against hand-derived facts.
 
-Everything compared here is derived in this file from DESIGN.md §6 (masses,
+Everything compared here is derived in this file from docs/design.md §6 (masses,
 inertias, frame offsets, the pitch convention), not read back from the code.
 
 Pitch turns about the world axis (0, -1, 0): R(θ) = R_y(-θ) maps body x to
@@ -61,7 +61,7 @@ def frame_position(robot, q, frame) -> np.ndarray:
     return kin.position(robot.frame_id(frame)).copy()
 
 
-# -- names (DESIGN.md §6) -------------------------------------------------------------
+# -- names (docs/design.md §6) -------------------------------------------------------------
 NAMES = {
     "planar_trot_soft": (
         {"body_x", "body_z", "body_pitch", "rear_foot_x", "rear_foot_z", "front_foot_x", "front_foot_z"},
@@ -236,7 +236,7 @@ def test_two_limb_and_ball_scenes():
 
 @pytest.mark.parametrize("theta0", [0.2, -0.35])
 def test_soft_trot_tilted_touchdown_state(theta0):
-    """DESIGN §6: body centre (0, 1), pitch θ0, each foot at hip + R(θ0)(0, 0, -0.5)."""
+    """docs/design.md §6: body centre (0, 1), pitch θ0, each foot at hip + R(θ0)(0, 0, -0.5)."""
     scene = load_source("planar_trot_soft")
     feet = {side: np.array([0, 0, 1.0]) + rotate(theta0, bx, 0) + rotate(theta0, 0, -0.5)
             for side, bx in (("rear", -0.25), ("front", 0.25))}

@@ -12,8 +12,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from contactdiff.errors import InvalidInputError, SolverError
 from contactdiff.dynamics.complementarity import ContactRows, LCPSolution, impact_rhs, solve_contact_lcp
+from contactdiff.errors import InvalidInputError, SolverError
 
 METHODS = ("auto", "enumerate", "pivot", "nnls")
 PROPS = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])

@@ -22,15 +22,11 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 import pytest
+from test_slip import LEG_URDF
 
 import contactdiff as cd
-from contactdiff.dynamics.mode import ModeDynamics
 from contactdiff.dynamics.impacts import resolve_impact
-
-try:
-    from test_slip import LEG_URDF
-except ModuleNotFoundError:  # tests/ imported as a package
-    from tests.test_slip import LEG_URDF
+from contactdiff.dynamics.mode import ModeDynamics
 
 
 def test_a_contact_opening_with_no_speed_that_sinks_touches_down_again():

@@ -29,10 +29,10 @@ import numpy as np
 import pytest
 
 import contactdiff as cd
-from contactdiff.errors import InvalidInputError
 from contactdiff.analysis.order_gap import diagonal_pairs, order_gap
+from contactdiff.errors import InvalidInputError
 
-SCRIPT = Path(__file__).resolve().parent.parent / "scripts" / "quadruped_decoupling_table.py"
+SCRIPT = Path(__file__).resolve().parents[2] / "scripts" / "quadruped_decoupling_table.py"
 
 
 @pytest.fixture(scope="module")

@@ -18,16 +18,12 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 import pytest
+from helpers import assert_fd, fd_dq, fd_dv, random_state
 
 import contactdiff as cd
-from contactdiff.model.compliance import SPRING_SUFFIX, add_compliant_feet, compliant_state
-from contactdiff.errors import InvalidInputError, UnknownNameError
 from contactdiff.analysis.order_gap import diagonal_touchdown, order_gap
-
-try:
-    from helpers import assert_fd, fd_dq, fd_dv, random_state
-except ModuleNotFoundError:  # tests/ imported as a package
-    from tests.helpers import assert_fd, fd_dq, fd_dv, random_state
+from contactdiff.errors import InvalidInputError, UnknownNameError
+from contactdiff.model.compliance import SPRING_SUFFIX, add_compliant_feet, compliant_state
 
 
 @pytest.fixture(scope="module")

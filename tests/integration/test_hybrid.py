@@ -4,7 +4,7 @@ Every reference number below comes from a closed form (or, where stated, from
 scipy on an ODE written out here from first principles), never from the code's
 own output. Tolerances and the reason for each are given next to the asserts.
 
-Models (DESIGN.md §6, robots/*.toml; units with g = 1 unless stated):
+Models (docs/design.md §6, robots/*.toml; units with g = 1 unless stated):
 
 * ball: mass 1 on the vertical joint ``z``, dropped from h = 1;
 * planar_trot_soft: body (m_b = 1) on two leg springs (k = 27, rest 0.5) to two
@@ -78,7 +78,7 @@ def ball_run():
 def test_ball_event_times_and_velocities(ball_run):
     """First 10 bounces vs the closed form to <= 1e-10.
 
-    Tolerance 1e-10 (DESIGN §7 target): each flight is a quadratic that DOP853
+    Tolerance 1e-10 (docs/design.md §7 target): each flight is a quadratic that DOP853
     integrates exactly up to rounding, Brent locates each root to ~4 eps in
     time, so the only error is rounding accumulated over 10 bounces (~1e-14).
     """
@@ -102,7 +102,7 @@ def test_ball_event_times_and_velocities(ball_run):
 
 
 def test_ball_located_gap(ball_run):
-    """|z| <= 1e-12 at every located touchdown (DESIGN §7), both the event's q and
+    """|z| <= 1e-12 at every located touchdown (docs/design.md §7), both the event's q and
     the dense output's left limit (the located root itself, before any closing)."""
     _, traj = ball_run
     for ev in traj.events:
@@ -449,9 +449,12 @@ def _pivot(sign, theta0, omega0, t0, t1, stop_at_level=False):
     (3 Z'^2 + I) thdd + 3 Z' Z'' thd^2 + 3 g Z' = 0.
     Optionally stops when theta = 0 (the other foot's gap 0.5 |sin theta| closes).
     """
-    Z = lambda th: -_foot_h(th, sign)
-    Zp = lambda th: -(sign * 0.25 * np.cos(th) + np.sin(th) / 6)
-    Zpp = lambda th: -(-sign * 0.25 * np.sin(th) + np.cos(th) / 6)
+    def Z(th):
+        return -_foot_h(th, sign)
+    def Zp(th):
+        return -(sign * 0.25 * np.cos(th) + np.sin(th) / 6)
+    def Zpp(th):
+        return -(-sign * 0.25 * np.sin(th) + np.cos(th) / 6)
 
     def f(t, y):
         th, w = y
@@ -772,7 +775,7 @@ def test_no_touchdown_lost_without_grouping():
     """planar_trot_soft at pitch 0 with simultaneous_tol = 0: the two feet's roots
     differ by rounding, so the second foot may not be grouped with the first; it
     is then closed (gap ~1e-16) and approaching at 1 m/s at the first impact and
-    must take part in it (DESIGN §2: all closed contacts take part), not be lost.
+    must take part in it (docs/design.md §2: all closed contacts take part), not be lost.
     Regression: it used to be skipped forever (no gap peak after the event) and
     the foot fell through the ground (gap -0.5 at t = 1.5)."""
     scene = cd.load_scene("planar_trot_soft")
@@ -809,7 +812,7 @@ def _row_speeds(scene, q, v, contacts):
 def test_start_sliding_on_sticking_feet():
     """Rigid trot standing on both feet (sticking) with body x velocity 1: a
     consistent start must stop the tangential velocity of every foot that stays
-    active (DESIGN §2: sticking rows are bilateral while active; at touchdown the
+    active (docs/design.md §2: sticking rows are bilateral while active; at touchdown the
     tangential velocity is stopped plastically). Whatever the impact outcome,
     every active contact must have zero row velocity in every segment."""
     base = cd.load_scene("planar_trot_rigid")

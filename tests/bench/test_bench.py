@@ -1,5 +1,5 @@
 """Benchmarks and baselines: baselines right on the ball's closed form, the quick
-bench's structure, the command. No timing is asserted (DESIGN §7)."""
+bench's structure, the command. No timing is asserted (docs/design.md §7)."""
 
 import json
 import math

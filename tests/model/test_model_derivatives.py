@@ -12,19 +12,15 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 import pytest
+from helpers import EPS, assert_fd, fd_dq, fd_dv, random_state, second_derivative_along
 
-from contactdiff.model.contacts import Contact
 from contactdiff.dynamics.mode import ModeDynamics
+from contactdiff.model.contacts import Contact
 from contactdiff.model.efforts import JointSpring, Spring, UserEffort
 from contactdiff.model.kinematics import Kinematics
 from contactdiff.model.robot import load_robot
 from contactdiff.model.scene import Scene
 from contactdiff.model.scene_file import load_source
-
-try:
-    from helpers import EPS, assert_fd, fd_dq, fd_dv, random_state, second_derivative_along
-except ModuleNotFoundError:  # tests/ imported as a package
-    from tests.helpers import EPS, assert_fd, fd_dq, fd_dv, random_state, second_derivative_along
 
 T = 0.37  # time passed to efforts (only user efforts use it)
 

@@ -14,19 +14,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from helpers import assert_fd, fd_dq, fd_dv
+from test_slip import LEG_URDF
 
 import contactdiff as cd
-from contactdiff.dynamics.mode import ModeDynamics
-from contactdiff.dynamics.impacts import resolve_impact
-from contactdiff.integration.sensitivity import impact_reset_jacobian
 from contactdiff.control.trot_scenes import trot_scene
-
-try:
-    from helpers import assert_fd, fd_dq, fd_dv
-    from test_slip import LEG_URDF
-except ModuleNotFoundError:  # tests/ imported as a package
-    from tests.helpers import assert_fd, fd_dq, fd_dv
-    from tests.test_slip import LEG_URDF
+from contactdiff.dynamics.impacts import resolve_impact
+from contactdiff.dynamics.mode import ModeDynamics
+from contactdiff.integration.sensitivity import impact_reset_jacobian
 
 TRIES = 400  # random pre-impact velocities searched for a relaxed case
 

@@ -14,11 +14,11 @@ import pytest
 from helpers import assert_fd, fd_dq, fd_dv
 
 import contactdiff as cd
-from contactdiff.errors import InvalidInputError, UnknownNameError
 from contactdiff.control.legs import PAIR_A, PAIR_B, find_legs
 from contactdiff.control.trot_controller import TrotController
-from contactdiff.model.kinematics import Kinematics
 from contactdiff.control.trot_scenes import TROT_PARAMETERS, stance_intervals, trot_scene
+from contactdiff.errors import InvalidInputError, UnknownNameError
+from contactdiff.model.kinematics import Kinematics
 
 T_FINAL = 3.0  # s: several strides (7.5 periods of solo12, 6 of anymal)
 

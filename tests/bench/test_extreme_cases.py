@@ -17,12 +17,12 @@ import pinocchio as pin
 import pytest
 
 import contactdiff as cd
-from contactdiff.model.robot import ROBOTS_DIR
 from contactdiff.bench import extreme_cases as studies
 from contactdiff.errors import GrazingError
 from contactdiff.integration.hybrid import simulate
-from contactdiff.integration.steppers import PinocchioGroup
 from contactdiff.integration.method_choice import spectral_radius
+from contactdiff.integration.steppers import PinocchioGroup
+from contactdiff.model.robot import ROBOTS_DIR
 
 TIGHT = dict(rtol=1e-12, atol=1e-14)
 

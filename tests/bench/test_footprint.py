@@ -1,4 +1,4 @@
-"""Only what a scene needs is computed: counted calls, not times (DESIGN §7)."""
+"""Only what a scene needs is computed: counted calls, not times (docs/design.md §7)."""
 
 from __future__ import annotations
 

@@ -11,21 +11,17 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 import pytest
+from helpers import random_state, second_derivative_along
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from contactdiff.model.contacts import Contact
 from contactdiff.dynamics.mode import ModeDynamics
+from contactdiff.model.contacts import Contact
 from contactdiff.model.efforts import JointSpring, Spring
 from contactdiff.model.kinematics import Kinematics
 from contactdiff.model.robot import Robot, load_robot
 from contactdiff.model.scene import Scene
 from contactdiff.model.scene_file import load_source
-
-try:
-    from helpers import random_state, second_derivative_along
-except ModuleNotFoundError:  # tests/ imported as a package
-    from tests.helpers import random_state, second_derivative_along
 
 M_RIGID, I_RIGID = 3.0, 31 / 24
 FEET_X = {"rear_foot": -0.25, "front_foot": 0.25}
@@ -486,7 +482,8 @@ def test_rigid_contact_path_matches_python_kkt(monkeypatch, mode, normal):
 
     robot = load_robot("solo12")
     contacts = [Contact(f, normal=normal, offset=-1.0, friction="stick") for f in robot.feet]  # never penetrating
-    scene = Scene(robot, contacts, [JointSpring("FL_KFE", 2.0, 0.1, -1.0), Spring("FL_FOOT", "HR_FOOT", 30.0, 1.5, 0.2)])
+    scene = Scene(robot, contacts,
+                  [JointSpring("FL_KFE", 2.0, 0.1, -1.0), Spring("FL_FOOT", "HR_FOOT", 30.0, 1.5, 0.2)])
     q, v = _state(robot, 7)
     fast, fast_der = ModeDynamics(scene).solve(q, v, 0.0, mode, derivatives=True)
     monkeypatch.setattr(dynamics_module, "rigid_eligible", lambda contacts: False)

@@ -137,7 +137,8 @@ def _check_law(scene, vm, rows, M, res, e, sticking):
     v_scale = max(1.0, np.max(np.abs(A @ vm)))
     x_scale = max(1.0, np.max(np.abs(res.row_impulses)))
     # momentum balance: v+ = v- + M^-1 A^T x (rows stacked per contact, normal first)
-    np.testing.assert_allclose(M @ (vp - vm), A.T @ res.row_impulses, rtol=0, atol=REL * x_scale * max(1, np.abs(A).max()))
+    np.testing.assert_allclose(M @ (vp - vm), A.T @ res.row_impulses, rtol=0,
+                               atol=REL * x_scale * max(1, np.abs(A).max()))
     np.testing.assert_allclose(res.impulses, res.row_impulses[np.cumsum([0] + [len(r) for r in rows])[:-1]], atol=0)
     # impulses never pull
     assert np.all(res.impulses >= -REL * x_scale), res.impulses
@@ -164,7 +165,7 @@ def _check_law(scene, vm, rows, M, res, e, sticking):
        e=st.floats(0.0, 1.0), data=st.data())
 def test_frictionless_uniform_restitution(key, seed, e, data):
     """Uniform e, frictionless: impulses >= 0, complementarity, energy never
-    increases (DESIGN §2; the loss is ½ (1 - e) Σ x_k (-A_k v-) >= 0)."""
+    increases (docs/design.md §2; the loss is ½ (1 - e) Σ x_k (-A_k v-) >= 0)."""
     subset = data.draw(RIGID_SUBSETS if key == "planar_trot_rigid" else _subsets(len(_scene(key).contacts)))
     scene, q, vm, rows, M = _case(key, seed, subset)
     res = resolve_impact(_dyn(key), q, vm, subset, np.full(len(subset), e))

@@ -19,15 +19,11 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 import pytest
+from helpers import assert_fd
 
 import contactdiff as cd
 from contactdiff.dynamics.mode import ModeDynamics
 from contactdiff.integration.sensitivity import force_time_rate
-
-try:
-    from helpers import assert_fd
-except ModuleNotFoundError:  # tests/ imported as a package
-    from tests.helpers import assert_fd
 
 LEG_URDF = """<?xml version="1.0"?>
 <robot name="leg">
@@ -139,7 +135,7 @@ def test_slip_sequence_and_physics(leg_run):
 
 def test_liftoff_from_sliding_has_identity_saltation(leg_run):
     """The sliding foot's release has no force jump (its only row's force is zero at
-    the event), so the field is continuous there and Ξ = I (DESIGN §2)."""
+    the event), so the field is continuous there and Ξ = I (docs/design.md §2)."""
     _, traj = leg_run
     slip, liftoff = traj.events[1:]
     np.testing.assert_allclose(liftoff.saltation, np.eye(6), atol=1e-12)

@@ -1,4 +1,4 @@
-"""Flow Jacobians, saltation matrices and event-time gradients (DESIGN.md §2, §7).
+"""Flow Jacobians, saltation matrices and event-time gradients (docs/design.md §2, §7).
 
 References, never the code's own output:
 
@@ -11,7 +11,7 @@ References, never the code's own output:
   discretely with the perturbation; measured on the soft trot the total is
   4e-8 at ε = 1e-5, 1e-7 at 3e-6, 4e-7 at 1e-6 and 7e-7 at 3e-7 (noise
   dominated below 1e-5), so 1e-5 is the sweet spot. The comparison is
-  ``max|J - FD| / max|FD|`` ≤ 1e-6 (`helpers.assert_fd`, DESIGN §7).
+  ``max|J - FD| / max|FD|`` ≤ 1e-6 (`helpers.assert_fd`, docs/design.md §7).
   FD is only meaningful where the perturbations do not change the event
   sequence in a non-differentiable way: for every scene with separate events
   the perturbed runs are checked to have the nominal event sequence; at the
@@ -22,7 +22,7 @@ References, never the code's own output:
 * **The implicit-function theorem** for event-time gradients, evaluated here
   from a run stopped just before the event.
 
-Models (DESIGN §6, g = 1 except solo12): ball (e = 0.8), two_limb, the soft and
+Models (docs/design.md §6, g = 1 except solo12): ball (e = 0.8), two_limb, the soft and
 rigid planar trot (`trot_touchdown`), a rigid bar = the rigid trot with
 restitution 0.5 on both feet, sticking-foot variants of the soft trot, and a
 tilted solo12 drop (free-flyer, sticking plastic feet).
@@ -38,6 +38,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pinocchio as pin
 import pytest
+from helpers import assert_fd
 from scipy.spatial.transform import Rotation
 
 import contactdiff as cd
@@ -46,14 +47,9 @@ from contactdiff.dynamics.mode import ModeDynamics
 from contactdiff.integration.hybrid import simulate
 from contactdiff.integration.sensitivity import liftoff_saltation, saltation_matrices
 
-try:
-    from helpers import assert_fd
-except ModuleNotFoundError:  # tests/ imported as a package
-    from tests.helpers import assert_fd
-
 TOL = dict(rtol=1e-12, atol=1e-13)
 EPS = 1e-5
-JAC_RTOL = 1e-6  # DESIGN §7: flow Jacobians vs FD of the simulator
+JAC_RTOL = 1e-6  # docs/design.md §7: flow Jacobians vs FD of the simulator
 
 
 # ----------------------------------------------------------------------------------

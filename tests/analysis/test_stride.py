@@ -33,7 +33,7 @@ References, never the code's own output:
   again. Step ε = 1e-5 at rtol = 1e-12, atol = 1e-13 (as tests/test_jacobian.py:
   truncation ~ε² ≈ 1e-10, step-sequence noise ~tol/ε ≈ 1e-8); measured on the
   soft trot: 2.7e-6, 2.7e-8, 2.6e-10 at ε = 1e-4, 1e-5, 1e-6 (shrinks as ε²).
-  Asserted ≤ 1e-6 relative (DESIGN §7). Models: planar_trot_soft (frictionless
+  Asserted ≤ 1e-6 relative (docs/design.md §7). Models: planar_trot_soft (frictionless
   and sticking feet, through touchdowns and lift-offs), a bouncing solo12
   (free-flyer, quaternion base), the same with a clock-driven PD and the shaker
   (start-time column).
@@ -52,18 +52,23 @@ import math
 import numpy as np
 import pinocchio as pin
 import pytest
+from helpers import assert_fd
 from scipy.optimize import brentq
 
 import contactdiff as cd
+from contactdiff.analysis.gait.stride import (
+    StrideError,
+    available_neutral,
+    find_periodic_gait,
+    first_touchdown,
+    floquet_multipliers,
+    neutral_directions,
+    onto_section,
+    period_map,
+    section_basis,
+    stride_map,
+)
 from contactdiff.cli import main as cli_main
-from contactdiff.analysis.gait.stride import (StrideError, available_neutral, find_periodic_gait, first_touchdown,
-                                floquet_multipliers, neutral_directions, onto_section, period_map,
-                                section_basis, stride_map)
-
-try:
-    from helpers import assert_fd
-except ModuleNotFoundError:  # tests/ imported as a package
-    from tests.helpers import assert_fd
 
 TOL = dict(rtol=1e-12, atol=1e-13)
 EPS = 1e-5
