@@ -109,7 +109,9 @@ def build_parser() -> argparse.ArgumentParser:
     stride.add_argument("--newton", type=_positive_int, default=0, metavar="N",
                         help="Newton iterations towards a periodic gait (default 0: one stride)")
     stride.add_argument("--tol", type=_nonnegative_float, default=1e-9,
-                        help="residual at which Newton stops (default 1e-9)")
+                        help="residual at which Newton stops (default 1e-9); it also stops where the "
+                             "residual is within the map's resolution, twice its change when the stride "
+                             "is computed again at 10 times tighter tolerances")
     stride.add_argument("--t0", type=float, default=0.0, help="start time (s, default 0)")
     stride.add_argument("--t-max", type=float, default=10.0, help="longest stride (s, default 10)")
     stride.add_argument("--min-stride", type=float, default=None,
