@@ -161,7 +161,9 @@ def build_parser() -> argparse.ArgumentParser:
     stride.add_argument("--newton", type=_COUNT, default=0, metavar="N",
                         help="Newton iterations towards a periodic gait (default 0: one stride)")
     stride.add_argument("--tol", type=_NONNEGATIVE, default=1e-9,
-                        help="residual at which Newton stops (default 1e-9)")
+                        help="residual at which Newton stops (default 1e-9); it also stops where the "
+                             "residual is within the map's resolution, twice its change when the stride "
+                             "is computed again at 10 times tighter tolerances")
     stride.add_argument("--t0", type=_FINITE, default=0.0, help="start time (s, default 0)")
     stride.add_argument("--t-max", type=_FINITE, default=10.0, help="longest stride (s, default 10)")
     stride.add_argument("--min-stride", type=_FINITE, default=None,

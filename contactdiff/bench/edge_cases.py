@@ -199,7 +199,7 @@ def zeno_study(restitutions=(0.5, 0.9, 0.99), zeno_speed: float = 1e-6,
     accumulates at ``t_inf = t1 (1 + e)/(1 - e)``. The run stops bouncing at the
     first impact slower than ``zeno_speed`` (event ``zeno``, then at rest in
     contact), so ``t_inf - t_zeno`` lies in ``[2 e² z/(1-e), 2 e z/(1-e)]``,
-    z = zeno_speed (derived in tests/test_integrator.py). ``error`` is
+    z = zeno_speed (derived in tests/integration/test_hybrid.py). ``error`` is
     ``|t_zeno - t_inf|``; ok when inside that interval, the last event is the
     only ``zeno`` one and the ball rests on the ground after it.
     """

@@ -53,7 +53,7 @@ LONG_RUN = 2.0  # s: a run longer than this is timed once
 TARGETS = (1e-6, 1e-9)
 REF_TOL = dict(rtol=1e-13, atol=1e-14)
 CHECK_TOL = dict(rtol=1e-12, atol=1e-13)
-FD_EPS = 1e-5  # the sweet spot of tests/test_jacobian.py: truncation ~eps², step-sequence noise ~tol/eps
+FD_EPS = 1e-5  # the sweet spot of tests/integration/test_sensitivity.py: truncation ~eps², step-sequence noise ~tol/eps
 
 # name -> (builder, t_final)
 SCENES: dict[str, tuple[Callable[[], Scene], float]] = {

@@ -30,7 +30,7 @@ References, never the code's own output:
 * **Central finite differences of the stride map** on the section: the start is
   moved along a section coordinate (tangent to the guard), put back onto the
   guard (`onto_section`, a second-order correction) and the stride simulated
-  again. Step ε = 1e-5 at rtol = 1e-12, atol = 1e-13 (as tests/test_jacobian.py:
+  again. Step ε = 1e-5 at rtol = 1e-12, atol = 1e-13 (as tests/integration/test_sensitivity.py:
   truncation ~ε² ≈ 1e-10, step-sequence noise ~tol/ε ≈ 1e-8); measured on the
   soft trot: 2.7e-6, 2.7e-8, 2.6e-10 at ε = 1e-4, 1e-5, 1e-6 (shrinks as ε²).
   Asserted ≤ 1e-6 relative (docs/design.md §7). Models: planar_trot_soft (frictionless
@@ -230,6 +230,44 @@ def test_newton_finds_the_shaker_orbits(orbit):
     assert len(gait.steps) <= 8  # quadratic convergence: a handful of strides
     json.dumps(gait.to_dict())
     assert "Floquet multipliers" in gait.format()
+
+
+@pytest.mark.parametrize("rtol", [1e-6, 1e-5])
+@pytest.mark.parametrize("orbit", [0, 1])
+def test_newton_stops_at_the_maps_resolution(orbit, rtol):
+    """``tol = 0`` is below anything the map resolves at these loose tolerances
+    (integration error 1e-8 to 1e-6); the search ends where the residual is within
+    the map's resolution ρ and says so, instead of spending all its iterations on
+    residuals the map cannot resolve. ρ is twice the change ``d`` of the residual
+    when the stride is computed again at 10 times tighter tolerances: tightening
+    tenfold at least halves the integration error e (DOP853: error ~ tol^(8/9), a
+    factor 0.13), so ``|e| <= d + |e|/2``, ``|e| <= 2d = ρ``. The claim is checked
+    against the closed-form orbit: near it ``r = A δx + e`` with ``A = J - I`` of
+    the closed-form Jacobian, so the distance to the orbit is at most
+    ``‖A⁻¹‖ (|r| + ρ)`` (to first order). Far from the orbit the map is resolved:
+    every earlier iterate's residual is above its resolution."""
+    sh = Shaker()
+    t_star = sh.orbit_times[orbit]
+    args = (sh.scene, "ball", [0.0], [-1.1 * sh.V], t_star + 0.05)
+    opts = dict(period=sh.P, iterations=10, tol=0.0, rtol=rtol, atol=rtol * 1e-2)
+    gait = find_periodic_gait(*args, **opts)
+    assert gait.converged and gait.resolved and gait.residuals[-1] > 0.0
+    assert len(gait.resolutions) == len(gait.residuals) and gait.resolution == gait.resolutions[-1]
+    assert gait.residuals[-1] <= gait.resolution
+    assert all(r > res for r, res in zip(gait.residuals[:-1], gait.resolutions[:-1]))
+    _, _, J_ref = sh.touchdown(-sh.V, t_star)
+    bound = np.linalg.norm(np.linalg.inv(J_ref - np.eye(2)), 2) * (gait.residuals[-1] + gait.resolution)
+    assert math.hypot(gait.v[0] + sh.V, math.remainder(gait.t - t_star, sh.P)) <= bound
+    assert "converged to the map's resolution" in gait.format()
+    out = json.loads(json.dumps(gait.to_dict()))
+    assert out["resolved"] and out["converged"] and out["resolutions"][-1] == gait.resolution
+    # without the rule only tol ends the search: all iterations, not converged, nothing measured
+    strict = find_periodic_gait(*args, **opts, resolution=False)
+    assert len(strict.residuals) == 11 and strict.residuals[-1] > 0.0
+    assert not strict.converged and not strict.resolved and strict.resolutions == [None] * 11
+    assert "NOT converged" in strict.format()
+    # a single stride measures nothing
+    assert find_periodic_gait(*args, **opts | {"iterations": 0}).resolutions == [None]
 
 
 def test_newton_elastic_soft_trot_multipliers_come_in_reciprocal_pairs():

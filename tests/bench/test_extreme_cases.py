@@ -4,8 +4,8 @@ named error; never a silent wrong answer.
 Reference values come from closed forms derived in the docstrings (here or in
 `contactdiff.bench.extreme_cases`), from physical laws (energy of an elastic ball, static
 equilibrium) or from finite differences (a flow Jacobian against the outcome of
-a perturbed run). Zeno limits and most bad-input errors are in test_integrator.py
-and test_inputs.py; this file extends them where the issue asks more.
+a perturbed run). Zeno limits and most bad-input errors are in integration/test_hybrid.py
+and model/test_inputs.py; this file extends them where the issue asks more.
 """
 
 from __future__ import annotations

@@ -87,7 +87,7 @@ def test_footprint_report_formats():
 def test_bench_studies_flag_puts_both_in_the_output(monkeypatch, capsys):
     """`contactdiff bench --studies` carries the studies' rows and the footprint into the
     table and the JSON (the studies themselves are replaced by stubs here: they have
-    their own tests in test_extreme.py)."""
+    their own tests in test_extreme_cases.py)."""
     import json
 
     from contactdiff.bench import extreme_cases as studies

@@ -86,7 +86,7 @@ LEG_TILT, HIP_TORQUE = 0.6, -3.0  # rad, N m: the torque swings the foot forward
 
 
 def _relaxed_bouncing_leg(tmp_path):
-    """The planar leg of tests/test_slip.py (body free in x and z, leg on a free hip), its
+    """The planar leg of tests/dynamics/test_slip.py (body free in x and z, leg on a free hip), its
     foot a sticking contact 0.1 mm up, the body moving forward at 0.1 m/s, a constant hip
     torque. Landing, the foot slips forward fast enough that stopping it would need a
     pulling normal impulse (|Gnt w_t| > Gtt |w_n| with the foot's rows n = z, t = x): the

@@ -109,6 +109,11 @@ MIN_FLIGHT_SHARE = 0.05
 SECTION_TOL = 1e-9
 """Largest gap (m) of the foot at a state given as a point of the section; it is then closed exactly."""
 
+RESOLUTION_TIGHTENING = 10.0
+"""`find_periodic_gait` measures the map's resolution against the same stride at
+``rtol`` and ``atol`` divided by this (a tenfold tightening at least halves the
+integration error: DOP853's shrinks about 7.7 times, 10^(8/9))."""
+
 _SYMMETRY_TOL = 1e-9  # relative change of gaps and accelerations under a neutral move that counts as none
 _IMPACT_KINDS = ("touchdown", "bounce")
 
@@ -206,11 +211,18 @@ class PeriodicGait:
         stride: the stride from there (its Jacobian gives the multipliers).
         residuals: size of the reduced residual ``Bᵀ(x'' ⊖ x)`` at each iterate (mixed
             units: m, rad, m/s and, clock-driven, s), the last one at ``(q, v, t)``.
+        resolutions: the map's resolution at each iterate, in the residual's units:
+            twice the change of the residual vector when that stride is computed
+            again at tolerances `RESOLUTION_TIGHTENING` times tighter, a bound on
+            the residual's error (`find_periodic_gait`); None where not measured (an
+            iterate whose residual is below ``tol``, or ``resolution=False``). A
+            residual below it cannot be told from zero.
         steps: how each iterate was reached ("start", "newton", "newton ×0.5", ...,
             "fixed point").
         multipliers: Floquet multipliers at the last iterate (complex, by decreasing modulus).
         neutral: the neutral moves removed.
-        converged: the last residual is below the tolerance.
+        converged: the last residual is below ``tol`` or below its resolution.
+        tol: the tolerance the search was given.
         drift: the neutral move over one stride: centre-of-mass x, y (m) and base yaw (rad)
             of the next touchdown relative to this one (only the neutral ones).
         run_time: wall-clock time of the search (s).
@@ -228,11 +240,26 @@ class PeriodicGait:
     converged: bool
     drift: dict
     run_time: float
+    resolutions: list[float | None] = field(default_factory=list)
+    tol: float | None = None
+
+    @property
+    def resolution(self) -> float | None:
+        """The map's resolution at the last iterate (see ``resolutions``)."""
+        return self.resolutions[-1] if self.resolutions else None
+
+    @property
+    def resolved(self) -> bool:
+        """Converged by the resolution rule: the last residual is above ``tol`` but
+        not above what the map resolves there."""
+        return (self.converged and self.tol is not None and self.residuals[-1] > self.tol
+                and self.resolution is not None)
 
     def to_dict(self) -> dict:
         return {"foot": self.foot, "t": self.t, "q": self.q.tolist(), "v": self.v.tolist(),
                 "stride_time": self.stride.stride_time, "period": self.stride.period,
                 "residuals": list(self.residuals), "steps": list(self.steps),
+                "resolutions": list(self.resolutions), "tol": self.tol, "resolved": self.resolved,
                 "multipliers": [[float(m.real), float(m.imag)] for m in self.multipliers],
                 "moduli": [float(abs(m)) for m in self.multipliers],
                 "neutral": list(self.neutral), "converged": self.converged, "drift": dict(self.drift),
@@ -250,16 +277,25 @@ class PeriodicGait:
                  f"  stride time {s.stride_time:.12g} s" + (f" (clock period {s.period:g} s)" if s.period else ""),
                  "  neutral moves removed: " + (", ".join(self.neutral) or "none")
                  + ("".join(f"; {k} {v:+.6g} per stride" for k, v in self.drift.items())),
-                 "", "  iteration  step            residual"]
-        for k, (step, r) in enumerate(zip(self.steps, self.residuals)):
-            lines.append(f"  {k:9d}  {step:<14}  {r:.3e}")
-        if self.converged:
+                 "", "  iteration  step            residual   resolution"]
+        resolutions = list(self.resolutions) + [None] * (len(self.residuals) - len(self.resolutions))
+        for k, (step, r, res) in enumerate(zip(self.steps, self.residuals, resolutions)):
+            lines.append(f"  {k:9d}  {step:<14}  {r:.3e}" + (f"  {res:.3e}" if res is not None else ""))
+        if self.resolved:
+            lines.append(f"  converged to the map's resolution: the residual {self.residuals[-1]:.2e} is below "
+                         f"{self.resolution:.2e}, twice its change when this stride is computed again at "
+                         f"{RESOLUTION_TIGHTENING:g} times tighter tolerances (a bound on its error); tol "
+                         f"{self.tol:g} is below what the map resolves. A periodic gait to that accuracy "
+                         "(up to the neutral moves)")
+        elif self.converged:
             lines.append("  converged: a periodic gait (up to the neutral moves)")
         elif len(self.steps) == 1:
             lines.append("  one stride, no Newton iterations: the multipliers are those of this stride's map, "
                          "a stability measure only at a periodic gait (residual 0)")
         else:
-            lines.append("  NOT converged: the multipliers are those of the last iterate")
+            lines.append("  NOT converged: the multipliers are those of the last iterate"
+                         + (f" (its residual {self.residuals[-1]:.2e} is above the map's resolution "
+                            f"{self.resolution:.2e} there)" if self.resolution is not None else ""))
         lines += ["", f"  Floquet multipliers ({len(self.multipliers)}, section coordinates, by modulus):",
                   f"  {'#':>3}  {'real':>14}  {'imag':>14}  {'|λ|':>12}"]
         for k, m in enumerate(self.multipliers):
@@ -694,8 +730,8 @@ def find_periodic_gait(scene: Scene, foot: str, q=None, v=None, t: float = 0.0, 
                        iterations: int = 8, tol: float = 1e-9, neutral: Sequence[str] | None = None,
                        period: float | None = None, t_max: float = 10.0, min_stride: float | None = None,
                        min_flight: float | None = None, warmup: float = 0.0,
-                       line_search: int = 4, rtol: float = 1e-10, atol: float = 1e-12,
-                       method: str = "DOP853", **options) -> PeriodicGait:
+                       line_search: int = 4, resolution: bool = True, rtol: float = 1e-10,
+                       atol: float = 1e-12, method: str = "DOP853", **options) -> PeriodicGait:
     """Approach a periodic gait by Newton's method on the stride map, reduced state.
 
     The unknowns are the section coordinates ``s`` (`section_basis`: along the
@@ -709,6 +745,22 @@ def find_periodic_gait(scene: Scene, foot: str, q=None, v=None, t: float = 0.0, 
     image ``x''`` (a fixed-point step, which converges where all multipliers are
     inside the unit circle). Each new iterate is moved back onto the guard
     (`onto_section`). Every stride is simulated with its Jacobian.
+
+    **Resolution.** A residual is only as accurate as the strides it comes from:
+    their integration error and, on rigid robots, rounding amplified by impact
+    cascades (a foot re-landing nanoseconds after another's impact; the solo12
+    trot's map, computed twice with different roundings, differs by ~1e-7 in
+    ``|r|``). Below that level Newton steps only shuffle the noise. So at each
+    iterate whose residual is above ``tol`` the same stride is computed once more
+    (no Jacobian) at ``rtol`` and ``atol`` divided by `RESOLUTION_TIGHTENING`.
+    If that at least halves the error ``e`` of ``r``, then
+    ``|e| <= |r - r_tight| + |e|/2``, so ``|e| <= 2 |r - r_tight|``: this bound is
+    the map's resolution there. If ``|r|`` is not above it, ``r`` cannot be told
+    from zero and the search stops, converged to the map's resolution
+    (`PeriodicGait.resolved`). Where rounding noise rather than integration error
+    dominates, the tighter run is another sample of that noise and the bound an
+    estimate of its size. This costs one stride per iterate and is skipped where
+    ``|r| <= tol``.
 
     Args:
         scene, foot: the scene and the contact whose touchdowns define the section.
@@ -725,6 +777,8 @@ def find_periodic_gait(scene: Scene, foot: str, q=None, v=None, t: float = 0.0, 
         min_stride, min_flight: shortest stride and shortest flight before the
             touchdown that ends it (s), see `stride_map`.
         line_search: halvings of a Newton step before the fixed-point fallback.
+        resolution: also stop where the residual is within the map's resolution
+            (above); False stops only at ``tol``.
         rtol, atol, method, **options: simulation options.
 
     Returns:
@@ -765,10 +819,16 @@ def find_periodic_gait(scene: Scene, foot: str, q=None, v=None, t: float = 0.0, 
         t1 = stride.t0 + (step[2 * nv] if clock is not None else 0.0)
         return q1, v1, t1
 
+    def resolved_here(stride, B, r) -> bool:
+        """Measure the map's resolution at this iterate; whether the residual is within it."""
+        resolutions[-1] = _map_resolution(scene, foot, stride, B, r, neutral, clock, sim)
+        return resolutions[-1] is not None and residuals[-1] <= resolutions[-1]
+
     stride, B, r, moved = evaluate(q, v, t)
-    residuals, steps = [float(np.linalg.norm(r))], ["start"]
-    for _ in range(iterations):
-        if residuals[-1] <= tol:
+    residuals, steps, resolutions = [float(np.linalg.norm(r))], ["start"], [None]
+    for n in range(iterations + 1):
+        # the resolution is measured only in a search (iterations > 0), at each iterate above tol
+        if residuals[-1] <= tol or (resolution and iterations and resolved_here(stride, B, r)) or n == iterations:
             break
         A = B.T @ stride.extended_jacobian() @ B - np.eye(B.shape[1])
         s = -np.linalg.lstsq(A, r, rcond=None)[0]
@@ -789,9 +849,29 @@ def find_periodic_gait(scene: Scene, foot: str, q=None, v=None, t: float = 0.0, 
         (stride, B, r, moved), label = accepted
         residuals.append(float(np.linalg.norm(r)))
         steps.append(label)
+        resolutions.append(None)
     multipliers = _sorted_eigenvalues(B.T @ stride.extended_jacobian() @ B)
+    converged = residuals[-1] <= tol or (resolutions[-1] is not None and residuals[-1] <= resolutions[-1])
     return PeriodicGait(foot, stride.t0, stride.q0, stride.v0, stride, residuals, steps, multipliers,
-                        tuple(neutral), residuals[-1] <= tol, moved, time.perf_counter() - started)
+                        tuple(neutral), converged, moved, time.perf_counter() - started, resolutions, tol)
+
+
+def _map_resolution(scene, foot, stride, B, r, neutral, clock, sim) -> float | None:
+    """``2 |r - r_tight|``: twice the change of the reduced residual ``r`` of ``stride``
+    when the stride is computed again at tolerances `RESOLUTION_TIGHTENING` times
+    tighter (without its Jacobian), a bound on the error of ``r``
+    (`find_periodic_gait`); None if those tolerances are below the stepper's floor
+    (100 eps) or that stride fails."""
+    rtol, atol = sim["rtol"] / RESOLUTION_TIGHTENING, np.asarray(sim["atol"]) / RESOLUTION_TIGHTENING
+    if rtol < 100 * np.finfo(float).eps:
+        return None
+    try:
+        again = stride_map(scene, foot, stride.q0, stride.v0, stride.t0, jacobian=False,
+                           **(sim | {"rtol": rtol, "atol": atol if atol.ndim else float(atol)}))
+    except (StrideError, InvalidInputError, InconsistentStateError):
+        return None
+    r_tight, _ = _reduced_residual(scene, again, B, neutral, clock)
+    return 2.0 * float(np.linalg.norm(r - r_tight))
 
 
 # ----------------------------------------------------------------------------------
