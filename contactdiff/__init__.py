@@ -15,7 +15,7 @@ The public names, by concept (each lives in the subpackage named beside it):
 """
 
 from .analysis.decoupling import DecouplingReport, check_decoupling
-from .analysis.gait.stride import find_periodic_gait, first_touchdown, period_map, stride_map
+from .analysis.gait import find_periodic_gait, first_touchdown, period_map, stride_map
 from .analysis.order_gap import order_gap
 from .control.trot_scenes import trot_scene
 from .dynamics.mode import ModeDynamics

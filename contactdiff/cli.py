@@ -193,7 +193,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _run_stride(args) -> int:
-    from .analysis.gait.stride import find_periodic_gait
+    from .analysis.gait import find_periodic_gait
 
     scene = _scene_from_args(args)
     neutral = args.neutral
@@ -215,7 +215,9 @@ def _run_bench(args) -> int:
         _check_plot_path(args.plot)
     result = run_bench(scenes=args.scenes, repeats=args.repeats, quick=args.quick, studies=args.studies)
     if args.plot:
-        result.plot(args.plot)
+        from .plotting import plot_bench
+
+        plot_bench(result, args.plot)
     _print(json.dumps(result.to_dict(), indent=2) if args.json else result.format())
     if args.plot and not args.json:
         _print(f"plot written to {args.plot}")

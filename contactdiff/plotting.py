@@ -115,10 +115,10 @@ def gait_figure(traj: Trajectory, scene, n_samples: int = 1500):
 
 def plot_bench(result, path: str | Path) -> Path:
     """A `BenchResult`'s error against run time: log-log, one panel per scene, one
-    line per method (colours of ``contactdiff.bench.runner.COLORS``), saved to ``path``."""
+    line per method (colours of ``contactdiff.bench.methods.COLORS``), saved to ``path``."""
     import math
 
-    from .bench.runner import COLORS, METHODS
+    from .bench.methods import COLORS, METHODS
 
     plt = _pyplot()
     scenes = list(result.references)

@@ -13,6 +13,7 @@ import json
 from pathlib import Path
 
 from contactdiff.bench.runner import run_bench
+from contactdiff.plotting import plot_bench
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -25,7 +26,7 @@ def main() -> None:
     result = run_bench(repeats=args.repeats)
     out = ROOT / "docs" / "bench_error_vs_time.png"
     out.parent.mkdir(exist_ok=True)
-    result.plot(str(out))
+    plot_bench(result, out)
     print(result.format())
     print(f"\nplot written to {out}")
     if args.json:

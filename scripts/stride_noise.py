@@ -38,7 +38,7 @@ import numpy as np
 import pinocchio as pin
 
 import contactdiff as cd
-from contactdiff.analysis.gait.stride import (
+from contactdiff.analysis.gait import (
     align,
     available_neutral,
     first_touchdown,

@@ -12,12 +12,12 @@ plastic feet) starts standing at phase 0. The script
    (a point of the section: the state just before that foot's impact; the
    re-landings of impact cascades are skipped, see `stride_map`'s min_flight);
 2. runs ``--newton`` damped Newton iterations on the stride map of that foot
-   (`contactdiff.analysis.gait.stride.find_periodic_gait`: state and clock phase, with the
+   (`contactdiff.analysis.gait.find_periodic_gait`: state and clock phase, with the
    neutral moves x, y, yaw removed), each stride with its Jacobian;
 3. prints the residual of every iterate, the stride time, the drift per stride
    along the neutral moves, the multipliers (and their moduli) and the run
    times; then, as a check, the eigenvalues of the stroboscopic map over one
-   clock period from mid-stride (`contactdiff.analysis.gait.stride.period_map`), whose
+   clock period from mid-stride (`contactdiff.analysis.gait.period_map`), whose
    nonzero ones are the same multipliers.
 """
 
@@ -29,7 +29,7 @@ import time
 
 import numpy as np
 
-from contactdiff.analysis.gait.stride import find_periodic_gait, first_touchdown, period_map
+from contactdiff.analysis.gait import find_periodic_gait, first_touchdown, period_map
 from contactdiff.control.trot_scenes import trot_scene
 from contactdiff.errors import ContactDiffError
 from contactdiff.integration.hybrid import simulate

@@ -47,6 +47,7 @@ from ..model.scene import Scene
 from ..model.scene_file import load_scene
 from ..paper import trot_touchdown
 from .baselines import solve_ivp_baseline, time_stepping_baseline
+from .methods import METHODS
 from .metrics import event_error, state_error, time_at_error
 
 LONG_RUN = 2.0  # s: a run longer than this is timed once
@@ -64,9 +65,6 @@ SCENES: dict[str, tuple[Callable[[], Scene], float]] = {
     "solo12_tilted": (lambda: solo12_tilted(), 0.112),  # three single-foot touchdowns
     "solo12_trot": (lambda: _solo12_trot(), 0.05),  # controlled stance of the trot, no event
 }
-METHODS = ("ours-DOP853", "ours-Radau", "solve_ivp-DOP853", "time-stepping")
-COLORS = {"ours-DOP853": "tab:blue", "ours-Radau": "tab:green", "solve_ivp-DOP853": "tab:orange",
-          "time-stepping": "tab:red"}
 
 
 def _solo12_trot() -> Scene:

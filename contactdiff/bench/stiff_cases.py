@@ -10,7 +10,7 @@ import math
 import numpy as np
 import pinocchio as pin
 
-from ..errors import ContactDiffError
+from ..errors import ContactDiffError, IntegrationError
 from ..model.efforts import Spring
 from ..model.scene import Scene
 from ..model.scene_file import load_scene
@@ -107,7 +107,7 @@ def stiffness_sweep(scales=(1, 10, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7), damping_ratio:
         ref, _ = _run(scene, t_final, method=reference_method, max_events=1000, **reference_tol)
         chk, _ = _run(scene, t_final, method=reference_method, max_events=1000, **check_tol)
         if isinstance(ref, ContactDiffError) or isinstance(chk, ContactDiffError):
-            raise RuntimeError(f"reference of {scene.name} failed: {ref if isinstance(ref, Exception) else chk}")
+            raise IntegrationError(f"reference of {scene.name} failed: {ref if isinstance(ref, Exception) else chk}")
         spread = max(state_error(scene, chk, ref.q, ref.v), _event_time_error(chk, ref))
         k = scene.effort_specs[0].stiffness
         omega = math.sqrt(2.0 * k)

@@ -15,6 +15,8 @@ from collections.abc import Callable, Sequence
 import numpy as np
 from scipy.optimize import brentq
 
+from ..errors import InvalidInputError
+
 _EPS = np.finfo(float).eps
 
 
@@ -70,7 +72,7 @@ def locate_crossing(guard: Callable[[float], float], t_a: float, t_b: float,
     if g_b == 0.0:
         return t_b
     if not (g_a > 0.0 > g_b):
-        raise ValueError(f"no bracket: guard({t_a!r}) = {g_a!r}, guard({t_b!r}) = {g_b!r}")
+        raise InvalidInputError(f"no bracket: guard({t_a!r}) = {g_a!r}, guard({t_b!r}) = {g_b!r}")
     xtol = 4 * _EPS * max(1.0, abs(t_a), abs(t_b))
     return float(brentq(guard, t_a, t_b, xtol=xtol, rtol=4 * _EPS, maxiter=200))
 

@@ -1,22 +1,10 @@
-"""Error-controlled one-step integrators with dense output (mechanical systems): the factory.
+"""Error-controlled one-step integrators with dense output: the factory and the names.
 
 The methods: `DOP853` and `RK45` (`contactdiff.integration.explicit_rk`), `Radau`
 (`contactdiff.integration.radau`), all on the `Stepper` base
-(`contactdiff.integration.stepper`, whose docstring states what a new method
-implements), over a configuration space of `contactdiff.integration.lie`.
-
-The state is a Pinocchio configuration ``q`` (size ``nq``; a Lie-group element
-when the model has a free-flyer, spherical, planar or continuous joint) and a
-velocity ``v`` (size ``nv``) driven by ``dv/dt = accel(t, q, v)`` and
-``dq/dt = v`` in Pinocchio's sense, ``q(t + dt) = q(t) ⊕ dt·v + O(dt²)``.
-
-Lie groups are handled by Runge–Kutta–Munthe-Kaas in a chart re-centred at the
-start of every step: ``q = q_n ⊕ xi`` with ``xi(t_n) = 0`` and
-``dxi/dt = Jr(xi)^-1 v`` (exact dexpinv), so every Runge–Kutta method keeps its
-order; ``q_{n+1} = q_n ⊕ xi_{n+1}``. On vector spaces the chart is the identity
-and the steppers integrate ``y = (q, v)`` directly without any chart call.
-
-A stepper is driven one accepted step at a time by the hybrid loop::
+(`contactdiff.integration.stepper`: the state, units, frames, the flow Jacobian
+and what a new method implements), over a configuration space of
+`contactdiff.integration.lie`. A stepper is driven one accepted step at a time::
 
     st = make_stepper("DOP853", accel, PinocchioGroup(model), t0, q0, v0,
                       rtol=1e-10, atol=1e-12)
@@ -24,17 +12,6 @@ A stepper is driven one accepted step at a time by the hybrid loop::
     dense = st.dense()              # (q, v) = dense(t) on that interval
     st.truncate(t_event)            # keep the step only up to an event
     st.restart(t_event, q_plus, v_plus, phi=Xi @ st.phi)   # after a jump
-
-Units and frames: time in the model's unit (s); ``q`` and ``v`` in Pinocchio's
-units and frames (m, rad, quaternion components; m/s and rad/s in each joint's
-local frame). The flow Jacobian ``phi`` (``2nv x m``) maps perturbations at the
-initial point to tangent perturbations ``(δq, δv)`` at the current point,
-``q ⊕ δq`` (Pinocchio's convention, docs/design.md §2); by default its local error
-is controlled together with the state's (``variational_error_control``).
-Integration runs forward in time only.
-
-Callbacks receive arrays that this module never modifies afterwards, so they
-may keep references to them (e.g. for caching).
 """
 
 from __future__ import annotations

@@ -14,6 +14,8 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
+from ..errors import InvalidInputError
+
 LWA = pin.LOCAL_WORLD_ALIGNED
 
 
@@ -61,7 +63,7 @@ class Kinematics:
 
     def _derivative_data(self) -> pin.Data:
         if not self.has_derivatives:
-            raise RuntimeError("Kinematics.update(..., derivatives=True) must come first")
+            raise InvalidInputError("Kinematics.update(..., derivatives=True) must come first")
         if not self._fresh_derivatives:
             m, d = self.model, self._kinematics()
             pin.computeForwardKinematicsDerivatives(m, d, self.q, self.v, self._zero)

@@ -56,7 +56,7 @@ from helpers import assert_fd
 from scipy.optimize import brentq
 
 import contactdiff as cd
-from contactdiff.analysis.gait.stride import (
+from contactdiff.analysis.gait import (
     StrideError,
     available_neutral,
     find_periodic_gait,

@@ -2,7 +2,26 @@
 
 `stride` holds the stride map of a foot (the state just before one of its
 touchdowns to the state just before the next, on the section of that foot's
-guard, tangent space), the search for a periodic gait up to the ground's
-neutral directions (x, y, yaw), the Floquet multipliers of a stride, and the
-stroboscopic period map of a clock-driven scene.
+guard, tangent space) and its mathematics; `section` the section's coordinates,
+the ground's neutral moves (x, y, yaw) and the Floquet multipliers of a stride;
+`periodic` the search for a periodic gait up to those moves and the
+stroboscopic period map of a clock-driven scene. The public names of all three
+are importable from here.
 """
+
+from ...errors import StrideError
+from .periodic import PeriodicGait, PeriodMap, find_periodic_gait, floquet_multipliers, period_map
+from .section import (
+                      NEUTRAL_NAMES,
+                      align,
+                      available_neutral,
+                      neutral_directions,
+                      onto_section,
+                      scene_period,
+                      section_basis,
+)
+from .stride import Stride, StrideLoop, first_touchdown, stride_map
+
+__all__ = ["NEUTRAL_NAMES", "PeriodMap", "PeriodicGait", "Stride", "StrideError", "StrideLoop", "align",
+           "available_neutral", "find_periodic_gait", "first_touchdown", "floquet_multipliers",
+           "neutral_directions", "onto_section", "period_map", "scene_period", "section_basis", "stride_map"]

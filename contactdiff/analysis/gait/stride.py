@@ -83,51 +83,33 @@ foot's touchdown a terminal event and keeps the flow Jacobian just before it.
 
 from __future__ import annotations
 
-import math
-import time
-from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-import pinocchio as pin
 
-from ...dynamics.mode import ModeDynamics
-from ...errors import InconsistentStateError, InvalidInputError, StrideError, check_number
 from ...dynamics.impacts import choose_mode
-from ...integration.hybrid import HybridLoop, simulate
+from ...errors import InvalidInputError, StrideError, check_number
+from ...integration.hybrid import HybridLoop
 from ...integration.options import SimulateOptions
-from ...model.scene import Scene
 from ...integration.sensitivity import gap_gradient, saltation, touchdown, vector_field
 from ...integration.trajectory import Trajectory
-
-NEUTRAL_NAMES = ("x", "y", "yaw")
-"""Neutral moves: world translations along x and y, rotation about the vertical (free-flyer)."""
-
-MIN_FLIGHT_SHARE = 0.05
-"""Default ``min_flight`` of a clock-driven scene, as a share of its clock period."""
-
-SECTION_TOL = 1e-9
-"""Largest gap (m) of the foot at a state given as a point of the section; it is then closed exactly."""
-
-RESOLUTION_TIGHTENING = 10.0
-"""`find_periodic_gait` measures the map's resolution against the same stride at
-``rtol`` and ``atol`` divided by this (a tenfold tightening at least halves the
-integration error: DOP853's shrinks about 7.7 times, 10^(8/9))."""
-
-_SYMMETRY_TOL = 1e-9  # relative change of gaps and accelerations under a neutral move that counts as none
-_IMPACT_KINDS = ("touchdown", "bounce")
-
-def _positive_duration(owner: str, name: str, value) -> float:
-    x = check_number(owner, name, value, minimum=0.0)
-    if x <= 0:
-        raise InvalidInputError(f"{owner}: {name} must be > 0 s, got {value!r}")
-    return x
+from ...model.scene import Scene
+from .section import (
+    _IMPACT_KINDS,
+    MIN_FLIGHT_SHARE,
+    SECTION_TOL,
+    _foot_index,
+    _positive_duration,
+    _resolve_period,
+    onto_section,
+    scene_period,
+)
 
 
 # ----------------------------------------------------------------------------------
 # results
 # ----------------------------------------------------------------------------------
-@dataclass
+@dataclass(kw_only=True)
 class Stride:
     """One stride: touchdown of ``foot`` to its next touchdown, both just before impact.
 
@@ -189,6 +171,7 @@ class Stride:
         return J
 
     def summary(self) -> dict:
+        """The stride as JSON-ready data: ends, states, Jacobians where computed."""
         out = {"scene": self.scene_name, "foot": self.foot, "t0": self.t0, "t": self.t,
                "stride_time": self.stride_time, "q0": self.q0.tolist(), "v0": self.v0.tolist(),
                "q": self.q.tolist(), "v": self.v.tolist(), "period": self.period,
@@ -199,267 +182,6 @@ class Stride:
                     "start_time_column": self.start_time_column.tolist(),
                     "start_time_derivative": self.start_time_derivative}
         return out
-
-
-@dataclass
-class PeriodicGait:
-    """Result of `find_periodic_gait`.
-
-    Attributes:
-        foot: the contact whose touchdowns define the section.
-        t, q, v: the last iterate on the section (just before the foot's touchdown).
-        stride: the stride from there (its Jacobian gives the multipliers).
-        residuals: size of the reduced residual ``Bᵀ(x'' ⊖ x)`` at each iterate (mixed
-            units: m, rad, m/s and, clock-driven, s), the last one at ``(q, v, t)``.
-        resolutions: the map's resolution at each iterate, in the residual's units:
-            twice the change of the residual vector when that stride is computed
-            again at tolerances `RESOLUTION_TIGHTENING` times tighter, a bound on
-            the residual's error (`find_periodic_gait`); None where not measured (an
-            iterate whose residual is below ``tol``, or ``resolution=False``). A
-            residual below it cannot be told from zero.
-        steps: how each iterate was reached ("start", "newton", "newton ×0.5", ...,
-            "fixed point").
-        multipliers: Floquet multipliers at the last iterate (complex, by decreasing modulus).
-        neutral: the neutral moves removed.
-        converged: the last residual is below ``tol`` or below its resolution.
-        tol: the tolerance the search was given.
-        drift: the neutral move over one stride: centre-of-mass x, y (m) and base yaw (rad)
-            of the next touchdown relative to this one (only the neutral ones).
-        run_time: wall-clock time of the search (s).
-    """
-
-    foot: str
-    t: float
-    q: np.ndarray
-    v: np.ndarray
-    stride: Stride
-    residuals: list[float]
-    steps: list[str]
-    multipliers: np.ndarray
-    neutral: tuple[str, ...]
-    converged: bool
-    drift: dict
-    run_time: float
-    resolutions: list[float | None] = field(default_factory=list)
-    tol: float | None = None
-
-    @property
-    def resolution(self) -> float | None:
-        """The map's resolution at the last iterate (see ``resolutions``)."""
-        return self.resolutions[-1] if self.resolutions else None
-
-    @property
-    def resolved(self) -> bool:
-        """Converged by the resolution rule: the last residual is above ``tol`` but
-        not above what the map resolves there."""
-        return (self.converged and self.tol is not None and self.residuals[-1] > self.tol
-                and self.resolution is not None)
-
-    def to_dict(self) -> dict:
-        return {"foot": self.foot, "t": self.t, "q": self.q.tolist(), "v": self.v.tolist(),
-                "stride_time": self.stride.stride_time, "period": self.stride.period,
-                "residuals": list(self.residuals), "steps": list(self.steps),
-                "resolutions": list(self.resolutions), "tol": self.tol, "resolved": self.resolved,
-                "multipliers": [[float(m.real), float(m.imag)] for m in self.multipliers],
-                "moduli": [float(abs(m)) for m in self.multipliers],
-                "neutral": list(self.neutral), "converged": self.converged, "drift": dict(self.drift),
-                "differentiable": self.stride.differentiable, "simultaneous": list(self.stride.simultaneous),
-                "why_not_differentiable": self.why_not_differentiable(), "run_time": self.run_time}
-
-    def why_not_differentiable(self) -> list[str]:
-        """The stride's notes on its non-differentiable events (simultaneous landings
-        whose orders disagree, cascades ended by the Zeno rule, grazing)."""
-        return self.stride.trajectory.why_not_differentiable()
-
-    def format(self) -> str:
-        s = self.stride
-        lines = [f"stride map of {s.scene_name}, section: touchdown of {self.foot} (state just before impact)",
-                 f"  stride time {s.stride_time:.12g} s" + (f" (clock period {s.period:g} s)" if s.period else ""),
-                 "  neutral moves removed: " + (", ".join(self.neutral) or "none")
-                 + ("".join(f"; {k} {v:+.6g} per stride" for k, v in self.drift.items())),
-                 "", "  iteration  step            residual   resolution"]
-        resolutions = list(self.resolutions) + [None] * (len(self.residuals) - len(self.resolutions))
-        for k, (step, r, res) in enumerate(zip(self.steps, self.residuals, resolutions)):
-            lines.append(f"  {k:9d}  {step:<14}  {r:.3e}" + (f"  {res:.3e}" if res is not None else ""))
-        if self.resolved:
-            lines.append(f"  converged to the map's resolution: the residual {self.residuals[-1]:.2e} is below "
-                         f"{self.resolution:.2e}, twice its change when this stride is computed again at "
-                         f"{RESOLUTION_TIGHTENING:g} times tighter tolerances (a bound on its error); tol "
-                         f"{self.tol:g} is below what the map resolves. A periodic gait to that accuracy "
-                         "(up to the neutral moves)")
-        elif self.converged:
-            lines.append("  converged: a periodic gait (up to the neutral moves)")
-        elif len(self.steps) == 1:
-            lines.append("  one stride, no Newton iterations: the multipliers are those of this stride's map, "
-                         "a stability measure only at a periodic gait (residual 0)")
-        else:
-            lines.append("  NOT converged: the multipliers are those of the last iterate"
-                         + (f" (its residual {self.residuals[-1]:.2e} is above the map's resolution "
-                            f"{self.resolution:.2e} there)" if self.resolution is not None else ""))
-        lines += ["", f"  Floquet multipliers ({len(self.multipliers)}, section coordinates, by modulus):",
-                  f"  {'#':>3}  {'real':>14}  {'imag':>14}  {'|λ|':>12}"]
-        for k, m in enumerate(self.multipliers):
-            lines.append(f"  {k:3d}  {m.real:14.8g}  {m.imag:14.8g}  {abs(m):12.8g}")
-        top = max((abs(m) for m in self.multipliers), default=0.0)
-        verdict = "stable (all inside the unit circle)" if top < 1 - 1e-9 else "not asymptotically stable"
-        lines.append(f"  largest |λ| = {top:.8g}: {verdict}")
-        if not s.differentiable:
-            why = self.why_not_differentiable()
-            lines.append("  note: an event of the stride is not differentiable; the multipliers are those of "
-                         "the branch taken" + (":" if why else ""))
-            lines += [f"    {n}" for n in why[:4]] + ([f"    ... {len(why) - 4} more"] if len(why) > 4 else [])
-        if s.simultaneous:
-            lines.append(f"  note: {', '.join(s.simultaneous)} land(s) at the same instant as {self.foot}: the "
-                         "stride map is discontinuous there and these are one-sided multipliers (the other "
-                         "feet landing later); choose a foot that lands alone")
-        lines.append(f"  run time {self.run_time:.2f} s")
-        return "\n".join(lines)
-
-
-# ----------------------------------------------------------------------------------
-# the clock, neutral moves, the section
-# ----------------------------------------------------------------------------------
-def scene_period(scene: Scene) -> float | None:
-    """Clock period (s) of the scene's clock-driven efforts (those with a ``period``
-    attribute), or None if it has none. Different periods are an error."""
-    periods = {float(e.period) for e in scene.effort_specs if getattr(e, "period", None) is not None}
-    if len(periods) > 1:
-        raise InvalidInputError(f"scene {scene.name!r} has efforts with different clock periods "
-                                f"{sorted(periods)}; pass period= explicitly")
-    return periods.pop() if periods else None
-
-
-def _resolve_period(scene: Scene, period) -> float | None:
-    if period is None:
-        return scene_period(scene)
-    if period is False:
-        return None
-    value = check_number("stride map", "period", period, minimum=0.0)
-    if value <= 0:
-        raise InvalidInputError(f"stride map: period must be > 0 s, got {period!r}")
-    return value
-
-
-def _joint_jacobian_stack(scene: Scene, q: np.ndarray) -> np.ndarray:
-    """Joint Jacobians (LOCAL_WORLD_ALIGNED: world axes at each joint origin), stacked, 6 rows per joint."""
-    model, data = scene.model, scene.robot.new_data()
-    pin.computeJointJacobians(model, data, q)
-    return np.vstack([pin.getJointJacobian(model, data, j, pin.LOCAL_WORLD_ALIGNED).reshape(6, model.nv)
-                      for j in range(1, model.njoints)])
-
-
-def _neutral_vector(scene: Scene, q: np.ndarray, name: str) -> np.ndarray | None:
-    """Tangent vector (nv,) of the neutral move ``name`` at ``q``, or None if the
-    joints cannot realise it (every joint origin moving by it, no joint turning)."""
-    nv = scene.nv
-    if name == "yaw":
-        if not scene.robot.floating_base:
-            return None
-        R = pin.Quaternion(q[6], q[3], q[4], q[5]).toRotationMatrix()
-        d = np.zeros(nv)
-        d[3:6] = R.T @ np.array([0.0, 0.0, 1.0])  # base frame: rotation about the world vertical
-        return d
-    axis = {"x": 0, "y": 1}[name]
-    jac = _joint_jacobian_stack(scene, q)
-    target = np.zeros(jac.shape[0])
-    target[axis::6] = 1.0
-    d, *_ = np.linalg.lstsq(jac, target, rcond=None)
-    return d if np.linalg.norm(jac @ d - target) <= 1e-9 * math.sqrt(target.size) else None
-
-
-def _is_symmetry(scene: Scene, q: np.ndarray, v: np.ndarray, t: float, direction: np.ndarray) -> bool:
-    """The gaps and the free-flight accelerations are unchanged by a finite move along ``direction``."""
-    dyn = ModeDynamics(scene)
-    moved = pin.integrate(scene.model, q, 0.3 * direction)
-    g0, g1 = scene.gaps(q), scene.gaps(moved)
-    a0, a1 = dyn.solve(q, v, t, ()).ddq, dyn.solve(moved, v, t, ()).ddq
-    scale = 1.0 + max(np.abs(g0).max(initial=0.0), np.abs(a0).max(initial=0.0))
-    return max(np.abs(g1 - g0).max(initial=0.0), np.abs(a1 - a0).max(initial=0.0)) <= _SYMMETRY_TOL * scale
-
-
-def available_neutral(scene: Scene, q: np.ndarray | None = None, v: np.ndarray | None = None,
-                      t: float = 0.0) -> tuple[str, ...]:
-    """Neutral moves of `NEUTRAL_NAMES` the scene admits at ``(q, v, t)`` (default
-    its initial state): realisable by the joints and leaving gaps and dynamics unchanged."""
-    q = scene.q0 if q is None else np.asarray(q, dtype=float)
-    v = scene.v0 if v is None else np.asarray(v, dtype=float)
-    out = []
-    for name in NEUTRAL_NAMES:
-        d = _neutral_vector(scene, q, name)
-        if d is not None and _is_symmetry(scene, q, v, t, d):
-            out.append(name)
-    return tuple(out)
-
-
-def _check_neutral(scene: Scene, neutral, q, v, t) -> tuple[str, ...]:
-    if neutral is None:
-        return available_neutral(scene, q, v, t)
-    if isinstance(neutral, str):
-        neutral = [n for n in neutral.replace(",", " ").split() if n]
-    names = tuple(neutral)
-    for name in names:
-        if name not in NEUTRAL_NAMES:
-            raise InvalidInputError(f"unknown neutral move {name!r}; valid: {', '.join(NEUTRAL_NAMES)}")
-    valid = available_neutral(scene, q, v, t)
-    bad = [n for n in names if n not in valid]
-    if bad:
-        raise InvalidInputError(f"scene {scene.name!r} does not admit the neutral move(s) {', '.join(bad)} "
-                                f"(not realisable by its joints, or not a symmetry); valid here: "
-                                f"{', '.join(valid) or '(none)'}")
-    return names
-
-
-def neutral_directions(scene: Scene, q: np.ndarray, neutral: Sequence[str]) -> np.ndarray:
-    """Tangent vectors (2nv × k) of the neutral moves at ``q`` (velocity part zero)."""
-    cols = []
-    for name in neutral:
-        d = _neutral_vector(scene, q, name)
-        if d is None:
-            raise InvalidInputError(f"neutral move {name!r} is not realisable by the joints of {scene.name!r}")
-        cols.append(np.concatenate([d, np.zeros(scene.nv)]))
-    return np.array(cols).T.reshape(2 * scene.nv, len(cols))
-
-
-def section_basis(scene: Scene, foot: str, q: np.ndarray, neutral: Sequence[str] = (),
-                  period: float | None = None) -> np.ndarray:
-    """Orthonormal section coordinates at ``q``: a basis (n × m) of the tangent
-    vectors with ``Dh δx = 0`` (along the foot's guard) orthogonal to the neutral
-    moves; with a clock (``period``) one more row and column for the phase τ.
-    ``n = 2nv (+1)``, ``m = 2nv - 1 - len(neutral) (+1)``."""
-    i = scene.contact_index(foot)
-    Dh = gap_gradient(ModeDynamics(scene), q, i)
-    constraints = np.vstack([Dh[None, :], neutral_directions(scene, q, neutral).T])
-    # null space of the constraints: right singular vectors beyond their rank
-    _, s, vt = np.linalg.svd(constraints)
-    rank = int(np.sum(s > 1e-10 * max(s[0], 1.0)))
-    B = vt[rank:].T
-    if period is None:
-        return B
-    n, m = B.shape
-    out = np.zeros((n + 1, m + 1))
-    out[:n, :m] = B
-    out[n, m] = 1.0
-    return out
-
-
-def floquet_multipliers(scene: Scene, stride: Stride, neutral: Sequence[str] | None = None) -> np.ndarray:
-    """Eigenvalues of the stride map restricted to the section, neutral moves removed:
-    ``eig(Bᵀ J B)`` with ``B = section_basis(...)`` at the stride's start and ``J`` its
-    (extended) Jacobian, by decreasing modulus. Meaningful at a (relative) fixed point.
-
-    Args:
-        scene: the stride's scene.
-        stride: a `Stride` with its Jacobian.
-        neutral: neutral moves to remove (default: those the scene admits, `available_neutral`).
-    """
-    neutral = _check_neutral(scene, neutral, stride.q0, stride.v0, stride.t0)
-    B = section_basis(scene, stride.foot, stride.q0, neutral, stride.period)
-    return _sorted_eigenvalues(B.T @ stride.extended_jacobian() @ B)
-
-
-def _sorted_eigenvalues(A: np.ndarray) -> np.ndarray:
-    lam = np.linalg.eigvals(A) if A.size else np.zeros(0, dtype=complex)
-    return lam[np.lexsort((-lam.imag, -np.abs(lam)))].astype(complex)
 
 
 # ----------------------------------------------------------------------------------
@@ -485,6 +207,8 @@ class StrideLoop(HybridLoop):
         self.start = None  # (mode before, F- at the start, contacts landing with the foot)
 
     def initial_mode(self, q, v):
+        """The loop's consistent start; an impact of the foot there takes the full
+        saltation matrix of the foot's guard (module docstring)."""
         n = len(self.events)
         mode, v_plus = super().initial_mode(q, v)
         if not (self.options.jacobian and len(self.events) > n and self.names[self.foot] in self.events[-1].contacts):
@@ -538,29 +262,6 @@ class StrideLoop(HybridLoop):
                 or name in event.mode_after)
 
 
-def _foot_index(scene: Scene, foot: str) -> int:
-    if not isinstance(scene, Scene):
-        raise InvalidInputError(f"scene must be a Scene (see load_scene), got {scene!r}")
-    return scene.contact_index(foot)
-
-
-def onto_section(scene: Scene, foot: str, q: np.ndarray, tol: float = 1e-15) -> np.ndarray:
-    """``q`` moved onto ``a_foot(q) = 0`` by Gauss–Newton along the gap gradient (tangent space)."""
-    i = _foot_index(scene, foot)
-    kin, contact, zero = scene.kinematics, scene.contacts[i], np.zeros(scene.nv)
-    q = np.array(q, dtype=float)
-    for _ in range(20):
-        kin.update(q, zero)
-        gap = contact.gap(kin)
-        if abs(gap) <= tol:
-            break
-        row = contact.rows(kin)[0]
-        if not row @ row > 0:
-            raise InvalidInputError(f"the gap of {foot!r} does not depend on q here: no section to move onto")
-        q = pin.integrate(scene.model, q, -row * gap / float(row @ row))
-    return q
-
-
 def stride_map(scene: Scene, foot: str, q, v, t: float = 0.0, *, t_max: float = 10.0,
                min_stride: float | None = None, min_flight: float | None = None,
                period: float | None = None, jacobian: bool = True,
@@ -571,8 +272,9 @@ def stride_map(scene: Scene, foot: str, q, v, t: float = 0.0, *, t_max: float = 
     Args:
         scene: the `Scene`.
         foot: name of the contact whose touchdowns bound the stride.
-        q, v: start state on the section: the foot's gap within `SECTION_TOL` of 0
-            (it is closed exactly) and approaching (``A_foot v < 0``); q (nq,), v (nv,).
+        q: start configuration on the section (nq,): the foot's gap within
+            `SECTION_TOL` of 0 (it is closed exactly).
+        v: start velocity (nv,), tangent space, approaching (``A_foot v < 0``).
         t: start time (s).
         t_max: longest stride (s); no touchdown of the foot within it raises `StrideError`.
         min_stride: shortest stride (s): touchdowns of the foot before ``t + min_stride``
@@ -588,7 +290,11 @@ def stride_map(scene: Scene, foot: str, q, v, t: float = 0.0, *, t_max: float = 
             efforts (`scene_period`), or an autonomous scene; False forces autonomous.
         jacobian: compute the Jacobian, the touchdown-time gradient and the
             start-time derivatives (module docstring).
-        rtol, atol, method, max_events, **options: passed to the simulation (see `simulate`).
+        rtol: relative tolerance of the simulation.
+        atol: absolute tolerance (m, rad, m/s).
+        method: the stepper (`contactdiff.integration.options.SIMULATE_METHODS`).
+        max_events: event budget of the stride.
+        **options: further fields of `SimulateOptions`.
 
     Returns:
         The `Stride`.
@@ -686,245 +392,8 @@ def _run_stride(scene, i, q, v, t0, t_end, clock, jacobian, require_start, min_s
             if not np.all(np.isfinite(x)):
                 raise StrideError(f"the stride Jacobian of {foot!r} is not finite (touchdown rate {rate:.3e})")
     together = set(run.start[2] if run.start is not None else ()) | set(event.contacts)
-    return Stride(scene.name, foot, t0, traj.q0.copy(), traj.v0.copy(), t, q1, v1, J, tg, col, dt,
-                  clock, traj, tuple(sorted(together - {foot})))
+    return Stride(scene_name=scene.name, foot=foot, t0=t0, q0=traj.q0.copy(), v0=traj.v0.copy(), t=t, q=q1, v=v1,
+                  jacobian=J, time_gradient=tg, start_time_column=col, start_time_derivative=dt, period=clock,
+                  trajectory=traj, simultaneous=tuple(sorted(together - {foot})))
 
 
-# ----------------------------------------------------------------------------------
-# periodic gaits
-# ----------------------------------------------------------------------------------
-def _yaw(q: np.ndarray) -> float:
-    R = pin.Quaternion(q[6], q[3], q[4], q[5]).toRotationMatrix()
-    return math.atan2(R[1, 0], R[0, 0])
-
-
-def align(scene: Scene, q: np.ndarray, q_ref: np.ndarray, neutral: Sequence[str]) -> tuple[np.ndarray, dict]:
-    """``q`` moved by the neutral moves so that its base yaw and centre-of-mass x, y
-    match ``q_ref``'s (only the moves in ``neutral``); also returns the move undone
-    (``{"x": m, "y": m, "yaw": rad}``, the part of ``q`` beyond ``q_ref``)."""
-    model, data = scene.model, scene.robot.new_data()
-    q = np.array(q, dtype=float)
-    moved = {}
-    if "yaw" in neutral:
-        dpsi = math.atan2(math.sin(_yaw(q) - _yaw(q_ref)), math.cos(_yaw(q) - _yaw(q_ref)))
-        q = pin.integrate(model, q, -dpsi * _neutral_vector(scene, q, "yaw"))
-        moved["yaw"] = dpsi
-    com, com_ref = pin.centerOfMass(model, data, q).copy(), pin.centerOfMass(model, data, q_ref).copy()
-    for name, axis in (("x", 0), ("y", 1)):
-        if name in neutral:
-            shift = float(com[axis] - com_ref[axis])
-            q = pin.integrate(model, q, -shift * _neutral_vector(scene, q, name))
-            moved[name] = shift
-    return q, moved
-
-
-def _reduced_residual(scene, stride, B, neutral, clock) -> tuple[np.ndarray, dict]:
-    q_aligned, moved = align(scene, stride.q, stride.q0, neutral)
-    delta = np.concatenate([pin.difference(scene.model, stride.q0, q_aligned), stride.v - stride.v0])
-    if clock is not None:
-        delta = np.append(delta, math.remainder(stride.t - stride.t0, clock))
-    return B.T @ delta, moved
-
-
-def find_periodic_gait(scene: Scene, foot: str, q=None, v=None, t: float = 0.0, *,
-                       iterations: int = 8, tol: float = 1e-9, neutral: Sequence[str] | None = None,
-                       period: float | None = None, t_max: float = 10.0, min_stride: float | None = None,
-                       min_flight: float | None = None, warmup: float = 0.0,
-                       line_search: int = 4, resolution: bool = True, rtol: float = 1e-10,
-                       atol: float = 1e-12, method: str = "DOP853", **options) -> PeriodicGait:
-    """Approach a periodic gait by Newton's method on the stride map, reduced state.
-
-    The unknowns are the section coordinates ``s`` (`section_basis`: along the
-    foot's guard, orthogonal to the neutral moves, plus the phase of a
-    clock-driven scene); the residual is ``r = Bᵀ (x'' ⊖ x)`` with ``x''`` the next
-    touchdown aligned back by the neutral moves (`align`) and, with a clock, the
-    phase slip ``remainder(t' - t, period)``. The Newton step solves
-    ``(Bᵀ J B - I) s = -r`` (least squares: a family of orbits, multiplier 1, gives
-    the nearest member); if a full step does not reduce ``|r|``, it is halved up to
-    ``line_search`` times, and if that fails too the next iterate is the map's own
-    image ``x''`` (a fixed-point step, which converges where all multipliers are
-    inside the unit circle). Each new iterate is moved back onto the guard
-    (`onto_section`). Every stride is simulated with its Jacobian.
-
-    **Resolution.** A residual is only as accurate as the strides it comes from:
-    their integration error and, on rigid robots, rounding amplified by impact
-    cascades (a foot re-landing nanoseconds after another's impact; the solo12
-    trot's map, computed twice with different roundings, differs by ~1e-7 in
-    ``|r|``). Below that level Newton steps only shuffle the noise. So at each
-    iterate whose residual is above ``tol`` the same stride is computed once more
-    (no Jacobian) at ``rtol`` and ``atol`` divided by `RESOLUTION_TIGHTENING`.
-    If that at least halves the error ``e`` of ``r``, then
-    ``|e| <= |r - r_tight| + |e|/2``, so ``|e| <= 2 |r - r_tight|``: this bound is
-    the map's resolution there. If ``|r|`` is not above it, ``r`` cannot be told
-    from zero and the search stops, converged to the map's resolution
-    (`PeriodicGait.resolved`). Where rounding noise rather than integration error
-    dominates, the tighter run is another sample of that noise and the bound an
-    estimate of its size. This costs one stride per iterate and is skipped where
-    ``|r| <= tol``.
-
-    Args:
-        scene, foot: the scene and the contact whose touchdowns define the section.
-        q, v, t: start; if not on the section (default: the scene's initial state),
-            it is first carried to the foot's next touchdown (`first_touchdown`).
-        warmup: time (s) simulated from the start before that (no sensitivities): a
-            stable gait settles towards its cycle on its own, by a factor of about
-            the largest multiplier's modulus per stride, and Newton then starts near it.
-        iterations: largest number of Newton steps.
-        tol: stop when ``|r|`` is below this (mixed units, see `PeriodicGait.residuals`).
-        neutral: neutral moves removed (default: those the scene admits, `available_neutral`).
-        period: clock period (s); default from the scene (`scene_period`).
-        t_max: longest stride (s).
-        min_stride, min_flight: shortest stride and shortest flight before the
-            touchdown that ends it (s), see `stride_map`.
-        line_search: halvings of a Newton step before the fixed-point fallback.
-        resolution: also stop where the residual is within the map's resolution
-            (above); False stops only at ``tol``.
-        rtol, atol, method, **options: simulation options.
-
-    Returns:
-        The `PeriodicGait` with the residual of every iterate and the multipliers at the last one.
-    """
-    started = time.perf_counter()
-    i = _foot_index(scene, foot)
-    iterations = int(check_number("find_periodic_gait", "iterations", iterations, minimum=0))
-    tol = check_number("find_periodic_gait", "tol", tol, minimum=0.0)
-    clock = _resolve_period(scene, period)
-    warmup = check_number("find_periodic_gait", "warmup", warmup, minimum=0.0)
-    sim = dict(t_max=t_max, min_stride=min_stride, min_flight=min_flight, period=False if clock is None else clock,
-               rtol=rtol, atol=atol, method=method, **options)
-    q = scene.q0 if q is None else np.array(q, dtype=float)
-    v = scene.v0 if v is None else np.array(v, dtype=float)
-    if warmup > 0:
-        settled = simulate(scene, t + warmup, q, v, t0=t, rtol=rtol, atol=atol, method=method, **options)
-        t, q, v = settled.t, settled.q, settled.v
-    kin = scene.kinematics
-    kin.update(q, v)
-    if warmup > 0 or abs(scene.contacts[i].gap(kin)) > SECTION_TOL or not scene.contacts[i].rows(kin)[0] @ v < 0:
-        t, q, v = first_touchdown(scene, foot, q, v, t, t_max=t_max,
-                                  min_flight=_min_flight(min_flight, clock, "find_periodic_gait"),
-                                  rtol=rtol, atol=atol, method=method, **options)
-    neutral = _check_neutral(scene, neutral, q, v, t)
-
-    def evaluate(q, v, t):
-        stride = stride_map(scene, foot, q, v, t, **sim)
-        B = section_basis(scene, foot, stride.q0, neutral, clock)
-        r, moved = _reduced_residual(scene, stride, B, neutral, clock)
-        return stride, B, r, moved
-
-    def moved_along(stride, B, s):
-        step = B @ s
-        nv = scene.nv
-        q1 = onto_section(scene, foot, pin.integrate(scene.model, stride.q0, step[:nv]))
-        v1 = stride.v0 + step[nv:2 * nv]
-        t1 = stride.t0 + (step[2 * nv] if clock is not None else 0.0)
-        return q1, v1, t1
-
-    def resolved_here(stride, B, r) -> bool:
-        """Measure the map's resolution at this iterate; whether the residual is within it."""
-        resolutions[-1] = _map_resolution(scene, foot, stride, B, r, neutral, clock, sim)
-        return resolutions[-1] is not None and residuals[-1] <= resolutions[-1]
-
-    stride, B, r, moved = evaluate(q, v, t)
-    residuals, steps, resolutions = [float(np.linalg.norm(r))], ["start"], [None]
-    for n in range(iterations + 1):
-        # the resolution is measured only in a search (iterations > 0), at each iterate above tol
-        if residuals[-1] <= tol or (resolution and iterations and resolved_here(stride, B, r)) or n == iterations:
-            break
-        A = B.T @ stride.extended_jacobian() @ B - np.eye(B.shape[1])
-        s = -np.linalg.lstsq(A, r, rcond=None)[0]
-        accepted, scale = None, 1.0
-        for k in range(line_search + 1):
-            try:
-                trial = evaluate(*moved_along(stride, B, scale * s))
-            except (StrideError, InvalidInputError, InconsistentStateError):
-                trial = None  # the step left the gait's domain (no touchdown, not approaching, penetrating)
-            if trial is not None and np.linalg.norm(trial[2]) < residuals[-1]:
-                accepted = (trial, "newton" if k == 0 else f"newton ×{scale:g}")
-                break
-            scale *= 0.5
-        if accepted is None:
-            q_next, _ = align(scene, stride.q, stride.q0, neutral)
-            t_next = stride.t0 + math.remainder(stride.t - stride.t0, clock) if clock is not None else stride.t
-            accepted = (evaluate(onto_section(scene, foot, q_next), stride.v, t_next), "fixed point")
-        (stride, B, r, moved), label = accepted
-        residuals.append(float(np.linalg.norm(r)))
-        steps.append(label)
-        resolutions.append(None)
-    multipliers = _sorted_eigenvalues(B.T @ stride.extended_jacobian() @ B)
-    converged = residuals[-1] <= tol or (resolutions[-1] is not None and residuals[-1] <= resolutions[-1])
-    return PeriodicGait(foot, stride.t0, stride.q0, stride.v0, stride, residuals, steps, multipliers,
-                        tuple(neutral), converged, moved, time.perf_counter() - started, resolutions, tol)
-
-
-def _map_resolution(scene, foot, stride, B, r, neutral, clock, sim) -> float | None:
-    """``2 |r - r_tight|``: twice the change of the reduced residual ``r`` of ``stride``
-    when the stride is computed again at tolerances `RESOLUTION_TIGHTENING` times
-    tighter (without its Jacobian), a bound on the error of ``r``
-    (`find_periodic_gait`); None if those tolerances are below the stepper's floor
-    (100 eps) or that stride fails."""
-    rtol, atol = sim["rtol"] / RESOLUTION_TIGHTENING, np.asarray(sim["atol"]) / RESOLUTION_TIGHTENING
-    if rtol < 100 * np.finfo(float).eps:
-        return None
-    try:
-        again = stride_map(scene, foot, stride.q0, stride.v0, stride.t0, jacobian=False,
-                           **(sim | {"rtol": rtol, "atol": atol if atol.ndim else float(atol)}))
-    except (StrideError, InvalidInputError, InconsistentStateError):
-        return None
-    r_tight, _ = _reduced_residual(scene, again, B, neutral, clock)
-    return 2.0 * float(np.linalg.norm(r - r_tight))
-
-
-# ----------------------------------------------------------------------------------
-# the stroboscopic map
-# ----------------------------------------------------------------------------------
-@dataclass
-class PeriodMap:
-    """The stroboscopic map ``x(t0) -> x(t0 + period)`` of a clock-driven scene.
-
-    Attributes:
-        t0, q0, v0, t, q, v: start and end.
-        jacobian: the flow Jacobian over one period (2nv × 2nv, tangent space).
-        multipliers: eigenvalues of ``Bᵀ J B`` with ``B`` orthonormal to the neutral
-            moves, by decreasing modulus (the map of an autonomous scene has one
-            more multiplier 1, along the flow).
-        trajectory: the run.
-    """
-
-    t0: float
-    q0: np.ndarray
-    v0: np.ndarray
-    t: float
-    q: np.ndarray
-    v: np.ndarray
-    jacobian: np.ndarray
-    multipliers: np.ndarray
-    trajectory: Trajectory = field(repr=False)
-
-
-def period_map(scene: Scene, q=None, v=None, t: float = 0.0, *, period: float | None = None,
-               neutral: Sequence[str] | None = None, rtol: float = 1e-10, atol: float = 1e-12,
-               **options) -> PeriodMap:
-    """The state after one clock period and its Jacobian (the stroboscopic Poincaré map).
-
-    Args:
-        scene: the `Scene`; q, v, t: start (default the scene's initial state, t = 0).
-        period: the period (s); default the scene's clock period (`scene_period`).
-        neutral: neutral moves removed from the multipliers (default `available_neutral`).
-        rtol, atol, **options: passed to `simulate`.
-    """
-    clock = _resolve_period(scene, period)
-    if clock is None:
-        raise InvalidInputError(f"scene {scene.name!r} has no clock-driven effort; pass period= (s)")
-    q = scene.q0 if q is None else np.array(q, dtype=float)
-    v = scene.v0 if v is None else np.array(v, dtype=float)
-    t = check_number("period map", "t", t)
-    traj = simulate(scene, t + clock, q, v, t0=t, jacobian=True, rtol=rtol, atol=atol, **options)
-    neutral = _check_neutral(scene, neutral, q, v, t)
-    N = neutral_directions(scene, q, neutral)
-    if N.shape[1]:
-        _, s, vt = np.linalg.svd(N.T)
-        B = vt[int(np.sum(s > 1e-10)):].T
-    else:
-        B = np.eye(2 * scene.nv)
-    return PeriodMap(t, traj.q0, traj.v0, traj.t, traj.q, traj.v, traj.jacobian,
-                     _sorted_eigenvalues(B.T @ traj.jacobian @ B), traj)
