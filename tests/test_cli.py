@@ -140,3 +140,26 @@ def test_a_closed_pipe_ends_quietly():
     os.close(write)
     _, err = proc.communicate(timeout=60)
     assert err == "" and proc.returncode == 141
+
+
+def test_a_long_run_draws_a_progress_bar_on_a_terminal(monkeypatch):
+    """The bar appears once a run has lasted its delay (1 s) and shows simulated time,
+    events and steps; on a stream that is not a terminal it stays silent."""
+    import io
+    import time
+
+    from contactdiff.cli import _ProgressBar
+
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    for stream, shown in ((Terminal(), True), (io.StringIO(), False)):
+        monkeypatch.setattr(sys, "stderr", stream)
+        with _ProgressBar("simulate ball", (0.0, 2.0)) as bar:
+            start = time.monotonic()
+            while time.monotonic() - start < 1.3:  # s: past the bar's 1-s delay
+                bar(0.5, 3, 40)
+                time.sleep(0.05)
+        text = stream.getvalue()
+        assert ("t = 0.5 / 2 s, 3 events, 40 steps" in text) == shown, text
