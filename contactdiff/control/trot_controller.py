@@ -265,6 +265,7 @@ class TrotControllerEvaluator:
         c = 0.5 * (spec.duty + spec.lag)
         self._offsets = [c - (0.0 if leg.pair == PAIR_A else 0.5) - (0.0 if leg.front else spec.lag)
                          for leg in self.legs]
+        self._unload = _unload_window(spec)  # fixed by the spec: a 60-step bisection, once
         self._spline = self._reference_spline()
         self._dspline = self._spline.derivative()
         self._gravity, self._carry = self._static_terms()
@@ -307,7 +308,7 @@ class TrotControllerEvaluator:
         """
         s = self.spec
         r, pull, tl = s.transfer, s.liftoff_pull, s.touchdown_load
-        start, end = _unload_window(s)
+        start, end = self._unload
         if psi < r:
             return tl + (1.0 - tl) * float(smooth_step(psi / r))
         if psi < start:
