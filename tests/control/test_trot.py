@@ -326,3 +326,16 @@ def test_trot_cli_plot_and_json(tmp_path, capsys):
 def test_other_quadrupeds_trot(name):
     assert name in TROT_PARAMETERS
     check_trot(*_trot(name))
+
+
+def test_reference_by_hand_is_the_cubic_spline(solo):
+    """The controller evaluates its periodic cubic spline by hand (Horner on the
+    pieces); SciPy's own evaluation of the same spline and of its derivative is the
+    reference, to round-off of joint angles of order 1 rad (1e-13)."""
+    ev = TrotController().bind(solo)
+    derivative = ev._spline.derivative()
+    for t in np.linspace(-0.3, 1.7, 4001):  # s: several periods, knots included
+        q_ref, v_ref = ev.reference(t)
+        phi = ev.phase(t)
+        np.testing.assert_allclose(q_ref, ev._spline(phi), rtol=0, atol=1e-13)
+        np.testing.assert_allclose(v_ref, derivative(phi) / ev.spec.period, rtol=0, atol=1e-12)
