@@ -59,7 +59,7 @@ from .guards import Guard, GuardFinder, GuardKind, NearMiss
 from .method_choice import EXPLICIT, MethodChooser, spectral_radius
 from .mode_field import ModeField
 from .options import AUTO, OnGrazing, SimulateOptions
-from .projection import close, held_velocity, project_state
+from .projection import close, held_velocity, held_velocity_jacobian, project_state
 from .sensitivity import (
     gap_gradient,
     impact_reset_jacobian,
@@ -502,9 +502,13 @@ class HybridLoop:
                       mode_before=self._mode_names(mode), mode_after=self._mode_names(new_mode),
                       normal_speeds={self.names[i]: s for i, s in speeds.items()},
                       sliding=self._sliding_names(new_mode), nonsmooth=nonsmooth)
+        if self.options.jacobian:
+            DR = impact_reset_jacobian(self.dyn, q, v_minus, impact)
+            if settled:  # the reset is the impact followed by holding the settled contacts
+                DR = held_velocity_jacobian(self.dyn, q, v_plus, new_mode) @ DR
         if self.options.jacobian and initial:
             # no guard at t0: perturbations keep the start time, only the reset acts
-            event.saltation = impact_reset_jacobian(self.dyn, q, v_minus, impact)
+            event.saltation = DR
             event.time_gradient = np.zeros(2 * self.scene.nv)
         elif self.options.jacobian:
             F_minus = vector_field(self.dyn, q, v_minus, t, mode)
@@ -521,7 +525,6 @@ class HybridLoop:
                         f"{', '.join(self.names[i] for i in touching)} give saltation matrices "
                         f"differing by {sim.spread:.2e} (relative)")
             else:
-                DR = impact_reset_jacobian(self.dyn, q, v_minus, impact)
                 xi = saltation(DR, Dh, F_minus, vector_field(self.dyn, q, v_plus, t, new_mode))
             self._attach_sensitivity(event, xi, Dh, F_minus)
         self.events.append(event)

@@ -59,6 +59,24 @@ def held_velocity(dyn, q: np.ndarray, v: np.ndarray, mode) -> np.ndarray:
     return v - weighted_pinv(dyn, q, A) @ (A @ v)
 
 
+def held_velocity_jacobian(dyn, q: np.ndarray, v: np.ndarray, mode) -> np.ndarray:
+    """Derivative (2nv × 2nv, tangent space) of the map ``(q, v) -> (q, v - P A(q) v)``
+    that holds the rows of ``mode`` (`held_velocity`), at a ``(q, v)`` that it holds
+    (``A v = 0``): ``[[I, 0], [-P d(A v)/dq, I - P A]]``, ``P`` the M-weighted
+    pseudo-inverse of the rows. At such a point the term of ``dP/dq`` vanishes, as
+    it multiplies ``A v``."""
+    nv = dyn.model.nv
+    kin = dyn.kin
+    kin.update(q, v, derivatives=True)
+    A = mode_rows(dyn, mode)
+    pinv = weighted_pinv(dyn, q, A)
+    dAv = np.vstack([dyn.contact(k).rows_velocity_dq(kin) for k in mode])
+    D = np.eye(2 * nv)
+    D[nv:, nv:] -= pinv @ A
+    D[nv:, :nv] -= pinv @ dAv
+    return D
+
+
 def project_state(dyn, q: np.ndarray, v: np.ndarray, mode, jacobian: bool = False):
     """``(q, v)`` moved onto the manifold of ``mode``: ``q`` onto ``gap = 0``, ``v``
     onto ``A v = 0``, both M-orthogonally.
@@ -77,11 +95,7 @@ def project_state(dyn, q: np.ndarray, v: np.ndarray, mode, jacobian: bool = Fals
     if not jacobian:
         return q, v, None
     nv = dyn.model.nv
-    kin.update(q, v, derivatives=True)
+    D = held_velocity_jacobian(dyn, q, v, mode)
     normal = [0] + list(np.cumsum([dyn.contact(k).n_rows for k in mode])[:-1])
-    dAv = np.vstack([dyn.contact(k).rows_velocity_dq(kin) for k in mode])
-    D = np.eye(2 * nv)
     D[:nv, :nv] -= weighted_pinv(dyn, q, A[normal]) @ A[normal]
-    D[nv:, nv:] -= pinv @ A
-    D[nv:, :nv] -= pinv @ dAv
     return q, v, D

@@ -22,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 import pytest
+from helpers import assert_fd
 from test_slip import LEG_URDF
 
 import contactdiff as cd
@@ -169,3 +170,37 @@ def test_a_foot_lifted_by_its_own_impact_ends_its_bounces_under_the_zeno_rule(tm
     np.testing.assert_allclose(A @ last.v_plus, 0.0, atol=1e-12)
     assert traj.modes[-1] == ("foot",) and traj.t == 0.05
 
+
+
+def test_flow_jacobian_through_a_held_cascade_matches_finite_differences():
+    """The reset of an impact that keeps a slowly lifted contact closed is the impact
+    followed by holding that contact (an M-orthogonal velocity projection), so its
+    Jacobian is the projection's derivative times the impact's. With zeno_speed ten
+    times the rear foot's lift, every perturbed run stays on the held branch and the
+    map is smooth there: central differences of whole runs (ε = 1e-6, rtol 1e-12,
+    noise ~ 1e-12 / 1e-6 = 1e-6 of O(1) entries at worst, truncation ~ε²) must agree
+    with the flow Jacobian to the suite's FD tolerance."""
+    _, front = _front_touchdown(zeno_speed=1e-6)  # the lift speed, as in the test above
+    scene = cd.trot_touchdown("rigid", 0.05)
+    model, data = scene.model, scene.model.createData()
+    pin.computeJointJacobians(model, data, front.q)
+    pin.updateFramePlacements(model, data)
+    rear = pin.getFrameJacobian(model, data, model.getFrameId("rear_foot"), pin.LOCAL_WORLD_ALIGNED)[2]
+    zeno = 10 * float(rear @ front.v_plus)
+    options = dict(rtol=1e-12, atol=1e-14, zeno_speed=zeno)
+    T = front.t + 0.05  # s: past the held front touchdown, both feet on the ground
+    traj = cd.simulate(scene, T, jacobian=True, **options)
+    held = next(e for e in traj.events if "front_foot" in e.contacts)
+    assert held.mode_after == ("rear_foot", "front_foot") and not held.differentiable
+    nv, eps = scene.nv, 1e-6
+    columns = []
+    for k in range(2 * nv):
+        e = np.zeros(2 * nv)
+        e[k] = eps
+        ends = [cd.simulate(scene, T, q0=scene.robot.integrate(scene.q0, s * e[:nv]), v0=scene.v0 + s * e[nv:],
+                            **options) for s in (1, -1)]
+        assert all(next(x for x in run.events if "front_foot" in x.contacts).mode_after == held.mode_after
+                   for run in ends)  # the same branch
+        columns.append(np.concatenate([scene.robot.difference(ends[1].q, ends[0].q), ends[0].v - ends[1].v])
+                       / (2 * eps))
+    assert_fd("flow Jacobian through a held cascade", traj.jacobian, np.array(columns).T)
