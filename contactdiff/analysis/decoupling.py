@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from ..errors import InvalidInputError
+from ..errors import InvalidInputError, check_count
 from ..jsonable import to_jsonable
 from ..model.feet import FootRule
 from ..model.robot import Robot
@@ -200,8 +200,8 @@ def check_decoupling(source: Scene | Robot | str | Path, *, samples: int = 20, s
         A `DecouplingReport`.
     """
     scene = _as_scene(source)
-    samples = _whole("samples", samples)
-    seed = _whole("seed", seed)
+    samples = check_count("check_decoupling", "samples", samples)
+    seed = check_count("check_decoupling", "seed", seed)
     if not (np.isfinite(tol) and tol > 0):
         raise InvalidInputError(f"tol must be a positive number, got {tol!r}")
     if armature:
@@ -261,13 +261,6 @@ def _nothing_to_check(scene: Scene) -> str:
         text += (f"; {'no limb of the robot ends' if not names else 'no other limb ends'} near the ground "
                  "at the reference pose: choose feet by hand (--feet, feet=) to check other frames")
     return text
-
-
-def _whole(name: str, value) -> int:
-    """``value`` as an integer >= 0, else `InvalidInputError` naming ``name``."""
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
-        raise InvalidInputError(f"check_decoupling: {name} must be an integer >= 0, got {value!r}")
-    return int(value)
 
 
 def _given_states(scene: Scene, states) -> list[tuple[np.ndarray, np.ndarray, float]]:

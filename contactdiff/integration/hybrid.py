@@ -502,13 +502,15 @@ class HybridLoop:
                       mode_before=self._mode_names(mode), mode_after=self._mode_names(new_mode),
                       normal_speeds={self.names[i]: s for i, s in speeds.items()},
                       sliding=self._sliding_names(new_mode), nonsmooth=nonsmooth)
-        if self.options.jacobian:
+        def reset_jacobian():
             DR = impact_reset_jacobian(self.dyn, q, v_minus, impact)
             if settled:  # the reset is the impact followed by holding the settled contacts
                 DR = held_velocity_jacobian(self.dyn, q, v_plus, new_mode) @ DR
+            return DR
+
         if self.options.jacobian and initial:
             # no guard at t0: perturbations keep the start time, only the reset acts
-            event.saltation = DR
+            event.saltation = reset_jacobian()
             event.time_gradient = np.zeros(2 * self.scene.nv)
         elif self.options.jacobian:
             F_minus = vector_field(self.dyn, q, v_minus, t, mode)
@@ -525,7 +527,7 @@ class HybridLoop:
                         f"{', '.join(self.names[i] for i in touching)} give saltation matrices "
                         f"differing by {sim.spread:.2e} (relative)")
             else:
-                xi = saltation(DR, Dh, F_minus, vector_field(self.dyn, q, v_plus, t, new_mode))
+                xi = saltation(reset_jacobian(), Dh, F_minus, vector_field(self.dyn, q, v_plus, t, new_mode))
             self._attach_sensitivity(event, xi, Dh, F_minus)
         self.events.append(event)
         return new_mode, v_plus

@@ -116,10 +116,9 @@ class SimulateOptions:
             set_(self, "grazing_gap", check_number("simulate", "grazing_gap", self.grazing_gap, minimum=0.0))
         if self.project_tol is not None:
             set_(self, "project_tol", _in_range("project_tol", self.project_tol, 0.0, np.inf, open_low=True))
-        max_step = self.max_step
-        if not isinstance(max_step, (int, float, np.floating, np.integer)) or isinstance(max_step, bool) \
-                or not max_step > 0:
-            raise InvalidInputError(f"simulate: max_step must be > 0 s, got {max_step!r}")
+        set_(self, "max_step", check_number("simulate", "max_step", self.max_step, allow_inf=True))
+        if not self.max_step > 0:
+            raise InvalidInputError(f"simulate: max_step must be > 0 s, got {self.max_step!r}")
         if self.progress is not None and not callable(self.progress):
             raise InvalidInputError(f"simulate: progress must be a callable or None, got {self.progress!r}")
 

@@ -32,6 +32,7 @@ listing the frames when a name is wrong.
 
 from __future__ import annotations
 
+import dataclasses
 import re
 from dataclasses import dataclass, field
 from enum import Enum
@@ -159,9 +160,7 @@ def choose_feet(model: pin.Model, q_ref: np.ndarray, floating_base: bool,
     turned = _turned_upright(model, q_ref, choice)
     if turned is not None:
         q_turned, angle = turned
-        again = _lowest_end_frames(model, q_turned)
-        return FootChoice(again.feet, again.rule, again.band, again.heights, again.left_out,
-                          angle), q_turned
+        return dataclasses.replace(_lowest_end_frames(model, q_turned), upright_turn=angle), q_turned
     return choice, q_ref
 
 

@@ -47,6 +47,7 @@ ROBOTS_DIR = _robots_dir()
 QUADRUPEDS = ("solo12", "anymal", "a1", "go1", "go2", "hyq")
 """example-robot-data quadrupeds whose feet and standing pose are known to load."""
 
+
 @dataclass
 class Robot:
     """A Pinocchio model with the facts contactdiff needs about it.

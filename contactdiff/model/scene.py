@@ -142,15 +142,8 @@ class Scene:
             InvalidInputError: wrong size or non-finite entries.
             InconsistentStateError: a gap is below ``-PENETRATION_TOL``.
         """
-        q, v = np.asarray(q, dtype=float), np.asarray(v, dtype=float)
-        if q.shape != (self.robot.nq,) or v.shape != (self.nv,):
-            raise InvalidInputError(
-                f"state must have q of shape ({self.robot.nq},) and v of shape ({self.nv},); "
-                f"got {q.shape} and {v.shape}")
-        for label, x in (("q", q), ("v", v)):
-            if not np.all(np.isfinite(x)):
-                bad = [n for n, ok in zip(self._labels(label), np.isfinite(x)) if not ok]
-                raise InvalidInputError(f"initial {label} has non-finite entries at {', '.join(bad)}: {x}")
+        q = check_vector("scene", "initial q", q, self.robot.nq, self._labels("q"))
+        v = check_vector("scene", "initial v", v, self.nv, self._labels("v"))
         self._check_unit_coordinates(q)
         gaps = self.gaps(q)
         for name, gap in zip(self.contact_names, gaps):

@@ -13,6 +13,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 from ..control.trot_controller import TrotController
+from ..control.trot_scenes import TROT_PARAMETERS
 from ..errors import InvalidInputError, ModelLoadError, UnknownRobotError, unknown_name
 from .contacts import Contact
 from .efforts import JointSpring, Spring
@@ -73,11 +74,9 @@ def passive_note(scene: Scene) -> str | None:
     scenes = driving_scenes(robot.name)
     text = (f"robot {robot.name!r} has no efforts: its {len(robot.actuated)} joints are passive, so it folds "
             "under gravity")
-    from ..control.trot_scenes import TROT_PARAMETERS  # here: trot_scenes imports this module's Scene
-
     drivers = list(scenes)
     if robot.name in TROT_PARAMETERS:
-        drivers.append(f"contactdiff.control.trot_scenes.trot_scene({robot.name!r}) in Python")
+        drivers.append(f"contactdiff.trot_scene({robot.name!r}) in Python")
     return text + ("; scenes that drive it: " + ", ".join(drivers) if drivers else
                    "; add efforts to drive it (a [trot] controller, springs, or a UserEffort)")
 
