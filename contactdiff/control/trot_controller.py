@@ -83,6 +83,12 @@ hold a released foot a few nanometres below the ground for a fraction of a
 millisecond, until the pull lifts it (the simulation may record tiny bounces
 there).
 
+**Breakpoints.** The schedule is C² in time but its third derivative jumps at
+the spline's knots and at the ends of every smooth-step piece;
+`TrotControllerEvaluator.next_breakpoint` lists those times, and the integrator
+ends a step exactly on each (an 8th-order method stepping across them rejects
+about as many steps as it accepts).
+
 Because ``q*``, ``q̇*``, ``g`` and ``tau_ff`` depend on time only, the
 derivatives are ``dtau/dq = -g(t) kp`` and ``dtau/dv = -g(t) kd`` on the leg
 joints (tangent space), zero elsewhere.
@@ -96,6 +102,7 @@ same code serves every quadruped whatever its naming.
 from __future__ import annotations
 
 import bisect
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, fields
 
@@ -272,6 +279,7 @@ class TrotControllerEvaluator:
         # same bits): a CubicSpline call costs ~20 µs of Python for a dozen numbers
         self._knots, self._coef = self._spline.x, self._spline.c
         self._gravity, self._carry = self._static_terms()
+        self._phase_breaks = self._breakpoint_phases()
         grid = np.linspace(0.0, 1.0, 4001)
         # both legs of each pair share the weight (c_front + c_hind = 1): two pairs
         self.load_scale = 1.0 / (2.0 * np.trapezoid([self.load(p % 1.0) for p in grid], grid))
@@ -334,6 +342,40 @@ class TrotControllerEvaluator:
         if distance >= s.transfer:
             return 1.0
         return s.release_gain + (1.0 - s.release_gain) * float(smooth_step(distance / s.transfer))
+
+    def _breakpoint_phases(self) -> np.ndarray:
+        """Gait phases in [0, 1) where the schedule is not smooth: the reference spline's
+        knots (its third derivative jumps there) and, per leg, the ends of the smooth-step
+        pieces of the load and of the gain scale (``S'''`` jumps there), sorted, with
+        phases closer than 1e-12 merged."""
+        s = self.spec
+        start, end = self._unload
+        r = s.transfer
+        leg_breaks = [0.0, r, start, end, end + r, 1.0 - r] if s.feedforward else []
+        if s.release_gain != 1.0:
+            leg_breaks += [s.duty - s.transfer, s.duty, s.duty + s.transfer]
+        phases = list(self._knots[:-1])
+        phases += [(psi - offset) % 1.0 for offset in self._offsets for psi in leg_breaks]
+        phases = np.sort(np.mod(phases, 1.0))
+        keep = np.concatenate(([True], np.diff(phases) > 1e-12))
+        return phases[keep]
+
+    def next_breakpoint(self, t: float) -> float:
+        """The first time (s) after ``t`` at which the schedule is not smooth (see
+        `_breakpoint_phases`): a stepper that ends a step there exactly never steps across
+        a jump of a derivative of the torques."""
+        s = self.spec
+        x = (t - s.t_start) / s.period
+        n = math.floor(x)
+        breaks = self._phase_breaks
+        i = bisect.bisect_right(breaks, x - n)
+        while True:
+            if i == len(breaks):
+                n, i = n + 1, 0
+            t_break = s.t_start + s.period * (n + breaks[i])
+            if t_break > t:
+                return t_break
+            i += 1
 
     # -- reference ------------------------------------------------------------------
     def foot_offset(self, psi):

@@ -256,6 +256,8 @@ class HybridLoop:
                     f"t_final = {self.t_final:g} s (last step {stepper.t - stepper.t_old:.3g} s); "
                     "raise max_steps, or look for a runaway state",
                     self._trajectory(stepper, Termination.MAX_STEPS))
+            # a breakpoint of the efforts' schedule is a time the step must end on
+            stepper.t_bound = min(self.t_final, scene.next_breakpoint(stepper.t))
             stepper.step()
             steps += 1
             if options.progress is not None:

@@ -10,11 +10,21 @@ follows the `Effort` protocol) whose ``bind(robot)`` returns an evaluator with
     time_derivative(kin, t)  -> (nv,)   d tau/dt at fixed state
 
 where ``kin`` is a `Kinematics` updated at the state (with ``derivatives=True``
-for the second call).
+for the second call). An evaluator whose time dependence has breakpoints (a
+schedule made of polynomial pieces, the end of a ramp) also has
+
+    next_breakpoint(t)       -> float   the first time (s) after t where a time
+                                        derivative of tau jumps, tau itself being
+                                        continuous (inf: none left)
+
+and the integrator ends a step exactly on each such time instead of stepping
+across it: a high-order method that steps across a jump of the third
+derivative rejects the step, or keeps a shorter one, again and again.
 """
 
 from __future__ import annotations
 
+import bisect
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -215,6 +225,10 @@ class UserEffort:
             N m/s, shape (nv,)), the explicit time rate, used where a contact force
             is a guard (lift-off); without it, a central difference in ``t`` with
             step ``fd_step`` (1 s scale: relative error ~1e-10 as above).
+        breakpoints: times (s) at which ``function`` is continuous but not smooth
+            in ``t`` (the end of a ramp, a knot of a spline schedule); the
+            integrator ends a step exactly on each (see the module notes). A
+            force that jumps is better split into runs at the jump.
     """
 
     function: Callable
@@ -222,6 +236,7 @@ class UserEffort:
     name: str = "user effort"
     fd_step: float = 1e-6
     time_derivative: Callable | None = None
+    breakpoints: tuple = ()
 
     def __post_init__(self) -> None:
         if not callable(self.function):
@@ -231,6 +246,12 @@ class UserEffort:
             if value is not None and not callable(value):
                 raise InvalidInputError(f"{self.name}: {field_name} must be callable or None, got {value!r}")
         check_number(self.name, "fd_step", self.fd_step, minimum=1e-15)
+        try:
+            times = [check_number(self.name, "breakpoint", t) for t in self.breakpoints]
+        except TypeError:
+            raise InvalidInputError(f"{self.name}: breakpoints must be a sequence of times (s), "
+                                    f"got {self.breakpoints!r}") from None
+        object.__setattr__(self, "breakpoints", tuple(sorted(set(times))))
 
     def bind(self, robot: Robot) -> _BoundUserEffort:
         """The evaluator of this effort on ``robot`` (its output checked for shape (nv,) and
@@ -241,6 +262,12 @@ class UserEffort:
 class _BoundUserEffort:
     def __init__(self, spec: UserEffort, robot: Robot):
         self.spec, self.robot = spec, robot
+        if spec.breakpoints:
+            self.next_breakpoint = self._next_breakpoint
+
+    def _next_breakpoint(self, t: float) -> float:
+        i = bisect.bisect_right(self.spec.breakpoints, t)
+        return self.spec.breakpoints[i] if i < len(self.spec.breakpoints) else math.inf
 
     def _call(self, q, v, t) -> np.ndarray:
         tau = np.asarray(self.spec.function(q, v, t), dtype=float)

@@ -6,6 +6,7 @@ file (`contactdiff.model.scene_file`).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 
 import numpy as np
@@ -69,6 +70,7 @@ class Scene:
                     f"bind(robot) (the Effort protocol), got {e!r}")
         self.contacts: list[BoundContact] = [c.bind(robot) for c in self.contact_specs]
         self.efforts = bind_efforts(self.effort_specs, robot)
+        self._timed_efforts = [e for e in self.efforts if hasattr(e, "next_breakpoint")]
         self.q0 = self._configuration(q0)
         self.v0 = self._velocity(v0)
         self._kinematics: Kinematics | None = None
@@ -117,6 +119,11 @@ class Scene:
         for e in self.efforts:
             total += e.tau(kin, t)
         return total
+
+    def next_breakpoint(self, t: float) -> float:
+        """The first time (s) after ``t`` at which an effort's time dependence is not
+        smooth (an effort's optional ``next_breakpoint``); ``inf`` if none."""
+        return min((e.next_breakpoint(t) for e in self._timed_efforts), default=math.inf)
 
     def tau_derivatives(self, kin: Kinematics, t: float) -> tuple[np.ndarray, np.ndarray]:
         """``d tau/dq`` and ``d tau/dv`` of the efforts (tangent space, nv × nv each)."""
