@@ -283,6 +283,7 @@ class TrotControllerEvaluator:
         grid = np.linspace(0.0, 1.0, 4001)
         # both legs of each pair share the weight (c_front + c_hind = 1): two pairs
         self.load_scale = 1.0 / (2.0 * np.trapezoid([self.load(p % 1.0) for p in grid], grid))
+        self._table = self._schedule_table()
 
     # -- schedule -------------------------------------------------------------------
     def phase(self, t: float) -> float:
@@ -477,10 +478,69 @@ class TrotControllerEvaluator:
         loads = np.array([self.load(self.leg_phase(k, phi)) for k in range(4)])
         return self._gravity + self.load_scale * (loads @ self._carry)
 
+    # -- the schedule as one table of polynomial pieces --------------------------------
+    _DEGREE = 8
+    """Degree in time of the torques' time-only terms on a piece between breakpoints: the
+    gain scale (a quintic smooth step) times the reference (a cubic spline piece)."""
+
+    def _schedule_terms(self, t: float) -> np.ndarray:
+        """``(b, kp g, kd g)`` stacked (3 nv,) at time ``t`` from the formulas: the torques
+        are ``b - (kp g) q - (kd g) v`` on the leg joints, with
+        ``b = g (kp q* + kd q̇*) + tau_ff`` (zero on the base)."""
+        s, nv, iv = self.spec, self.nv, self.iv
+        q_ref, v_ref = self.reference(t)
+        g = self.gains(t)
+        out = np.zeros(3 * nv)
+        out[iv] = g * (s.kp * q_ref + s.kd * v_ref) + self.feedforward(t)
+        out[nv + iv] = s.kp * g
+        out[2 * nv + iv] = s.kd * g
+        return out
+
+    def _schedule_table(self) -> np.ndarray:
+        """Coefficients (pieces × (degree + 1) × 3 nv) of `_schedule_terms` on each piece
+        between consecutive breakpoint phases, in the monomials of ``x`` in [-1, 1] across
+        the piece: the terms are one polynomial of degree `_DEGREE` there, so interpolating
+        them at ``degree + 1`` Chebyshev points reproduces them to round-off, and `tau`
+        costs one small matrix product instead of a dozen Python-level evaluations."""
+        n = self._DEGREE + 1
+        nodes = np.cos(np.pi * (np.arange(n) + 0.5) / n)
+        vandermonde_inv = np.linalg.inv(np.vander(nodes, n, increasing=True))
+        ends = np.append(self._phase_breaks, 1.0)
+        self._piece_start, self._piece_width = ends[:-1], np.diff(ends)
+        s = self.spec
+        table = np.empty((len(ends) - 1, n, 3 * self.nv))
+        for i, (lo, width) in enumerate(zip(self._piece_start, self._piece_width)):
+            values = np.array([self._schedule_terms(s.t_start + s.period * (lo + width * (x + 1.0) / 2.0))
+                               for x in nodes])
+            table[i] = vandermonde_inv @ values
+        # tau reads q on the tangent indices: each leg joint's configuration entry
+        # (the base's entries have zero gains; any index will do)
+        self._q_of_v = np.zeros(self.nv, dtype=int)
+        self._q_of_v[self.iv] = self.iq
+        return table
+
+    def _terms(self, t: float) -> np.ndarray:
+        """`_schedule_terms` at ``t`` from the table."""
+        phi = self.phase(t)
+        i = bisect.bisect_right(self._piece_start, phi) - 1
+        x = 2.0 * (phi - self._piece_start[i]) / self._piece_width[i] - 1.0
+        powers = [1.0] * (self._DEGREE + 1)
+        for k in range(1, self._DEGREE + 1):
+            powers[k] = powers[k - 1] * x
+        return powers @ self._table[i]
+
     # -- effort protocol --------------------------------------------------------------
     def tau(self, kin: Kinematics, t: float) -> np.ndarray:
         """Generalised force (nv,) at the state of ``kin`` and time ``t`` (s): the PD and
-        feed-forward torques on the leg joints (N m), zero elsewhere."""
+        feed-forward torques on the leg joints (N m), zero elsewhere (from the table of
+        `_schedule_table`; `tau_by_formula` evaluates the formulas themselves)."""
+        nv = self.nv
+        terms = self._terms(t)
+        return terms[:nv] - terms[nv:2 * nv] * kin.q[self._q_of_v] - terms[2 * nv:] * kin.v
+
+    def tau_by_formula(self, kin: Kinematics, t: float) -> np.ndarray:
+        """`tau` from the schedule's formulas (reference, gains, feed-forward), the oracle
+        that the table is tested against."""
         s = self.spec
         q_ref, v_ref = self.reference(t)
         out = np.zeros(self.nv)
@@ -496,11 +556,9 @@ class TrotControllerEvaluator:
     def derivatives(self, kin: Kinematics, t: float) -> tuple[np.ndarray, np.ndarray]:
         """``(d tau/dq, d tau/dv)``, each (nv × nv), tangent space: ``-g kp`` and ``-g kd`` on
         the diagonal of the leg joints, zero elsewhere."""
-        dq, dv = np.zeros((self.nv, self.nv)), np.zeros((self.nv, self.nv))
-        g = self.gains(t)
-        dq[self.iv, self.iv] = -self.spec.kp * g
-        dv[self.iv, self.iv] = -self.spec.kd * g
-        return dq, dv
+        nv = self.nv
+        terms = self._terms(t)
+        return np.diag(-terms[nv:2 * nv]), np.diag(-terms[2 * nv:])
 
 
 __all__ = ["TrotController", "TrotControllerEvaluator", "Leg", "find_legs", "smooth_step", "PAIR_A", "PAIR_B",

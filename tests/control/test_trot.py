@@ -339,3 +339,30 @@ def test_reference_by_hand_is_the_cubic_spline(solo):
         phi = ev.phase(t)
         np.testing.assert_allclose(q_ref, ev._spline(phi), rtol=0, atol=1e-13)
         np.testing.assert_allclose(v_ref, derivative(phi) / ev.spec.period, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("options", [{}, dict(feedforward=False, release_gain=0.3, kp=3.0, kd=0.05)])
+def test_torque_table_is_the_formulas(solo, options):
+    """`tau` reads the schedule from a table of polynomial pieces; `tau_by_formula`
+    evaluates the reference spline, the gain scale and the feed-forward themselves.
+    They are the same polynomial on each piece, so they agree to the rounding of the
+    table: 9 Chebyshev samples mapped to monomials by the inverse Vandermonde matrix,
+    an error of at most (its condition number) x (9 terms) x eps x (size of the
+    terms), at random times (several periods) and random states."""
+    ev = TrotController(**options).bind(solo)
+    kin = Kinematics(solo.model)
+    n = ev._DEGREE + 1
+    nodes = np.cos(np.pi * (np.arange(n) + 0.5) / n)
+    condition = np.linalg.cond(np.vander(nodes, n, increasing=True), np.inf)
+    rng = np.random.default_rng(7)
+    for t in rng.uniform(-0.5, 1.5, 300):
+        q = solo.integrate(solo.q_ref, rng.normal(0.0, 0.3, solo.nv))
+        v = rng.normal(0.0, 2.0, solo.nv)
+        kin.update(q, v)
+        terms = ev._schedule_terms(t)
+        size = np.max(np.abs(terms)) * (1.0 + np.max(np.abs(q)) + np.max(np.abs(v)))
+        bound = condition * n * np.finfo(float).eps * size
+        np.testing.assert_allclose(ev.tau(kin, t), ev.tau_by_formula(kin, t), rtol=0, atol=bound)
+        dq, dv = ev.derivatives(kin, t)
+        np.testing.assert_allclose(np.diag(dq)[ev.iv], -ev.spec.kp * ev.gains(t), rtol=0, atol=bound)
+        np.testing.assert_allclose(np.diag(dv)[ev.iv], -ev.spec.kd * ev.gains(t), rtol=0, atol=bound)
