@@ -277,7 +277,8 @@ def _run_simulate(args) -> int:
     scene = _scene_from_args(args)
     with _ProgressBar(f"simulate {scene.name}", (0.0, args.t_final)) as bar:
         traj = simulate(scene, args.t_final, method=args.method, rtol=args.rtol, atol=args.atol,
-                        jacobian=args.jacobian, max_steps=args.max_steps, progress=bar)
+                        jacobian=args.jacobian, max_steps=args.max_steps, progress=bar,
+                        dense=bool(args.plot))  # a plot samples the states between events
     if args.plot:
         from .plotting import plot_gait, plot_gaps
 

@@ -68,7 +68,8 @@ def main() -> None:
     if not args.no_period_map:
         began = time.perf_counter()
         mid = gait.t + 0.5 * gait.stride.stride_time
-        qm, vm = gait.stride.trajectory.at(mid)
+        halfway = simulate(scene, mid, gait.q, gait.v, t0=gait.t, **options)  # the fixed point, half a stride on
+        qm, vm = halfway.q, halfway.v
         try:
             pm = period_map(scene, qm, vm, mid, **options)
         except ContactDiffError as exc:  # e.g. the mid-stride state is not a consistent start

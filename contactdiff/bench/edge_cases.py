@@ -238,7 +238,7 @@ def elastic_study(impacts: int = 1000, tol: dict | None = None, samples_per_flig
     robot = load_scene("ball").robot
     scene = Scene(robot, [Contact("ball", restitution=1.0)], gravity=[0, 0, -1], q0={"z": 1.0})
     t_final = SQ2 * (2 * impacts - 1) + SQ2  # up to the top after the last impact
-    traj, elapsed = _run(scene, t_final, max_events=impacts + 10, **tol)
+    traj, elapsed = _run(scene, t_final, max_events=impacts + 10, dense=True, **tol)
     energy_events = max(max(abs(0.5 * ev.v_minus[0] ** 2 + ev.q[0] - 1.0),
                             abs(0.5 * ev.v_plus[0] ** 2 + ev.q[0] - 1.0)) for ev in traj.events)
     gaps_at_impacts = [float(traj.at(ev.t, side="left")[0][0]) for ev in traj.events]

@@ -59,14 +59,14 @@ class RigidContactMode:
         """``(ddq, row forces)``, or None when Pinocchio's factorisation fails
         (redundant contacts), so that the caller falls back to least squares."""
         try:
-            ddq = pin.constraintDynamics(self.model, self.data, q, v, tau, self.models, self.datas,
-                                         _SETTINGS).copy()
+            ddq = pin.constraintDynamics(self.model, self.data, q, v, tau, self.models, self.datas, _SETTINGS)
         except RuntimeError:
             return None
-        forces = self.rotation @ self.data.lambda_c
-        if not math.isfinite(ddq.sum() + forces.sum()):  # one reduction instead of two isfinite arrays
+        # a failed factorisation leaves non-finite accelerations (the forces enter them):
+        # one dot product checks them all (an overflow to inf falls back too, harmlessly)
+        if not math.isfinite(ddq @ ddq):
             return None
-        return ddq, forces
+        return ddq, self.rotation @ self.data.lambda_c
 
     def derivatives(self, dtau_dq: np.ndarray, dtau_dv: np.ndarray):
         """Derivatives at the state of the last `solve`, efforts' own derivatives included:

@@ -264,7 +264,8 @@ class HybridLoop:
                 options.progress(stepper.t, len(self.events), steps)
             h = stepper.t - stepper.t_old
             dense = stepper.dense(lazy=True)  # DOP853's extra stages only if a guard needs them
-            segment.pieces.append(dense)
+            if options.dense:
+                segment.pieces.append(dense)
             gaps1, rates1 = self._gaps_and_rates(stepper.q, stepper.v)
             forces1 = field.normal_forces(stepper.t, stepper.q, stepper.v)
             crossings, misses = self.guards.crossings(stepper, dense, field, mode, (gaps, rates, forces),
@@ -361,7 +362,7 @@ class HybridLoop:
         return Trajectory(scene_name=self.scene.name, t0=self.t0, q0=self.scene.q0.copy(),
                           v0=self.scene.v0.copy(), t=stepper.t, q=stepper.q.copy(), v=stepper.v.copy(),
                           events=self.events, segments=self.segments, stats=stats, max_drift=self.max_drift,
-                          termination=termination, notes=self.notes,
+                          termination=termination, notes=self.notes, dense=self.options.dense,
                           jacobian=stepper.phi.copy() if self.options.jacobian else None)
 
     # -- detection ------------------------------------------------------------------

@@ -196,6 +196,8 @@ class Trajectory:
         termination: why the run ended (a `Termination`; ``"t_final"`` normally).
         notes: human-readable remarks (Zeno ends, grazing, ...).
         jacobian: ``d x(t) / d x0`` (2nv × 2nv, tangent space) if it was asked for.
+        dense: whether the run kept its dense output (``simulate(..., dense=True)``),
+            which `at`, `sample` and `save_npz` need.
     """
 
     scene_name: str
@@ -212,6 +214,7 @@ class Trajectory:
     termination: Termination = Termination.T_FINAL
     notes: list[str] = field(default_factory=list)
     jacobian: np.ndarray | None = None
+    dense: bool = True
 
     @property
     def differentiable(self) -> bool:
@@ -231,6 +234,9 @@ class Trajectory:
             side: at an event time, ``"right"`` gives the state after the jump,
                 ``"left"`` the state before.
         """
+        if not self.dense:
+            raise InvalidInputError("this run kept no dense output, so its states between events are "
+                                    "gone: simulate(..., dense=True) keeps them (or read traj.events)")
         if side not in ("left", "right"):
             raise InvalidInputError(f"side must be 'left' or 'right', got {side!r}")
         if not (self.t0 <= t <= self.t):

@@ -114,7 +114,10 @@ class Scene:
         return np.array([c.gap(kin) for c in self.contacts])
 
     def tau(self, kin: Kinematics, t: float) -> np.ndarray:
-        """Sum of the scene's efforts at the state of ``kin`` (gravity excluded)."""
+        """Sum of the scene's efforts at the state of ``kin`` (gravity excluded); a new
+        array, or the single effort's own result (the callers only read it)."""
+        if len(self.efforts) == 1:
+            return self.efforts[0].tau(kin, t)
         total = np.zeros(self.nv)
         for e in self.efforts:
             total += e.tau(kin, t)

@@ -177,7 +177,7 @@ def test_bad_controller_and_scene_inputs(solo):
 # -- the trot itself -------------------------------------------------------------------
 def _trot(name: str):
     scene = trot_scene(name)
-    return scene, cd.simulate(scene, T_FINAL)
+    return scene, cd.simulate(scene, T_FINAL, dense=True)
 
 
 @pytest.fixture(scope="module")

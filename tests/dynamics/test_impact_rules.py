@@ -39,7 +39,7 @@ def test_a_contact_opening_with_no_speed_that_sinks_touches_down_again():
     base = cd.load_scene("ball")
     unloading = cd.UserEffort(lambda q, v, t: np.array([1.0 - t]), name="unloading")
     scene = cd.Scene(base.robot, [cd.Contact("ball")], [unloading], gravity=[0, 0, -1], q0=[0.0])
-    traj = cd.simulate(scene, 1.0, rtol=1e-10, atol=1e-12)
+    traj = cd.simulate(scene, 1.0, rtol=1e-10, atol=1e-12, dense=True)
     assert [e.kind for e in traj.events] == ["touchdown"]
     assert traj.events[0].t < 1e-3
     assert traj.modes[-1] == ("ball",)
@@ -127,7 +127,7 @@ def test_a_foot_lifted_by_its_own_impact_ends_its_bounces_under_the_zeno_rule(tm
     10 (atol + rtol |q|_inf) (6e-8 m here), and lands at sqrt(2 |a_n| band) (3 mm/s)."""
     scene = _relaxed_bouncing_leg(tmp_path)
     zeno = 1e-6  # m/s, simulate's default zeno_speed
-    traj = cd.simulate(scene, 0.05)
+    traj = cd.simulate(scene, 0.05, dense=True)
     model, data = scene.model, scene.model.createData()
     fid, tau = model.getFrameId("foot"), np.array([0.0, 0.0, HIP_TORQUE])
 

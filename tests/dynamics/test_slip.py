@@ -81,7 +81,7 @@ def _scene(robot, exact_rate: bool = True) -> cd.Scene:
 @pytest.fixture(scope="module")
 def leg_run(leg_robot):
     scene = _scene(leg_robot)
-    return scene, cd.simulate(scene, T_FINAL, jacobian=True, **TOL)
+    return scene, cd.simulate(scene, T_FINAL, jacobian=True, dense=True, **TOL)
 
 
 def _foot_normal_row(model, data, q, v, fid):

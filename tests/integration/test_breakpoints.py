@@ -40,7 +40,7 @@ def _closed_form(t):
 
 
 def test_a_step_ends_on_the_breakpoint_and_the_quadratic_pieces_are_exact():
-    traj = cd.simulate(_ball(breakpoints=(T_SWITCH,)), T_FINAL)
+    traj = cd.simulate(_ball(breakpoints=(T_SWITCH,)), T_FINAL, dense=True)
     ends = [p.t for seg in traj.segments for p in seg.pieces]
     assert T_SWITCH in ends
     # Each piece of the motion is a cubic in t, which DOP853 integrates exactly:

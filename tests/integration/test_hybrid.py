@@ -72,7 +72,7 @@ def _ball_events_closed_form(e, n, h=1.0, g=1.0):
 @pytest.fixture(scope="module")
 def ball_run():
     scene = cd.load_scene("ball")
-    return scene, simulate(scene, 11.4, **TIGHT)  # t_9 = 11.209..., t_10 = 11.513...
+    return scene, simulate(scene, 11.4, **TIGHT, dense=True)  # t_9 = 11.209..., t_10 = 11.513...
 
 
 def test_ball_event_times_and_velocities(ball_run):
@@ -204,7 +204,7 @@ def test_ball_zeno(ball_robot, e):
     """
     zeno = 1e-6
     t_z = SQ2 * (1 + 2 * e / (1 - e))
-    traj = simulate(_ball(ball_robot, e), t_z + 1.0, **TIGHT, zeno_speed=zeno, max_events=100_000)
+    traj = simulate(_ball(ball_robot, e), t_z + 1.0, **TIGHT, zeno_speed=zeno, max_events=100_000, dense=True)
     last = traj.events[-1]
     assert last.kind == "zeno"
     assert [ev.kind for ev in traj.events[:-1]] == ["bounce"] * (len(traj.events) - 1)
@@ -231,7 +231,7 @@ def test_ball_elastic_keeps_energy(ball_robot):
     energy v^2/2 + z = 1 holds along the dense output. 10 bounces; tolerance 1e-9
     (rounding accumulated over the bounces, each exact up to rounding)."""
     n = 10
-    traj = simulate(_ball(ball_robot, 1.0), SQ2 * 2 * n, **TIGHT)
+    traj = simulate(_ball(ball_robot, 1.0), SQ2 * 2 * n, **TIGHT, dense=True)
     assert [ev.kind for ev in traj.events] == ["bounce"] * n
     np.testing.assert_allclose([ev.t for ev in traj.events], SQ2 * (1 + 2 * np.arange(n)), rtol=0, atol=1e-9)
     np.testing.assert_allclose([ev.v_minus[0] for ev in traj.events], -SQ2, rtol=0, atol=1e-9)
@@ -324,7 +324,7 @@ def hopper_run(request):
     name = request.param
     ref = HOPPERS[name][0]
     scene = cd.load_scene(name)
-    return name, scene, simulate(scene, ref.t_td + 0.2, **TIGHT)
+    return name, scene, simulate(scene, ref.t_td + 0.2, **TIGHT, dense=True)
 
 
 def test_hopper_event_sequence(hopper_run):
@@ -607,7 +607,7 @@ def test_rigid_trot_discontinuity_at_zero(rigid_scene, theta0):
 @pytest.fixture(scope="module")
 def solo_run():
     scene = cd.load_scene("solo12_drop")
-    return scene, simulate(scene, 1.5)
+    return scene, simulate(scene, 1.5, dense=True)
 
 
 def test_solo12_drop(solo_run):
@@ -748,7 +748,7 @@ def test_start_closed_approaching(ball_robot):
     (v+ = 0.5, recorded as a bounce at t0), then a flight of 2 * 0.5 / g = 1 s,
     then the next bounce (v- = -0.5, v+ = 0.25, next flight 0.5 s)."""
     scene = _ball(ball_robot, 0.5, z0=0.0)
-    traj = simulate(scene, 1.4, v0=[-1.0], **TIGHT)
+    traj = simulate(scene, 1.4, v0=[-1.0], **TIGHT, dense=True)
     assert [ev.kind for ev in traj.events] == ["bounce", "bounce"]
     first, second = traj.events
     # v+ = v- + x / m, x = (1 + e) m |v-| from a 1 x 1 solve: a few roundings of O(1)
@@ -779,7 +779,7 @@ def test_no_touchdown_lost_without_grouping():
     Regression: it used to be skipped forever (no gap peak after the event) and
     the foot fell through the ground (gap -0.5 at t = 1.5)."""
     scene = cd.load_scene("planar_trot_soft")
-    traj = simulate(scene, 1.4, simultaneous_tol=0.0, **TIGHT)
+    traj = simulate(scene, 1.4, simultaneous_tol=0.0, **TIGHT, dense=True)
     assert traj.events[0].t == pytest.approx(1.0, abs=1e-10)
     assert set(traj.events[0].mode_after) == {"rear_foot", "front_foot"}
     for name in ("rear_foot", "front_foot"):
@@ -819,7 +819,7 @@ def test_start_sliding_on_sticking_feet():
     scene = cd.Scene(base.robot, [cd.Contact("rear_foot", friction="stick"),
                                   cd.Contact("front_foot", friction="stick")],
                      gravity=[0, 0, -1], q0=[0.0, 1 / 6, 0.0], v0=[1.0, 0.0, 0.0])
-    traj = simulate(scene, 0.5, **TIGHT)
+    traj = simulate(scene, 0.5, **TIGHT, dense=True)
     for seg in traj.segments:
         if not seg.mode or seg.t1 <= seg.t0:
             continue
