@@ -187,7 +187,7 @@ class HybridLoop:
     def _gaps_and_rates(self, q, v) -> tuple[np.ndarray, np.ndarray]:
         self.kin.update(q, v)
         gaps = np.array([c.gap(self.kin) for c in self.contacts])
-        rates = np.array([c.rows(self.kin)[0] @ v for c in self.contacts])
+        rates = np.array([c.gap_rate(self.kin) for c in self.contacts])
         return gaps, rates
 
     def _mode_names(self, mode) -> tuple[str, ...]:

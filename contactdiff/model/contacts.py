@@ -176,6 +176,10 @@ class BoundContact:
         p = self._diff(kin.position)
         return float(self.normal @ p - self.offset)
 
+    def gap_rate(self, kin: Kinematics) -> float:
+        """Normal gap rate ``Da(q) v`` (m/s) at the state of ``kin``."""
+        return float(self.normal @ self._diff(kin.velocity))
+
     def rows(self, kin: Kinematics) -> np.ndarray:
         """Constraint rows ``A`` (n_rows × nv); row 0 is ``Da(q)``."""
         return self.directions @ self._point_jacobian(kin)

@@ -87,8 +87,9 @@ class Kinematics:
             self.model, self._kinematics(), fid, LWA), 6)[:3].copy())
 
     def velocity(self, fid: int) -> np.ndarray:
-        """World velocity of the frame origin (3,)."""
-        return self.jacobian(fid) @ self.v
+        """World velocity of the frame origin (3,) (from the forward pass with ``v``: no
+        Jacobian needed)."""
+        return pin.getFrameVelocity(self.model, self._kinematics(), fid, LWA).linear
 
     def classical_acceleration(self, fid: int) -> np.ndarray:
         """Classical acceleration of the frame origin at zero joint acceleration: ``J̇ v`` (3,)."""

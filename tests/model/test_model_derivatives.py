@@ -119,6 +119,18 @@ def test_contact_rows_and_gap(name, i):
 
 
 @pytest.mark.parametrize("name,i", CONTACT_CASES)
+def test_contact_gap_rate(name, i):
+    """The gap rate read from the forward pass (frame velocities, no Jacobian) is
+    d/dt gap(q ⊕ t v) at t = 0, and row 0 of the rows times v to round-off."""
+    robot, c, q, v = _contact_case(name, i)
+    ev = Evaluator(robot, c)
+    rate = c.gap_rate(ev.at(q, v))
+    along = fd_dq(lambda qq: ev.gap(qq), robot.model, q) @ v
+    assert_fd("gap rate vs d gap(q + t v)/dt", rate, along, value=ev.gap(q))
+    assert rate == pytest.approx(float(ev.rows(q)[0] @ v), rel=1e-12, abs=1e-12 * np.abs(v).max())
+
+
+@pytest.mark.parametrize("name,i", CONTACT_CASES)
 def test_contact_drift(name, i):
     """With ddq = 0 along q(t) = q ⊕ t v (constant tangent velocity v),
     d/dt [A(q(t)) v] = drift and d²/dt² gap(q(t)) = drift[0]."""
