@@ -147,6 +147,13 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument("--studies", action="store_true",
                        help="also run the stiff and extreme-case studies and measure what a scene "
                             "costs beyond its needs (with --quick: seconds; without: minutes)")
+    bench.add_argument("--speed", action="store_true",
+                       help="instead: time the quadruped trots against real time and against Pinocchio's "
+                            "own calls (--scenes chooses the trots)")
+    bench.add_argument("--t-final", type=_Number(float, 0.0, strict=True), default=3.0,
+                       help="with --speed: simulated time of each timed run, s (default 3)")
+    bench.add_argument("--memory", type=_Number(float, 0.0, strict=True), metavar="SECONDS",
+                       help="with --speed: also the peak memory of a solo12 trot this long keeping events only")
     bench.set_defaults(run=_run_bench)
 
     stride = sub.add_parser(
@@ -210,6 +217,13 @@ def _run_stride(args) -> int:
 
 def _run_bench(args) -> int:
     from .bench.runner import run_bench
+
+    if args.speed:
+        from .bench.speed import run_speed
+
+        report = run_speed(args.scenes, t_final=args.t_final, repeats=args.repeats, memory_seconds=args.memory)
+        _print(json.dumps(report.to_dict(), indent=2) if args.json else report.format())
+        return 0
 
     if args.plot:
         _check_plot_path(args.plot)

@@ -112,3 +112,31 @@ def test_cli_bench_quick_json(capsys):
 def test_cli_bench_unknown_scene(capsys):
     assert main(["bench", "--quick", "--scenes", "nope"]) == 2
     assert "ball" in capsys.readouterr().err
+
+
+def test_cli_bench_speed_json(capsys):
+    """The speed rows are consistent counts of a real run (their times are not asserted):
+    the wall time per evaluation times the evaluations is the wall time, the ratios are
+    the quotients they name, and the same run's events are those of simulate."""
+    assert main(["bench", "--speed", "--scenes", "solo12_trot", "--t-final", "0.05", "--repeats", "1",
+                 "--json"]) == 0
+    (row,) = json.loads(capsys.readouterr().out)["trots"]
+    traj = cd.simulate(cd.load_scene("solo12_trot"), 0.05)
+    assert row["events"] == len(traj.events) and row["steps"] == traj.stats.steps
+    assert row["evaluations"] == traj.stats.dynamics_evaluations > 0
+    assert row["per_evaluation"] * row["evaluations"] == pytest.approx(row["wall"], rel=1e-12)
+    assert row["real_time_ratio"] == pytest.approx(row["wall"] / 0.05, rel=1e-12)
+    assert row["overhead_ratio"] == pytest.approx(row["per_evaluation"] / row["constraint_dynamics"], rel=1e-12)
+    assert row["constraint_dynamics"] > 0 and row["aba"] > 0
+
+
+def test_speed_memory_peak_is_measured_in_a_child():
+    from contactdiff.bench.speed import memory_peak
+
+    m = memory_peak("solo12_trot", 0.02)
+    assert 0 < m.before_mb <= m.peak_mb and m.events >= 0
+
+
+def test_cli_bench_speed_rejects_bad_options(capsys):
+    assert main(["bench", "--speed", "--t-final", "0"]) == 2
+    assert "--t-final" in capsys.readouterr().err
