@@ -18,6 +18,7 @@ scene) is contact ``i`` with all its rows; key ``n + i`` is sticking contact
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -27,6 +28,7 @@ from scipy.linalg.lapack import dposv as _dposv
 
 from ..errors import InvalidInputError, SolverError, check_number
 from ..model.scene import Scene
+from .constraint_dynamics import _SETTINGS as _RIGID_SETTINGS
 from .constraint_dynamics import RigidContactMode
 from .constraint_dynamics import eligible as rigid_eligible
 
@@ -121,6 +123,11 @@ class ModeDynamics:
             rigid = RigidContactMode(self.model, contacts) if rigid_eligible(contacts) else None
             entry = self._modes[active] = (contacts, tuple(slices), rigid)
         return entry
+
+    def accelerator(self, active: Sequence[int]) -> ModeAccelerator:
+        """The plain (no derivatives) solve of mode ``active`` as a stepper calls it, its
+        lookups done once (see `ModeAccelerator`)."""
+        return ModeAccelerator(self, tuple(active))
 
     def _check_mode(self, active: tuple) -> None:
         """Refuse a mode that is not a tuple of distinct valid contact keys."""
@@ -239,6 +246,54 @@ class ModeDynamics:
         dlam = _solve_spd(G, C - A @ MinvR)
         dddq = MinvR + MinvAT @ dlam
         return ModeDerivatives(dddq[:, :nv], dddq[:, nv:], dlam[:, :nv], dlam[:, nv:])
+
+
+class ModeAccelerator:
+    """``accel(q, v, t) -> ddq`` of one mode, the hot path of an explicit stepper.
+
+    A mode of Pinocchio's 3-D ground contacts calls ``pinocchio.constraintDynamics``
+    directly and keeps the raw contact forces of the last call (world axes), turned
+    into normal forces only when asked (`normal_forces`): a stepper evaluates a
+    dozen stages a step, the guards read the forces at one point. Any other mode,
+    and a rigid solve that fails (redundant contacts), goes through
+    `ModeDynamics.solve`. Results equal ``ModeDynamics.solve(q, v, t, active)``.
+    """
+
+    def __init__(self, dyn: ModeDynamics, active: tuple[int, ...]):
+        self.dyn, self.active = dyn, active
+        contacts, self._slices, self.rigid = dyn._mode(active)
+        self._kin, self._tau = dyn.kin, dyn.scene.tau
+        self._raw = self._solution = None
+        if self.rigid is not None:
+            r = self.rigid
+            self._call = (r.model, r.data, r.models, r.datas)
+            # row k picks contact k's normal force out of the stacked world forces
+            self._normals = np.zeros((len(contacts), 3 * len(contacts)))
+            for k, c in enumerate(contacts):
+                self._normals[k, 3 * k:3 * k + 3] = c.directions[0]
+
+    def __call__(self, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
+        """Joint accelerations (nv,) in the mode at ``(q, v)`` and time ``t`` (s)."""
+        if self.rigid is not None:
+            kin = self._kin
+            kin.update(q, v)
+            model, data, models, datas = self._call
+            try:
+                ddq = pin.constraintDynamics(model, data, q, v, self._tau(kin, t), models, datas, _RIGID_SETTINGS)
+            except RuntimeError:
+                ddq = None
+            if ddq is not None and math.isfinite(ddq @ ddq):  # failed factorisations give non-finite values
+                self._raw = data.lambda_c.copy()
+                return ddq
+        self._raw = None
+        self._solution = self.dyn.solve(q, v, t, self.active)
+        return self._solution.ddq
+
+    def normal_forces(self) -> np.ndarray:
+        """Normal forces (N) of the mode's contacts (order of the mode) at the last call."""
+        if self._raw is not None:
+            return self._normals @ self._raw
+        return self._solution.normal_forces()
 
 
 def _solve_spd(G: np.ndarray, b: np.ndarray) -> np.ndarray:

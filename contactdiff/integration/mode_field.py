@@ -24,7 +24,9 @@ class ModeField:
 
     def __init__(self, dyn: ModeDynamics, mode: tuple[int, ...], fused: bool = False):
         self.dyn, self.mode, self.fused = dyn, mode, fused
-        self.last = None
+        self._plain = dyn.accelerator(mode)
+        self.last = None  # (t, q, v) of the last accel, and its normal forces' source
+        self._last_forces = None
         self.n_solve = self.n_derivatives = 0
         self._derivatives: OrderedDict = OrderedDict()
 
@@ -32,15 +34,16 @@ class ModeField:
         """Accelerations ``ddq`` (nv,) of the mode at time ``t`` (s) and state ``(q, v)``; with
         ``fused`` also differentiates the mode and keeps the derivatives for `jac`."""
         self.n_solve += 1
+        self.last = (t, q, v)
         if self.fused:
             sol, der = self._solve_with_derivatives(t, q, v)
             self._derivatives[(t, q.tobytes(), v.tobytes())] = (der.ddq_dq, der.ddq_dv)
             if len(self._derivatives) > self._KEEP:
                 self._derivatives.popitem(last=False)
-        else:
-            sol = self.dyn.solve(q, v, t, self.mode)
-        self.last = (t, q, v, sol)
-        return sol.ddq
+            self._last_forces = sol.normal_forces
+            return sol.ddq
+        self._last_forces = self._plain.normal_forces
+        return self._plain(q, v, t)
 
     def _solve_with_derivatives(self, t, q, v):
         self.n_derivatives += 1
@@ -60,5 +63,5 @@ class ModeField:
         ``(q, v)``, reusing the last `accel` solve when it was at that point."""
         last = self.last
         if last is not None and last[0] == t and np.array_equal(last[1], q) and np.array_equal(last[2], v):
-            return last[3].normal_forces()
+            return self._last_forces()
         return self.dyn.solve(q, v, t, self.mode).normal_forces()

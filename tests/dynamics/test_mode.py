@@ -494,3 +494,42 @@ def test_rigid_contact_path_matches_python_kkt(monkeypatch, mode, normal):
     for name in ("ddq_dq", "ddq_dv", "forces_dq", "forces_dv"):
         a, b = getattr(fast_der, name), getattr(slow_der, name)
         assert np.allclose(a, b, rtol=1e-8, atol=1e-8 * np.abs(b).max()), name
+
+
+@pytest.mark.parametrize("mode", [(), (0,), (1, 2), (0, 1, 2, 3), (4, 1)])
+def test_accelerator_equals_solve(mode):
+    """The stepper's hot path (`ModeDynamics.accelerator`) calls Pinocchio directly on
+    rigid modes and keeps raw forces; on every mode kind (free flight, rigid sticking,
+    a sliding key that takes the Python path) it must give `solve`'s accelerations and
+    normal forces. Same arithmetic on the rigid path up to the force rotation: equal
+    to round-off of the forces' size."""
+    robot = load_robot("solo12")
+    contacts = [Contact(f, offset=-1.0, friction="stick") for f in robot.feet]  # never penetrating
+    scene = Scene(robot, contacts, [JointSpring("FL_KFE", 2.0, 0.1, -1.0)])
+    dyn = ModeDynamics(scene)
+    accel = dyn.accelerator(mode)
+    for seed in (3, 4):
+        q, v = _state(robot, seed)
+        ddq = accel(q, v, 0.2)
+        ref = dyn.solve(q, v, 0.2, mode)
+        np.testing.assert_allclose(ddq, ref.ddq, rtol=0, atol=1e-12 * max(1.0, np.abs(ref.ddq).max()))
+        forces = ref.normal_forces()
+        np.testing.assert_allclose(accel.normal_forces(), forces, rtol=0,
+                                   atol=1e-12 * max(1.0, np.abs(forces).max(initial=0.0)))
+    assert (accel.rigid is not None) == (len(mode) > 0 and all(k < 4 for k in mode))
+
+
+def test_accelerator_falls_back_on_redundant_contacts():
+    """Two sticking contacts at the same foot make Pinocchio's factorisation fail; the
+    accelerator then gives `solve`'s least-squares answer (the same forces split)."""
+    robot = load_robot("solo12")
+    contacts = [Contact("FL_FOOT", offset=-1.0, friction="stick"),
+                Contact("FL_FOOT", offset=-1.0, friction="stick", name="twin")]
+    dyn = ModeDynamics(Scene(robot, contacts))
+    q, v = _state(robot, 5)
+    accel = dyn.accelerator((0, 1))
+    ddq = accel(q, v, 0.0)
+    ref = dyn.solve(q, v, 0.0, (0, 1))
+    assert accel._raw is None  # the fallback ran
+    np.testing.assert_allclose(ddq, ref.ddq, rtol=0, atol=1e-12 * max(1.0, np.abs(ref.ddq).max()))
+    np.testing.assert_allclose(accel.normal_forces(), ref.normal_forces(), rtol=0, atol=1e-9)
