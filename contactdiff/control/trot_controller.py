@@ -405,8 +405,8 @@ class TrotControllerEvaluator:
             cols = slice(start, start + len(leg.iq))
             start += len(leg.iq)
             q = self.q_stance.copy()
-            for i, phi in enumerate(phis[:-1]):
-                dx, dz = self.foot_offset(self.leg_phase(k, phi))
+            dxs, dzs = self.foot_offset((phis[:-1] + self._offsets[k]) % 1.0)  # all phases at once
+            for i, (dx, dz) in enumerate(zip(dxs, dzs)):
                 q = self._inverse_kinematics(q, leg, fid, p0 + np.array([float(dx), 0.0, float(dz)]), data)
                 values[i, cols] = q[list(leg.iq)]
         values[-1] = values[0]
@@ -496,6 +496,24 @@ class TrotControllerEvaluator:
         out[2 * nv + iv] = s.kd * g
         return out
 
+    def _schedule_terms_at_phases(self, phis: np.ndarray) -> np.ndarray:
+        """`_schedule_terms` at many gait phases in [0, 1) at once (rows), the spline
+        evaluated by SciPy and the gains and loads leg by leg."""
+        s, nv, iv = self.spec, self.nv, self.iv
+        q_ref = self._spline(phis)
+        v_ref = self._spline(phis, 1) / s.period
+        psis = [(phis + offset) % 1.0 for offset in self._offsets]
+        g = np.repeat(np.array([[self.gain(p) for p in psi] for psi in psis]).T, self._sizes, axis=1)
+        out = np.zeros((len(phis), 3 * nv))
+        ff = np.zeros((len(phis), iv.size))
+        if s.feedforward:
+            loads = np.array([[self.load(p) for p in psi] for psi in psis]).T
+            ff = self._gravity + self.load_scale * (loads @ self._carry)
+        out[:, iv] = g * (s.kp * q_ref + s.kd * v_ref) + ff
+        out[:, nv + iv] = s.kp * g
+        out[:, 2 * nv + iv] = s.kd * g
+        return out
+
     def _schedule_table(self) -> np.ndarray:
         """Coefficients (pieces × (degree + 1) × 3 nv) of `_schedule_terms` on each piece
         between consecutive breakpoint phases, in the monomials of ``x`` in [-1, 1] across
@@ -507,12 +525,9 @@ class TrotControllerEvaluator:
         vandermonde_inv = np.linalg.inv(np.vander(nodes, n, increasing=True))
         ends = np.append(self._phase_breaks, 1.0)
         self._piece_start, self._piece_width = ends[:-1], np.diff(ends)
-        s = self.spec
-        table = np.empty((len(ends) - 1, n, 3 * self.nv))
-        for i, (lo, width) in enumerate(zip(self._piece_start, self._piece_width)):
-            values = np.array([self._schedule_terms(s.t_start + s.period * (lo + width * (x + 1.0) / 2.0))
-                               for x in nodes])
-            table[i] = vandermonde_inv @ values
+        phis = self._piece_start[:, None] + self._piece_width[:, None] * (nodes[None, :] + 1.0) / 2.0
+        values = self._schedule_terms_at_phases(phis.ravel()).reshape(len(ends) - 1, n, 3 * self.nv)
+        table = np.einsum("ij,pjk->pik", vandermonde_inv, values)
         # tau reads q on the tangent indices: each leg joint's configuration entry
         # (the base's entries have zero gains; any index will do)
         self._q_of_v = np.zeros(self.nv, dtype=int)
