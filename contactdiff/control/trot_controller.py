@@ -368,7 +368,7 @@ class TrotControllerEvaluator:
         s = self.spec
         x = (t - s.t_start) / s.period
         n = math.floor(x)
-        breaks = self._phase_breaks
+        breaks = self._piece_start_list  # the pieces start at the breakpoint phases
         i = bisect.bisect_right(breaks, x - n)
         while True:
             if i == len(breaks):
@@ -525,6 +525,7 @@ class TrotControllerEvaluator:
         vandermonde_inv = np.linalg.inv(np.vander(nodes, n, increasing=True))
         ends = np.append(self._phase_breaks, 1.0)
         self._piece_start, self._piece_width = ends[:-1], np.diff(ends)
+        self._piece_start_list, self._piece_width_list = self._piece_start.tolist(), self._piece_width.tolist()
         phis = self._piece_start[:, None] + self._piece_width[:, None] * (nodes[None, :] + 1.0) / 2.0
         values = self._schedule_terms_at_phases(phis.ravel()).reshape(len(ends) - 1, n, 3 * self.nv)
         table = np.einsum("ij,pjk->pik", vandermonde_inv, values)
@@ -537,12 +538,12 @@ class TrotControllerEvaluator:
     def _terms(self, t: float) -> np.ndarray:
         """`_schedule_terms` at ``t`` from the table."""
         phi = self.phase(t)
-        i = bisect.bisect_right(self._piece_start, phi) - 1
-        x = 2.0 * (phi - self._piece_start[i]) / self._piece_width[i] - 1.0
-        powers = [1.0] * (self._DEGREE + 1)
-        for k in range(1, self._DEGREE + 1):
-            powers[k] = powers[k - 1] * x
-        return powers @ self._table[i]
+        starts = self._piece_start_list  # bisect on a list: on an array each probe is a numpy scalar
+        i = bisect.bisect_right(starts, phi) - 1
+        x = 2.0 * (phi - starts[i]) / self._piece_width_list[i] - 1.0
+        x2 = x * x  # the powers of x up to _DEGREE = 8, by squaring
+        x4 = x2 * x2
+        return np.array((1.0, x, x2, x2 * x, x4, x4 * x, x4 * x2, x4 * x2 * x, x4 * x4)) @ self._table[i]
 
     # -- effort protocol --------------------------------------------------------------
     def tau(self, kin: Kinematics, t: float) -> np.ndarray:

@@ -63,12 +63,18 @@ class ExplicitRK(Stepper):
                 ys.append(ys_s)
                 qs.append(ys_s[:nv])
             self.n_accel += ns - 1
-        else:
+        else:  # the same in the chart at qc (`_eval_into`, inlined)
+            accel, integrate, chart_velocity = self.accel, self.group.integrate, self.group.chart_velocity
             qs = [qc]
             for s in range(1, ns):
                 ys_s = y + hA[s, :s].dot(K[:s])
-                qs.append(self._eval_into(t + C[s] * h, ys_s, K[s], qc))
+                xi, v = ys_s[:nv], ys_s[nv:]
+                q = integrate(qc, xi)
+                K[s, :nv] = chart_velocity(qc, xi, v)
+                K[s, nv:] = accel(t + C[s] * h, q, v)
                 ys.append(ys_s)
+                qs.append(q)
+            self.n_accel += ns - 1
         y_new = y + (h * self.B).dot(K[:ns])
         q_new = self._eval_into(t + h, y_new, K[ns], qc)
         return y_new, q_new, ys, qs
