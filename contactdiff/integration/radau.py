@@ -217,10 +217,12 @@ class Radau(Stepper):
         control = self.phi is not None and self.variational_error_control
         phi_new = J_end = df_end = None
         rejected = False
+        wanted = h_abs  # the step the error control asked for, before t_bound (a breakpoint) clips it
         while True:
             if h_abs < min_step:
                 raise self._underflow(h_abs, min_step)
-            t_new = min(t + h_abs, self.t_bound)
+            clipped = t + h_abs > self.t_bound
+            t_new = self.t_bound if clipped else t + h_abs
             h = t_new - t
             h_abs = h
             Z0 = self._predict(t, h, y, qc)
@@ -286,6 +288,8 @@ class Radau(Stepper):
         self._accept_state(t_new, y_new, q_new, a_new)
         self.phi = phi_new
         self.h_abs = h_abs * factor
+        if clipped and not rejected:  # a step cut short by t_bound says nothing against the wanted one
+            self.h_abs = max(self.h_abs, wanted)
         self._sol = DenseOutput(t, t_new, h, y, _RP.T @ Z, None if self._vs else self.group, qc, nv)
 
     def _variational_stages(self, t: float, h: float, y: np.ndarray, Z: np.ndarray, qc, P0: np.ndarray):

@@ -39,13 +39,15 @@ def _closed_form(t):
     return z1 + v1 * s + 0.5 * a2 * s ** 2, v1 + a2 * s
 
 
-def test_a_step_ends_on_the_breakpoint_and_the_quadratic_pieces_are_exact():
-    traj = cd.simulate(_ball(breakpoints=(T_SWITCH,)), T_FINAL, dense=True)
+@pytest.mark.parametrize("method", ["DOP853", "RK45", "Radau"])
+def test_a_step_ends_on_the_breakpoint_and_the_cubic_pieces_are_exact(method):
+    traj = cd.simulate(_ball(breakpoints=(T_SWITCH,)), T_FINAL, dense=True, method=method)
     ends = [p.t for seg in traj.segments for p in seg.pieces]
     assert T_SWITCH in ends
-    # Each piece of the motion is a cubic in t, which DOP853 integrates exactly:
-    # the error estimate is round-off, no step is rejected, and the end state is the
-    # closed form up to round-off (a few eps times the O(1) state, over ~10 steps).
+    # Each piece of the motion is a cubic in t, which every method here (order 5 or
+    # 8; Radau's collocation polynomial has degree 3) integrates exactly: the error
+    # estimate is round-off, no step is rejected, and the end state is the closed
+    # form up to round-off (a few eps times the O(1) state, over ~10 steps).
     assert traj.stats.rejected_steps == 0
     z, v = _closed_form(T_FINAL)
     assert abs(traj.q[0] - z) < 1e-13 and abs(traj.v[0] - v) < 1e-13
