@@ -35,15 +35,20 @@ def hermite_minimum(g0: float, d0: float, g1: float, d1: float, h: float) -> tup
         interpolant's value there. Detects a guard dipping below zero and coming
         back within one step (a double crossing) from end-point data alone.
     """
+    # Python floats: this runs for every open contact after every step, and numpy
+    # scalars cost several times as much per operation
+    g0, d0, g1, d1, h = float(g0), float(d0), float(g1), float(d1), float(h)
     # p(s) = g0 + h d0 s + c2 s^2 + c3 s^3 on s in [0, 1]
     c2 = 3 * (g1 - g0) - h * (2 * d0 + d1)
     c3 = -2 * (g1 - g0) + h * (d0 + d1)
-    candidates = [0.0, 1.0]
+    best = (0.0, g0) if g0 <= g1 else (1.0, g1)
     # p'(s) = 3 c3 s^2 + 2 c2 s + h d0: its real roots in (0, 1)
-    candidates += [s for s in _quadratic_roots(3 * c3, 2 * c2, h * d0) if 0.0 < s < 1.0]
-    values = [g0 + h * d0 * s + c2 * s * s + c3 * s ** 3 for s in candidates]
-    k = int(np.argmin(values))
-    return candidates[k], float(values[k])
+    for s in _quadratic_roots(3 * c3, 2 * c2, h * d0):
+        if 0.0 < s < 1.0:
+            value = g0 + h * d0 * s + c2 * s * s + c3 * s ** 3
+            if value < best[1]:
+                best = (s, value)
+    return best
 
 
 def _quadratic_roots(a: float, b: float, c: float) -> list[float]:

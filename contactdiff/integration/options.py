@@ -76,9 +76,9 @@ class SimulateOptions:
             onto the constraints; default ``atol``.
         max_step: largest step (s).
         dense: keep every step's interpolant, so that ``traj.at`` and ``traj.sample``
-            give the state at any time (a few kB a step: 0.3 GB for a minute of a
-            quadruped trot); without it a run keeps its events, segments and final
-            state only, and its memory does not grow with its length.
+            give the state at any time (kB a step, tens of thousands of steps a
+            minute on a quadruped trot); without it a run keeps its events,
+            segments and final state only, nothing per step.
         progress: called after every accepted step as ``progress(t, events, steps)``
             (time in s, events and accepted steps so far), e.g. to draw a progress
             bar; ``None`` for none.
