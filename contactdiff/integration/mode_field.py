@@ -62,6 +62,7 @@ class ModeField:
         """Normal forces (N) of the mode's contacts (order of ``mode``) at time ``t`` (s) and
         ``(q, v)``, reusing the last `accel` solve when it was at that point."""
         last = self.last
-        if last is not None and last[0] == t and np.array_equal(last[1], q) and np.array_equal(last[2], v):
+        if last is not None and last[0] == t and (last[1] is q or np.array_equal(last[1], q)) \
+                and (last[2] is v or np.array_equal(last[2], v)):  # the stepper's end point is its last stage
             return self._last_forces()
         return self.dyn.solve(q, v, t, self.mode).normal_forces()
