@@ -115,6 +115,7 @@ from ..model.efforts import central_time_difference
 from ..model.kinematics import Kinematics
 from ..model.robot import Robot
 from .legs import PAIR_A, PAIR_B, Leg, base_at_origin, check_quadruped, find_legs
+from .piecewise import PiecewisePolynomial
 
 SWING_RISE = 0.3
 """Fraction of the swing over which a foot rises to its step height."""
@@ -283,7 +284,12 @@ class TrotControllerEvaluator:
         grid = np.linspace(0.0, 1.0, 4001)
         # both legs of each pair share the weight (c_front + c_hind = 1): two pairs
         self.load_scale = 1.0 / (2.0 * np.trapezoid([self.load(p % 1.0) for p in grid], grid))
-        self._table = self._schedule_table()
+        # the torques' time-only terms, one polynomial between breakpoints: a table
+        self._schedule = PiecewisePolynomial(self._phase_breaks, self._schedule_terms_at_phases, self._DEGREE)
+        # tau reads q on the tangent indices: each leg joint's configuration entry
+        # (the base's entries have zero gains; any index will do)
+        self._q_of_v = np.zeros(self.nv, dtype=int)
+        self._q_of_v[self.iv] = self.iq
 
     # -- schedule -------------------------------------------------------------------
     def phase(self, t: float) -> float:
@@ -368,7 +374,7 @@ class TrotControllerEvaluator:
         s = self.spec
         x = (t - s.t_start) / s.period
         n = math.floor(x)
-        breaks = self._piece_start_list  # the pieces start at the breakpoint phases
+        breaks = self._schedule.starts  # the pieces start at the breakpoint phases
         i = bisect.bisect_right(breaks, x - n)
         while True:
             if i == len(breaks):
@@ -483,22 +489,11 @@ class TrotControllerEvaluator:
     """Degree in time of the torques' time-only terms on a piece between breakpoints: the
     gain scale (a quintic smooth step) times the reference (a cubic spline piece)."""
 
-    def _schedule_terms(self, t: float) -> np.ndarray:
-        """``(b, kp g, kd g)`` stacked (3 nv,) at time ``t`` from the formulas: the torques
-        are ``b - (kp g) q - (kd g) v`` on the leg joints, with
-        ``b = g (kp q* + kd q̇*) + tau_ff`` (zero on the base)."""
-        s, nv, iv = self.spec, self.nv, self.iv
-        q_ref, v_ref = self.reference(t)
-        g = self.gains(t)
-        out = np.zeros(3 * nv)
-        out[iv] = g * (s.kp * q_ref + s.kd * v_ref) + self.feedforward(t)
-        out[nv + iv] = s.kp * g
-        out[2 * nv + iv] = s.kd * g
-        return out
-
     def _schedule_terms_at_phases(self, phis: np.ndarray) -> np.ndarray:
-        """`_schedule_terms` at many gait phases in [0, 1) at once (rows), the spline
-        evaluated by SciPy and the gains and loads leg by leg."""
+        """``(b, kp g, kd g)`` stacked (rows of 3 nv) at many gait phases in [0, 1): the
+        torques are ``b - (kp g) q - (kd g) v`` on the leg joints, with
+        ``b = g (kp q* + kd q̇*) + tau_ff`` (zero on the base); the spline evaluated by
+        SciPy, the gains and loads leg by leg."""
         s, nv, iv = self.spec, self.nv, self.iv
         q_ref = self._spline(phis)
         v_ref = self._spline(phis, 1) / s.period
@@ -514,42 +509,15 @@ class TrotControllerEvaluator:
         out[:, 2 * nv + iv] = s.kd * g
         return out
 
-    def _schedule_table(self) -> np.ndarray:
-        """Coefficients (pieces × (degree + 1) × 3 nv) of `_schedule_terms` on each piece
-        between consecutive breakpoint phases, in the monomials of ``x`` in [-1, 1] across
-        the piece: the terms are one polynomial of degree `_DEGREE` there, so interpolating
-        them at ``degree + 1`` Chebyshev points reproduces them to round-off, and `tau`
-        costs one small matrix product instead of a dozen Python-level evaluations."""
-        n = self._DEGREE + 1
-        nodes = np.cos(np.pi * (np.arange(n) + 0.5) / n)
-        vandermonde_inv = np.linalg.inv(np.vander(nodes, n, increasing=True))
-        ends = np.append(self._phase_breaks, 1.0)
-        self._piece_start, self._piece_width = ends[:-1], np.diff(ends)
-        self._piece_start_list, self._piece_width_list = self._piece_start.tolist(), self._piece_width.tolist()
-        phis = self._piece_start[:, None] + self._piece_width[:, None] * (nodes[None, :] + 1.0) / 2.0
-        values = self._schedule_terms_at_phases(phis.ravel()).reshape(len(ends) - 1, n, 3 * self.nv)
-        table = np.einsum("ij,pjk->pik", vandermonde_inv, values)
-        # tau reads q on the tangent indices: each leg joint's configuration entry
-        # (the base's entries have zero gains; any index will do)
-        self._q_of_v = np.zeros(self.nv, dtype=int)
-        self._q_of_v[self.iv] = self.iq
-        return table
-
     def _terms(self, t: float) -> np.ndarray:
-        """`_schedule_terms` at ``t`` from the table."""
-        phi = self.phase(t)
-        starts = self._piece_start_list  # bisect on a list: on an array each probe is a numpy scalar
-        i = bisect.bisect_right(starts, phi) - 1
-        x = 2.0 * (phi - starts[i]) / self._piece_width_list[i] - 1.0
-        x2 = x * x  # the powers of x up to _DEGREE = 8, by squaring
-        x4 = x2 * x2
-        return np.array((1.0, x, x2, x2 * x, x4, x4 * x, x4 * x2, x4 * x2 * x, x4 * x4)) @ self._table[i]
+        """`_schedule_terms_at_phases` at time ``t`` (s), from the table."""
+        return self._schedule(self.phase(t))
 
     # -- effort protocol --------------------------------------------------------------
     def tau(self, kin: Kinematics, t: float) -> np.ndarray:
         """Generalised force (nv,) at the state of ``kin`` and time ``t`` (s): the PD and
         feed-forward torques on the leg joints (N m), zero elsewhere (from the table of
-        `_schedule_table`; `tau_by_formula` evaluates the formulas themselves)."""
+        `PiecewisePolynomial`; `tau_by_formula` evaluates the formulas themselves)."""
         nv = self.nv
         terms = self._terms(t)
         return terms[:nv] - terms[nv:2 * nv] * kin.q[self._q_of_v] - terms[2 * nv:] * kin.v
