@@ -49,23 +49,31 @@ class Kinematics:
         copied, so the caller may reuse its buffers.
         """
         self.q, self.v, self.has_derivatives = np.array(q, dtype=float), np.array(v, dtype=float), derivatives
-        self._fresh = self._fresh_derivatives = False
+        self._fresh = self._fresh_jacobians = self._fresh_derivatives = False
         self._cache.clear()
 
     def _kinematics(self) -> pin.Data:
+        """Placements, velocities and classical accelerations (a gap, a gap rate, a drift
+        need no Jacobian: the guards evaluate gaps along every located event)."""
         if not self._fresh:
             m, d = self.model, self.data
             pin.forwardKinematics(m, d, self.q, self.v, self._zero)  # a = 0: classical acc = drift
-            pin.computeJointJacobians(m, d)
             pin.updateFramePlacements(m, d)
             self._fresh = True
+        return self.data
+
+    def _jacobian_data(self) -> pin.Data:
+        """`_kinematics` and the joint Jacobians (from the same forward pass)."""
+        if not self._fresh_jacobians:
+            pin.computeJointJacobians(self.model, self._kinematics())
+            self._fresh_jacobians = True
         return self.data
 
     def _derivative_data(self) -> pin.Data:
         if not self.has_derivatives:
             raise InvalidInputError("Kinematics.update(..., derivatives=True) must come first")
         if not self._fresh_derivatives:
-            m, d = self.model, self._kinematics()
+            m, d = self.model, self._jacobian_data()
             pin.computeForwardKinematicsDerivatives(m, d, self.q, self.v, self._zero)
             pin.computeJointKinematicHessians(m, d, self.q)
             self._fresh_derivatives = True
@@ -84,7 +92,7 @@ class Kinematics:
     def jacobian(self, fid: int) -> np.ndarray:
         """Linear LWA Jacobian of the frame origin, d p / d q (3 × nv)."""
         return self._memo(("J", fid), lambda: _matrix(pin.getFrameJacobian(
-            self.model, self._kinematics(), fid, LWA), 6)[:3].copy())
+            self.model, self._jacobian_data(), fid, LWA), 6)[:3].copy())
 
     def velocity(self, fid: int) -> np.ndarray:
         """World velocity of the frame origin (3,) (from the forward pass with ``v``: no
