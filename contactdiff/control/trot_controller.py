@@ -108,25 +108,14 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 import pinocchio as pin
-from scipy.interpolate import CubicSpline
 
 from ..errors import InvalidInputError, check_number
 from ..model.efforts import central_time_difference
 from ..model.kinematics import Kinematics
 from ..model.robot import Robot
+from .foot_paths import SWING_RISE, foot_offset, reference_spline, smooth_step
 from .legs import PAIR_A, PAIR_B, Leg, base_at_origin, check_quadruped, find_legs
 from .piecewise import PiecewisePolynomial
-
-SWING_RISE = 0.3
-"""Fraction of the swing over which a foot rises to its step height."""
-
-_IK_TOL = 1e-12  # m: foot position residual of the inverse kinematics
-_IK_ITERATIONS = 50
-
-
-def smooth_step(u):
-    """Quintic ``S(u) = 10u³ - 15u⁴ + 6u⁵``: 0 -> 1 on [0, 1] with zero slope and curvature at both ends."""
-    return u ** 3 * (10.0 - 15.0 * u + 6.0 * u ** 2)
 
 
 def _unload_window(spec) -> tuple[float, float]:
@@ -139,11 +128,6 @@ def _unload_window(spec) -> tuple[float, float]:
         lo, hi = (mid, hi) if smooth_step(mid) < target else (lo, mid)
     start = spec.duty - 2.0 * spec.transfer * 0.5 * (lo + hi)
     return start, start + 2.0 * spec.transfer
-
-
-def _ramp(x, a: float, b: float):
-    """``S`` from 0 at ``x = a`` to 1 at ``x = b`` (clamped outside)."""
-    return smooth_step(np.clip((x - a) / (b - a), 0.0, 1.0))
 
 
 @dataclass(frozen=True)
@@ -275,7 +259,7 @@ class TrotControllerEvaluator:
         self._offsets = [c - (0.0 if leg.pair == PAIR_A else 0.5) - (0.0 if leg.front else spec.lag)
                          for leg in self.legs]
         self._unload = _unload_window(spec)  # fixed by the spec: a 60-step bisection, once
-        self._spline = self._reference_spline()
+        self._spline = reference_spline(spec, robot, self.legs, self._offsets, q_stance, self.iq.size)
         # the spline's pieces, evaluated by hand in `reference` (Horner, as SciPy does, to the
         # same bits): a CubicSpline call costs ~20 µs of Python for a dozen numbers
         self._knots, self._coef = self._spline.x, self._spline.c
@@ -387,54 +371,7 @@ class TrotControllerEvaluator:
     # -- reference ------------------------------------------------------------------
     def foot_offset(self, psi):
         """Foot displacement ``(dx, dz)`` (m, base frame) from the stance pose at leg phase ``psi``."""
-        s = self.spec
-        psi = np.asarray(psi, dtype=float)
-        stance = psi < s.duty
-        u = np.where(stance, psi / s.duty, (psi - s.duty) / (1.0 - s.duty))
-        dx = np.where(stance, s.step_length * (0.5 - smooth_step(u)), s.step_length * (smooth_step(u) - 0.5))
-        top, final = s.duty + SWING_RISE * (1.0 - s.duty), 1.0 - s.approach
-        up = (s.step_height * _ramp(psi, s.duty, top) - (s.step_height - s.approach_height) * _ramp(psi, top, final)
-              - s.approach_height * _ramp(psi, final, 1.0))
-        return dx, np.where(stance, 0.0, up)
-
-    def _reference_spline(self) -> CubicSpline:
-        n = self.spec.samples
-        phis = np.arange(n + 1) / n
-        values = np.empty((n + 1, self.iq.size))
-        model = self.robot.model
-        data = model.createData()
-        pin.framesForwardKinematics(model, data, self.q_stance)
-        start = 0
-        for k, leg in enumerate(self.legs):
-            fid = self.robot.frame_id(leg.foot)
-            p0 = data.oMf[fid].translation.copy()
-            cols = slice(start, start + len(leg.iq))
-            start += len(leg.iq)
-            q = self.q_stance.copy()
-            dxs, dzs = self.foot_offset((phis[:-1] + self._offsets[k]) % 1.0)  # all phases at once
-            for i, (dx, dz) in enumerate(zip(dxs, dzs)):
-                q = self._inverse_kinematics(q, leg, fid, p0 + np.array([float(dx), 0.0, float(dz)]), data)
-                values[i, cols] = q[list(leg.iq)]
-        values[-1] = values[0]
-        return CubicSpline(phis, values, bc_type="periodic")
-
-    def _inverse_kinematics(self, q, leg: Leg, fid: int, target, data) -> np.ndarray:
-        """Leg joints placing foot ``fid`` at ``target`` (base frame; Gauss–Newton, warm start ``q``)."""
-        model = self.robot.model
-        q = q.copy()
-        iq, iv = list(leg.iq), list(leg.iv)
-        for _ in range(_IK_ITERATIONS):
-            pin.forwardKinematics(model, data, q)
-            pin.updateFramePlacements(model, data)
-            error = target - data.oMf[fid].translation
-            if np.linalg.norm(error) <= _IK_TOL:
-                return q
-            J = pin.computeFrameJacobian(model, data, q, fid, pin.LOCAL_WORLD_ALIGNED)[:3, iv]
-            q[iq] += np.linalg.lstsq(J, error, rcond=None)[0]
-        raise InvalidInputError(
-            f"trot controller: foot {leg.foot!r} cannot reach {np.round(target, 4).tolist()} m (base frame) "
-            f"with step_height={self.spec.step_height} m, step_length={self.spec.step_length} m "
-            f"(residual {np.linalg.norm(error):.3g} m); lower them")
+        return foot_offset(self.spec, psi)
 
     def _static_terms(self) -> tuple[np.ndarray, np.ndarray]:
         """Leg gravity torques at the stance pose, and per leg (rows) the torques that
