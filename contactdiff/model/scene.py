@@ -125,8 +125,19 @@ class Scene:
 
     def next_breakpoint(self, t: float) -> float:
         """The first time (s) after ``t`` at which an effort's time dependence is not
-        smooth (an effort's optional ``next_breakpoint``); ``inf`` if none."""
-        return min((e.next_breakpoint(t) for e in self._timed_efforts), default=math.inf)
+        smooth (an effort's optional ``next_breakpoint``); ``inf`` if none.
+
+        Raises:
+            InvalidInputError: an effort returned a time that is not after ``t``.
+        """
+        first = math.inf
+        for e in self._timed_efforts:
+            t_break = e.next_breakpoint(t)
+            if not t_break > t:  # also NaN
+                raise InvalidInputError(f"effort {e!r}: next_breakpoint({t!r}) returned {t_break!r}, "
+                                        "not a time after it (inf when no breakpoint is left)")
+            first = min(first, t_break)
+        return first
 
     def tau_derivatives(self, kin: Kinematics, t: float) -> tuple[np.ndarray, np.ndarray]:
         """``d tau/dq`` and ``d tau/dv`` of the efforts (tangent space, nv × nv each)."""

@@ -147,3 +147,10 @@ def test_breakpoints_move_where_steps_end_not_the_trot():
     assert np.max(np.abs(times[:, 0] - times[:, 1])) < 1e-7
     dq = scene.robot.difference(without.q, with_breaks.q)
     assert np.max(np.abs(dq)) < 1e-8 and np.max(np.abs(with_breaks.v - without.v)) < 1e-6
+
+
+def test_a_breakpoint_that_is_not_ahead_is_named():
+    scene = _ball(breakpoints=(T_SWITCH,))
+    scene.efforts[0].next_breakpoint = lambda t: t  # a broken effort of one's own
+    with pytest.raises(InvalidInputError, match="next_breakpoint"):
+        cd.simulate(scene, T_FINAL)
