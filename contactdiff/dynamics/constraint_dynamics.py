@@ -55,18 +55,22 @@ class RigidContactMode:
         for k, c in enumerate(contacts):
             self.rotation[3 * k:3 * k + 3, 3 * k:3 * k + 3] = c.directions
 
-    def solve(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
-        """``(ddq, row forces)``, or None when Pinocchio's factorisation fails
-        (redundant contacts), so that the caller falls back to least squares."""
+    def accelerations(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray) -> np.ndarray | None:
+        """``ddq``, or None when Pinocchio's factorisation fails (redundant contacts), so
+        that the caller falls back to least squares; the contact forces stay in
+        ``data.lambda_c`` (world axes) until the next call."""
         try:
             ddq = pin.constraintDynamics(self.model, self.data, q, v, tau, self.models, self.datas, _SETTINGS)
         except RuntimeError:
             return None
         # a failed factorisation leaves non-finite accelerations (the forces enter them):
         # one dot product checks them all (an overflow to inf falls back too, harmlessly)
-        if not math.isfinite(ddq @ ddq):
-            return None
-        return ddq, self.rotation @ self.data.lambda_c
+        return ddq if math.isfinite(ddq @ ddq) else None
+
+    def solve(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        """``(ddq, row forces)``, or None as `accelerations`."""
+        ddq = self.accelerations(q, v, tau)
+        return None if ddq is None else (ddq, self.rotation @ self.data.lambda_c)
 
     def derivatives(self, dtau_dq: np.ndarray, dtau_dv: np.ndarray):
         """Derivatives at the state of the last `solve`, efforts' own derivatives included:

@@ -18,7 +18,6 @@ scene) is contact ``i`` with all its rows; key ``n + i`` is sticking contact
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -28,7 +27,6 @@ from scipy.linalg.lapack import dposv as _dposv
 
 from ..errors import InvalidInputError, SolverError, check_number
 from ..model.scene import Scene
-from .constraint_dynamics import _SETTINGS as _RIGID_SETTINGS
 from .constraint_dynamics import RigidContactMode
 from .constraint_dynamics import eligible as rigid_eligible
 
@@ -265,8 +263,6 @@ class ModeAccelerator:
         self._kin, self._tau = dyn.kin, dyn.scene.tau
         self._raw = self._solution = None
         if self.rigid is not None:
-            r = self.rigid
-            self._call = (r.model, r.data, r.models, r.datas)
             # row k picks contact k's normal force out of the stacked world forces
             self._normals = np.zeros((len(contacts), 3 * len(contacts)))
             for k, c in enumerate(contacts):
@@ -274,16 +270,13 @@ class ModeAccelerator:
 
     def __call__(self, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
         """Joint accelerations (nv,) in the mode at ``(q, v)`` and time ``t`` (s)."""
-        if self.rigid is not None:
+        rigid = self.rigid
+        if rigid is not None:
             kin = self._kin
             kin.update(q, v)
-            model, data, models, datas = self._call
-            try:
-                ddq = pin.constraintDynamics(model, data, q, v, self._tau(kin, t), models, datas, _RIGID_SETTINGS)
-            except RuntimeError:
-                ddq = None
-            if ddq is not None and math.isfinite(ddq @ ddq):  # failed factorisations give non-finite values
-                self._raw = data.lambda_c.copy()
+            ddq = rigid.accelerations(q, v, self._tau(kin, t))
+            if ddq is not None:
+                self._raw = rigid.data.lambda_c.copy()
                 return ddq
         self._raw = None
         self._solution = self.dyn.solve(q, v, t, self.active)
