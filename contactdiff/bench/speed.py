@@ -31,6 +31,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 import pinocchio as pin
 
+from ..dynamics.constraint_dynamics import RigidContactMode
 from ..errors import InvalidInputError, check_count, check_number
 from ..integration.hybrid import simulate
 from ..model.scene_file import load_scene
@@ -136,34 +137,41 @@ def _median_call(fn, calls: int) -> float:
     return statistics.median(times)
 
 
-def _constraint_dynamics_cost(scene, contacts, q, v) -> float:
-    """Pinocchio's own ``constraintDynamics`` with ``contacts`` (3-D) at ``(q, v)``, or
-    ``aba`` with none: a median single call from Python (s)."""
-    model = scene.model
-    data, tau = model.createData(), np.zeros(model.nv)
-    if not contacts:
-        return _median_call(lambda: pin.aba(model, data, q, v, tau), CALLS)
-    models, datas = pin.StdVec_RigidConstraintModel(), pin.StdVec_RigidConstraintData()
-    for c in contacts:
-        frame = model.frames[c.fid]
-        cm = pin.RigidConstraintModel(pin.ContactType.CONTACT_3D, model, frame.parentJoint, frame.placement,
-                                      pin.LOCAL_WORLD_ALIGNED)
-        models.append(cm)
-        datas.append(cm.createData())
-    pin.initConstraintDynamics(model, data, models, datas)
-    settings = pin.ProximalSettings(1e-12, 0.0, 1)
-    return _median_call(lambda: pin.constraintDynamics(model, data, q, v, tau, models, datas, settings), CALLS)
+class _PinocchioCosts:
+    """Pinocchio's own call for a mode, by the names of its contacts, at one state:
+    ``constraintDynamics`` with their 3-D constraints (those the integrator's sticking
+    feet use, `RigidContactMode`), ``aba`` with none; each a median single call from
+    Python (s), measured once per mode."""
 
+    def __init__(self, scene, q, v):
+        self.scene, self.q, self.v = scene, q, v
+        self._by_name = {c.name: c for c in scene.contacts}
+        self._cost: dict[tuple[str, ...], float] = {}
 
-def _pinocchio_per_mode(scene, traj) -> float:
-    """Pinocchio's own cost of the run's modes (s), weighted by the time spent in each."""
-    time_in = {}
-    for seg in traj.segments:
-        time_in[seg.mode] = time_in.get(seg.mode, 0.0) + (seg.t1 - seg.t0)
-    total = sum(time_in.values())
-    by_name = {c.name: c for c in scene.contacts}
-    return sum(share * _constraint_dynamics_cost(scene, [by_name[n] for n in mode], traj.q, traj.v)
-               for mode, share in time_in.items()) / total
+    def __call__(self, mode: tuple[str, ...]) -> float:
+        if mode not in self._cost:
+            model, q, v = self.scene.model, self.q, self.v
+            tau = np.zeros(model.nv)
+            if mode:
+                m = RigidContactMode(model, [self._by_name[n] for n in mode])
+                settings = pin.ProximalSettings(1e-12, 0.0, 1)  # exact: one factorisation
+
+                def call():
+                    return pin.constraintDynamics(model, m.data, q, v, tau, m.models, m.datas, settings)
+            else:
+                data = model.createData()
+
+                def call():
+                    return pin.aba(model, data, q, v, tau)
+            self._cost[mode] = _median_call(call, CALLS)
+        return self._cost[mode]
+
+    def weighted(self, traj) -> float:
+        """The cost of the run's modes, weighted by the time spent in each (s)."""
+        time_in: dict[tuple[str, ...], float] = {}
+        for seg in traj.segments:
+            time_in[seg.mode] = time_in.get(seg.mode, 0.0) + (seg.t1 - seg.t0)
+        return sum(share * self(mode) for mode, share in time_in.items()) / sum(time_in.values())
 
 
 def trot_speed(name: str, t_final: float = 3.0, repeats: int = 3) -> TrotSpeed:
@@ -177,11 +185,11 @@ def trot_speed(name: str, t_final: float = 3.0, repeats: int = 3) -> TrotSpeed:
         walls.append(time.perf_counter() - start)
     wall = statistics.median(walls)
     s = traj.stats
+    costs = _PinocchioCosts(scene, traj.q, traj.v)
     return TrotSpeed(scene=name, t_final=t_final, wall=wall, events=len(traj.events), steps=s.steps,
                      rejected_steps=s.rejected_steps, evaluations=s.dynamics_evaluations,
-                     per_evaluation=wall / s.dynamics_evaluations, pinocchio=_pinocchio_per_mode(scene, traj),
-                     constraint_dynamics=_constraint_dynamics_cost(scene, scene.contacts, traj.q, traj.v),
-                     aba=_constraint_dynamics_cost(scene, [], traj.q, traj.v))
+                     per_evaluation=wall / s.dynamics_evaluations, pinocchio=costs.weighted(traj),
+                     constraint_dynamics=costs(tuple(scene.contact_names)), aba=costs(()))
 
 
 _CHILD = """
