@@ -264,12 +264,12 @@ class TrotControllerEvaluator:
         # same bits): a CubicSpline call costs ~20 µs of Python for a dozen numbers
         self._knots, self._coef = self._spline.x, self._spline.c
         self._gravity, self._carry = self._static_terms()
-        self._phase_breaks = self._breakpoint_phases()
         grid = np.linspace(0.0, 1.0, 4001)
         # both legs of each pair share the weight (c_front + c_hind = 1): two pairs
         self.load_scale = 1.0 / (2.0 * np.trapezoid([self.load(p % 1.0) for p in grid], grid))
         # the torques' time-only terms, one polynomial between breakpoints: a table
-        self._schedule = PiecewisePolynomial(self._phase_breaks, self._schedule_terms_at_phases, self._DEGREE)
+        self._schedule = PiecewisePolynomial(self._breakpoint_phases(), self._schedule_terms_at_phases,
+                                             self._DEGREE)
         # tau reads q on the tangent indices: each leg joint's configuration entry
         # (the base's entries have zero gains; any index will do)
         self._q_of_v = np.zeros(self.nv, dtype=int)

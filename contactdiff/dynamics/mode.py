@@ -259,7 +259,7 @@ class ModeAccelerator:
 
     def __init__(self, dyn: ModeDynamics, active: tuple[int, ...]):
         self.dyn, self.active = dyn, active
-        contacts, self._slices, self.rigid = dyn._mode(active)
+        contacts, _, self.rigid = dyn._mode(active)
         self._kin, self._tau = dyn.kin, dyn.scene.tau
         self._raw = self._solution = None
         if self.rigid is not None:

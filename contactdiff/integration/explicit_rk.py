@@ -119,9 +119,8 @@ class ExplicitRK(Stepper):
         while True:
             if h_abs < min_step:
                 raise self._underflow(h_abs, min_step)
-            clipped = t + h_abs > self.t_bound
             wanted = h_abs  # the step the error control asked for, before t_bound clips it
-            t_new = self.t_bound if clipped else t + h_abs
+            t_new, clipped = self._step_end(t, h_abs)
             h = t_new - t
             y_new, q_new, ys, qs = self._stages(t, y, h, qc)
             scale = self.atol + self.rtol * np.maximum(mag_n, self._mag(y_new, q_new))
@@ -139,9 +138,7 @@ class ExplicitRK(Stepper):
                 if rejected:
                     factor = min(1.0, factor)
                 h_abs = h * factor
-                if clipped and not rejected:
-                    # a step cut short by t_bound (a breakpoint) says nothing against the
-                    # step the error control wanted: keep it for the next step
+                if clipped and not rejected:  # see `_step_end`
                     h_abs = max(h_abs, wanted)
                 break
             h_abs = h * max(_MIN_FACTOR, _SAFETY * err**exponent if math.isfinite(err) else 0.0)

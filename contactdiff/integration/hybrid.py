@@ -249,6 +249,7 @@ class HybridLoop:
         gaps, rates = self._gaps_and_rates(stepper.q, stepper.v)
         forces = field.normal_forces(stepper.t, stepper.q, stepper.v)
         steps = 0
+        next_break = -np.inf  # the efforts' next breakpoint: a time a step must end on
         while stepper.t < self.t_final:
             if steps == options.max_steps:
                 raise TooManyStepsError(
@@ -256,8 +257,9 @@ class HybridLoop:
                     f"t_final = {self.t_final:g} s (last step {stepper.t - stepper.t_old:.3g} s); "
                     "raise max_steps, or look for a runaway state",
                     self._trajectory(stepper, Termination.MAX_STEPS))
-            # a breakpoint of the efforts' schedule is a time the step must end on
-            stepper.t_bound = min(self.t_final, scene.next_breakpoint(stepper.t))
+            if stepper.t >= next_break:
+                next_break = scene.next_breakpoint(stepper.t)
+            stepper.t_bound = min(self.t_final, next_break)  # also for a stepper new since the last step
             stepper.step()
             steps += 1
             if options.progress is not None:

@@ -221,8 +221,7 @@ class Radau(Stepper):
         while True:
             if h_abs < min_step:
                 raise self._underflow(h_abs, min_step)
-            clipped = t + h_abs > self.t_bound
-            t_new = self.t_bound if clipped else t + h_abs
+            t_new, clipped = self._step_end(t, h_abs)
             h = t_new - t
             h_abs = h
             Z0 = self._predict(t, h, y, qc)
@@ -288,7 +287,7 @@ class Radau(Stepper):
         self._accept_state(t_new, y_new, q_new, a_new)
         self.phi = phi_new
         self.h_abs = h_abs * factor
-        if clipped and not rejected:  # a step cut short by t_bound says nothing against the wanted one
+        if clipped and not rejected:  # see `_step_end`
             self.h_abs = max(self.h_abs, wanted)
         self._sol = DenseOutput(t, t_new, h, y, _RP.T @ Z, None if self._vs else self.group, qc, nv)
 

@@ -93,7 +93,7 @@ class Stepper(abc.ABC):
     * ``step()``: one *accepted* step from ``(t, q, v, phi)``, retrying with a
       smaller ``h`` internally after a rejection. Start with `_begin_step` (it
       raises at ``t_bound`` and gives the smallest and first ``h``), never step
-      past ``t_bound``, raise `_underflow` when ``h`` falls below the smallest
+      past ``t_bound`` (`_step_end`), raise `_underflow` when ``h`` falls below the smallest
       step, count rejections in ``n_rejected``, and end with `_accept_state`
       (it moves ``t_old, q_old, v_old, phi_old`` and counts ``n_steps``). Set
       ``phi`` for the end point when ``phi`` is not None (with
@@ -507,6 +507,13 @@ class Stepper(abc.ABC):
             raise IntegrationError(f"cannot step: t = {t!r} is already at t_bound = {self.t_bound!r}")
         min_step = 10.0 * abs(np.nextafter(t, np.inf) - t)
         return min_step, max(min(self.h_abs, self.max_step), min_step)
+
+    def _step_end(self, t: float, h_abs: float) -> tuple[float, bool]:
+        """End of a step of ``h_abs`` from ``t`` and whether ``t_bound`` (the final time or
+        an effort's breakpoint) cut it short. A step cut short says nothing against the
+        step the error control wanted: a subclass keeps that one for the next step."""
+        clipped = t + h_abs > self.t_bound
+        return (self.t_bound if clipped else t + h_abs), clipped
 
     def _underflow(self, h_abs: float, min_step: float) -> IntegrationError:
         return IntegrationError(
