@@ -67,7 +67,8 @@ class Radau(Stepper):
 
     The flow Jacobian differentiates the stage equations:
     ``(I - h (A ⊗ I) diag(DF_j)) dY = 1 ⊗ phi_n``, ``phi_{n+1} = dY_3``, with
-    ``DF_j`` at the converged stages (a dense solve of size 6nv).
+    ``DF_j`` at the converged stages (a dense solve of size 6nv); parameter
+    columns add their forcing ``h (A ⊗ I) (0, J_p,j)`` to the right-hand side.
 
     That is Radau IIA applied to the linear ODE ``phi' = DF(t) phi`` (``DF``
     sampled at the stages), so with ``variational_error_control`` its own
@@ -298,6 +299,7 @@ class Radau(Stepper):
         DF = np.zeros((n, n))
         DF[:nv, nv:] = np.eye(nv)
         df = None
+        rhs = np.tile(P0, (3, 1))
         for j in range(3):
             Yj = y + Z[j]
             qj = Yj[:nv] if qc is None else self.group.integrate(qc, Yj[:nv])
@@ -305,9 +307,12 @@ class Radau(Stepper):
             if df[2] is not None:
                 DF[:nv, :nv] = df[2]
             DF[nv:, :nv], DF[nv:, nv:] = df[0], df[1]
+            Jp = df[3]
             for i in range(3):
                 M[i * n : (i + 1) * n, j * n : (j + 1) * n] -= (h * _RA[i, j]) * DF
-        dY = np.linalg.solve(M, np.tile(P0, (3, 1)))
+                if Jp is not None and Jp.shape[1]:  # the parameters' forcing (0, J_p) of stage j
+                    rhs[i * n + nv : (i + 1) * n, P0.shape[1] - Jp.shape[1]:] += (h * _RA[i, j]) * Jp
+        dY = np.linalg.solve(M, rhs)
         return dY.reshape(3, n, P0.shape[1]), df
 
     def _variational(self, t: float, h: float, y: np.ndarray, Z: np.ndarray, qc, P0: np.ndarray):

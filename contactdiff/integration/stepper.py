@@ -48,6 +48,8 @@ AccelFn = Callable[[float, np.ndarray, np.ndarray], np.ndarray]
 """``accel(t, q, v) -> dv/dt`` (nv,), in the joints' local frames."""
 JacFn = Callable[[float, np.ndarray, np.ndarray], "tuple[np.ndarray, np.ndarray]"]
 """``jac(t, q, v) -> (J_q, J_v)``: d accel / d q (tangent, ``q ⊕ δq``) and d accel / d v, nv x nv each."""
+ParameterJacFn = Callable[[float, np.ndarray, np.ndarray], np.ndarray]
+"""``parameter_jac(t, q, v) -> J_p``: d accel / d p (nv x p) at fixed state, for p parameters."""
 
 _EPS = np.finfo(float).eps
 _SAFETY = 0.9
@@ -151,6 +153,18 @@ class Stepper(abc.ABC):
             each column of its local error divided by
             ``variational_atol + rtol * |phi|`` (entrywise), maximised over
             the columns (CVODES' norm for a set of sensitivities).
+        parameter_jac: ``parameter_jac(t, q, v) -> J_p`` (nv x p), the derivative of
+            ``accel`` with respect to p parameters at fixed state. The last p
+            columns of ``phi`` are then the state's sensitivities to those
+            parameters, ``d(δq, δv)/dp``, propagated by the forced variational
+            equation ``phi_p' = DF phi_p + (0, J_p)`` (the augmented state
+            ``(x, p)`` with ``p' = 0``); their error is controlled like the
+            other columns' (scale a parameter so that a unit change is a
+            natural perturbation, or give its ``variational_column_scale``).
+        variational_column_scale: (m,) typical sizes of the perturbations the columns
+            of ``phi`` respond to (1 for a state column, ``|p|`` for a parameter's); a
+            column's absolute tolerance is ``variational_atol / scale`` (CVODES'
+            ``atolS = atol / pbar``). None: all 1.
 
     Attributes:
         t, q, v, phi: current time, state and flow Jacobian (phi None if off).
@@ -179,6 +193,8 @@ class Stepper(abc.ABC):
         variational=None,
         variational_error_control: bool = True,
         variational_atol=None,
+        parameter_jac: ParameterJacFn | None = None,
+        variational_column_scale=None,
     ) -> None:
         if not callable(accel):
             raise InvalidInputError(f"accel must be callable accel(t, q, v), got {accel!r}")
@@ -191,6 +207,10 @@ class Stepper(abc.ABC):
         self.n = 2 * self.nv
         self._vs = bool(self.group.is_vector_space)
         self.accel, self.jac = accel, jac
+        if parameter_jac is not None and not callable(parameter_jac):
+            raise InvalidInputError(f"parameter_jac must be callable parameter_jac(t, q, v) -> J_p or None, "
+                                    f"got {parameter_jac!r}")
+        self.parameter_jac = parameter_jac
 
         t0 = _scalar("t0", t0)
         self.q = _vector("q0", q0, self.nq)
@@ -224,6 +244,13 @@ class Stepper(abc.ABC):
             self._atol_phi = float(va) if va.ndim == 0 else va[:, None]
         self.t = t0
         self.phi = None if variational is None else self._check_phi(variational)
+        if variational_column_scale is not None:
+            m = 0 if self.phi is None else self.phi.shape[1]
+            pbar = np.array(variational_column_scale, dtype=float)
+            if pbar.shape != (m,) or not (np.isfinite(pbar).all() and (pbar > 0).all()):
+                raise InvalidInputError(f"variational_column_scale must be {m} positive finite numbers (one per "
+                                        f"column of variational), got {variational_column_scale!r}")
+            self._atol_phi = np.reshape(self._atol_phi, (-1, 1)) / pbar[None, :]
 
         self.n_steps = self.n_rejected = self.n_accel = self.n_jac = 0
         self.t_old = self.q_old = self.v_old = self.phi_old = None
@@ -293,7 +320,7 @@ class Stepper(abc.ABC):
         self._after_truncate()
 
     def restart(self, t: float, q, v, phi=None, *, accel: AccelFn | None = None, jac: JacFn | None = None,
-                t_bound: float | None = None) -> None:
+                t_bound: float | None = None, parameter_jac: ParameterJacFn | None = None) -> None:
         """Start again from a new state (after a jump or a mode change).
 
         The step-size estimate is kept; Jacobian, LU factors and the dense
@@ -308,6 +335,8 @@ class Stepper(abc.ABC):
             accel: new vector field (mode change); None keeps the current one.
             jac: new Jacobian callback; None keeps the current one.
             t_bound: new bound (s); None keeps the current one.
+            parameter_jac: new parameter-Jacobian callback (with ``jac``, for a new
+                field); None keeps the current one.
         """
         if accel is not None:
             if not callable(accel):
@@ -317,6 +346,11 @@ class Stepper(abc.ABC):
             if not callable(jac):
                 raise InvalidInputError(f"jac must be callable jac(t, q, v) -> (J_q, J_v), got {jac!r}")
             self.jac = jac
+        if parameter_jac is not None:
+            if not callable(parameter_jac):
+                raise InvalidInputError(f"parameter_jac must be callable parameter_jac(t, q, v) -> J_p, "
+                                        f"got {parameter_jac!r}")
+            self.parameter_jac = parameter_jac
         t = _scalar("t", t)
         q = _vector("q", q, self.nq)
         v = _vector("v", v, self.nv)
@@ -457,13 +491,26 @@ class Stepper(abc.ABC):
         return A
 
     def _stage_df(self, t: float, q: np.ndarray, v: np.ndarray):
-        """``(J_q, J_v, G)`` of the tangent-space field at a point; ``G = -ad(v)`` (None on vector spaces)."""
+        """``(J_q, J_v, G, J_p)`` of the tangent-space field at a point; ``G = -ad(v)`` (None on
+        vector spaces), ``J_p`` the parameter Jacobian (None without ``parameter_jac``)."""
         Jq, Jv = self._call_jac(t, q, v)
-        return Jq, Jv, None if self._vs else self.group.velocity_jacobian_q(q, v)
+        return (Jq, Jv, None if self._vs else self.group.velocity_jacobian_q(q, v),
+                None if self.parameter_jac is None else self._call_parameter_jac(t, q, v))
+
+    def _call_parameter_jac(self, t: float, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        Jp = np.asarray(self.parameter_jac(t, q, v), dtype=float)
+        m = 0 if self.phi is None else self.phi.shape[1]
+        if Jp.ndim != 2 or Jp.shape[0] != self.nv or Jp.shape[1] > m:
+            raise InvalidInputError(f"parameter_jac must return an ({self.nv}, p) array with p <= {m} (the "
+                                    f"columns of phi), got shape {Jp.shape}")
+        if not math.isfinite(Jp.sum()):
+            raise IntegrationError(f"parameter_jac returned non-finite values at t={float(t)!r}")
+        return Jp
 
     def _df_apply(self, df, P: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
-        """``[[G, I], [J_q, J_v]] @ P`` for ``df = (J_q, J_v, G)``, into ``out`` if given."""
-        Jq, Jv, G = df
+        """``[[G, I], [J_q, J_v]] @ P`` for ``df = (J_q, J_v, G, J_p)``, plus ``J_p`` on the
+        acceleration rows of P's last p columns (the parameters' forcing), into ``out`` if given."""
+        Jq, Jv, G, Jp = df
         nv = self.nv
         if out is None:
             out = np.empty(P.shape)
@@ -472,6 +519,8 @@ class Stepper(abc.ABC):
         if G is not None:
             out[:nv] += G @ top
         out[nv:] = Jq @ top + Jv @ bot
+        if Jp is not None and Jp.shape[1]:
+            out[nv:, P.shape[1] - Jp.shape[1]:] += Jp
         return out
 
     def _phi_scale(self, P0: np.ndarray, P1: np.ndarray) -> np.ndarray:
