@@ -74,9 +74,11 @@ class RigidContactMode:
 
     def derivatives(self, dtau_dq: np.ndarray, dtau_dv: np.ndarray):
         """Derivatives at the state of the last `solve`, efforts' own derivatives included:
-        ``(ddq_dq, ddq_dv, forces_dq, forces_dv)`` in the tangent space."""
+        ``(ddq_dq, ddq_dv, forces_dq, forces_dv, ddq_dtau, forces_dtau)`` in the tangent
+        space, the last two the responses to a generalised force (row forces)."""
         ddq_dq, ddq_dv, ddq_dtau, lam_dq, lam_dv, lam_dtau = pin.computeConstraintDynamicsDerivatives(
             self.model, self.data, self.models, self.datas, _SETTINGS)
         R = self.rotation
+        forces_dtau = R @ lam_dtau
         return (ddq_dq + ddq_dtau @ dtau_dq, ddq_dv + ddq_dtau @ dtau_dv,
-                R @ (lam_dq + lam_dtau @ dtau_dq), R @ (lam_dv + lam_dtau @ dtau_dv))
+                R @ lam_dq + forces_dtau @ dtau_dq, R @ lam_dv + forces_dtau @ dtau_dv, ddq_dtau, forces_dtau)

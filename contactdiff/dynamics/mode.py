@@ -54,12 +54,20 @@ class ModeSolution:
 
 @dataclass
 class ModeDerivatives:
-    """Derivatives of a `ModeSolution` in the tangent space (each column a perturbation)."""
+    """Derivatives of a `ModeSolution` in the tangent space (each column a perturbation).
+
+    ``ddq_dtau`` (nv × nv) and ``forces_dtau`` (n_rows × nv) are the responses to a
+    generalised force added to the efforts (``M^-1`` in flight, the constrained
+    inverse mass in contact): a parameter that enters as a generalised force ``∂f/∂p``
+    moves the solution by ``ddq_dtau @ ∂f/∂p`` (`contactdiff.dynamics.parameter_forces`).
+    """
 
     ddq_dq: np.ndarray
     ddq_dv: np.ndarray
     forces_dq: np.ndarray
     forces_dv: np.ndarray
+    ddq_dtau: np.ndarray | None = None
+    forces_dtau: np.ndarray | None = None
 
 
 class ModeDynamics:
@@ -200,7 +208,7 @@ class ModeDynamics:
                 dtau_dq, dtau_dv = self.scene.tau_derivatives(kin, t)
                 empty = np.zeros((0, model.nv))
                 return solution, ModeDerivatives(ddq_dq + Minv @ dtau_dq, ddq_dv + Minv @ dtau_dv,
-                                                 empty, empty)
+                                                 empty, empty, Minv, empty)
             return ModeSolution(pin.aba(model, data, q, v, tau), np.zeros(0), active, slices)
         solved = rigid.solve(q, v, tau) if rigid is not None else None
         if solved is not None:
@@ -243,7 +251,10 @@ class ModeDynamics:
         MinvR = Minv @ R
         dlam = _solve_spd(G, C - A @ MinvR)
         dddq = MinvR + MinvAT @ dlam
-        return ModeDerivatives(dddq[:, :nv], dddq[:, nv:], dlam[:, :nv], dlam[:, nv:])
+        # a generalised force d: lam moves by -G^-1 A M^-1 d, ddq by M^-1 (d + A^T dlam)
+        dlam_dtau = -_solve_spd(G, MinvAT.T)
+        return ModeDerivatives(dddq[:, :nv], dddq[:, nv:], dlam[:, :nv], dlam[:, nv:],
+                               Minv + MinvAT @ dlam_dtau, dlam_dtau)
 
 
 class ModeAccelerator:

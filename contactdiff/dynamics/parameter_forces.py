@@ -1,0 +1,148 @@
+"""How model parameters enter the equations of motion and of impact, as generalised forces.
+
+The dynamics of a mode balance generalised forces at fixed ``(q, v, ddq)``:
+
+    f(q, v, ddq, t; p) = tau(q, v, t; p) - RNEA(q, v, ddq; p) + A^T lam = 0,
+
+with RNEA Pinocchio's inverse dynamics (inertia, Coriolis, gravity, armature). A
+parameter ``p`` that does not change the constraint rows ``A`` or their drift
+moves the solution as a generalised force ``∂f/∂p`` would: ``∂ddq/∂p =
+(∂ddq/∂tau) ∂f/∂p`` and ``∂lam/∂p = (∂lam/∂tau) ∂f/∂p``, with the mode's own
+operators ``∂ddq/∂tau`` (``M^-1`` in flight, the constrained inverse mass in
+contact) and ``∂lam/∂tau``. `ParameterForces.forces` gives ``∂f/∂p`` (nv × p):
+
+* a body's mass, centre of mass (m, link frame) and inertia about it (kg m²):
+  ``-Y(q, v, ddq) ∂π/∂p``, with ``Y`` Pinocchio's joint-torque regressor and ``π``
+  the body's ten dynamic parameters (its inertia about the joint frame's
+  origin: the parallel-axis theorem's chain rule);
+* a joint's armature: ``-ddq_j`` on its coordinate;
+* gravity (m/s², world): ``-g(q; e_k)``, the generalised gravity of a unit
+  gravity along axis k (gravity enters RNEA linearly);
+* an effort's parameters: ``∂tau/∂p`` from the scene's efforts;
+* a contact's restitution and offset: zero (they act at events only).
+
+At an impact the balance is ``A^T Λ - M(q; p) (v+ - v-) = 0``;
+`ParameterForces.impulse_forces` gives its ``∂/∂p`` at fixed velocities,
+``-∂(M dv)/∂p`` (inertias and armature only; forces of finite size do no work
+in an instant).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
+import numpy as np
+import pinocchio as pin
+
+from ..model.kinematics import Kinematics
+from ..model.scene import Scene
+
+if TYPE_CHECKING:
+    from ..model.parameters import Parameter
+
+_INERTIA_FIELDS = ("ixx", "ixy", "iyy", "ixz", "iyz", "izz")  # Pinocchio's order of the six
+_AXES = {"x": 0, "y": 1, "z": 2}
+
+
+def _parallel_axis(c: np.ndarray) -> np.ndarray:
+    """``|c|² I - c cᵀ`` in Pinocchio's order of six (the inertia of a unit point mass at c)."""
+    S = (c @ c) * np.eye(3) - np.outer(c, c)
+    return S[[0, 0, 1, 0, 1, 2], [0, 1, 1, 2, 2, 2]]
+
+
+def dynamic_parameter_derivative(inertia: pin.Inertia, field: str) -> np.ndarray:
+    """``∂π/∂p`` (10,) of a body's dynamic parameters ``π`` (Pinocchio's
+    ``Inertia.toDynamicParameters`` order: m, m c, inertia about the frame's origin) with
+    respect to one of its named parameters ``field`` (``mass``, ``com_x|y|z``,
+    ``ixx|ixy|ixz|iyy|iyz|izz`` about the centre of mass), at ``inertia``."""
+    m, c = float(inertia.mass), np.array(inertia.lever)
+    out = np.zeros(10)
+    if field == "mass":
+        out[0], out[1:4], out[4:] = 1.0, c, _parallel_axis(c)
+    elif field.startswith("com_"):
+        k = _AXES[field[-1]]
+        e = np.zeros(3)
+        e[k] = 1.0
+        dS = 2.0 * c[k] * np.eye(3) - np.outer(e, c) - np.outer(c, e)  # ∂(|c|² I - c cᵀ)/∂c_k
+        out[1 + k] = m
+        out[4:] = m * dS[[0, 0, 1, 0, 1, 2], [0, 1, 1, 2, 2, 2]]
+    else:
+        out[4 + _INERTIA_FIELDS.index(field)] = 1.0  # a symmetric pair (ixy = iyx) is one parameter
+    return out
+
+
+class ParameterForces:
+    """``∂f/∂p`` of the force balance and of the impact balance (module doc) for a list of
+    a scene's parameters (from `contactdiff.model.parameters`), column by column.
+
+    Args:
+        scene: the scene (its model holds the parameters' current values).
+        parameters: the parameters, in column order.
+    """
+
+    def __init__(self, scene: Scene, parameters: Sequence[Parameter]):
+        from ..model.parameters import ParameterKind  # the model's names import the dynamics' scene
+
+        self.scene, self.parameters = scene, list(parameters)
+        model = scene.model
+        self.model, self.nv, self.p = model, model.nv, len(self.parameters)
+        self._data = model.createData()
+        self._regressor_columns: list[tuple[int, slice, np.ndarray]] = []  # (column, Y's columns, ∂π/∂p)
+        self._armature: list[tuple[int, int]] = []  # (column, tangent index)
+        self._gravity: list[tuple[int, pin.Model, pin.Data]] = []  # (column, unit-gravity model, data)
+        self._efforts: list[int] = []
+        for col, par in enumerate(self.parameters):
+            kind = par.kind
+            if kind is ParameterKind.BODY:
+                j = par.joint
+                self._regressor_columns.append((col, slice(10 * (j - 1), 10 * j),
+                                                dynamic_parameter_derivative(model.inertias[j], par.field)))
+            elif kind is ParameterKind.JOINT:
+                self._armature.append((col, model.joints[model.getJointId(par.target)].idx_v))
+            elif kind is ParameterKind.SCENE:
+                unit = model.copy()
+                g = np.zeros(3)
+                g[_AXES[par.field[-1]]] = 1.0
+                unit.gravity = pin.Motion(g, np.zeros(3))
+                self._gravity.append((col, unit, unit.createData()))
+            elif kind is not ParameterKind.CONTACT:
+                self._efforts.append(col)
+        self._effort_parameters = [self.parameters[k] for k in self._efforts]
+        self._still = model.copy()  # no gravity: the regressor of M dv alone
+        self._still.gravity = pin.Motion.Zero()
+        self._still_data = self._still.createData()
+
+    @property
+    def acts_in_flows(self) -> bool:
+        """Whether any parameter changes the equations of motion (not only events)."""
+        return bool(self._regressor_columns or self._armature or self._gravity or self._efforts)
+
+    def forces(self, kin: Kinematics, q: np.ndarray, v: np.ndarray, ddq: np.ndarray, t: float) -> np.ndarray:
+        """``∂f/∂p`` (nv × p) at ``(q, v, ddq)`` and time ``t`` (s); ``kin`` at ``(q, v)``."""
+        out = np.zeros((self.nv, self.p))
+        if self._regressor_columns:
+            Y = pin.computeJointTorqueRegressor(self.model, self._data, q, v, ddq)
+            for col, cols, dpi in self._regressor_columns:
+                out[:, col] = -(Y[:, cols] @ dpi)
+        for col, iv in self._armature:
+            out[iv, col] = -ddq[iv]
+        for col, unit, data in self._gravity:
+            out[:, col] = -pin.computeGeneralizedGravity(unit, data, q)
+        if self._efforts:
+            out[:, self._efforts] = self.scene.tau_parameter_derivatives(kin, t, self._effort_parameters)
+        return out
+
+    def impulse_forces(self, q: np.ndarray, dv: np.ndarray) -> np.ndarray:
+        """``-∂(M(q) dv)/∂p`` (nv × p) of an impact's balance, ``dv = v+ - v-`` (m/s, rad/s)."""
+        out = np.zeros((self.nv, self.p))
+        if self._regressor_columns:
+            Y = pin.computeJointTorqueRegressor(self._still, self._still_data, q, np.zeros(self.nv), dv)
+            for col, cols, dpi in self._regressor_columns:
+                out[:, col] = -(Y[:, cols] @ dpi)
+        for col, iv in self._armature:
+            out[iv, col] = -dv[iv]
+        return out
+
+
+__all__ = ["ParameterForces", "dynamic_parameter_derivative"]
