@@ -59,12 +59,12 @@ from .guards import Guard, GuardFinder, GuardKind, NearMiss
 from .method_choice import EXPLICIT, MethodChooser, spectral_radius
 from .mode_field import ModeField
 from .options import AUTO, OnGrazing, SimulateOptions
+from .parameter_jumps import ParameterJumps
 from .projection import close, held_velocity, held_velocity_jacobian, project_state
 from .sensitivity import (
     gap_gradient,
     impact_reset_jacobian,
     liftoff_guard,
-    liftoff_saltation,
     saltation,
     simultaneous_saltation,
     vector_field,
@@ -164,6 +164,26 @@ class HybridLoop:
         self.n_probe_evaluations = 0
         self.phi = None  # flow Jacobian just before the event being processed
         self.initial_saltation = None
+        self.jumps = None  # the parameters' blocks at events, with options.parameters
+        if self.options.parameters:
+            from ..model.parameters import resolve  # the model's names import the dynamics' scene
+            self.jumps = ParameterJumps(self.dyn, resolve(self.scene, self.options.parameters))
+
+    def _identity_phi(self) -> np.ndarray:
+        """The flow Jacobian at the start: ``[I, 0]`` (2nv × (2nv + p)) with parameters."""
+        n = 2 * self.scene.nv
+        return np.eye(n, n + (self.jumps.p if self.jumps else 0))
+
+    def _field(self, mode, fused: bool) -> ModeField:
+        return ModeField(self.dyn, mode, fused=fused, parameters=self.jumps.forces if self.jumps else None)
+
+    def _jumped(self, phi: np.ndarray, event: Event) -> np.ndarray:
+        """The flow Jacobian just after ``event`` from ``phi`` just before: ``Ξ phi``, plus
+        ``Ξ_p`` on the parameter columns."""
+        out = event.saltation @ phi
+        if event.parameter_saltation is not None:
+            out[:, 2 * self.scene.nv:] += event.parameter_saltation
+        return out
 
     # -- hooks ----------------------------------------------------------------------
     def on_event(self, event: Event, mode_before: tuple[int, ...], phi_before) -> bool:
@@ -218,29 +238,34 @@ class HybridLoop:
                    and np.max(np.abs(self.contacts[i].rows(self.kin)[1:] @ v)) > self.options.grazing_speed]
         if any(rates[i] < -self.options.grazing_speed for i in closed) or sliding:
             if self.options.jacobian:
-                self.phi = np.eye(2 * self.scene.nv)
+                self.phi = self._identity_phi()
             mode, v_plus = self._impact(self.t0, q, v, (), closed, closed, initial=True)
-            self.initial_saltation = self.events[-1].saltation
+            if self.options.jacobian:
+                self.initial_saltation = self._jumped(self._identity_phi(), self.events[-1])
             return mode, v_plus
         candidates = [i for i in closed if rates[i] <= self.options.grazing_speed]
         mode = choose_mode(self.dyn, q, v, self.t0, candidates)
         return mode, held_velocity(self.dyn, q, v, mode)
 
     # -- the loop -------------------------------------------------------------------
-    def _stepper_options(self) -> dict:
+    def _stepper_options(self, field: ModeField) -> dict:
         o = self.options
-        return dict(rtol=o.rtol, atol=o.atol, max_step=o.max_step, t_bound=self.t_final)
+        options = dict(rtol=o.rtol, atol=o.atol, max_step=o.max_step, t_bound=self.t_final)
+        if self.jumps is not None:
+            options.update(parameter_jac=field.parameter_jac, variational_column_scale=np.concatenate(
+                [np.ones(2 * self.scene.nv), self.jumps.scale]))
+        return options
 
     def run(self) -> Trajectory:
         """Integrate to ``t_final`` (or to a terminal event) and return the `Trajectory`."""
         options, scene = self.options, self.scene
         q, v = scene.q0.copy(), scene.v0.copy()
         mode, v = self.initial_mode(q, v)
-        field = ModeField(self.dyn, mode, fused=options.jacobian and options.method != "Radau")
+        field = self._field(mode, fused=options.jacobian and options.method != "Radau")
         self.chooser = MethodChooser(self._probe(mode)) if options.method == AUTO else None
         stepper = make_stepper(EXPLICIT if self.chooser else options.method, field.accel, self.group, self.t0,
-                               q, v, jac=field.jac, variational=np.eye(2 * scene.nv) if options.jacobian else None,
-                               **self._stepper_options())
+                               q, v, jac=field.jac, variational=self._identity_phi() if options.jacobian else None,
+                               **self._stepper_options(field))
         if options.jacobian and self.initial_saltation is not None:
             stepper.restart(self.t0, q, v, phi=self.initial_saltation)
         self.fields.append(field)
@@ -301,11 +326,12 @@ class HybridLoop:
             for event in self.events[n_before:]:
                 stop = self.on_event(event, mode_before, phi_before) or stop
             q_event = self.events[-1].q
-            field = ModeField(self.dyn, mode, fused=options.jacobian and stepper.method != "Radau")
+            field = self._field(mode, fused=options.jacobian and stepper.method != "Radau")
             self.fields.append(field)
-            xi = self.events[-1].saltation
             stepper.restart(t_event, q_event, v_plus, accel=field.accel, jac=field.jac,
-                            phi=None if xi is None else xi @ stepper.phi)
+                            parameter_jac=field.parameter_jac if self.jumps else None,
+                            phi=None if self.events[-1].saltation is None else self._jumped(stepper.phi,
+                                                                                             self.events[-1]))
             if self.chooser is not None:
                 self.chooser.new_mode(self._probe(mode))
             segment = Segment(t0=t_event, t1=t_event, mode=self._mode_names(mode),
@@ -342,7 +368,7 @@ class HybridLoop:
         return make_stepper(method, field.accel, self.group, stepper.t, stepper.q, stepper.v,
                             jac=field.jac, first_step=stepper.h_abs,
                             variational=stepper.phi if self.options.jacobian else None,
-                            **self._stepper_options())
+                            **self._stepper_options(field))
 
     def _trajectory(self, stepper, termination: Termination) -> Trajectory:
         steppers = self.retired + [stepper]
@@ -365,7 +391,9 @@ class HybridLoop:
                           v0=self.scene.v0.copy(), t=stepper.t, q=stepper.q.copy(), v=stepper.v.copy(),
                           events=self.events, segments=self.segments, stats=stats, max_drift=self.max_drift,
                           termination=termination, notes=self.notes, dense=self.options.dense,
-                          jacobian=stepper.phi.copy() if self.options.jacobian else None)
+                          jacobian=stepper.phi[:, :2 * self.scene.nv].copy() if self.options.jacobian else None,
+                          parameter_jacobian=stepper.phi[:, 2 * self.scene.nv:].copy() if self.jumps else None,
+                          parameter_names=tuple(self.options.parameters))
 
     # -- detection ------------------------------------------------------------------
     def _near_misses(self, misses: list[NearMiss], t_event: float) -> None:
@@ -417,24 +445,34 @@ class HybridLoop:
             # lift-offs in turn (each releasing contact's guard in the mode left by the
             # earlier ones): a sticking contact's force jump is not carried by another's guard
             guard = liftoff_guard(dyn, t, q, v, mode, releasing[0])
-            xi = self._liftoff_sequence(t, q, v, mode, releasing, new_mode, guard)
-            self._attach_sensitivity(event, xi, *guard)
+            xi, xi_p = self._liftoff_sequence(t, q, v, mode, releasing, new_mode, guard)
+            h_p = self.jumps.force_guard(q, v, t, mode, releasing[0]) if self.jumps else None
+            self._attach_sensitivity(event, xi, *guard, xi_p=xi_p, h_p=h_p)
         self.events.append(event)
         return new_mode, v
 
-    def _liftoff_sequence(self, t, q, v, mode, releasing, new_mode, first_guard) -> np.ndarray:
+    def _liftoff_sequence(self, t, q, v, mode, releasing, new_mode, first_guard):
         """Saltation of the lift-off of ``releasing`` from ``mode``, one contact after the
         other in the given order at the same state (no jump: each force is zero there);
-        ``first_guard`` is the first one's `liftoff_guard`."""
-        xi, current = np.eye(2 * self.scene.nv), tuple(mode)
+        ``first_guard`` is the first one's `liftoff_guard`. Returns ``(Ξ, Ξ_p)``, the
+        parameter block None without parameters."""
+        n2 = 2 * self.scene.nv
+        xi, current = np.eye(n2), tuple(mode)
+        xi_p = np.zeros((n2, self.jumps.p)) if self.jumps else None
         for n, k in enumerate(releasing):
             slide = self.dyn.sliding_key(k) if not self.dyn.is_sliding(k) else None
             after = tuple(new_mode) if n == len(releasing) - 1 else tuple(sorted(
                 [i for i in current if i != k] + ([slide] if slide in new_mode else [])))
-            guard = first_guard if n == 0 else None
-            xi = liftoff_saltation(self.dyn, t, q, v, current, k, after, guard) @ xi
+            Dh, F_minus, h_t = first_guard if n == 0 else liftoff_guard(self.dyn, t, q, v, current, k)
+            F_plus = vector_field(self.dyn, q, v, t, after)
+            xi_k = saltation(np.eye(n2), Dh, F_minus, F_plus, h_t)
+            xi = xi_k @ xi
+            if xi_p is not None:
+                h_p = self.jumps.force_guard(q, v, t, current, k)
+                xi_p = xi_k @ xi_p + ParameterJumps.saltation(None, h_p, None, F_minus, F_plus,
+                                                              float(Dh @ F_minus) + h_t)
             current = after
-        return xi
+        return xi, xi_p
 
     def _impact(self, t, q, v_minus, mode, closed, touching, releasing=(), initial=False):
         """Impact of the ``closed`` contacts (keys: a sliding contact takes part with its
@@ -513,10 +551,20 @@ class HybridLoop:
                 DR = held_velocity_jacobian(self.dyn, q, v_plus, new_mode) @ DR
             return DR
 
+        def reset_parameters():
+            live = [k for k in closed if dyn.contact_index(k) not in zeno]
+            R_p = self.jumps.impact(q, v_minus, impact, live)
+            if settled:
+                R_p = held_velocity_jacobian(self.dyn, q, v_plus, new_mode) @ R_p
+            return R_p
+
         if self.options.jacobian and initial:
             # no guard at t0: perturbations keep the start time, only the reset acts
             event.saltation = reset_jacobian()
             event.time_gradient = np.zeros(2 * self.scene.nv)
+            if self.jumps:
+                event.parameter_saltation = reset_parameters()
+                event.parameter_time_gradient = np.zeros(self.jumps.p)
         elif self.options.jacobian:
             F_minus = vector_field(self.dyn, q, v_minus, t, mode)
             guard = min(touching, key=lambda i: speeds[i])
@@ -525,6 +573,10 @@ class HybridLoop:
                 override = {i: e[closed.index(i)] for i in closed}
                 sim = simultaneous_saltation(self.dyn, t, q, v_minus, mode, touching, override)
                 xi = sim.matrix
+                if self.jumps:  # the simultaneous reset plus one guard term per contact
+                    xi_p = reset_parameters()
+                    for k, (jump, rate) in sim.corrections.items():
+                        xi_p += np.outer(jump, self.jumps.gap_guard(k)) / rate
                 event.saltation_orders = {tuple(self.names[i] for i in k): m for k, m in sim.orders.items()}
                 if not sim.differentiable:
                     event.nonsmooth[NonSmooth.ORDER] = self._note(
@@ -532,17 +584,29 @@ class HybridLoop:
                         f"{', '.join(self.names[i] for i in touching)} give saltation matrices "
                         f"differing by {sim.spread:.2e} (relative)")
             else:
-                xi = saltation(reset_jacobian(), Dh, F_minus, vector_field(self.dyn, q, v_plus, t, new_mode))
-            self._attach_sensitivity(event, xi, Dh, F_minus)
+                DR = reset_jacobian()
+                F_plus = vector_field(self.dyn, q, v_plus, t, new_mode)
+                xi = saltation(DR, Dh, F_minus, F_plus)
+                if self.jumps:
+                    xi_p = ParameterJumps.saltation(reset_parameters(), self.jumps.gap_guard(guard), DR, F_minus,
+                                                    F_plus, float(Dh @ F_minus))
+            h_p = self.jumps.gap_guard(guard) if self.jumps else None
+            self._attach_sensitivity(event, xi, Dh, F_minus, xi_p=xi_p if self.jumps else None, h_p=h_p)
         self.events.append(event)
         return new_mode, v_plus
 
     def _attach_sensitivity(self, event: Event, xi: np.ndarray, Dh: np.ndarray, F_minus: np.ndarray,
-                            h_t: float = 0.0) -> None:
+                            h_t: float = 0.0, xi_p: np.ndarray | None = None, h_p: np.ndarray | None = None) -> None:
         """Saltation matrix and event-time gradient ``-Dh Φ- / (Dh F- + h_t)`` (implicit
-        functions; ``h_t`` the guard's explicit time rate)."""
+        functions; ``h_t`` the guard's explicit time rate); with parameters also their
+        block ``xi_p`` and time gradient ``-(Dh Φ-_p + h_p) / (Dh F- + h_t)``."""
+        n = 2 * self.scene.nv
+        rate = float(Dh @ F_minus) + h_t
         event.saltation = xi
-        event.time_gradient = -(Dh @ self.phi) / (float(Dh @ F_minus) + h_t)
+        event.time_gradient = -(Dh @ self.phi[:, :n]) / rate
+        if self.jumps is not None:
+            event.parameter_saltation = xi_p
+            event.parameter_time_gradient = -(Dh @ self.phi[:, n:] + h_p) / rate
 
     def _note(self, text: str) -> str:
         """Add a note to the run's notes; return it (for an event's ``nonsmooth``)."""
@@ -558,6 +622,9 @@ class HybridLoop:
         if drift <= self.options.resolved_project_tol:
             return False
         q, v, D = project_state(self.dyn, stepper.q, stepper.v, mode, jacobian=self.options.jacobian)
-        stepper.restart(stepper.t, q, v, phi=None if D is None else D @ stepper.phi)
+        phi = None if D is None else D @ stepper.phi
+        if self.jumps is not None:
+            phi[:, 2 * self.scene.nv:] += self.jumps.projection(q, mode)
+        stepper.restart(stepper.t, q, v, phi=phi)
         self.n_projections += 1
         return True

@@ -1,5 +1,6 @@
 """The vector field of one contact mode, as a stepper sees it: accelerations, their
-Jacobian, and the mode's normal forces at the last point, with counters."""
+Jacobian, their parameter Jacobian, and the mode's normal forces at the last point,
+with counters."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ from collections import OrderedDict
 import numpy as np
 
 from ..dynamics.mode import ModeDynamics
+from ..dynamics.parameter_forces import ParameterForces
 
 
 class ModeField:
@@ -17,13 +19,16 @@ class ModeField:
     differentiates the mode: the stepper asks for the Jacobian at the very
     stage points whose accelerations it evaluated, and one solve with
     derivatives costs less than a plain solve followed by a derivative solve.
-    The derivatives of the last few points are kept for `jac`.
+    The derivatives of the last few points are kept for `jac` and
+    `parameter_jac`. With ``parameters`` (`ParameterForces`) each derivative
+    solve also gives ``∂ddq/∂p``.
     """
 
     _KEEP = 32  # points remembered: more than the stages of one step
 
-    def __init__(self, dyn: ModeDynamics, mode: tuple[int, ...], fused: bool = False):
-        self.dyn, self.mode, self.fused = dyn, mode, fused
+    def __init__(self, dyn: ModeDynamics, mode: tuple[int, ...], fused: bool = False,
+                 parameters: ParameterForces | None = None):
+        self.dyn, self.mode, self.fused, self.parameters = dyn, mode, fused, parameters
         self._plain = dyn.accelerator(mode)
         self.last = None  # (t, q, v) of the last accel, and its normal forces' source
         self._last_forces = None
@@ -36,27 +41,39 @@ class ModeField:
         self.n_solve += 1
         self.last = (t, q, v)
         if self.fused:
-            sol, der = self._solve_with_derivatives(t, q, v)
-            self._derivatives[(t, q.tobytes(), v.tobytes())] = (der.ddq_dq, der.ddq_dv)
-            if len(self._derivatives) > self._KEEP:
-                self._derivatives.popitem(last=False)
+            sol = self._differentiate(t, q, v)
             self._last_forces = sol.normal_forces
             return sol.ddq
         self._last_forces = self._plain.normal_forces
         return self._plain(q, v, t)
 
-    def _solve_with_derivatives(self, t, q, v):
+    def _differentiate(self, t, q, v):
+        """Solve with derivatives at ``(t, q, v)`` and keep them; the solution."""
         self.n_derivatives += 1
-        return self.dyn.solve(q, v, t, self.mode, derivatives=True)
+        sol, der = self.dyn.solve(q, v, t, self.mode, derivatives=True)
+        ddq_dp = None
+        if self.parameters is not None:
+            ddq_dp = der.ddq_dtau @ self.parameters.forces(self.dyn.kin, q, v, sol.ddq, t)
+        self._derivatives[(t, q.tobytes(), v.tobytes())] = (der.ddq_dq, der.ddq_dv, ddq_dp)
+        if len(self._derivatives) > self._KEEP:
+            self._derivatives.popitem(last=False)
+        return sol
+
+    def _known(self, t, q, v):
+        known = self._derivatives.get((t, q.tobytes(), v.tobytes()))
+        if known is None:
+            self._differentiate(t, q, v)
+            known = self._derivatives[(t, q.tobytes(), v.tobytes())]
+        return known
 
     def jac(self, t, q, v):
         """``(d ddq/dq, d ddq/dv)``, each (nv × nv), tangent space, at time ``t`` (s) and
         ``(q, v)`` (kept from a fused `accel` at that point, or solved)."""
-        known = self._derivatives.get((t, q.tobytes(), v.tobytes()))
-        if known is not None:
-            return known
-        _, der = self._solve_with_derivatives(t, q, v)
-        return der.ddq_dq, der.ddq_dv
+        return self._known(t, q, v)[:2]
+
+    def parameter_jac(self, t, q, v):
+        """``d ddq/dp`` (nv × p) at time ``t`` (s) and ``(q, v)``, for the field's ``parameters``."""
+        return self._known(t, q, v)[2]
 
     def normal_forces(self, t, q, v) -> np.ndarray:
         """Normal forces (N) of the mode's contacts (order of ``mode``) at time ``t`` (s) and

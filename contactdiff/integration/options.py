@@ -54,6 +54,9 @@ class SimulateOptions:
             (``"Radau"`` for stiff scenes).
         jacobian: also compute the flow Jacobian ``traj.jacobian`` (d x(t_final) /
             d x0, tangent space) and each event's saltation matrix and time gradient.
+        parameters: names of scene parameters (`Scene.parameter_names`) to
+            differentiate with respect to, with ``jacobian``: ``traj.parameter_jacobian``
+            (d x(t_final) / d p) and each event's parameter blocks.
         max_events: largest number of events before `TooManyEventsError`.
         max_steps: largest number of accepted steps before `TooManyStepsError`
             (its ``.trajectory`` holds the run so far); the default `MAX_STEPS`
@@ -91,6 +94,7 @@ class SimulateOptions:
     atol: float = 1e-10
     method: str = AUTO
     jacobian: bool = False
+    parameters: tuple[str, ...] = ()
     max_events: int = 10_000
     max_steps: int = MAX_STEPS
     simultaneous_tol: float = 1e-9
@@ -113,6 +117,19 @@ class SimulateOptions:
         set_(self, "rtol", _in_range("rtol", self.rtol, RTOL_MIN, RTOL_MAX))
         set_(self, "atol", _in_range("atol", self.atol, 0.0, ATOL_MAX, open_low=True))
         set_(self, "jacobian", bool(self.jacobian))
+        names = (self.parameters,) if isinstance(self.parameters, str) else self.parameters
+        try:
+            names = tuple(names)
+        except TypeError:
+            raise InvalidInputError(f"simulate: parameters must be parameter names, got {self.parameters!r}") from None
+        if not all(isinstance(n, str) for n in names):
+            raise InvalidInputError(f"simulate: parameters must be parameter names (str), got {self.parameters!r}")
+        if len(set(names)) != len(names):
+            raise InvalidInputError(f"simulate: parameters name one twice: {self.parameters!r}")
+        if names and not self.jacobian:
+            raise InvalidInputError("simulate: parameters need jacobian=True (their sensitivities ride on the "
+                                    "flow Jacobian)")
+        set_(self, "parameters", names)
         set_(self, "dense", bool(self.dense))
         set_(self, "max_events", check_count("simulate", "max_events", self.max_events))
         set_(self, "max_steps", check_count("simulate", "max_steps", self.max_steps))

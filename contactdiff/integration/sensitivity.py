@@ -29,6 +29,7 @@ import pinocchio as pin
 
 from ..dynamics.impacts import ImpactResult, choose_mode, resolve_impact
 from ..dynamics.mode import ModeDynamics
+from ..dynamics.parameter_forces import ParameterForces
 from ..model.scene import Scene
 
 ORDER_TOL = 1e-8
@@ -106,6 +107,43 @@ def impact_reset_jacobian(dyn: ModeDynamics, q: np.ndarray, v_minus: np.ndarray,
     DR[nv:, :nv] = X[:nv, :nv]
     DR[nv:, nv:] = X[:nv, nv:]
     return DR
+
+
+def impact_parameter_jacobian(dyn: ModeDynamics, q: np.ndarray, v_minus: np.ndarray, impact: ImpactResult,
+                              forces: ParameterForces, restitution_columns: dict[int, int]) -> np.ndarray:
+    """``∂R/∂p`` of the impact reset at fixed ``(q, v-)`` (2nv × p; zero ``q`` rows).
+
+    The same equations as `impact_reset_jacobian`, differentiated in the parameters:
+    ``M δv+ - A^T δΛ = -∂(M (v+ - v-))/∂p`` (`ParameterForces.impulse_forces`) and, on an
+    active contact whose restitution is parameter column ``c``
+    (``restitution_columns[key] = c``, for the keys whose coefficient the impact used
+    as it is), ``A_n δv+ = -δe A_n v-``.
+    """
+    nv = dyn.model.nv
+    out = np.zeros((2 * nv, forces.p))
+    held = sorted(set(impact.active) | set(impact.tangential_only))
+    if not held:
+        return out
+    kin = dyn.kin
+    kin.update(q, v_minus)
+    M = pin.crba(dyn.model, dyn.data, q)  # the binding returns it symmetric
+    A_rows, e_rhs = [], []
+    for k in held:
+        c = dyn.contact(impact.contacts[k])
+        rows = c.rows(kin) if k in impact.active else c.rows(kin)[1:]
+        block = np.zeros((rows.shape[0], forces.p))
+        col = restitution_columns.get(impact.contacts[k])
+        if k in impact.active and col is not None and impact.normal_speeds_before[k] < 0.0:
+            block[0, col] = -float(rows[0] @ v_minus)
+        A_rows.append(rows)
+        e_rhs.append(block)
+    A = np.vstack(A_rows)
+    m = A.shape[0]
+    K = np.block([[M, -A.T], [A, np.zeros((m, m))]])
+    rhs = np.vstack([forces.impulse_forces(q, impact.v_plus - v_minus), *e_rhs])
+    X = np.linalg.lstsq(K, rhs, rcond=None)[0] if np.linalg.matrix_rank(K) < nv + m else np.linalg.solve(K, rhs)
+    out[nv:] = X[:nv]
+    return out
 
 
 def gap_gradient(dyn: ModeDynamics, q: np.ndarray, contact: int) -> np.ndarray:
@@ -186,6 +224,10 @@ class SimultaneousSaltation:
         differentiable: all orders and the paper's matrix agree within ``tol``.
         spread: largest relative max-norm difference between any two of them.
         tol: the tolerance used.
+        corrections: for each landing contact k, the pieces of its term
+            ``S_k = jump_k Dh_k / rate_k``: ``(jump_k, rate_k)`` with ``jump_k =
+            F_{J∪k}(q, v+_k) - DR_k F_J(q, v-)`` and ``rate_k = Dh_k F_J(q, v-)`` (for a
+            guard that also depends on parameters, `contactdiff.integration.parameter_jumps`).
     """
 
     orders: dict = field(default_factory=dict)
@@ -193,6 +235,7 @@ class SimultaneousSaltation:
     differentiable: bool = True
     spread: float = 0.0
     tol: float = ORDER_TOL
+    corrections: dict = field(default_factory=dict)
 
     @property
     def matrix(self) -> np.ndarray:
@@ -254,7 +297,8 @@ def simultaneous_saltation(dyn: ModeDynamics, t: float, q: np.ndarray, v_minus: 
         DR_k = impact_reset_jacobian(dyn, q, v_minus, single.impact)
         Dh = gap_gradient(dyn, q, k)
         F_plus = vector_field(dyn, q, single.v_plus, t, single.mode_after)
-        paper = paper + np.outer(F_plus - DR_k @ F_minus, Dh) / float(Dh @ F_minus)
+        jump, rate = result.corrections[k] = (F_plus - DR_k @ F_minus, float(Dh @ F_minus))
+        paper = paper + np.outer(jump, Dh) / rate
     result.paper = paper
     mats = list(result.orders.values()) + [paper]
     scale = max(1.0, max(float(np.max(np.abs(m))) for m in mats))

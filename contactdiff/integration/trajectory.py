@@ -103,6 +103,10 @@ class Event:
         saltation: saltation matrix Ξ (2nv × 2nv) when the Jacobian was asked for.
         time_gradient: derivative of the event time with respect to the initial
             state (2nv,), tangent space, when the Jacobian was asked for.
+        parameter_saltation: with parameters, the saltation's parameter block Ξ_p
+            (2nv × p): ``∂x+/∂p = Ξ ∂x-/∂p + Ξ_p`` (`contactdiff.integration.parameter_jumps`).
+        parameter_time_gradient: with parameters, the derivative of the event time
+            with respect to them (s per unit of each, p,).
         nonsmooth: why the flow is not differentiable here, each `NonSmooth`
             reason with its remark (empty where it is differentiable).
         saltation_orders: at a simultaneous touchdown, the saltation matrix of
@@ -126,6 +130,8 @@ class Event:
     nonsmooth: dict[NonSmooth, str] = field(default_factory=dict)
     saltation_orders: dict | None = None
     sliding: tuple[str, ...] = ()
+    parameter_saltation: np.ndarray | None = None
+    parameter_time_gradient: np.ndarray | None = None
 
     @property
     def differentiable(self) -> bool:
@@ -141,6 +147,9 @@ class Event:
         if self.saltation is not None:
             extra["saltation"] = self.saltation.tolist()
             extra["time_gradient"] = self.time_gradient.tolist()
+        if self.parameter_saltation is not None:
+            extra["parameter_saltation"] = self.parameter_saltation.tolist()
+            extra["parameter_time_gradient"] = self.parameter_time_gradient.tolist()
         if self.saltation_orders:
             extra["saltation_orders"] = {" > ".join(k): m.tolist() for k, m in self.saltation_orders.items()}
         return extra | {
@@ -196,6 +205,9 @@ class Trajectory:
         termination: why the run ended (a `Termination`; ``"t_final"`` normally).
         notes: human-readable remarks (Zeno ends, grazing, ...).
         jacobian: ``d x(t) / d x0`` (2nv × 2nv, tangent space) if it was asked for.
+        parameter_jacobian: ``d x(t) / d p`` (2nv × p, tangent space, per unit of each
+            parameter) if parameters were asked for (``simulate(..., parameters=[...])``).
+        parameter_names: the names of those parameters, in column order.
         dense: whether the run kept its dense output (``simulate(..., dense=True)``),
             which `at`, `sample` and `save_npz` need.
     """
@@ -215,6 +227,8 @@ class Trajectory:
     notes: list[str] = field(default_factory=list)
     jacobian: np.ndarray | None = None
     dense: bool = True
+    parameter_jacobian: np.ndarray | None = None
+    parameter_names: tuple[str, ...] = ()
 
     @property
     def differentiable(self) -> bool:
@@ -268,7 +282,9 @@ class Trajectory:
             "stats": self.stats.to_dict(), "max_drift": self.max_drift,
             "termination": str(self.termination), "notes": list(self.notes),
             "differentiable": self.differentiable,
-        } | ({"jacobian": self.jacobian.tolist()} if self.jacobian is not None else {})
+        } | ({"jacobian": self.jacobian.tolist()} if self.jacobian is not None else {}) | (
+            {"parameter_names": list(self.parameter_names), "parameter_jacobian": self.parameter_jacobian.tolist()}
+            if self.parameter_jacobian is not None else {})
 
     def save_json(self, path: str | Path) -> None:
         """Write `summary` as JSON."""

@@ -1,0 +1,111 @@
+"""How the parameter columns of a flow Jacobian cross events.
+
+With parameters ``p`` the loop propagates the augmented state ``(x, p)``, ``p' = 0``:
+the flow Jacobian's last columns are ``∂x/∂p`` (tangent space), forced in each mode
+by ``∂F/∂p`` (`contactdiff.dynamics.parameter_forces`). At an event with guard ``h(x, p)``
+and reset ``R(x, p)`` the augmented saltation matrix's parameter block is
+
+    Ξ_p = ∂R/∂p + (F+ - DR F-) (∂h/∂p) / (Dh F- + h_t),
+
+so that ``∂x+/∂p = Ξ ∂x-/∂p + Ξ_p`` and the event time moves by
+``∂t/∂p = -(Dh ∂x-/∂p + ∂h/∂p) / (Dh F- + h_t)``. What depends on parameters:
+
+* a touchdown's guard, the gap ``n · p(q) - offset``: ``∂h/∂offset = -1``;
+* a lift-off's guard, the normal force: ``∂λ/∂p`` of the mode (inertias, gravity,
+  efforts);
+* an impact's reset: ``∂v+/∂p`` through ``M`` (inertias, armature) and the
+  restitution (`contactdiff.integration.sensitivity.impact_parameter_jacobian`);
+* the projection back onto the constraints, ``q - P a(q)``: ``+P`` on an offset.
+
+A lift-off's reset is the identity, so ``Ξ_p`` there is the guard term alone (zero
+when the field does not jump).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from ..dynamics.impacts import ImpactResult
+from ..dynamics.mode import ModeDynamics
+from ..dynamics.parameter_forces import ParameterForces
+from .projection import mode_rows, weighted_pinv
+from .sensitivity import impact_parameter_jacobian
+
+
+class ParameterJumps:
+    """The parameter blocks of a run's events (module doc), for a list of a scene's
+    parameters (`contactdiff.model.parameters`, in column order).
+
+    Attributes:
+        forces: the `ParameterForces` of the flows.
+        p: number of parameters.
+        scale: typical size of each parameter (its absolute value, 1 where it is 0),
+            the error control's ``variational_column_scale``.
+    """
+
+    def __init__(self, dyn: ModeDynamics, parameters: Sequence):
+        from ..model.parameters import ParameterKind  # the model's names import the dynamics' scene
+
+        self.dyn, self.parameters = dyn, list(parameters)
+        self.p = len(self.parameters)
+        self.forces = ParameterForces(dyn.scene, self.parameters)
+        scene = dyn.scene
+        self.offset_columns: dict[int, int] = {}
+        self.restitution_columns: dict[int, int] = {}
+        for col, par in enumerate(self.parameters):
+            if par.kind is ParameterKind.CONTACT:
+                target = self.offset_columns if par.field == "offset" else self.restitution_columns
+                target[scene.contact_index(par.target)] = col
+        values = np.abs(scene.parameter_values([par.name for par in self.parameters]))
+        self.scale = np.where(values > 0.0, values, 1.0)
+
+    def gap_guard(self, contact: int) -> np.ndarray:
+        """``∂h/∂p`` (p,) of the touchdown guard of scene contact ``contact``."""
+        h_p = np.zeros(self.p)
+        col = self.offset_columns.get(contact)
+        if col is not None:
+            h_p[col] = -1.0
+        return h_p
+
+    def force_guard(self, q: np.ndarray, v: np.ndarray, t: float, mode: Sequence[int], key: int) -> np.ndarray:
+        """``∂λ/∂p`` (p,) of the normal force of contact key ``key`` in ``mode`` at ``(q, v, t)``."""
+        mode = tuple(mode)
+        sol, der = self.dyn.solve(q, v, t, mode, derivatives=True)
+        row = sol.row_slices[mode.index(key)].start
+        return der.forces_dtau[row] @ self.forces.forces(self.dyn.kin, q, v, sol.ddq, t)
+
+    def impact(self, q: np.ndarray, v_minus: np.ndarray, impact: ImpactResult, live: Sequence[int]) -> np.ndarray:
+        """``∂R/∂p`` (2nv × p) of ``impact``; ``live``: the contact keys whose own
+        restitution the impact used (not ended by the Zeno rule)."""
+        columns = {k: self.restitution_columns[self.dyn.contact_index(k)] for k in live
+                   if self.dyn.contact_index(k) in self.restitution_columns}
+        return impact_parameter_jacobian(self.dyn, q, v_minus, impact, self.forces, columns)
+
+    def projection(self, q: np.ndarray, mode: Sequence[int]) -> np.ndarray:
+        """``∂/∂p`` (2nv × p) of the projection ``(q - P a(q), ...)`` onto ``mode``'s
+        constraints at fixed state: ``P``'s column of each offset's contact."""
+        out = np.zeros((2 * self.dyn.model.nv, self.p))
+        cols = [(j, self.offset_columns.get(self.dyn.contact_index(k))) for j, k in enumerate(mode)]
+        cols = [(j, c) for j, c in cols if c is not None]
+        if not cols:
+            return out
+        self.dyn.kin.update(q, np.zeros(self.dyn.model.nv))
+        A = mode_rows(self.dyn, mode)
+        normal = [0] + list(np.cumsum([self.dyn.contact(k).n_rows for k in mode])[:-1])
+        P = weighted_pinv(self.dyn, q, A[normal])
+        for j, col in cols:
+            out[:self.dyn.model.nv, col] = P[:, j]
+        return out
+
+    @staticmethod
+    def saltation(R_p: np.ndarray | None, h_p: np.ndarray, DR: np.ndarray | None, F_minus: np.ndarray,
+                  F_plus: np.ndarray, rate: float) -> np.ndarray:
+        """``Ξ_p = ∂R/∂p + (F+ - DR F-) ∂h/∂p / rate`` (2nv × p); ``R_p``/``DR`` None: identity reset."""
+        jump = F_plus - (F_minus if DR is None else DR @ F_minus)
+        out = np.outer(jump, h_p) / rate
+        return out if R_p is None else out + R_p
+
+
+__all__ = ["ParameterJumps"]
