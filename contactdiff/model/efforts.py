@@ -20,13 +20,23 @@ schedule made of polynomial pieces, the end of a ramp) also has
 and the integrator ends a step exactly on each such time instead of stepping
 across it: a high-order method that steps across a jump of the third
 derivative rejects the step, or keeps a shorter one, again and again.
+
+An evaluator whose spec has named parameters (`contactdiff.model.parameters`:
+a joint spring's stiffness, a user effort's own numbers, ...) also has
+
+    parameter_derivatives(kin, t, fields) -> (nv × len(fields))  d tau/dp
+
+with ``fields`` a sequence of ``(k, field)``: ``k`` says which spec of the
+evaluator (always 0, except for the one evaluator of all joint springs, where
+it is the spring's rank among them, see `bound_positions`) and ``field`` the
+parameter's name.
 """
 
 from __future__ import annotations
 
 import bisect
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
@@ -123,6 +133,24 @@ class _BoundJointSpring:
     def time_derivative(self, kin: Kinematics, t: float) -> np.ndarray:
         return np.zeros(self.nv)  # autonomous
 
+    def parameter_derivatives(self, kin: Kinematics, t: float, fields) -> np.ndarray:
+        """``d tau/dp`` (nv × len(fields)) for ``fields`` = ``(k, field)`` pairs: spring ``k``
+        (rank among the joint springs) and ``field`` in ``stiffness`` (``-(q_j - rest)``,
+        N m/rad per N m/rad or N/m per N/m: rad or m), ``damping`` (``-v_j``) or ``rest``
+        (``+stiffness``), on the spring's coordinate only."""
+        out = np.zeros((self.nv, len(fields)))
+        for col, (k, field) in enumerate(fields):
+            if field == "stiffness":
+                value = -(kin.q[self.iq[k]] - self.rest[k])
+            elif field == "damping":
+                value = -kin.v[self.iv[k]]
+            elif field == "rest":
+                value = self.stiffness[k]
+            else:
+                raise InvalidInputError(f"joint spring on {self.specs[k].joint!r} has no parameter {field!r}")
+            out[self.iv[k], col] = value
+        return out
+
 
 @dataclass(frozen=True)
 class Spring:
@@ -135,6 +163,8 @@ class Spring:
     Args:
         frame_a, frame_b: frame names.
         stiffness: N/m, >= 0.  damping: N s/m, >= 0.  rest_length: m, >= 0.
+        name: label of the spring (its parameters are ``spring:<name>:stiffness``, ...,
+            see `contactdiff.model.parameters`); defaults to ``"<frame_a>-<frame_b>"``.
     """
 
     frame_a: str
@@ -142,11 +172,16 @@ class Spring:
     stiffness: float
     damping: float = 0.0
     rest_length: float = 0.0
+    name: str | None = None
 
     def __post_init__(self) -> None:
         owner = f"spring {self.frame_a!r}-{self.frame_b!r}"
         for name in ("stiffness", "damping", "rest_length"):
             object.__setattr__(self, name, check_number(owner, name, getattr(self, name), minimum=0.0))
+        if self.name is None:
+            object.__setattr__(self, "name", f"{self.frame_a}-{self.frame_b}")
+        elif not isinstance(self.name, str) or not self.name:
+            raise InvalidInputError(f"{owner}: name must be a non-empty string, got {self.name!r}")
 
     def bind(self, robot: Robot) -> _BoundSpring:
         """The evaluator of this spring on ``robot`` (both frames resolved, distinct)."""
@@ -200,13 +235,50 @@ class _BoundSpring:
     def time_derivative(self, kin: Kinematics, t: float) -> np.ndarray:
         return np.zeros(kin.v.size)  # autonomous
 
+    def parameter_derivatives(self, kin: Kinematics, t: float, fields) -> np.ndarray:
+        """``d tau/dp`` (nv × len(fields)) for ``fields`` = ``(0, field)`` pairs, with
+        ``Jdᵀu = (J_b - J_a)ᵀ u`` (m per unit q): ``stiffness`` ``-Jdᵀu (l - rest_length)``
+        (N per N/m: m), ``damping`` ``-Jdᵀu l̇`` (m/s), ``rest_length`` ``+stiffness Jdᵀu``
+        (N/m)."""
+        s = self.spec
+        _, length, u, Jd = self._geometry(kin)
+        JTu = Jd.T @ u
+        per_field = {"stiffness": lambda: -JTu * (length - s.rest_length),
+                     "damping": lambda: -JTu * (u @ (Jd @ kin.v)),
+                     "rest_length": lambda: s.stiffness * JTu}
+        out = np.zeros((JTu.size, len(fields)))
+        for col, (_, field) in enumerate(fields):
+            if field not in per_field:
+                raise InvalidInputError(f"spring {s.name!r} has no parameter {field!r}")
+            out[:, col] = per_field[field]()
+        return out
+
 
 def bind_efforts(specs, robot: Robot) -> list:
     """Bind effort specs on ``robot``; every `JointSpring` goes into one evaluator
-    (a dozen joint springs then cost one vectorised call, not a dozen)."""
+    (a dozen joint springs then cost one vectorised call, not a dozen). The order
+    is that of `bound_positions`."""
     joint_springs = [s for s in specs if isinstance(s, JointSpring)]
     bound = [_BoundJointSpring(joint_springs, robot)] if joint_springs else []
     return bound + [s.bind(robot) for s in specs if not isinstance(s, JointSpring)]
+
+
+def bound_positions(specs) -> list[tuple[int, int]]:
+    """Where each spec of ``specs`` went in `bind_efforts` ``(specs, robot)``: per spec
+    ``(i, k)``, the index ``i`` of its evaluator in the returned list and its rank ``k``
+    in that evaluator (the joint springs share evaluator 0, ranked in spec order; every
+    other spec is alone in its own, ``k = 0``)."""
+    n_joint = sum(isinstance(s, JointSpring) for s in specs)
+    first = 1 if n_joint else 0
+    positions, rank, other = [], 0, 0
+    for s in specs:
+        if isinstance(s, JointSpring):
+            positions.append((0, rank))
+            rank += 1
+        else:
+            positions.append((first + other, 0))
+            other += 1
+    return positions
 
 
 @dataclass(frozen=True)
@@ -215,12 +287,13 @@ class UserEffort:
 
     Args:
         function: ``function(q, v, t) -> tau`` with ``tau`` of shape (nv,), in the
-            robot's generalised coordinates (N or N m).
+            robot's generalised coordinates (N or N m); with ``parameters``,
+            ``function(q, v, t, **parameters)``.
         jacobian: optional ``jacobian(q, v, t) -> (dtau_dq, dtau_dv)`` in the tangent
             space. Without it, derivatives are central finite differences on the
             manifold with step ``fd_step`` (truncation error ~ step², round-off ~
             eps/step: 1e-6 balances both near 1e-10 relative for smooth efforts).
-        name: label used in reports.
+        name: label used in reports, and in the names of its parameters.
         time_derivative: optional ``time_derivative(q, v, t) -> dtau_dt`` (N/s or
             N m/s, shape (nv,)), the explicit time rate, used where a contact force
             is a guard (lift-off); without it, a central difference in ``t`` with
@@ -229,6 +302,20 @@ class UserEffort:
             in ``t`` (the end of a ramp, a knot of a spline schedule); the
             integrator ends a step exactly on each (see the module notes). A
             force that jumps is better split into runs at the jump.
+        parameters: the effort's own named numbers, a mapping (or ``(name, value)``
+            pairs) from a Python identifier to a finite float, e.g. ``{"k": 2.0}``;
+            kept as a tuple of pairs in the given order. When given, *every*
+            callable of the effort (``function``, ``jacobian``, ``time_derivative``,
+            ``parameter_jacobian``) receives them as keyword arguments
+            (``function(q, v, t, k=2.0)``); without them the callables are called as
+            before. They are the scene's parameters ``effort:<name>:<parameter>``
+            (`contactdiff.model.parameters`): ``Scene.with_parameters`` changes them,
+            and the dynamics differentiates through them.
+        parameter_jacobian: optional ``parameter_jacobian(q, v, t, **parameters)``
+            returning ``d tau/dp`` of shape (nv, len(parameters)), columns in the
+            order of ``parameters`` (N or N m per unit of the parameter). Without it,
+            a central difference in each parameter with step
+            ``fd_step * max(1, |value|)`` (error as above, relative to that scale).
     """
 
     function: Callable
@@ -237,11 +324,13 @@ class UserEffort:
     fd_step: float = 1e-6
     time_derivative: Callable | None = None
     breakpoints: tuple = ()
+    parameters: tuple = ()
+    parameter_jacobian: Callable | None = None
 
     def __post_init__(self) -> None:
         if not callable(self.function):
             raise InvalidInputError(f"{self.name}: function must be callable, got {self.function!r}")
-        for field_name in ("jacobian", "time_derivative"):
+        for field_name in ("jacobian", "time_derivative", "parameter_jacobian"):
             value = getattr(self, field_name)
             if value is not None and not callable(value):
                 raise InvalidInputError(f"{self.name}: {field_name} must be callable or None, got {value!r}")
@@ -252,6 +341,9 @@ class UserEffort:
             raise InvalidInputError(f"{self.name}: breakpoints must be a sequence of times (s), "
                                     f"got {self.breakpoints!r}") from None
         object.__setattr__(self, "breakpoints", tuple(sorted(set(times))))
+        object.__setattr__(self, "parameters", _named_numbers(self.name, self.parameters))
+        if self.parameter_jacobian is not None and not self.parameters:
+            raise InvalidInputError(f"{self.name}: parameter_jacobian is given but the effort has no parameters")
 
     def bind(self, robot: Robot) -> _BoundUserEffort:
         """The evaluator of this effort on ``robot`` (its output checked for shape (nv,) and
@@ -259,9 +351,32 @@ class UserEffort:
         return _BoundUserEffort(self, robot)
 
 
+def _named_numbers(owner: str, value) -> tuple[tuple[str, float], ...]:
+    """``value`` (a mapping or ``(name, number)`` pairs) as a tuple of pairs with distinct
+    identifier names and finite float values."""
+    items = value.items() if isinstance(value, Mapping) else value
+    try:
+        pairs = [(name, number) for name, number in items]
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"{owner}: parameters must map names to numbers, got {value!r}") from None
+    out = []
+    for name, number in pairs:
+        if not isinstance(name, str) or not name.isidentifier():
+            raise InvalidInputError(f"{owner}: parameter names must be Python identifiers (they are passed "
+                                    f"as keyword arguments), got {name!r}")
+        out.append((name, check_number(owner, f"parameter {name!r}", number)))
+    names = [name for name, _ in out]
+    repeated = sorted({n for n in names if names.count(n) > 1})
+    if repeated:
+        raise InvalidInputError(f"{owner}: parameter names must be distinct; repeated: {', '.join(repeated)}")
+    return tuple(out)
+
+
 class _BoundUserEffort:
     def __init__(self, spec: UserEffort, robot: Robot):
         self.spec, self.robot = spec, robot
+        self._kwargs = dict(spec.parameters)
+        self._names = [name for name, _ in spec.parameters]
         if spec.breakpoints:
             self.next_breakpoint = self._next_breakpoint
 
@@ -269,8 +384,8 @@ class _BoundUserEffort:
         i = bisect.bisect_right(self.spec.breakpoints, t)
         return self.spec.breakpoints[i] if i < len(self.spec.breakpoints) else math.inf
 
-    def _call(self, q, v, t) -> np.ndarray:
-        tau = np.asarray(self.spec.function(q, v, t), dtype=float)
+    def _call(self, q, v, t, kwargs=None) -> np.ndarray:
+        tau = np.asarray(self.spec.function(q, v, t, **(self._kwargs if kwargs is None else kwargs)), dtype=float)
         if tau.shape != (self.robot.nv,):
             raise InvalidInputError(
                 f"{self.spec.name}: function returned shape {tau.shape}, expected ({self.robot.nv},)")
@@ -284,7 +399,7 @@ class _BoundUserEffort:
     def derivatives(self, kin: Kinematics, t: float) -> tuple[np.ndarray, np.ndarray]:
         q, v, nv = kin.q, kin.v, self.robot.nv
         if self.spec.jacobian is not None:
-            dq, dv = (np.asarray(x, dtype=float) for x in self.spec.jacobian(q, v, t))
+            dq, dv = (np.asarray(x, dtype=float) for x in self.spec.jacobian(q, v, t, **self._kwargs))
             if dq.shape != (nv, nv) or dv.shape != (nv, nv):
                 raise InvalidInputError(
                     f"{self.spec.name}: jacobian returned shapes {dq.shape}, {dv.shape}; expected ({nv}, {nv})")
@@ -302,11 +417,38 @@ class _BoundUserEffort:
     def time_derivative(self, kin: Kinematics, t: float) -> np.ndarray:
         if self.spec.time_derivative is None:
             return central_time_difference(self, kin, t, self.spec.fd_step)
-        rate = np.asarray(self.spec.time_derivative(kin.q, kin.v, t), dtype=float)
+        rate = np.asarray(self.spec.time_derivative(kin.q, kin.v, t, **self._kwargs), dtype=float)
         if rate.shape != (self.robot.nv,) or not np.all(np.isfinite(rate)):
             raise InvalidInputError(f"{self.spec.name}: time_derivative returned {rate!r}; "
                                     f"expected {self.robot.nv} finite numbers")
         return rate
+
+    def parameter_derivatives(self, kin: Kinematics, t: float, fields) -> np.ndarray:
+        """``d tau/dp`` (nv × len(fields)) for ``fields`` = ``(0, name)`` pairs, ``name`` one
+        of the effort's ``parameters``: from ``parameter_jacobian`` if given, else by
+        central differences (see `UserEffort`)."""
+        nv, names = self.robot.nv, [field for _, field in fields]
+        for name in names:
+            if name not in self._kwargs:
+                raise InvalidInputError(f"{self.spec.name}: no parameter {name!r}; its parameters: "
+                                        f"{', '.join(self._names) or '(none)'}")
+        columns = [self._names.index(name) for name in names]
+        if self.spec.parameter_jacobian is not None:
+            J = np.asarray(self.spec.parameter_jacobian(kin.q, kin.v, t, **self._kwargs), dtype=float)
+            if J.shape != (nv, len(self._names)) or not np.all(np.isfinite(J)):
+                raise InvalidInputError(f"{self.spec.name}: parameter_jacobian returned shape {J.shape}"
+                                        f"{'' if J.shape != (nv, len(self._names)) else ' with non-finite entries'}; "
+                                        f"expected {nv} x {len(self._names)} finite numbers (one column a parameter)")
+            return J[:, columns].copy()
+        out = np.empty((nv, len(names)))
+        for col, name in enumerate(names):
+            value = self._kwargs[name]
+            h = self.spec.fd_step * max(1.0, abs(value))
+            plus, minus = dict(self._kwargs), dict(self._kwargs)
+            plus[name], minus[name] = value + h, value - h  # the step as represented: plus - minus
+            out[:, col] = ((self._call(kin.q, kin.v, t, plus) - self._call(kin.q, kin.v, t, minus))
+                           / (plus[name] - minus[name]))
+        return out
 
 
 def central_time_difference(effort, kin: Kinematics, t: float, step: float) -> np.ndarray:
