@@ -156,6 +156,50 @@ class Scene:
             total += e.time_derivative(kin, t)
         return total
 
+    # -- named parameters (contactdiff.model.parameters) ---------------------------------
+    def parameter_names(self) -> list[str]:
+        """Names ``kind:target:field`` of every parameter of the scene: gravity, the
+        bodies' masses, centres of mass and inertias, joint armatures, contact
+        restitutions and offsets, spring, joint-spring, trot-controller and user-effort
+        numbers (the naming rules and units are in `contactdiff.model.parameters`)."""
+        from .parameters import parameter_names
+
+        return parameter_names(self)
+
+    def parameter_values(self, names) -> np.ndarray:
+        """Current values of the parameters ``names`` (one name, a sequence, or ``"all"``),
+        in their units.
+
+        Raises:
+            UnknownNameError: an unknown name (the valid ones are listed).
+        """
+        from .parameters import parameter_values
+
+        return parameter_values(self, names)
+
+    def with_parameters(self, values: Mapping) -> Scene:
+        """A new scene with parameters changed (``{name: value}``); this scene, its robot
+        and its model are untouched. Values are validated as a scene file's are (see
+        `contactdiff.model.parameters.with_parameters`).
+
+        Raises:
+            UnknownNameError: an unknown name (the valid ones are listed).
+            InvalidInputError: a non-finite or out-of-range value.
+            InconsistentStateError: the initial state penetrates a changed contact.
+        """
+        from .parameters import with_parameters
+
+        return with_parameters(self, values)
+
+    def tau_parameter_derivatives(self, kin: Kinematics, t: float, params) -> np.ndarray:
+        """``d tau/dp`` (nv × len(params)) of the efforts' sum `tau` at the state of ``kin``
+        and time ``t`` (s), per unit of each parameter (`Parameter` objects of this scene
+        or names); zero columns for parameters no effort depends on (see
+        `contactdiff.model.parameters.tau_parameter_derivatives`)."""
+        from .parameters import tau_parameter_derivatives
+
+        return tau_parameter_derivatives(self, kin, t, params)
+
     def check_state(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """Validate a state; return its gaps.
 
