@@ -133,22 +133,26 @@ class _BoundJointSpring:
     def time_derivative(self, kin: Kinematics, t: float) -> np.ndarray:
         return np.zeros(self.nv)  # autonomous
 
+    _FIELDS = ("stiffness", "damping", "rest")
+
     def parameter_derivatives(self, kin: Kinematics, t: float, fields) -> np.ndarray:
         """``d tau/dp`` (nv × len(fields)) for ``fields`` = ``(k, field)`` pairs: spring ``k``
         (rank among the joint springs) and ``field`` in ``stiffness`` (``-(q_j - rest)``,
         N m/rad per N m/rad or N/m per N/m: rad or m), ``damping`` (``-v_j``) or ``rest``
-        (``+stiffness``), on the spring's coordinate only."""
+        (``+stiffness``), on the spring's coordinate only. The index arrays of the last
+        ``fields`` list are kept (the dynamics asks with the same list at every stage)."""
+        last = self.__dict__.get("_last_fields")
+        if last is None or last[0] is not fields:
+            for k, field in fields:
+                if field not in self._FIELDS:
+                    raise InvalidInputError(f"joint spring on {self.specs[k].joint!r} has no parameter {field!r}")
+            ks = np.array([k for k, _ in fields], dtype=int)
+            codes = np.array([self._FIELDS.index(field) for _, field in fields], dtype=int)
+            last = self._last_fields = (fields, ks, codes, np.arange(len(fields)))
+        _, ks, codes, cols = last
+        values = np.stack([-(kin.q[self.iq[ks]] - self.rest[ks]), -kin.v[self.iv[ks]], self.stiffness[ks]])
         out = np.zeros((self.nv, len(fields)))
-        for col, (k, field) in enumerate(fields):
-            if field == "stiffness":
-                value = -(kin.q[self.iq[k]] - self.rest[k])
-            elif field == "damping":
-                value = -kin.v[self.iv[k]]
-            elif field == "rest":
-                value = self.stiffness[k]
-            else:
-                raise InvalidInputError(f"joint spring on {self.specs[k].joint!r} has no parameter {field!r}")
-            out[self.iv[k], col] = value
+        out[self.iv[ks], cols] = values[codes, cols]
         return out
 
 

@@ -391,6 +391,13 @@ Those terms are affine in the parameter (see
 exact up to round-off whatever the step; a large one keeps the round-off small."""
 
 
+def _columns(cols: list[int]):
+    """A slice for consecutive columns (a view, no index array), else an index array."""
+    if cols == list(range(cols[0], cols[0] + len(cols))):
+        return slice(cols[0], cols[0] + len(cols))
+    return np.array(cols, dtype=int)
+
+
 class _Plan:
     """How to fill the columns of `tau_parameter_derivatives` for one list of parameters."""
 
@@ -404,13 +411,13 @@ class _Plan:
                 cols, fields = own.setdefault(i, ([], []))
                 cols.append(col)
                 fields.append((k, p.field))
-        self.own = [(scene.efforts[i], cols, fields) for i, (cols, fields) in own.items()]
+        self.own = [(scene.efforts[i], _columns(cols), fields) for i, (cols, fields) in own.items()]
         model_cols = [col for col, p in enumerate(params) if p.kind in _MODEL_KINDS]
         self.model = []
         dependent = [e for e in scene.efforts if hasattr(e, "model_parameter_derivatives")]
         if model_cols and dependent:
             perturbed = [self._perturbation(scene, params[col]) for col in model_cols]
-            self.model = [(e, model_cols, perturbed) for e in dependent]
+            self.model = [(e, _columns(model_cols), perturbed) for e in dependent]
 
     @staticmethod
     def _perturbation(scene: Scene, p: Parameter):
