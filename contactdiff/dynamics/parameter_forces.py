@@ -18,7 +18,10 @@ contact) and ``∂lam/∂tau``. `ParameterForces.forces` gives ``∂f/∂p`` (nv
 * a joint's armature: ``-ddq_j`` on its coordinate;
 * gravity (m/s², world): ``-g(q; e_k)``, the generalised gravity of a unit
   gravity along axis k (gravity enters RNEA linearly);
-* an effort's parameters: ``∂tau/∂p`` from the scene's efforts;
+* through the efforts, ``∂tau/∂p`` (`Scene.tau_parameter_derivatives`): their own
+  parameters (springs, gains, ...), and the model's where an effort is computed
+  from the model when bound (the trot controller's feed-forward holds the
+  weight: it moves with the masses, centres of mass and gravity);
 * a contact's restitution and offset: zero (they act at events only).
 
 At an impact the balance is ``A^T Λ - M(q; p) (v+ - v-) = 0``;
@@ -88,16 +91,14 @@ class ParameterForces:
         model = scene.model
         self.model, self.nv, self.p = model, model.nv, len(self.parameters)
         self._data = model.createData()
-        self._regressor_columns: list[tuple[int, slice, np.ndarray]] = []  # (column, Y's columns, ∂π/∂p)
+        inertial: list[tuple[int, int, np.ndarray]] = []  # (column, joint, ∂π/∂p)
         self._armature: list[tuple[int, int]] = []  # (column, tangent index)
         self._gravity: list[tuple[int, pin.Model, pin.Data]] = []  # (column, unit-gravity model, data)
-        self._efforts: list[int] = []
+        self._efforts: list[int] = []  # columns the efforts may depend on: all but the contacts'
         for col, par in enumerate(self.parameters):
             kind = par.kind
             if kind is ParameterKind.BODY:
-                j = par.joint
-                self._regressor_columns.append((col, slice(10 * (j - 1), 10 * j),
-                                                dynamic_parameter_derivative(model.inertias[j], par.field)))
+                inertial.append((col, par.joint, dynamic_parameter_derivative(model.inertias[par.joint], par.field)))
             elif kind is ParameterKind.JOINT:
                 self._armature.append((col, model.joints[model.getJointId(par.target)].idx_v))
             elif kind is ParameterKind.SCENE:
@@ -106,9 +107,15 @@ class ParameterForces:
                 g[_AXES[par.field[-1]]] = 1.0
                 unit.gravity = pin.Motion(g, np.zeros(3))
                 self._gravity.append((col, unit, unit.createData()))
-            elif kind is not ParameterKind.CONTACT:
+            if kind is not ParameterKind.CONTACT:
                 self._efforts.append(col)
         self._effort_parameters = [self.parameters[k] for k in self._efforts]
+        # ∂π/∂p of the inertial columns as one matrix (10 per body × their count): one product
+        # with the regressor gives them all
+        self._inertial_columns = [col for col, _, _ in inertial]
+        self._dpi = np.zeros((10 * (model.njoints - 1), len(inertial)))
+        for k, (_, j, dpi) in enumerate(inertial):
+            self._dpi[10 * (j - 1):10 * j, k] = dpi
         self._still = model.copy()  # no gravity: the regressor of M dv alone
         self._still.gravity = pin.Motion.Zero()
         self._still_data = self._still.createData()
@@ -116,30 +123,30 @@ class ParameterForces:
     @property
     def acts_in_flows(self) -> bool:
         """Whether any parameter changes the equations of motion (not only events)."""
-        return bool(self._regressor_columns or self._armature or self._gravity or self._efforts)
+        return bool(self._inertial_columns or self._armature or self._gravity or self._efforts)
 
     def forces(self, kin: Kinematics, q: np.ndarray, v: np.ndarray, ddq: np.ndarray, t: float) -> np.ndarray:
         """``∂f/∂p`` (nv × p) at ``(q, v, ddq)`` and time ``t`` (s); ``kin`` at ``(q, v)``."""
         out = np.zeros((self.nv, self.p))
-        if self._regressor_columns:
-            Y = pin.computeJointTorqueRegressor(self.model, self._data, q, v, ddq)
-            for col, cols, dpi in self._regressor_columns:
-                out[:, col] = -(Y[:, cols] @ dpi)
+        if self._inertial_columns:
+            # (nv, 10 bodies); the binding returns a flat array when nv = 1
+            Y = np.reshape(pin.computeJointTorqueRegressor(self.model, self._data, q, v, ddq), (self.nv, -1))
+            out[:, self._inertial_columns] = -(Y @ self._dpi)
         for col, iv in self._armature:
             out[iv, col] = -ddq[iv]
         for col, unit, data in self._gravity:
             out[:, col] = -pin.computeGeneralizedGravity(unit, data, q)
         if self._efforts:
-            out[:, self._efforts] = self.scene.tau_parameter_derivatives(kin, t, self._effort_parameters)
+            out[:, self._efforts] += self.scene.tau_parameter_derivatives(kin, t, self._effort_parameters)
         return out
 
     def impulse_forces(self, q: np.ndarray, dv: np.ndarray) -> np.ndarray:
         """``-∂(M(q) dv)/∂p`` (nv × p) of an impact's balance, ``dv = v+ - v-`` (m/s, rad/s)."""
         out = np.zeros((self.nv, self.p))
-        if self._regressor_columns:
-            Y = pin.computeJointTorqueRegressor(self._still, self._still_data, q, np.zeros(self.nv), dv)
-            for col, cols, dpi in self._regressor_columns:
-                out[:, col] = -(Y[:, cols] @ dpi)
+        if self._inertial_columns:
+            Y = np.reshape(pin.computeJointTorqueRegressor(self._still, self._still_data, q, np.zeros(self.nv), dv),
+                           (self.nv, -1))
+            out[:, self._inertial_columns] = -(Y @ self._dpi)
         for col, iv in self._armature:
             out[iv, col] = -dv[iv]
         return out

@@ -131,7 +131,8 @@ class HybridLoop:
     subclass may read: ``scene``, ``dyn`` (its `ModeDynamics`), ``kin`` (the
     scene's kinematics cache), ``contacts``, ``names``, ``options``, ``events``,
     ``segments``, ``notes``, and ``phi``, the flow Jacobian just before the event
-    being processed (with ``options.jacobian``).
+    being processed (with ``options.jacobian`` or ``options.parameters``: its columns are
+    the state's 2nv with ``jacobian``, then the parameters').
     """
 
     def __init__(self, scene: Scene, t0: float, t_final: float, q0=None, v0=None,
@@ -165,14 +166,20 @@ class HybridLoop:
         self.phi = None  # flow Jacobian just before the event being processed
         self.initial_saltation = None
         self.jumps = None  # the parameters' blocks at events, with options.parameters
+        # phi's columns: the state's 2nv (with options.jacobian), then the parameters'
+        self.sensitive = self.options.jacobian or bool(self.options.parameters)
+        self.n_state = 2 * self.scene.nv if self.options.jacobian else 0
         if self.options.parameters:
             from ..model.parameters import resolve  # the model's names import the dynamics' scene
             self.jumps = ParameterJumps(self.dyn, resolve(self.scene, self.options.parameters))
 
     def _identity_phi(self) -> np.ndarray:
-        """The flow Jacobian at the start: ``[I, 0]`` (2nv × (2nv + p)) with parameters."""
+        """The flow Jacobian at the start: ``[I, 0]`` (2nv × (2nv + p)); without the state's
+        Jacobian, the p parameter columns only (zero)."""
         n = 2 * self.scene.nv
-        return np.eye(n, n + (self.jumps.p if self.jumps else 0))
+        phi = np.zeros((n, self.n_state + (self.jumps.p if self.jumps else 0)))
+        phi[:, :self.n_state] = np.eye(n, self.n_state)
+        return phi
 
     def _field(self, mode, fused: bool) -> ModeField:
         return ModeField(self.dyn, mode, fused=fused, parameters=self.jumps.forces if self.jumps else None)
@@ -182,7 +189,7 @@ class HybridLoop:
         ``Ξ_p`` on the parameter columns."""
         out = event.saltation @ phi
         if event.parameter_saltation is not None:
-            out[:, 2 * self.scene.nv:] += event.parameter_saltation
+            out[:, self.n_state:] += event.parameter_saltation
         return out
 
     # -- hooks ----------------------------------------------------------------------
@@ -237,10 +244,10 @@ class HybridLoop:
         sliding = [i for i in closed if self.contacts[i].n_rows > 1
                    and np.max(np.abs(self.contacts[i].rows(self.kin)[1:] @ v)) > self.options.grazing_speed]
         if any(rates[i] < -self.options.grazing_speed for i in closed) or sliding:
-            if self.options.jacobian:
+            if self.sensitive:
                 self.phi = self._identity_phi()
             mode, v_plus = self._impact(self.t0, q, v, (), closed, closed, initial=True)
-            if self.options.jacobian:
+            if self.sensitive:
                 self.initial_saltation = self._jumped(self._identity_phi(), self.events[-1])
             return mode, v_plus
         candidates = [i for i in closed if rates[i] <= self.options.grazing_speed]
@@ -253,7 +260,7 @@ class HybridLoop:
         options = dict(rtol=o.rtol, atol=o.atol, max_step=o.max_step, t_bound=self.t_final)
         if self.jumps is not None:
             options.update(parameter_jac=field.parameter_jac, variational_column_scale=np.concatenate(
-                [np.ones(2 * self.scene.nv), self.jumps.scale]))
+                [np.ones(self.n_state), self.jumps.scale]))
         return options
 
     def run(self) -> Trajectory:
@@ -261,12 +268,12 @@ class HybridLoop:
         options, scene = self.options, self.scene
         q, v = scene.q0.copy(), scene.v0.copy()
         mode, v = self.initial_mode(q, v)
-        field = self._field(mode, fused=options.jacobian and options.method != "Radau")
+        field = self._field(mode, fused=self.sensitive and options.method != "Radau")
         self.chooser = MethodChooser(self._probe(mode)) if options.method == AUTO else None
         stepper = make_stepper(EXPLICIT if self.chooser else options.method, field.accel, self.group, self.t0,
-                               q, v, jac=field.jac, variational=self._identity_phi() if options.jacobian else None,
+                               q, v, jac=field.jac, variational=self._identity_phi() if self.sensitive else None,
                                **self._stepper_options(field))
-        if options.jacobian and self.initial_saltation is not None:
+        if self.sensitive and self.initial_saltation is not None:
             stepper.restart(self.t0, q, v, phi=self.initial_saltation)
         self.fields.append(field)
         segment = Segment(t0=self.t0, t1=self.t0, mode=self._mode_names(mode), sliding=self._sliding_names(mode))
@@ -326,7 +333,7 @@ class HybridLoop:
             for event in self.events[n_before:]:
                 stop = self.on_event(event, mode_before, phi_before) or stop
             q_event = self.events[-1].q
-            field = self._field(mode, fused=options.jacobian and stepper.method != "Radau")
+            field = self._field(mode, fused=self.sensitive and stepper.method != "Radau")
             self.fields.append(field)
             stepper.restart(t_event, q_event, v_plus, accel=field.accel, jac=field.jac,
                             parameter_jac=field.parameter_jac if self.jumps else None,
@@ -358,7 +365,7 @@ class HybridLoop:
         self.retired.append(stepper)
         self.switches.append((stepper.t, method))
         # Radau evaluates the field at Newton iterates, where no derivative is wanted
-        field.fused = self.options.jacobian and method != "Radau"
+        field.fused = self.sensitive and method != "Radau"
         rho = self.chooser.rho
         if len(self.switches) <= MAX_NOTES:
             why = ("explicit steps limited by stability" if method != EXPLICIT
@@ -367,7 +374,7 @@ class HybridLoop:
                               f"h = {stepper.h_abs:.3g} s, spectral radius {rho:.3g} /s)")
         return make_stepper(method, field.accel, self.group, stepper.t, stepper.q, stepper.v,
                             jac=field.jac, first_step=stepper.h_abs,
-                            variational=stepper.phi if self.options.jacobian else None,
+                            variational=stepper.phi if self.sensitive else None,
                             **self._stepper_options(field))
 
     def _trajectory(self, stepper, termination: Termination) -> Trajectory:
@@ -391,8 +398,8 @@ class HybridLoop:
                           v0=self.scene.v0.copy(), t=stepper.t, q=stepper.q.copy(), v=stepper.v.copy(),
                           events=self.events, segments=self.segments, stats=stats, max_drift=self.max_drift,
                           termination=termination, notes=self.notes, dense=self.options.dense,
-                          jacobian=stepper.phi[:, :2 * self.scene.nv].copy() if self.options.jacobian else None,
-                          parameter_jacobian=stepper.phi[:, 2 * self.scene.nv:].copy() if self.jumps else None,
+                          jacobian=stepper.phi[:, :self.n_state].copy() if self.options.jacobian else None,
+                          parameter_jacobian=stepper.phi[:, self.n_state:].copy() if self.jumps else None,
                           parameter_names=tuple(self.options.parameters))
 
     # -- detection ------------------------------------------------------------------
@@ -439,7 +446,7 @@ class HybridLoop:
                       q=q.copy(), v_minus=v.copy(), v_plus=v.copy(), impulses={},
                       mode_before=self._mode_names(mode), mode_after=self._mode_names(new_mode),
                       sliding=self._sliding_names(new_mode))
-        if self.options.jacobian:
+        if self.sensitive:
             # guard: the normal force of the first releasing contact; with several at once
             # (a simultaneous lift-off) the saltation is the product of the single
             # lift-offs in turn (each releasing contact's guard in the mode left by the
@@ -558,14 +565,15 @@ class HybridLoop:
                 R_p = held_velocity_jacobian(self.dyn, q, v_plus, new_mode) @ R_p
             return R_p
 
-        if self.options.jacobian and initial:
+        if self.sensitive and initial:
             # no guard at t0: perturbations keep the start time, only the reset acts
             event.saltation = reset_jacobian()
-            event.time_gradient = np.zeros(2 * self.scene.nv)
+            if self.options.jacobian:
+                event.time_gradient = np.zeros(2 * self.scene.nv)
             if self.jumps:
                 event.parameter_saltation = reset_parameters()
                 event.parameter_time_gradient = np.zeros(self.jumps.p)
-        elif self.options.jacobian:
+        elif self.sensitive:
             F_minus = vector_field(self.dyn, q, v_minus, t, mode)
             guard = min(touching, key=lambda i: speeds[i])
             Dh = gap_gradient(self.dyn, q, guard)
@@ -600,10 +608,11 @@ class HybridLoop:
         """Saltation matrix and event-time gradient ``-Dh Φ- / (Dh F- + h_t)`` (implicit
         functions; ``h_t`` the guard's explicit time rate); with parameters also their
         block ``xi_p`` and time gradient ``-(Dh Φ-_p + h_p) / (Dh F- + h_t)``."""
-        n = 2 * self.scene.nv
+        n = self.n_state
         rate = float(Dh @ F_minus) + h_t
         event.saltation = xi
-        event.time_gradient = -(Dh @ self.phi[:, :n]) / rate
+        if self.options.jacobian:
+            event.time_gradient = -(Dh @ self.phi[:, :n]) / rate
         if self.jumps is not None:
             event.parameter_saltation = xi_p
             event.parameter_time_gradient = -(Dh @ self.phi[:, n:] + h_p) / rate
@@ -621,10 +630,10 @@ class HybridLoop:
         self.max_drift = max(self.max_drift, drift)
         if drift <= self.options.resolved_project_tol:
             return False
-        q, v, D = project_state(self.dyn, stepper.q, stepper.v, mode, jacobian=self.options.jacobian)
+        q, v, D = project_state(self.dyn, stepper.q, stepper.v, mode, jacobian=self.sensitive)
         phi = None if D is None else D @ stepper.phi
         if self.jumps is not None:
-            phi[:, 2 * self.scene.nv:] += self.jumps.projection(q, mode)
+            phi[:, self.n_state:] += self.jumps.projection(q, mode)
         stepper.restart(stepper.t, q, v, phi=phi)
         self.n_projections += 1
         return True

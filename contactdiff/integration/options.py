@@ -55,8 +55,9 @@ class SimulateOptions:
         jacobian: also compute the flow Jacobian ``traj.jacobian`` (d x(t_final) /
             d x0, tangent space) and each event's saltation matrix and time gradient.
         parameters: names of scene parameters (`Scene.parameter_names`) to
-            differentiate with respect to, with ``jacobian``: ``traj.parameter_jacobian``
-            (d x(t_final) / d p) and each event's parameter blocks.
+            differentiate with respect to: ``traj.parameter_jacobian`` (d x(t_final) /
+            d p) and each event's parameter blocks. Without ``jacobian`` only those
+            columns are propagated (cheaper than the state's 2nv); with it, both.
         max_events: largest number of events before `TooManyEventsError`.
         max_steps: largest number of accepted steps before `TooManyStepsError`
             (its ``.trajectory`` holds the run so far); the default `MAX_STEPS`
@@ -126,9 +127,6 @@ class SimulateOptions:
             raise InvalidInputError(f"simulate: parameters must be parameter names (str), got {self.parameters!r}")
         if len(set(names)) != len(names):
             raise InvalidInputError(f"simulate: parameters name one twice: {self.parameters!r}")
-        if names and not self.jacobian:
-            raise InvalidInputError("simulate: parameters need jacobian=True (their sensitivities ride on the "
-                                    "flow Jacobian)")
         set_(self, "parameters", names)
         set_(self, "dense", bool(self.dense))
         set_(self, "max_events", check_count("simulate", "max_events", self.max_events))

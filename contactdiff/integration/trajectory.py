@@ -103,6 +103,7 @@ class Event:
         saltation: saltation matrix Ξ (2nv × 2nv) when the Jacobian was asked for.
         time_gradient: derivative of the event time with respect to the initial
             state (2nv,), tangent space, when the Jacobian was asked for.
+            (``saltation`` is also there when only parameters were asked for.)
         parameter_saltation: with parameters, the saltation's parameter block Ξ_p
             (2nv × p): ``∂x+/∂p = Ξ ∂x-/∂p + Ξ_p`` (`contactdiff.integration.parameter_jumps`).
         parameter_time_gradient: with parameters, the derivative of the event time
@@ -146,7 +147,8 @@ class Event:
         extra = {}
         if self.saltation is not None:
             extra["saltation"] = self.saltation.tolist()
-            extra["time_gradient"] = self.time_gradient.tolist()
+            if self.time_gradient is not None:
+                extra["time_gradient"] = self.time_gradient.tolist()
         if self.parameter_saltation is not None:
             extra["parameter_saltation"] = self.parameter_saltation.tolist()
             extra["parameter_time_gradient"] = self.parameter_time_gradient.tolist()
