@@ -128,6 +128,11 @@ def build_parser() -> argparse.ArgumentParser:
                           f"(default {MAX_STEPS})")
     sim.add_argument("--jacobian", action="store_true",
                      help="also compute the flow Jacobian d x(T)/d x0 and every saltation matrix")
+    sim.add_argument("--param", action="append", default=[], metavar="NAME",
+                     help="differentiate the final state with respect to this scene parameter "
+                          "(kind:name:field, e.g. body:base_link:mass, contact:FL_FOOT:restitution, "
+                          "scene:gravity_z; repeatable; 'all' for every parameter of the scene; "
+                          "'list' prints the names); with --jacobian also the state's flow Jacobian")
     sim.add_argument("--json", action="store_true", help="print the trajectory summary as JSON")
     _add_plot(sim, "draw contact gaps over time with events marked; for a floating base, "
                    "the contact timeline and the base height, roll and pitch")
@@ -289,10 +294,15 @@ def _run_simulate(args) -> int:
     if args.plot:
         _check_plot_path(args.plot)
     scene = _scene_from_args(args)
+    if "list" in args.param:
+        _print("\n".join(scene.parameter_names()))
+        return 0
+    parameters = scene.parameter_names() if "all" in args.param else list(args.param)
     with _ProgressBar(f"simulate {scene.name}", (0.0, args.t_final)) as bar:
         traj = simulate(scene, args.t_final, method=args.method, rtol=args.rtol, atol=args.atol,
                         jacobian=args.jacobian, max_steps=args.max_steps, progress=bar,
-                        dense=bool(args.plot))  # a plot samples the states between events
+                        dense=bool(args.plot),  # a plot samples the states between events
+                        parameters=parameters)
     if args.plot:
         from .plotting import plot_gait, plot_gaps
 
@@ -373,7 +383,25 @@ def _format_trajectory(traj, scene) -> str:
     lines += [f"note: {n}" for n in traj.notes]
     if traj.jacobian is not None:
         lines += [""] + _format_jacobian(traj, scene)
+    if traj.parameter_jacobian is not None:
+        lines += [""] + _format_parameter_jacobian(traj, scene)
     return "\n".join(lines)
+
+
+def _format_parameter_jacobian(traj, scene) -> list[str]:
+    """Per parameter: its value, the largest entry of its column and where."""
+    import numpy as np
+
+    P = traj.parameter_jacobian
+    names = scene.robot.tangent_names()
+    labels = [f"dq[{n}]" for n in names] + [f"dv[{n}]" for n in names]
+    values = scene.parameter_values(list(traj.parameter_names))
+    lines = [f"parameter Jacobian d x({traj.t:g}) / d p: {P.shape[0]} x {P.shape[1]}, tangent space, "
+             "per unit of each parameter", f"  {'parameter':<40} {'value':>12}  {'largest entry':>14}  of"]
+    for k, (name, value) in enumerate(zip(traj.parameter_names, values)):
+        i = int(np.argmax(np.abs(P[:, k])))
+        lines.append(f"  {name:<40} {value:12.6g}  {P[i, k]:14.6g}  {labels[i]}")
+    return lines
 
 
 def _format_jacobian(traj, scene) -> list[str]:

@@ -163,3 +163,23 @@ def test_a_long_run_draws_a_progress_bar_on_a_terminal(monkeypatch):
                 time.sleep(0.05)
         text = stream.getvalue()
         assert ("t = 0.5 / 2 s, 3 events, 40 steps" in text) == shown, text
+
+
+def test_simulate_param_json_carries_the_parameter_jacobian(capsys):
+    """The ball after one bounce: d z / d e = u (T - t1) with u = t1 = sqrt(2) (g = 1, height 1)."""
+    assert main(["simulate", "ball", "--t-final", "2.5", "--jacobian", "--rtol", "1e-12", "--atol", "1e-13",
+                 "--param", "contact:ball:restitution", "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["parameter_names"] == ["contact:ball:restitution"]
+    assert abs(data["parameter_jacobian"][0][0] - 2**0.5 * (2.5 - 2**0.5)) < 1e-9
+    assert len(data["events"][0]["parameter_time_gradient"]) == 1
+
+
+def test_simulate_param_all_and_list(capsys):
+    assert main(["simulate", "ball", "--t-final", "0.5", "--param", "list"]) == 0
+    names = capsys.readouterr().out.split()
+    assert "contact:ball:restitution" in names and "scene:gravity_z" in names
+    assert main(["simulate", "ball", "--t-final", "0.5", "--jacobian", "--param", "all"]) == 0
+    out = capsys.readouterr().out
+    assert "parameter Jacobian" in out and all(n in out for n in names)
+

@@ -1,0 +1,101 @@
+"""What parameter sensitivities cost: the tilted solo12 drop (0.3 s, 33 events).
+
+Timed in one process, the runs of each line taken in turn round after round (median
+of 5 rounds; default tolerances, rtol 1e-8):
+
+* the plain run, the run with the state's flow Jacobian (2nv = 36 columns), the run
+  with the parameter Jacobian of all of solo12's inertial parameters (13 bodies × 10:
+  mass, centre of mass, inertia about it; 130 columns), and the run with both: the
+  aim is the parameter Jacobian at most 2 times the state's;
+* for p = 1, 2, 4, 8 inertial parameters of the base, one run with those p
+  parameters' Jacobian against the 2p plain runs of a central finite difference.
+
+    python scripts/parameter_cost.py [--rounds 5] [--json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import time
+
+from scipy.spatial.transform import Rotation
+
+import contactdiff as cd
+
+T_FINAL = 0.3
+
+
+def tilted_drop() -> cd.Scene:
+    """solo12_drop rolled 0.03 and pitched 0.05 rad, raised 1 cm: feet land one at a time."""
+    scene = cd.load_scene("solo12_drop")
+    q = scene.q0.copy()
+    q[3:7] = Rotation.from_euler("xyz", [0.03, 0.05, 0.0]).as_quat()
+    q[2] += 0.01
+    return scene.with_state(q)
+
+
+def _interleaved(jobs: dict, rounds: int) -> dict[str, float]:
+    times: dict[str, list[float]] = {name: [] for name in jobs}
+    for _ in range(rounds):
+        for name, job in jobs.items():
+            start = time.perf_counter()
+            job()
+            times[name].append(time.perf_counter() - start)
+    return {name: statistics.median(t) for name, t in times.items()}
+
+
+def measure(rounds: int) -> dict:
+    scene = tilted_drop()
+    inertial = [n for n in scene.parameter_names() if n.startswith("body:")]
+    base = [n for n in inertial if n.startswith("body:base_link:")]
+    values = dict(zip(inertial, scene.parameter_values(inertial)))
+
+    def fd(names):
+        def run():  # the 2p perturbed plain runs of a central difference
+            for name in names:
+                for sign in (1, -1):
+                    cd.simulate(scene.with_parameters({name: values[name] * (1 + sign * 1e-5)}), T_FINAL)
+        return run
+
+    jobs = {
+        "plain": lambda: cd.simulate(scene, T_FINAL),
+        "jacobian": lambda: cd.simulate(scene, T_FINAL, jacobian=True),
+        f"{len(inertial)} inertial": lambda: cd.simulate(scene, T_FINAL, parameters=inertial),
+        f"jacobian + {len(inertial)} inertial": lambda: cd.simulate(scene, T_FINAL, jacobian=True,
+                                                                   parameters=inertial),
+    }
+    for p in (1, 2, 4, 8):
+        names = base[:p]
+        jobs[f"{p} parameters"] = (lambda names=names: cd.simulate(scene, T_FINAL, parameters=names))
+        jobs[f"FD, {2 * p} runs"] = fd(names)
+    t = _interleaved(jobs, rounds)
+    rows = {"times_s": t, "events": len(cd.simulate(scene, T_FINAL).events), "parameters": len(inertial),
+            "all_inertial_over_jacobian": t[f"{len(inertial)} inertial"] / t["jacobian"],
+            "both_over_jacobian": t[f"jacobian + {len(inertial)} inertial"] / t["jacobian"],
+            "fd_over_one_run": {p: t[f"FD, {2 * p} runs"] / t[f"{p} parameters"] for p in (1, 2, 4, 8)}}
+    return rows
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--rounds", type=int, default=5, help="rounds of interleaved runs (median kept)")
+    parser.add_argument("--json", action="store_true", help="print the results as JSON")
+    args = parser.parse_args()
+    rows = measure(args.rounds)
+    if args.json:
+        print(json.dumps(rows, indent=2))
+        return
+    print(f"tilted solo12 drop, {T_FINAL} s, {rows['events']} events; median of {args.rounds} rounds")
+    for name, t in rows["times_s"].items():
+        print(f"  {name:<28} {t:7.3f} s")
+    print(f"parameter Jacobian of all {rows['parameters']} inertial parameters / state Jacobian alone: "
+          f"{rows['all_inertial_over_jacobian']:.2f} (aim <= 2); both / state Jacobian: "
+          f"{rows['both_over_jacobian']:.2f}")
+    for p, ratio in rows["fd_over_one_run"].items():
+        print(f"  p = {p}: 2p FD runs / one run with p parameters: {ratio:.2f} (aim > 1 for p >= 2)")
+
+
+if __name__ == "__main__":
+    main()
