@@ -5,8 +5,9 @@ touchdowns to the state just before the next, on the section of that foot's
 guard, tangent space) and its mathematics; `section` the section's coordinates,
 the ground's neutral moves (x, y, yaw) and the Floquet multipliers of a stride;
 `periodic` the search for a periodic gait up to those moves and the
-stroboscopic period map of a clock-driven scene. The public names of all three
-are importable from here.
+stroboscopic period map of a clock-driven scene; `sensitivity` the derivatives of
+a periodic gait with respect to the scene's parameters. The public names of all
+four are importable from here.
 """
 
 from ...errors import StrideError
@@ -20,8 +21,10 @@ from .section import (
                       scene_period,
                       section_basis,
 )
+from .sensitivity import GaitSensitivity, gait_sensitivity
 from .stride import Stride, StrideLoop, first_touchdown, stride_map
 
-__all__ = ["NEUTRAL_NAMES", "PeriodMap", "PeriodicGait", "Stride", "StrideError", "StrideLoop", "align",
-           "available_neutral", "find_periodic_gait", "first_touchdown", "floquet_multipliers",
-           "neutral_directions", "onto_section", "period_map", "scene_period", "section_basis", "stride_map"]
+__all__ = ["GaitSensitivity", "NEUTRAL_NAMES", "PeriodMap", "PeriodicGait", "Stride", "StrideError", "StrideLoop",
+           "align", "available_neutral", "find_periodic_gait", "first_touchdown", "floquet_multipliers",
+           "gait_sensitivity", "neutral_directions", "onto_section", "period_map", "scene_period", "section_basis",
+           "stride_map"]

@@ -91,6 +91,7 @@ from ...dynamics.impacts import choose_mode
 from ...errors import InvalidInputError, StrideError, check_number
 from ...integration.hybrid import HybridLoop
 from ...integration.options import SimulateOptions
+from ...integration.parameter_jumps import ParameterJumps
 from ...integration.sensitivity import gap_gradient, saltation, touchdown, vector_field
 from ...integration.trajectory import Trajectory
 from ...model.scene import Scene
@@ -127,6 +128,12 @@ class Stride:
             start or at the end. There the pre-impact state is discontinuous (the other
             foot's velocity jumps if it lands first), and the Jacobian is the one-sided
             derivative for the other contacts landing at the same time or later.
+        parameter_names: the scene parameters differentiated (``parameters=[...]``).
+        parameter_jacobian: ``∂x'/∂p`` (2nv × p, tangent space, per unit of each) at a
+            fixed start, or None: with the start's impact taken with the foot's guard
+            (``Ξ0_p``, as ``Ξ0`` for the state) and the end's touchdown time moving with
+            the parameters (``-F' (Dh' ∂x/∂p + ∂h/∂p) / (Dh' F')``).
+        parameter_time_gradient: ``∂t'/∂p`` (p,) (s per unit of each), or None.
     """
 
     scene_name: str
@@ -144,6 +151,9 @@ class Stride:
     period: float | None
     trajectory: Trajectory = field(repr=False)
     simultaneous: tuple[str, ...] = ()
+    parameter_names: tuple[str, ...] = ()
+    parameter_jacobian: np.ndarray | None = None
+    parameter_time_gradient: np.ndarray | None = None
 
     @property
     def stride_time(self) -> float:
@@ -170,6 +180,15 @@ class Stride:
         J[n, n] = self.start_time_derivative
         return J
 
+    def extended_parameter_jacobian(self) -> np.ndarray:
+        """``∂x'/∂p`` in the map's state: (2nv × p), or in ``(x, τ)`` with the row ``∂t'/∂p``
+        ((2nv+1) × p, clock-driven)."""
+        if self.parameter_jacobian is None:
+            raise InvalidInputError("this stride was computed without parameters (stride_map(..., parameters=[...]))")
+        if self.period is None:
+            return self.parameter_jacobian
+        return np.vstack([self.parameter_jacobian, self.parameter_time_gradient])
+
     def summary(self) -> dict:
         """The stride as JSON-ready data: ends, states, Jacobians where computed."""
         out = {"scene": self.scene_name, "foot": self.foot, "t0": self.t0, "t": self.t,
@@ -181,6 +200,10 @@ class Stride:
             out |= {"jacobian": self.jacobian.tolist(), "time_gradient": self.time_gradient.tolist(),
                     "start_time_column": self.start_time_column.tolist(),
                     "start_time_derivative": self.start_time_derivative}
+        if self.parameter_jacobian is not None:
+            out |= {"parameter_names": list(self.parameter_names),
+                    "parameter_jacobian": self.parameter_jacobian.tolist(),
+                    "parameter_time_gradient": self.parameter_time_gradient.tolist()}
         return out
 
 
@@ -220,6 +243,11 @@ class StrideLoop(HybridLoop):
         before = choose_mode(self.dyn, start.q, v, self.t0,
                              [i for i in closed if i != self.foot and i not in landing])
         F_minus = vector_field(self.dyn, start.q, v, self.t0, before)
+        if landing and self.jumps is not None:
+            raise InvalidInputError(
+                f"stride map: the start touchdown of {self.names[self.foot]} is simultaneous with "
+                f"{', '.join(self.names[k] for k in landing)}; parameter derivatives of such a stride (a "
+                "one-sided derivative) are not available: start the stride from another foot's touchdown")
         if landing:
             # other contacts land at the same instant: on the section they can only be
             # raised (land later), so the one-sided derivative is the foot first, then
@@ -238,7 +266,12 @@ class StrideLoop(HybridLoop):
             Dh = gap_gradient(self.dyn, start.q, self.foot)
             F_plus = vector_field(self.dyn, start.q, v_plus, self.t0, mode)
             xi = saltation(start.saltation, Dh, F_minus, F_plus)
-        start.saltation = self.initial_saltation = xi
+            if self.jumps is not None:  # the same guard term for the parameters (module doc)
+                start.parameter_saltation = ParameterJumps.saltation(
+                    start.parameter_saltation, self.jumps.gap_guard(self.foot), start.saltation, F_minus, F_plus,
+                    float(Dh @ F_minus))
+        start.saltation = xi
+        self.initial_saltation = self._jumped(self._identity_phi(), start)
         self.start = (before, F_minus, tuple(self.names[k] for k in landing))
         return mode, v_plus
 
@@ -264,7 +297,7 @@ class StrideLoop(HybridLoop):
 
 def stride_map(scene: Scene, foot: str, q, v, t: float = 0.0, *, t_max: float = 10.0,
                min_stride: float | None = None, min_flight: float | None = None,
-               period: float | None = None, jacobian: bool = True,
+               period: float | None = None, jacobian: bool = True, parameters=(),
                rtol: float = 1e-10, atol: float = 1e-12, method: str = "DOP853", max_events: int = 1000,
                **options) -> Stride:
     """The stride map of ``foot``: from just before one of its touchdowns to just before the next.
@@ -290,6 +323,8 @@ def stride_map(scene: Scene, foot: str, q, v, t: float = 0.0, *, t_max: float = 
             efforts (`scene_period`), or an autonomous scene; False forces autonomous.
         jacobian: compute the Jacobian, the touchdown-time gradient and the
             start-time derivatives (module docstring).
+        parameters: names of scene parameters (`Scene.parameter_names`): also
+            ``Stride.parameter_jacobian`` and ``parameter_time_gradient`` (with ``jacobian``).
         rtol: relative tolerance of the simulation.
         atol: absolute tolerance (m, rad, m/s).
         method: the stepper (`contactdiff.integration.options.SIMULATE_METHODS`).
@@ -322,6 +357,10 @@ def stride_map(scene: Scene, foot: str, q, v, t: float = 0.0, *, t_max: float = 
             f"stride map: {foot!r} must be approaching the ground at the start (normal speed < 0), "
             f"got {rate:.3e} m/s")
     q = onto_section(scene, foot, q)
+    if parameters and not jacobian:
+        raise InvalidInputError("stride map: parameters need jacobian=True")
+    if parameters:
+        options["parameters"] = parameters
     min_stride = (0.5 * clock if clock else 0.0) if min_stride is None else \
         check_number("stride map", "min_stride", min_stride, minimum=0.0)
     if min_stride >= t_max:
@@ -376,24 +415,30 @@ def _run_stride(scene, i, q, v, t0, t_end, clock, jacobian, require_start, min_s
     if require_start and (not traj.events or traj.events[0].t != t0 or foot not in traj.events[0].contacts):
         raise StrideError(f"no impact of {foot!r} at the start t = {t0:g}: the start is not a touchdown")
     t, q1, v1 = event.t, event.q.copy(), event.v_minus.copy()
-    J = tg = col = dt = None
+    J = tg = col = dt = J_p = tg_p = None
     if jacobian:
         dyn = run.dyn
         Dh = gap_gradient(dyn, q1, i)
         F = vector_field(dyn, q1, v1, t, mode)
         rate = float(Dh @ F)
         project = np.eye(F.size) - np.outer(F, Dh) / rate
+        phi, phi_p = phi[:, :run.n_state], phi[:, run.n_state:]
         J = project @ phi
         tg = -(Dh @ phi) / rate
         F0 = run.start[1] if run.start is not None else vector_field(dyn, q, v, t0, ())
         col = -(project @ (phi @ F0))
         dt = float(Dh @ (phi @ F0)) / rate
-        for x in (J, tg, col):
+        if run.jumps is not None:  # the touchdown's guard moves with the parameters too (an offset)
+            h_p = run.jumps.gap_guard(i)
+            J_p = project @ phi_p - np.outer(F, h_p) / rate
+            tg_p = -(Dh @ phi_p + h_p) / rate
+        for x in (J, tg, col) + (() if J_p is None else (J_p, tg_p)):
             if not np.all(np.isfinite(x)):
                 raise StrideError(f"the stride Jacobian of {foot!r} is not finite (touchdown rate {rate:.3e})")
     together = set(run.start[2] if run.start is not None else ()) | set(event.contacts)
     return Stride(scene_name=scene.name, foot=foot, t0=t0, q0=traj.q0.copy(), v0=traj.v0.copy(), t=t, q=q1, v=v1,
                   jacobian=J, time_gradient=tg, start_time_column=col, start_time_derivative=dt, period=clock,
-                  trajectory=traj, simultaneous=tuple(sorted(together - {foot})))
+                  trajectory=traj, simultaneous=tuple(sorted(together - {foot})),
+                  parameter_names=traj.parameter_names, parameter_jacobian=J_p, parameter_time_gradient=tg_p)
 
 
