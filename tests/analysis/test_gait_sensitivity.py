@@ -128,3 +128,30 @@ def test_bad_requests_are_named():
     with pytest.raises(InvalidInputError, match="jacobian"):
         stride_map(sh.scene, "ball", [0.0], [-sh.V], 0.1, period=sh.P, jacobian=False,
                    parameters=["scene:gravity_z"])
+
+
+def test_planar_shaker_multipliers_move_as_the_vertical_ones(tmp_path):
+    """The shaker's force on a point mass in the x-z plane, gliding at a constant
+    horizontal speed: the vertical motion is the shaker's, so on its stable orbit the
+    complex pair keeps |λ| = e (d|λ|/de = 1), while the glide adds the multiplier 1
+    of the conserved horizontal speed (the neutral translation x removed)."""
+    sh = Shaker()
+    path = tmp_path / "point_xz.urdf"
+    path.write_text(POINT_XZ)
+    force = cd.UserEffort(lambda q, v, t: np.array([0.0, sh.a * math.cos(sh.w * t)]),
+                          lambda q, v, t: (np.zeros((2, 2)), np.zeros((2, 2))), name="shaker")
+    scene = cd.Scene(cd.load_robot(str(path)), [cd.Contact("ball", restitution=sh.e)], [force],
+                     gravity=[0, 0, -sh.g], q0={"z": 0.0}, v0={"x": 0.3, "z": -1.0})
+    gait = find_periodic_gait(scene, "ball", [0.0, 0.0], [0.3, -1.05 * sh.V], sh.orbit_times[0] + 0.02,
+                              period=sh.P, iterations=10, tol=1e-12, **GAIT)
+    assert gait.converged and gait.neutral == ("x",)
+    pair = [k for k, m in enumerate(gait.multipliers) if abs(m.imag) > 0.1]
+    assert len(pair) == 2 and abs(gait.multipliers[pair[0]]) == pytest.approx(sh.e, abs=1e-9)
+    g = gait_sensitivity(scene, gait, ["contact:ball:restitution"], which=pair, **GAIT)
+    # truncation of the central differences: 84 h² ≈ 2e-7 at h = 1e-4 e (as on the line)
+    assert g.modulus_gradient(0) == pytest.approx([1.0], abs=1e-5)
+    assert g.modulus_gradient(1) == pytest.approx([1.0], abs=1e-5)
+    # the horizontal speed and the landing speed do not depend on e through the glide
+    nv = scene.nv
+    assert g.fixed_point[nv, 0] == pytest.approx(0.0, abs=1e-9)  # dv_x/de
+    assert g.fixed_point[nv + 1, 0] == pytest.approx(sh.g * sh.P / (1 + sh.e) ** 2, abs=1e-8)  # d(-V)/de
