@@ -45,6 +45,7 @@ if TYPE_CHECKING:
     from ..model.parameters import Parameter
 
 _INERTIA_FIELDS = ("ixx", "ixy", "iyy", "ixz", "iyz", "izz")  # Pinocchio's order of the six
+_RNEA_COLUMNS = 4  # bodies + inertial columns up to which RNEA differences beat the regressor
 _AXES = {"x": 0, "y": 1, "z": 2}
 
 
@@ -94,7 +95,10 @@ class ParameterForces:
         inertial: list[tuple[int, int, np.ndarray]] = []  # (column, joint, ∂π/∂p)
         self._armature: list[tuple[int, int]] = []  # (column, tangent index)
         self._gravity: list[tuple[int, pin.Model, pin.Data]] = []  # (column, unit-gravity model, data)
-        self._efforts: list[int] = []  # columns the efforts may depend on: all but the contacts'
+        # columns the efforts depend on: their own, and the model's where an effort is computed
+        # from the model when bound (`model_parameter_derivatives`, the trot's feed-forward)
+        self._efforts: list[int] = []
+        model_dependent = any(hasattr(e, "model_parameter_derivatives") for e in scene.efforts)
         for col, par in enumerate(self.parameters):
             kind = par.kind
             if kind is ParameterKind.BODY:
@@ -107,7 +111,8 @@ class ParameterForces:
                 g[_AXES[par.field[-1]]] = 1.0
                 unit.gravity = pin.Motion(g, np.zeros(3))
                 self._gravity.append((col, unit, unit.createData()))
-            if kind is not ParameterKind.CONTACT:
+            if kind not in (ParameterKind.CONTACT, ParameterKind.BODY, ParameterKind.JOINT, ParameterKind.SCENE) \
+                    or (kind is not ParameterKind.CONTACT and model_dependent):
                 self._efforts.append(col)
         self._effort_parameters = [self.parameters[k] for k in self._efforts]
         # ∂π/∂p of the inertial columns as one matrix (10 per body × their count): one product
@@ -116,19 +121,35 @@ class ParameterForces:
         self._dpi = np.zeros((10 * (model.njoints - 1), len(inertial)))
         for k, (_, j, dpi) in enumerate(inertial):
             self._dpi[10 * (j - 1):10 * j, k] = dpi
+        # a few inertial columns: RNEA is linear in the inertias, so a column is the difference
+        # of two RNEA calls on models holding only its body (π + ∂π/∂p against π), a few µs
+        # each, where the regressor computes every body's ten columns
+        self._by_rnea = None
+        bodies = sorted({j for _, j, _ in inertial})
+        if inertial and len(bodies) + len(inertial) <= _RNEA_COLUMNS:
+            def alone(j, pi):
+                m = model.copy()
+                for k in range(1, m.njoints):
+                    m.inertias[k] = pin.Inertia.Zero()
+                m.inertias[j] = pin.Inertia.FromDynamicParameters(pi)
+                m.armature[:] = 0.0
+                return m, m.createData()
+            own = {j: model.inertias[j].toDynamicParameters() for j in bodies}
+            self._by_rnea = ({j: alone(j, own[j]) for j in bodies},
+                             [(col, j, *alone(j, own[j] + dpi)) for col, j, dpi in inertial])
         self._still = model.copy()  # no gravity: the regressor of M dv alone
         self._still.gravity = pin.Motion.Zero()
         self._still_data = self._still.createData()
 
-    @property
-    def acts_in_flows(self) -> bool:
-        """Whether any parameter changes the equations of motion (not only events)."""
-        return bool(self._inertial_columns or self._armature or self._gravity or self._efforts)
-
     def forces(self, kin: Kinematics, q: np.ndarray, v: np.ndarray, ddq: np.ndarray, t: float) -> np.ndarray:
         """``∂f/∂p`` (nv × p) at ``(q, v, ddq)`` and time ``t`` (s); ``kin`` at ``(q, v)``."""
         out = np.zeros((self.nv, self.p))
-        if self._inertial_columns:
+        if self._by_rnea is not None:
+            reference, columns = self._by_rnea
+            base = {j: pin.rnea(m, d, q, v, ddq) for j, (m, d) in reference.items()}
+            for col, j, m, d in columns:
+                out[:, col] = base[j] - pin.rnea(m, d, q, v, ddq)
+        elif self._inertial_columns:
             # (nv, 10 bodies); the binding returns a flat array when nv = 1
             Y = np.reshape(pin.computeJointTorqueRegressor(self.model, self._data, q, v, ddq), (self.nv, -1))
             out[:, self._inertial_columns] = -(Y @ self._dpi)
