@@ -27,7 +27,7 @@ import math
 import numpy as np
 import pinocchio as pin
 import pytest
-from scipy.spatial.transform import Rotation
+from test_sensitivity import _solo_tilted  # the tilted solo12 drop: feet land one at a time
 
 import contactdiff as cd
 from contactdiff.errors import InvalidInputError
@@ -119,14 +119,6 @@ def test_ball_mass_has_exactly_zero_derivative():
 # ----------------------------------------------------------------------------------
 # finite differences through with_parameters
 # ----------------------------------------------------------------------------------
-def _solo_tilted() -> cd.Scene:
-    scene = cd.load_scene("solo12_drop")
-    q = scene.q0.copy()
-    q[3:7] = Rotation.from_euler("xyz", [0.03, 0.05, 0.0]).as_quat()
-    q[2] += 0.01
-    return scene.with_state(q)
-
-
 def _bar() -> cd.Scene:
     base = cd.trot_touchdown("rigid", 0.05)
     contacts = [cd.Contact(c.frame, restitution=0.5) for c in base.contact_specs]
