@@ -36,6 +36,11 @@ from contactdiff.integration.steppers import VectorSpace, make_stepper
 
 TOL = dict(rtol=1e-12, atol=1e-13)
 REL_STEP = 1e-5
+# a parameter whose response is small against the state's size needs a larger step to
+# rise above the runs' noise: solo12's knee spring (|dx/dk| = 0.07 per N m/rad) differs
+# from the Jacobian by 1.5e-4 at h = 1e-5 |k| (noise), 5e-8 at 1e-4 and 2.7e-8 at 1e-3
+# (rtol 1e-12, measured), so it takes 1e-3 |k|, whose truncation is ~1e-6 relative
+REL_STEPS = {"joint_spring:FR_KFE:stiffness": 1e-3}
 JAC_RTOL = 1e-6
 NOISE = 1e-11  # integration error of one run, relative to max(1, |x|), after a few events
 
@@ -125,6 +130,20 @@ def _bar() -> cd.Scene:
     return cd.Scene(base.robot, contacts, base.effort_specs, None, base.q0, base.v0, name="bar")
 
 
+def _ball_on_spring() -> cd.Scene:
+    """The ball with a user effort: a spring-damper pulling it to z = r with parameters
+    (k, c, r), its Jacobian by hand and its parameter Jacobian left to central differences."""
+    def force(q, v, t, k, c, r):
+        return np.array([-k * (q[0] - r) - c * v[0]])
+
+    def jacobian(q, v, t, k, c, r):
+        return np.array([[-k]]), np.array([[-c]])
+
+    spring = cd.UserEffort(force, jacobian, name="tether", parameters={"k": 0.5, "c": 0.1, "r": 0.6})
+    ball = cd.load_scene("ball")
+    return cd.Scene(ball.robot, ball.contact_specs, [spring], None, ball.q0, ball.v0, name="ball-tether")
+
+
 def _soft_stick() -> cd.Scene:
     base = cd.trot_touchdown("soft", 0.05)
     contacts = [cd.Contact(c.frame, friction="stick") for c in base.contact_specs]
@@ -165,6 +184,9 @@ CASES = {
                  [("touchdown", {"left_foot", "right_foot"}), ("lift-off", {"left_foot", "right_foot"})],
                  [("spring:", "stiffness"), ("spring:", "rest_length"), ("body:", "mass"),
                   ("contact:left_foot", "offset")]),
+    # a user effort's own parameters (its parameter Jacobian by central differences)
+    "ball_tether": (_ball_on_spring, 4.0, [("bounce", {"ball"}), ("bounce", {"ball"})],
+                    [("effort:tether", "k"), ("effort:tether", "c"), ("effort:tether", "r")]),
     # separate touchdowns and lift-offs (force guards), inertias and centres of mass
     "soft_pitch0.05": (lambda: cd.trot_touchdown("soft", 0.05), 1.8,
                        [("touchdown", {"rear_foot"}), ("touchdown", {"front_foot"}),
@@ -184,7 +206,7 @@ CASES = {
     "solo12_tilted": (_solo_tilted, 0.112,
                       [("touchdown", {"FR_FOOT"}), ("touchdown", {"FL_FOOT"}), ("touchdown", {"FR_FOOT"})],
                       [("body:base_link", "mass"), ("body:FL_LOWER_LEG", "com_x"), ("body:FR_UPPER_LEG", "ixx"),
-                       ("scene:", "gravity_z"), ("contact:FL_FOOT", "offset")]),
+                       ("scene:", "gravity_z"), ("contact:FL_FOOT", "offset"), ("joint_spring:FR_KFE", "stiffness")]),
     # the controlled trot: the controller's gains, and the base's mass and gravity, which
     # its feed-forward also holds; slips (a sticking foot's release that would sink) and
     # lift-offs
@@ -222,7 +244,7 @@ def _study(name):
     model = scene.model
     fd, steps, sequences = [], [], []
     for name_k, value in zip(names, values):
-        h = REL_STEP * (abs(value) if value != 0 else 1.0)
+        h = REL_STEPS.get(name_k, REL_STEP) * (abs(value) if value != 0 else 1.0)
         runs = [simulate(scene.with_parameters({name_k: value + sign * h}), T, **options) for sign in (1, -1)]
         sequences += [_sequence(r) for r in runs]
         plus, minus = runs
