@@ -130,20 +130,46 @@ def test_bad_requests_are_named():
                    parameters=["scene:gravity_z"])
 
 
+def _planar_shaker(sh: Shaker, tmp_path) -> cd.Scene:
+    """The shaker's force on the point mass of the x-z plane (test_stride.py's POINT_XZ)."""
+    path = tmp_path / "point_xz.urdf"
+    path.write_text(POINT_XZ)
+    force = cd.UserEffort(lambda q, v, t: np.array([0.0, sh.a * math.cos(sh.w * t)]),
+                          lambda q, v, t: (np.zeros((2, 2)), np.zeros((2, 2))), name="shaker")
+    return cd.Scene(cd.load_robot(str(path)), [cd.Contact("ball", restitution=sh.e)], [force],
+                    gravity=[0, 0, -sh.g], q0={"z": 0.0}, v0={"x": 0.3, "z": -1.0})
+
+
+def _planar_gait(scene, sh: Shaker, orbit: int):
+    return find_periodic_gait(scene, "ball", [0.0, 0.0], [0.3, -1.05 * sh.V], sh.orbit_times[orbit] + 0.02,
+                              period=sh.P, iterations=10, tol=1e-12, **GAIT)
+
+
+def test_planar_saddle_multiplier_derivatives_match_reconverged_gaits(tmp_path):
+    """The x-z model's saddle orbit: its unstable multiplier against central differences of
+    the multipliers of gaits found anew at p ± h (as on the line above)."""
+    sh = Shaker()
+    scene = _planar_shaker(sh, tmp_path)
+    gait = _planar_gait(scene, sh, 1)
+    assert gait.converged and abs(gait.multipliers[0]) > 1
+    names = ["contact:ball:restitution", "scene:gravity_z", "body:ball:mass"]
+    g = gait_sensitivity(scene, gait, names, which=(0,), **GAIT)
+    for j, (name, value) in enumerate(zip(names, scene.parameter_values(names))):
+        h = 1e-4 * abs(value)
+        lam = [_planar_gait(scene.with_parameters({name: value + sign * h}), sh, 1).multipliers[0].real
+               for sign in (1, -1)]
+        fd = (lam[0] - lam[1]) / (2 * h)
+        assert g.multiplier_derivatives[0, j].real == pytest.approx(fd, rel=1e-5, abs=1e-9), name
+
+
 def test_planar_shaker_multipliers_move_as_the_vertical_ones(tmp_path):
     """The shaker's force on a point mass in the x-z plane, gliding at a constant
     horizontal speed: the vertical motion is the shaker's, so on its stable orbit the
     complex pair keeps |λ| = e (d|λ|/de = 1), while the glide adds the multiplier 1
     of the conserved horizontal speed (the neutral translation x removed)."""
     sh = Shaker()
-    path = tmp_path / "point_xz.urdf"
-    path.write_text(POINT_XZ)
-    force = cd.UserEffort(lambda q, v, t: np.array([0.0, sh.a * math.cos(sh.w * t)]),
-                          lambda q, v, t: (np.zeros((2, 2)), np.zeros((2, 2))), name="shaker")
-    scene = cd.Scene(cd.load_robot(str(path)), [cd.Contact("ball", restitution=sh.e)], [force],
-                     gravity=[0, 0, -sh.g], q0={"z": 0.0}, v0={"x": 0.3, "z": -1.0})
-    gait = find_periodic_gait(scene, "ball", [0.0, 0.0], [0.3, -1.05 * sh.V], sh.orbit_times[0] + 0.02,
-                              period=sh.P, iterations=10, tol=1e-12, **GAIT)
+    scene = _planar_shaker(sh, tmp_path)
+    gait = _planar_gait(scene, sh, 0)
     assert gait.converged and gait.neutral == ("x",)
     pair = [k for k, m in enumerate(gait.multipliers) if abs(m.imag) > 0.1]
     assert len(pair) == 2 and abs(gait.multipliers[pair[0]]) == pytest.approx(sh.e, abs=1e-9)
