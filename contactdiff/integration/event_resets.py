@@ -1,0 +1,234 @@
+"""What the hybrid loop does at an event: the reset, the next mode, and the saltation
+matrices of the state and of the parameters.
+
+A mixin of `contactdiff.integration.hybrid.HybridLoop` (its state: ``dyn``, ``kin``,
+``contacts``, ``names``, ``options``, ``events``, ``notes``, ``phi``, ``n_state``,
+``jumps``, ``sensitive``, ``gap_tol``): lift-offs and slips change the mode without
+a jump; touchdowns apply the impact law to every closed contact, with the Zeno rule
+for cascades; each event gets its saltation matrix, event-time gradient and, with
+parameters, their blocks (`contactdiff.integration.parameter_jumps`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..dynamics.impacts import choose_mode, liftoff_mode, resolve_impact
+from ..errors import GrazingError
+from .guards import Guard, GuardKind
+from .options import OnGrazing
+from .parameter_jumps import ParameterJumps
+from .projection import close, held_velocity, held_velocity_jacobian
+from .sensitivity import (
+    gap_gradient,
+    impact_reset_jacobian,
+    liftoff_guard,
+    saltation,
+    simultaneous_saltation,
+    vector_field,
+)
+from .trajectory import Event, NonSmooth
+
+SPEED_TOL = 1e-12
+"""m/s: a post-impact normal speed below this (scaled by the impact's speeds) counts as zero."""
+
+
+class EventResets:
+    """The loop's event handling (module doc)."""
+
+    def _event(self, t, q, v, mode, fired: list[Guard]):
+        dyn = self.dyn
+        touching = [g.contact for g in fired if g.kind is GuardKind.GAP]
+        releasing = [g.contact for g in fired if g.kind is GuardKind.FORCE]
+        if touching:
+            # every contact closed at the instant takes part (docs/design.md §2), also one whose
+            # guard did not fire within simultaneous_tol: left out, it would start the
+            # next step closed and be skipped by _crossings (no peak), i.e. penetrate
+            gaps, _ = self._gaps_and_rates(q, v)
+            active = dyn.contacts_of(mode)
+            near = [i for i, g in enumerate(gaps) if g <= self.gap_tol and i not in active]
+            closed = sorted(set(mode) | set(touching) | set(near))
+            return self._impact(t, q, v, mode, closed, touching, releasing)
+        # a released sticking contact that would sink (the tangential force it carried
+        # pressed it down) slides instead: normal row only, until its force vanishes
+        new_mode = liftoff_mode(dyn, q, v, t, mode, releasing)
+        kind = "slip" if any(dyn.is_sliding(k) and k not in mode for k in new_mode) else "lift-off"
+        event = Event(t=t, kind=kind, contacts=self._mode_names(releasing), simultaneous=len(releasing) > 1,
+                      q=q.copy(), v_minus=v.copy(), v_plus=v.copy(), impulses={},
+                      mode_before=self._mode_names(mode), mode_after=self._mode_names(new_mode),
+                      sliding=self._sliding_names(new_mode))
+        if self.sensitive:
+            # guard: the normal force of the first releasing contact; with several at once
+            # (a simultaneous lift-off) the saltation is the product of the single
+            # lift-offs in turn (each releasing contact's guard in the mode left by the
+            # earlier ones): a sticking contact's force jump is not carried by another's guard
+            guard = liftoff_guard(dyn, t, q, v, mode, releasing[0])
+            xi, xi_p = self._liftoff_sequence(t, q, v, mode, releasing, new_mode, guard)
+            h_p = self.jumps.force_guard(q, v, t, mode, releasing[0]) if self.jumps else None
+            self._attach_sensitivity(event, xi, *guard, xi_p=xi_p, h_p=h_p)
+        self.events.append(event)
+        return new_mode, v
+
+    def _liftoff_sequence(self, t, q, v, mode, releasing, new_mode, first_guard):
+        """Saltation of the lift-off of ``releasing`` from ``mode``, one contact after the
+        other in the given order at the same state (no jump: each force is zero there);
+        ``first_guard`` is the first one's `liftoff_guard`. Returns ``(Ξ, Ξ_p)``, the
+        parameter block None without parameters."""
+        n2 = 2 * self.scene.nv
+        xi, current = np.eye(n2), tuple(mode)
+        xi_p = np.zeros((n2, self.jumps.p)) if self.jumps else None
+        for n, k in enumerate(releasing):
+            slide = self.dyn.sliding_key(k) if not self.dyn.is_sliding(k) else None
+            after = tuple(new_mode) if n == len(releasing) - 1 else tuple(sorted(
+                [i for i in current if i != k] + ([slide] if slide in new_mode else [])))
+            Dh, F_minus, h_t = first_guard if n == 0 else liftoff_guard(self.dyn, t, q, v, current, k)
+            F_plus = vector_field(self.dyn, q, v, t, after)
+            xi_k = saltation(np.eye(n2), Dh, F_minus, F_plus, h_t)
+            xi = xi_k @ xi
+            if xi_p is not None:
+                h_p = self.jumps.force_guard(q, v, t, current, k)
+                xi_p = xi_k @ xi_p + ParameterJumps.saltation(None, h_p, None, F_minus, F_plus,
+                                                              float(Dh @ F_minus) + h_t)
+            current = after
+        return xi, xi_p
+
+    def _impact(self, t, q, v_minus, mode, closed, touching, releasing=(), initial=False):
+        """Impact of the ``closed`` contacts (keys: a sliding contact takes part with its
+        normal row), ``touching`` being those whose guard fired (at the start,
+        ``initial``: all closed contacts, with no guard and no grazing)."""
+        q = close(self.dyn, q, closed)
+        self.kin.update(q, v_minus)
+        speeds = {i: float(self.contacts[i].rows(self.kin)[0] @ v_minus) for i in touching}
+        grazing = [] if initial else [i for i in touching if abs(speeds[i]) <= self.options.grazing_speed]
+        if grazing and self.options.on_grazing is OnGrazing.RAISE:
+            raise GrazingError(
+                f"grazing touchdown of {', '.join(self.names[i] for i in grazing)} at t = {t:.17g}: "
+                f"normal speed {max(abs(speeds[i]) for i in grazing):.3g} m/s <= grazing_speed "
+                f"{self.options.grazing_speed:g}; the flow is not differentiable there")
+        dyn = self.dyn
+        e = np.array([dyn.contact(k).restitution for k in closed])
+        zeno = [i for i in touching if self.contacts[i].restitution > 0 and abs(speeds[i]) < self.options.zeno_speed]
+        for i in zeno:
+            e[closed.index(i)] = 0.0
+        impact = resolve_impact(dyn, q, v_minus, closed, e)
+        v_plus = impact.v_plus
+        scale = max(1.0, float(np.max(np.abs(impact.normal_speeds_before))))
+        leaving = set(dyn.contacts_of(releasing))  # a releasing contact leaves whatever its key
+        staying = [k for k, s in zip(closed, impact.normal_speeds_after)
+                   if s <= SPEED_TOL * scale and dyn.contact_index(k) not in leaving]
+        # The Zeno rule for impact cascades: a closed contact that this impact would
+        # lift slower than zeno_speed does not leave (with several sticking feet an
+        # impact at one foot lifts another by a little, whose return lifts a third,
+        # and so on, a geometric series of ever slower impacts); its separating speed
+        # is removed M-orthogonally if the mode keeps it. This includes a landing
+        # contact with no restitution left (plastic, or a bounce ended above) that
+        # the impact law itself lifts: a sticking contact whose slip only a pulling
+        # impulse could stop takes a tangential impulse alone and leaves
+        # (`resolve_impact`), and if its flight brings it back slipping the same
+        # way, its landings form a geometric series as well. Left to leave, it
+        # would rise by (speed)² / (2 |normal acceleration|), far below what the
+        # dense output resolves, and come back only through the sinking rule of
+        # `_crossings`, i.e. below the ground by the grazing band, landing again
+        # at sqrt(2 |acceleration| band) (ANYmal's trot: 1e-7 m, 1 cm/s). A contact
+        # with restitution left bounces by its own law, ended on its approach speed.
+        settling = [k for k, s, e_k in zip(closed, impact.normal_speeds_after, impact.restitution)
+                    if SPEED_TOL * scale < s < self.options.zeno_speed and dyn.contact_index(k) not in leaving
+                    and (dyn.contact_index(k) not in touching or e_k == 0.0)]
+        new_mode = choose_mode(dyn, q, v_plus, t, staying + settling)
+        settled = [i for i in dyn.contacts_of(settling) if i in dyn.contacts_of(new_mode)]
+        nonsmooth = {}  # the cascade rule's cut-off and a grazing touchdown are not smooth
+        if settled:
+            v_plus = held_velocity(self.dyn, q, v_plus, new_mode)
+            nonsmooth[NonSmooth.ZENO_CASCADE] = self._note(
+                f"Zeno: impact cascade ended at t = {t:.12g}: {', '.join(self.names[i] for i in settled)} "
+                f"kept closed (lifted slower than zeno_speed = {self.options.zeno_speed:g} m/s)")
+        # a landing slower than zeno_speed ends its bounces: its own restitution set to
+        # zero, or, lifted by the impact law, kept closed by the rule above
+        ended = sorted(set(zeno) | {i for i in settled if i in touching and abs(speeds[i]) < self.options.zeno_speed})
+        if grazing:
+            kind = "grazing"
+            nonsmooth[NonSmooth.GRAZING] = self._note(
+                f"grazing touchdown of {', '.join(self.names[i] for i in grazing)} at t = {t:.12g}")
+        elif ended:
+            kind = "zeno"
+            self.notes.append(f"Zeno: bounces of {', '.join(self.names[i] for i in ended)} ended at t = {t:.12g} "
+                              f"(impact speed below zeno_speed = {self.options.zeno_speed:g} m/s); contact kept closed")
+        elif any(i in dyn.contacts_of(new_mode) for i in touching):
+            kind = "touchdown"
+        else:
+            kind = "bounce"
+        impulses = {self.names[dyn.contact_index(k)]: float(x) for k, x in zip(closed, impact.impulses)}
+        event = Event(t=t, kind=kind, contacts=self._mode_names(touching), simultaneous=len(touching) > 1,
+                      q=q.copy(), v_minus=v_minus.copy(), v_plus=v_plus.copy(), impulses=impulses,
+                      mode_before=self._mode_names(mode), mode_after=self._mode_names(new_mode),
+                      normal_speeds={self.names[i]: s for i, s in speeds.items()},
+                      sliding=self._sliding_names(new_mode), nonsmooth=nonsmooth)
+        def reset_jacobian():
+            DR = impact_reset_jacobian(self.dyn, q, v_minus, impact)
+            if settled:  # the reset is the impact followed by holding the settled contacts
+                DR = held_velocity_jacobian(self.dyn, q, v_plus, new_mode) @ DR
+            return DR
+
+        def reset_parameters():
+            live = [k for k in closed if dyn.contact_index(k) not in zeno]
+            R_p = self.jumps.impact(q, v_minus, impact, live)
+            if settled:
+                R_p = held_velocity_jacobian(self.dyn, q, v_plus, new_mode) @ R_p
+            return R_p
+
+        if self.sensitive and initial:
+            # no guard at t0: perturbations keep the start time, only the reset acts
+            event.saltation = reset_jacobian()
+            if self.options.jacobian:
+                event.time_gradient = np.zeros(2 * self.scene.nv)
+            if self.jumps:
+                event.parameter_saltation = reset_parameters()
+                event.parameter_time_gradient = np.zeros(self.jumps.p)
+        elif self.sensitive:
+            F_minus = vector_field(self.dyn, q, v_minus, t, mode)
+            guard = min(touching, key=lambda i: speeds[i])
+            Dh = gap_gradient(self.dyn, q, guard)
+            if len(touching) > 1:
+                override = {i: e[closed.index(i)] for i in closed}
+                sim = simultaneous_saltation(self.dyn, t, q, v_minus, mode, touching, override)
+                xi = sim.matrix
+                if self.jumps:  # the simultaneous reset plus one guard term per contact
+                    xi_p = reset_parameters()
+                    for k, (jump, rate) in sim.corrections.items():
+                        xi_p += np.outer(jump, self.jumps.gap_guard(k)) / rate
+                event.saltation_orders = {tuple(self.names[i] for i in k): m for k, m in sim.orders.items()}
+                if not sim.differentiable:
+                    event.nonsmooth[NonSmooth.ORDER] = self._note(
+                        f"not differentiable at t = {t:.12g}: the landing orders of "
+                        f"{', '.join(self.names[i] for i in touching)} give saltation matrices "
+                        f"differing by {sim.spread:.2e} (relative)")
+            else:
+                DR = reset_jacobian()
+                F_plus = vector_field(self.dyn, q, v_plus, t, new_mode)
+                xi = saltation(DR, Dh, F_minus, F_plus)
+                if self.jumps:
+                    xi_p = ParameterJumps.saltation(reset_parameters(), self.jumps.gap_guard(guard), DR, F_minus,
+                                                    F_plus, float(Dh @ F_minus))
+            h_p = self.jumps.gap_guard(guard) if self.jumps else None
+            self._attach_sensitivity(event, xi, Dh, F_minus, xi_p=xi_p if self.jumps else None, h_p=h_p)
+        self.events.append(event)
+        return new_mode, v_plus
+
+    def _attach_sensitivity(self, event: Event, xi: np.ndarray, Dh: np.ndarray, F_minus: np.ndarray,
+                            h_t: float = 0.0, xi_p: np.ndarray | None = None, h_p: np.ndarray | None = None) -> None:
+        """Saltation matrix and event-time gradient ``-Dh Φ- / (Dh F- + h_t)`` (implicit
+        functions; ``h_t`` the guard's explicit time rate); with parameters also their
+        block ``xi_p`` and time gradient ``-(Dh Φ-_p + h_p) / (Dh F- + h_t)``."""
+        n = self.n_state
+        rate = float(Dh @ F_minus) + h_t
+        event.saltation = xi
+        if self.options.jacobian:
+            event.time_gradient = -(Dh @ self.phi[:, :n]) / rate
+        if self.jumps is not None:
+            event.parameter_saltation = xi_p
+            event.parameter_time_gradient = -(Dh @ self.phi[:, n:] + h_p) / rate
+
+    def _note(self, text: str) -> str:
+        """Add a note to the run's notes; return it (for an event's ``nonsmooth``)."""
+        self.notes.append(text)
+        return text
