@@ -41,6 +41,7 @@ _RP = np.array([
     [1 / 3, -8 / 3, 10 / 3],
 ])
 _NEWTON_MAXITER = 6
+_RETAKE_SPLITS = 6  # halvings of a re-taken step whose Newton fails (64 pieces at most)
 
 
 def _predict_factor(h_abs, h_abs_old, err, err_old) -> float:
@@ -337,21 +338,33 @@ class Radau(Stepper):
         return phi_new, df_end, err
 
     def _redo_variational(self, h: float) -> np.ndarray:
-        t, y, qc = self.t_old, self._y_old, self._qc_old
-        scale = self.atol + self.rtol * self._mag(y, qc)
+        return self._retake(self.t_old, self._y_old, h, self._qc_old, self.phi_old, _RETAKE_SPLITS)
+
+    def _retake(self, t: float, y: np.ndarray, h: float, qc, P0: np.ndarray, splits: int) -> np.ndarray:
+        """``phi`` over ``[t, t + h]`` from ``P0`` at ``(t, y)`` (a point of the last step, in its
+        chart): the step re-taken, Newton started on the step's collocation polynomial. A
+        long step re-taken shorter (an event cuts it) can fail where the long one converged
+        (Newton's predicted-convergence test is strict at tight tolerances): then the two
+        halves are re-taken in turn, the second started on the polynomial, up to
+        ``splits`` times (the derivative of those shorter steps' flow: the same to the
+        tolerance)."""
+        nv = self.nv
+        q = y[:nv] if qc is None else self.group.integrate(qc, y[:nv])
+        scale = self.atol + self.rtol * self._mag(y, None if qc is None else q)
         Z0 = self._sol._y(t + h * _RC) - y  # same chart: an excellent guess
-        for attempt in range(2):
+        for _ in range(2):
             self._ensure_lu(h)
             converged, _, Z, _ = self._newton(t, y, h, Z0, scale, qc)
             if converged:
-                break
-            q_old = y[: self.nv] if qc is None else qc
-            self._J = self._call_jac(t, q_old, y[self.nv :])
-        else:
+                return self._variational(t, h, y, Z, qc, P0)[0]
+            self._J = self._call_jac(t, q, y[nv:])
+        if splits == 0:
             raise IntegrationError(
                 f"Radau: Newton failed when re-taking the step from t={float(t)!r} with h={float(h)!r}"
             )
-        return self._variational(t, h, y, Z, qc, self.phi_old)[0]
+        half = 0.5 * h
+        P_mid = self._retake(t, y, half, qc, P0, splits - 1)
+        return self._retake(t + half, self._sol._y(t + half), h - half, qc, P_mid, splits - 1)
 
     def dense(self, lazy: bool = False) -> DenseOutput:
         """The collocation polynomial of the last step on ``[t_old, t]`` (``lazy`` changes nothing)."""
