@@ -7,7 +7,7 @@ in 3-D), the mode's KKT system is Pinocchio's 3-D rigid-contact problem, and
 it and differentiate it in C++ — about ten times faster than assembling the
 rows, drifts and Hessians in Python. `ModeDynamics` uses this path for such
 modes (the usual stance of a quadruped) and its own for the others
-(frictionless rows, planar models, contacts between two frames).
+(frictionless rows, planar models, contacts between two frames, round contacts).
 
 Conventions: Pinocchio's contact force ``f`` of a 3-D LOCAL_WORLD_ALIGNED
 contact is in world axes at the frame origin, acting on the robot
@@ -29,9 +29,12 @@ _SETTINGS = pin.ProximalSettings(1e-12, 0.0, 1)
 
 
 def eligible(contacts: Sequence) -> bool:
-    """Whether Pinocchio's 3-D contact dynamics represents this set of bound contacts."""
+    """Whether Pinocchio's 3-D contact dynamics represents this set of bound contacts.
+
+    A round contact (radius > 0) is not: its rolling point is not fixed in the frame,
+    while Pinocchio's contacts hold frame-fixed points."""
     return bool(contacts) and all(
-        c.sticking and c.against_fid is None and c.n_rows == 3 for c in contacts)
+        c.sticking and c.against_fid is None and c.n_rows == 3 and not c.radius for c in contacts)
 
 
 class RigidContactMode:

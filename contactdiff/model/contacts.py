@@ -8,6 +8,22 @@ and one constraint row per direction ``d`` it holds (the normal, then for a
 sticking contact two tangents): ``A_d = d^T (J_p - J_p')`` with ``J`` the linear
 LOCAL_WORLD_ALIGNED Jacobian, and ``drift_d = d^T (J̇_p - J̇_p') v``, so that the
 row's acceleration is ``A_d ddq + drift_d``. The first row is the gap's gradient.
+
+**Round contacts.** A contact of radius ``r > 0`` (ground contacts only) is a
+sphere of radius ``r`` centred at the frame origin ``p``. Its lowest point along
+the normal is ``p - r n``, so the gap is ``a(q) = n · p - r - offset``, and the
+material point of the sphere there moves at ``v_p + ω × (-r n) = v_p + r n × ω``
+(``ω`` the frame's angular velocity, world axes). Its rows are
+
+    A_d = d^T J_v + r (d × n)^T J_ω           (``J_v``, ``J_ω``: linear and angular
+                                               LOCAL_WORLD_ALIGNED Jacobians)
+
+since ``d · (n × ω) = (d × n) · ω``: the normal row has no rotation term (it stays
+the gap's gradient), a tangent row holds the rolling point still, so a sticking
+round contact rolls without slipping (its tangent rows are not integrable). The
+drift is ``d^T a_p + r (d × n)^T α`` with ``a_p`` the classical acceleration of
+the origin and ``α`` the angular acceleration, both at zero joint acceleration.
+With ``r = 0`` none of these terms is evaluated.
 """
 
 from __future__ import annotations
@@ -45,11 +61,15 @@ class Contact:
     Args:
         frame: name of the contact frame (its origin is the contact point).
         normal: world-fixed normal, normalised on construction.
-        offset: gap at which contact closes (m), e.g. a foot sphere's radius.
+        offset: gap at which contact closes (m): the plane's position along the normal
+            (for a ground contact ``n · p = offset + radius`` on contact).
         restitution: Newton coefficient ``e`` in [0, 1] (0 plastic, 1 elastic).
         friction: ``"none"`` (frictionless) or ``"stick"`` (no slip while active).
         against: second frame; ``None`` is the ground (world origin).
         name: contact name, defaults to ``frame``.
+        radius: radius (m, >= 0) of a sphere centred at the frame origin (a round
+            foot, a ball): the gap is measured to its lowest point along the normal
+            and a sticking contact rolls (module doc). Ground contacts only.
     """
 
     frame: str
@@ -59,6 +79,7 @@ class Contact:
     friction: str = "none"
     against: str | None = None
     name: str | None = None
+    radius: float = 0.0
 
     def __post_init__(self) -> None:
         owner = f"contact {self.name or self.frame!r}"
@@ -75,6 +96,12 @@ class Contact:
         if self.friction not in FRICTION_MODES:
             raise InvalidInputError(
                 f"{owner}: friction must be one of {', '.join(FRICTION_MODES)}; got {self.friction!r}")
+        r = check_number(owner, "radius", self.radius, minimum=0.0)
+        if r > 0.0 and self.against is not None:
+            raise InvalidInputError(
+                f"{owner}: radius {self.radius!r} is for contacts with the ground only; a round contact "
+                f"against frame {self.against!r} is not supported (drop radius, or use against = none)")
+        set_(self, "radius", r)
 
     @property
     def sticking(self) -> bool:
@@ -104,31 +131,47 @@ class BoundContact:
         directions: (k, 3) world directions of its rows, normal first; a sticking
             contact keeps only the tangents along which the point can move (a planar
             model has one, a 3-D robot two).
+        radius: the sphere's radius (m), 0 for a point contact.
+        rolling: (k × 3) angular coefficients ``r (d × n)`` of the rows of a round
+            contact (module doc), None when no row has one (``r = 0``, or the normal
+            row only).
     """
 
     def __init__(self, spec: Contact, robot: Robot):
         self.spec, self.name = spec, spec.name
         self.fid = robot.frame_id(spec.frame)
         self.against_fid = robot.frame_id(spec.against) if spec.against is not None else None
-        self.offset, self.restitution = spec.offset, spec.restitution
+        self.offset, self.restitution, self.radius = spec.offset, spec.restitution, spec.radius
         normal = np.array(spec.normal)
-        directions = [normal] + (list(tangent_basis(normal)) if spec.sticking else [])
-        reach = self._reach(robot, np.array(directions))
+        directions = np.array([normal] + (list(tangent_basis(normal)) if spec.sticking else []))
+        reach = self._reach(robot, directions)
         if reach[0] < _ROW_TOL:
             raise InvalidInputError(
                 f"contact {self.name!r}: frame {spec.frame!r} cannot move along the normal "
                 f"{spec.normal} in this model, so the contact can never act")
-        self.directions = np.array([d for d, r in zip(directions, reach) if r >= _ROW_TOL])
+        self.directions = directions[reach >= _ROW_TOL]
+        self.rolling = self._rolling(self.directions)
+
+    def _rolling(self, directions: np.ndarray) -> np.ndarray | None:
+        """Angular coefficients ``r (d × n)`` of the rows (k × 3), or None when no row has
+        one (a point contact, or a round contact with its normal row only)."""
+        if not self.radius or len(directions) < 2:
+            return None
+        return self.radius * np.cross(directions, directions[0])
 
     def _reach(self, robot: Robot, directions: np.ndarray) -> np.ndarray:
-        """Largest Jacobian-row norm of each direction over a few seeded configurations."""
+        """Largest row norm of each direction over a few seeded configurations."""
         kin = Kinematics(robot.model)
         rng = np.random.default_rng(0)
+        rolling = self._rolling(directions)
         reach = np.zeros(len(directions))
         for q in [robot.q_ref] + [robot.integrate(robot.q_ref, 0.5 * rng.standard_normal(robot.nv))
                                   for _ in range(3)]:
             kin.update(q, np.zeros(robot.nv))
-            reach = np.maximum(reach, np.linalg.norm(directions @ self._point_jacobian(kin), axis=1))
+            rows = directions @ self._point_jacobian(kin)
+            if rolling is not None:
+                rows = rows + rolling @ kin.angular_jacobian(self.fid)
+            reach = np.maximum(reach, np.linalg.norm(rows, axis=1))
         return reach
 
     sliding = False  # a normal-only view of a sticking contact (see `sliding_view`)
@@ -146,7 +189,7 @@ class BoundContact:
         drops its tangents (frictionless sliding) until its normal force vanishes.
         """
         view = copy.copy(self)
-        view.directions, view.sliding = self.directions[:1], True
+        view.directions, view.rolling, view.sliding = self.directions[:1], None, True
         return view
 
     @property
@@ -172,8 +215,11 @@ class BoundContact:
 
     # -- values (need kin.update(q, v)) ------------------------------------------------
     def gap(self, kin: Kinematics) -> float:
-        """Normal gap ``a(q)`` (m); negative means penetration."""
+        """Normal gap ``a(q)`` (m), to the sphere's lowest point when round; negative means
+        penetration."""
         p = self._diff(kin.position)
+        if self.radius:
+            return float(self.normal @ p - self.offset - self.radius)
         return float(self.normal @ p - self.offset)
 
     def gap_rate(self, kin: Kinematics) -> float:
@@ -182,29 +228,51 @@ class BoundContact:
 
     def rows(self, kin: Kinematics) -> np.ndarray:
         """Constraint rows ``A`` (n_rows × nv); row 0 is ``Da(q)``."""
-        return self.directions @ self._point_jacobian(kin)
+        A = self.directions @ self._point_jacobian(kin)
+        if self.rolling is not None:
+            A += self.rolling @ kin.angular_jacobian(self.fid)
+        return A
 
     def drift(self, kin: Kinematics) -> np.ndarray:
-        """Row accelerations at zero joint acceleration, ``d^T (J̇_p - J̇_p') v`` (n_rows,)."""
-        return self.directions @ self._diff(kin.classical_acceleration)
+        """Row accelerations at zero joint acceleration, ``d^T (J̇_p - J̇_p') v`` (n_rows,),
+        plus ``r (d × n)^T α`` when round."""
+        drift = self.directions @ self._diff(kin.classical_acceleration)
+        if self.rolling is not None:
+            drift += self.rolling @ kin.angular_acceleration(self.fid)
+        return drift
 
     # -- derivatives (need kin.update(q, v, derivatives=True)) ----------------------
     def rows_velocity_dq(self, kin: Kinematics) -> np.ndarray:
         """``d(A v)/dq`` at fixed ``v`` (n_rows × nv)."""
-        return self.directions @ self._diff(kin.velocity_derivative)
+        dAv = self.directions @ self._diff(kin.velocity_derivative)
+        if self.rolling is not None:
+            dAv += self.rolling @ kin.angular_derivatives(self.fid)[0]
+        return dAv
 
     def drift_derivatives(self, kin: Kinematics) -> tuple[np.ndarray, np.ndarray]:
         """``d drift/dq`` and ``d drift/dv`` (each n_rows × nv)."""
         dq, dv = self._diff(kin.acceleration_derivatives)
-        return self.directions @ dq, self.directions @ dv
+        dq, dv = self.directions @ dq, self.directions @ dv
+        if self.rolling is not None:
+            _, alpha_dq, alpha_dv = kin.angular_derivatives(self.fid)
+            dq += self.rolling @ alpha_dq
+            dv += self.rolling @ alpha_dv
+        return dq, dv
 
     def rows_times_dq(self, kin: Kinematics, x: np.ndarray) -> np.ndarray:
         """``d(A x)/dq`` at fixed ``x`` (n_rows × nv), ``x`` in R^nv (e.g. an acceleration)."""
         H = self._diff(kin.hessian)  # (3, nv, nv)
-        return self.directions @ (x @ H)  # x @ H: sum_j x_j H[c, j, k]
+        dAx = self.directions @ (x @ H)  # x @ H: sum_j x_j H[c, j, k]
+        if self.rolling is not None:
+            dAx += self.rolling @ (x @ kin.angular_hessian(self.fid))
+        return dAx
 
     def rows_transpose_dq(self, kin: Kinematics, lam: np.ndarray) -> np.ndarray:
         """``d(A^T lam)/dq`` at fixed ``lam`` (nv × nv), ``lam`` one entry per row."""
         H = self._diff(kin.hessian)
         nv = H.shape[1]
-        return ((lam @ self.directions) @ H.reshape(3, nv * nv)).reshape(nv, nv)
+        dATlam = ((lam @ self.directions) @ H.reshape(3, nv * nv)).reshape(nv, nv)
+        if self.rolling is not None:
+            Hw = kin.angular_hessian(self.fid)
+            dATlam += ((lam @ self.rolling) @ Hw.reshape(3, nv * nv)).reshape(nv, nv)
+        return dATlam

@@ -3,7 +3,9 @@
 One `Kinematics` object owns a ``pinocchio.Data`` and holds, for the state
 ``(q, v)`` of its last `update`, frame positions, Jacobians and classical
 accelerations (all in the LOCAL_WORLD_ALIGNED frame: world axes, at the frame
-origin) and, when asked, their derivatives. Each quantity is computed once per
+origin) and, when asked, their derivatives; for round contacts, also the
+frames' angular velocities' Jacobians, angular accelerations and their
+derivatives (LOCAL_WORLD_ALIGNED too: world axes). Each quantity is computed once per
 update, however many contacts or springs use the frame, and only when first
 asked for: a mode whose efforts and contacts need no frame kinematics (joint
 springs, contacts handled by Pinocchio's constraint dynamics) pays for none.
@@ -127,3 +129,34 @@ class Kinematics:
             # Pinocchio returns column-major memory flagged as C order (notes, pitfall 4).
             return H.ravel(order="C").reshape(H.shape, order="F")[:3].copy()
         return self._memo(("H", fid), compute)
+
+    # -- angular terms (round contacts: `contactdiff.model.contacts`) ------------------
+    def angular_jacobian(self, fid: int) -> np.ndarray:
+        """Angular LWA Jacobian of the frame, ``ω = J_ω v`` in world axes (3 × nv)."""
+        return self._memo(("Jw", fid), lambda: _matrix(pin.getFrameJacobian(
+            self.model, self._jacobian_data(), fid, LWA), 6)[3:].copy())
+
+    def angular_acceleration(self, fid: int) -> np.ndarray:
+        """Angular acceleration of the frame at zero joint acceleration, ``J̇_ω v`` (3,),
+        world axes (the classical and the spatial acceleration share it)."""
+        return self._memo(("aw", fid), lambda: pin.getFrameClassicalAcceleration(
+            self.model, self._kinematics(), fid, LWA).angular.copy())
+
+    def angular_derivatives(self, fid: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``d ω/dq`` at fixed ``v``, ``d α/dq`` and ``d α/dv`` at zero joint acceleration
+        (each 3 × nv), ``ω`` and ``α`` the frame's angular velocity and acceleration in
+        world axes. (The angular rows of Pinocchio's LWA frame derivatives match finite
+        differences; their linear rows do not, hence the point derivatives above.)"""
+        def compute():
+            dv_dq, da_dq, da_dv, _ = pin.getFrameAccelerationDerivatives(
+                self.model, self._derivative_data(), fid, LWA)
+            return tuple(_matrix(x, 6)[3:].copy() for x in (dv_dq, da_dq, da_dv))
+        return self._memo(("dw", fid), compute)
+
+    def angular_hessian(self, fid: int) -> np.ndarray:
+        """Kinematic Hessian of the angular Jacobian: ``H[c, j, k] = d J_ω[c, j] / d q_k``
+        (3 × nv × nv)."""
+        def compute():
+            H = pin.getFrameKinematicHessian(self.model, self._derivative_data(), fid, LWA)
+            return H.ravel(order="C").reshape(H.shape, order="F")[3:].copy()
+        return self._memo(("Hw", fid), compute)

@@ -1,0 +1,398 @@
+"""Round contacts (``Contact(..., radius=r)``): a sphere of radius r centred at the frame.
+
+References are closed forms derived here or central finite differences of
+Pinocchio's placements, never the contact code's own output:
+
+* geometry: the gap ``n·p - r - offset`` of a free-flyer ball (``z - r`` on flat
+  ground); the rows ``A_d`` are the gradients of ``d · X(q)``, ``X(q)`` the
+  material point of the sphere that sits at the bottom ``p - r n`` at the base
+  state (it moves with the body); the drift is ``d/dt (A(q(t)) v)`` along
+  ``q ⊕ t v``; every derivative method against central differences on the
+  manifold (``helpers``: ε = 1e-6, rtol 1e-6), for r = 0 and r > 0, on the ball,
+  a solo12 foot (a chain of joints under a free-flyer) and a planar foot (one
+  tangent kept);
+* rolling: a solid ball (I = 2/5 m r²) released at rest on an incline of angle α
+  rolls without slipping: ``a = (5/7) g sin α`` down the slope, ``ω = v / r``,
+  normal force ``m g cos α``, friction ``(2/7) m g sin α`` up the slope;
+* the flow Jacobian of a spinning ball dropped onto the incline (touchdown, plastic
+  sticking impact, rolling) against central differences of the simulator;
+* r = 0: explicit ``radius=0.0`` gives bit-identical runs, and Pinocchio's 3-D
+  contact dynamics is used only for point contacts;
+* the TOML key ``radius`` and its validation.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pinocchio as pin
+import pytest
+from helpers import EPS, assert_fd, fd_dq, fd_dv, random_state
+
+import contactdiff as cd
+from contactdiff.dynamics.constraint_dynamics import eligible
+from contactdiff.dynamics.mode import ModeDynamics
+from contactdiff.errors import InvalidInputError
+from contactdiff.model.contacts import Contact
+from contactdiff.model.kinematics import Kinematics
+from contactdiff.model.scene_file import load_scene
+
+MASS, RADIUS, G = 2.0, 0.1, 9.81
+INERTIA = 0.4 * MASS * RADIUS**2  # solid sphere
+ALPHA = 0.3  # incline (rad)
+NORMAL = np.array([math.sin(ALPHA), 0.0, math.cos(ALPHA)])  # the incline's normal
+DOWNHILL = np.array([math.cos(ALPHA), 0.0, -math.sin(ALPHA)])  # unit, n · s = 0, g · s = g sin α > 0
+TILTED = tuple(np.array([0.6, -0.3, 1.0]) / np.linalg.norm([0.6, -0.3, 1.0]))
+
+BALL_URDF = f"""<?xml version="1.0"?>
+<robot name="ball3d">
+  <link name="ball">
+    <inertial><origin xyz="0 0 0"/><mass value="{MASS}"/>
+      <inertia ixx="{INERTIA}" ixy="0" ixz="0" iyy="{INERTIA}" iyz="0" izz="{INERTIA}"/></inertial>
+  </link>
+</robot>
+"""
+
+
+@pytest.fixture(scope="module")
+def ball(tmp_path_factory):
+    """A free-flyer solid sphere whose frame ``ball`` is its centre."""
+    path = tmp_path_factory.mktemp("round") / "ball3d.urdf"
+    path.write_text(BALL_URDF)
+    return cd.load_robot(str(path), floating_base=True)
+
+
+# -- geometry ----------------------------------------------------------------------------
+CASES = [  # (robot, contact, tangent rows kept)
+    ("ball", Contact("ball", radius=RADIUS, friction="stick"), 2),
+    ("ball", Contact("ball", normal=TILTED, radius=RADIUS, offset=0.2, friction="stick"), 2),
+    ("ball", Contact("ball", normal=TILTED, radius=0.0, friction="stick"), 2),
+    ("ball", Contact("ball", radius=RADIUS), 0),
+    ("solo12", Contact("FR_FOOT", normal=TILTED, radius=0.02, offset=0.01, friction="stick"), 2),
+    ("solo12", Contact("FR_FOOT", normal=TILTED, friction="stick"), 2),
+    ("planar_trot_rigid", Contact("front_foot", radius=0.05, friction="stick"), 1),
+    ("planar_trot_rigid", Contact("front_foot", normal=(-0.4, 0.0, 1.0), radius=0.05, friction="stick"), 1),
+]
+IDS = [f"{r}-{c.frame}-r{c.radius}-n{i}" for i, (r, c, _) in enumerate(CASES)]
+
+
+def _case(ball, i, seed):
+    name, spec, tangents = CASES[i]
+    robot = ball if name == "ball" else cd.load_robot(name)
+    rng = np.random.default_rng(seed)
+    if robot.model.nq == robot.model.nv:  # planar: pitch well away from 0
+        q = robot.q_ref + rng.uniform(-0.6, 0.6, robot.nq)
+        v = rng.standard_normal(robot.nv)
+    else:
+        q, v = random_state(robot.model, robot.q_ref, rng, 0.3, 1.0)
+        if name == "ball":
+            q[:3] = rng.standard_normal(3)
+            v *= 2.0  # spin of order 1 rad/s and more
+    return robot, spec.bind(robot), tangents, q, v
+
+
+class Evaluator:
+    """The contact's functions at any state, on its own Kinematics."""
+
+    def __init__(self, robot, contact):
+        self.robot, self.c = robot, contact
+        self.kin = Kinematics(robot.model)
+
+    def at(self, q, v=None, derivatives=False):
+        self.kin.update(q, np.zeros(self.robot.nv) if v is None else v, derivatives=derivatives)
+        return self.kin
+
+    def gap(self, q):
+        return self.c.gap(self.at(q))
+
+    def rows(self, q):
+        return self.c.rows(self.at(q)).copy()
+
+    def drift(self, q, v):
+        return self.c.drift(self.at(q, v)).copy()
+
+    def placement(self, q):
+        data = self.robot.new_data()
+        pin.framesForwardKinematics(self.robot.model, data, q)
+        return data.oMf[self.c.fid]
+
+
+def test_ball_gap_closed_form(ball):
+    """The gap is the height of the sphere's lowest point: z - r on flat ground and
+    n · p - r - offset on a tilted plane (p = the free-flyer's translation q[:3])."""
+    flat = Contact("ball", radius=RADIUS).bind(ball)
+    tilted = Contact("ball", normal=TILTED, radius=RADIUS, offset=0.2).bind(ball)
+    kin = Kinematics(ball.model)
+    rng = np.random.default_rng(0)
+    for _ in range(5):
+        q, v = random_state(ball.model, ball.q_ref, rng, 1.0, 1.0)
+        q[:3] = rng.standard_normal(3)
+        kin.update(q, v)
+        # the frame is the root joint's origin: p = q[:3] exactly; one rounding per operation
+        assert flat.gap(kin) == pytest.approx(q[2] - RADIUS, abs=1e-15)
+        assert tilted.gap(kin) == pytest.approx(np.dot(TILTED, q[:3]) - RADIUS - 0.2, abs=4e-16 * 4)
+        # the normal row has no rotation term: the gap rate is n · v_p
+        assert flat.gap_rate(kin) == pytest.approx(float(flat.rows(kin)[0] @ v), abs=1e-14)
+
+
+@pytest.mark.parametrize("i", range(len(CASES)), ids=IDS)
+def test_round_rows_are_the_rolling_point_velocity(ball, i):
+    """Row d is the gradient of d · X(q), X the body-fixed point that sits at the
+    sphere's bottom p - r n at the base state; rows 0 is the gap's gradient; the
+    rows keep the tangents the point can move along."""
+    robot, c, tangents, q, v = _case(ball, i, seed=3)
+    ev = Evaluator(robot, c)
+    A = ev.rows(q)
+    assert A.shape == (1 + tangents, robot.nv)
+    n, r = np.array(c.spec.normal), c.spec.radius
+    base = ev.placement(q)
+    local = base.rotation.T @ (-r * n)  # the bottom point in the frame's own axes
+
+    def material(qq, d):
+        m = ev.placement(qq)
+        return d @ (m.translation + m.rotation @ local)
+
+    assert_fd("round rows[0] vs d gap/dq", A[0], fd_dq(ev.gap, robot.model, q), value=ev.gap(q))
+    for k, d in enumerate(c.directions):
+        assert_fd("round rows vs d(d · X)/dq", A[k], fd_dq(lambda qq, d=d: material(qq, d), robot.model, q),
+                  value=material(q, d))
+    # and A v = D (v_p + ω × (-r n)) from Pinocchio's frame velocity (a second reference)
+    data = robot.new_data()
+    pin.forwardKinematics(robot.model, data, q, v)
+    pin.updateFramePlacements(robot.model, data)
+    twist = pin.getFrameVelocity(robot.model, data, c.fid, pin.LOCAL_WORLD_ALIGNED)
+    expected = c.directions @ (twist.linear + np.cross(twist.angular, -r * n))
+    # one product of O(1) entries over nv terms: round-off 1e-15 relative
+    np.testing.assert_allclose(A @ v, expected, rtol=0, atol=1e-13 * max(1.0, np.abs(expected).max()))
+
+
+@pytest.mark.parametrize("i", range(len(CASES)), ids=IDS)
+def test_round_drift(ball, i):
+    """With ddq = 0 along q(t) = q ⊕ t v: d/dt [A(q(t)) v] = drift."""
+    robot, c, _, q, v = _case(ball, i, seed=5)
+    ev = Evaluator(robot, c)
+    h = EPS
+    rate = (ev.rows(pin.integrate(robot.model, q, h * v)) @ v
+            - ev.rows(pin.integrate(robot.model, q, -h * v)) @ v) / (2 * h)
+    assert_fd("round drift vs d/dt(A v) along q+tv", ev.drift(q, v), rate, value=ev.rows(q) @ v)
+
+
+@pytest.mark.parametrize("seed", [7, 8])
+@pytest.mark.parametrize("i", range(len(CASES)), ids=IDS)
+def test_round_derivatives(ball, i, seed):
+    robot, c, _, q, v = _case(ball, i, seed)
+    ev = Evaluator(robot, c)
+    model, nv = robot.model, robot.nv
+    rng = np.random.default_rng(seed + 100)
+    x = rng.standard_normal(nv)
+    lam = rng.standard_normal(c.n_rows)
+    kin = ev.at(q, v, derivatives=True)
+    rows_v_dq = c.rows_velocity_dq(kin).copy()
+    drift_dq, drift_dv = (m.copy() for m in c.drift_derivatives(kin))
+    rows_x_dq = c.rows_times_dq(kin, x).copy()
+    rows_t_dq = c.rows_transpose_dq(kin, lam).copy()
+    assert_fd("round rows_velocity_dq", rows_v_dq, fd_dq(lambda qq: ev.rows(qq) @ v, model, q),
+              value=ev.rows(q) @ v)
+    assert_fd("round drift_dq", drift_dq, fd_dq(lambda qq: ev.drift(qq, v), model, q), value=ev.drift(q, v))
+    assert_fd("round drift_dv", drift_dv, fd_dv(lambda vv: ev.drift(q, vv), v), value=ev.drift(q, v))
+    assert_fd("round rows_times_dq", rows_x_dq, fd_dq(lambda qq: ev.rows(qq) @ x, model, q),
+              value=ev.rows(q) @ x)
+    assert_fd("round rows_transpose_dq", rows_t_dq, fd_dq(lambda qq: ev.rows(qq).T @ lam, model, q),
+              value=ev.rows(q).T @ lam)
+
+
+def test_sliding_view_of_a_round_contact_is_the_normal_row(ball):
+    """Sliding keeps the normal row only; it has no rotation term."""
+    c = Contact("ball", normal=TILTED, radius=RADIUS, friction="stick").bind(ball)
+    point = Contact("ball", normal=TILTED, friction="stick").bind(ball)
+    kin = Kinematics(ball.model)
+    q, v = random_state(ball.model, ball.q_ref, np.random.default_rng(1))
+    kin.update(q, v)
+    view = c.sliding_view()
+    assert view.n_rows == 1 and view.rolling is None
+    assert np.array_equal(view.rows(kin), point.sliding_view().rows(kin))
+    assert np.array_equal(view.drift(kin), point.sliding_view().drift(kin))
+
+
+# -- where a round contact is solved ---------------------------------------------------------
+def test_round_contacts_are_not_pinocchio_eligible(ball):
+    solo = cd.load_robot("solo12")
+    feet = [Contact(f, friction="stick").bind(solo) for f in solo.feet]
+    assert eligible(feet)
+    assert eligible([Contact(f, friction="stick", radius=0.0).bind(solo) for f in solo.feet])
+    round_one = feet[:3] + [Contact(solo.feet[3], friction="stick", radius=0.02).bind(solo)]
+    assert not eligible(round_one)
+    assert not eligible([Contact("ball", friction="stick", radius=RADIUS).bind(ball)])
+
+
+# -- rolling down an incline -------------------------------------------------------------------
+def _incline_scene(ball, q0=None, v0=None, restitution=0.0):
+    q = ball.q_ref.copy()
+    q[:3] = RADIUS * NORMAL  # touching the plane n · p = 0
+    scene = cd.Scene(ball, [Contact("ball", normal=tuple(NORMAL), radius=RADIUS, friction="stick",
+                                    restitution=restitution)],
+                     gravity=[0.0, 0.0, -G], q0=q if q0 is None else q0)
+    return scene if v0 is None else scene.with_state(None, v0)
+
+
+def test_ball_rolls_down_an_incline(ball):
+    """m a = m g sin α - F, I ω̇ = F r, ω̇ = a / r (no slip), I = 2/5 m r²: a = 5/7 g sin α,
+    F = 2/7 m g sin α, N = m g cos α. From rest: p = p0 + a t²/2 s, v = a t s,
+    ω = (v / r) (n × s) = (v / r) ŷ, R = R_y(|p - p0| / r)."""
+    scene = _incline_scene(ball)
+    T = 1.0
+    traj = cd.simulate(scene, T, rtol=1e-10, atol=1e-12, dense=True)
+    assert traj.modes == [("ball",)] and not traj.events
+    a = 5.0 / 7.0 * G * math.sin(ALPHA)
+    kin = Kinematics(ball.model)
+    contact = scene.contacts[0]
+    worst = dict(position=0.0, velocity=0.0, spin=0.0, rotation=0.0, slip=0.0)
+    for t in np.linspace(0.0, T, 11):
+        q, v = traj.at(float(t)) if t < T else (traj.q, traj.v)
+        R = pin.Quaternion(q[3:7]).matrix()
+        speed, travel = a * t, 0.5 * a * t * t
+        worst["position"] = max(worst["position"], np.abs(q[:3] - (RADIUS * NORMAL + travel * DOWNHILL)).max())
+        worst["velocity"] = max(worst["velocity"], np.abs(R @ v[:3] - speed * DOWNHILL).max())  # v[:3] local
+        worst["spin"] = max(worst["spin"], np.abs(R @ v[3:] - np.array([0.0, speed / RADIUS, 0.0])).max())
+        worst["rotation"] = max(worst["rotation"], np.abs(R - pin.exp3(np.array([0.0, travel / RADIUS, 0.0]))).max())
+        kin.update(q, v)
+        worst["slip"] = max(worst["slip"], np.abs(contact.rows(kin) @ v).max())
+    # scales at T: travel 1.5 m, speed 3.0 m/s, spin 30 rad/s. DOP853 at rtol 1e-10 keeps each
+    # step's local error below 1e-10 relative; ~50 steps (measured: 43) accumulate at most
+    # ~5e-9 relative, so 1e-8 relative to each scale; measured errors ~4e-11 relative.
+    # The contact point's velocity (A v, held at the acceleration level, projected back
+    # when it drifts past the projection tolerance) errs like the velocity: 1e-8 x 3 m/s
+    # (measured 1.6e-10 m/s on the dense output between steps).
+    assert worst["position"] < 1e-8 * 1.5, worst
+    assert worst["velocity"] < 1e-8 * 3.0, worst
+    assert worst["spin"] < 1e-8 * 30.0, worst
+    assert worst["rotation"] < 1e-8, worst
+    assert worst["slip"] < 1e-8 * 3.0, worst
+    # the forces of the rolling mode: normal m g cos α, friction 2/7 m g sin α up the slope (t1 = s)
+    sol = ModeDynamics(scene).solve(traj.q, traj.v, T, [0])
+    np.testing.assert_allclose(contact.directions[1], DOWNHILL, atol=1e-15)
+    expected = [MASS * G * math.cos(ALPHA), -2.0 / 7.0 * MASS * G * math.sin(ALPHA), 0.0]
+    # one KKT solve with a 3x3 Delassus matrix of condition ~4 at 30 rad/s of spin: 1e-12 relative
+    np.testing.assert_allclose(sol.forces, expected, rtol=0, atol=1e-12 * MASS * G)
+
+
+def test_point_contact_slides_where_the_ball_rolls(ball):
+    """Contrast: with r = 0 the sticking point holds the centre still (no rolling)."""
+    scene = _incline_scene(ball)
+    point = cd.Scene(ball, [dataclasses.replace(scene.contact_specs[0], radius=0.0, offset=RADIUS)],
+                     gravity=[0.0, 0.0, -G], q0=scene.q0)
+    traj = cd.simulate(point, 0.5, rtol=1e-10, atol=1e-12)
+    assert np.abs(traj.q[:3] - scene.q0[:3]).max() < 1e-12 and np.abs(traj.v).max() < 1e-12
+
+
+# -- the flow Jacobian through a touchdown ------------------------------------------------------
+JAC_EPS = 1e-5
+JAC_RTOL = 1e-6  # docs/design.md §7: flow Jacobians vs FD of the simulator
+SIM_TOL = dict(rtol=1e-12, atol=1e-13)
+
+
+def test_flow_jacobian_of_a_spinning_ball_landing_on_an_incline(ball):
+    """Dropped 2 cm above the incline with a spin: touchdown (plastic sticking impact),
+    then rolling. The flow Jacobian against central differences of the simulator
+    (q0 perturbed on the manifold, v0 in R^6; ε = 1e-5 as the state study)."""
+    q0 = ball.q_ref.copy()
+    q0[:3] = (RADIUS + 0.02) * NORMAL
+    q0[3:7] = pin.Quaternion(pin.exp3(np.array([0.2, -0.1, 0.3]))).coeffs()
+    v0 = np.array([0.3, -0.2, 0.1, 1.5, -2.0, 4.0])  # local linear and angular velocity
+    scene = _incline_scene(ball, q0, v0)
+    T = 0.15
+    traj = cd.simulate(scene, T, jacobian=True, **SIM_TOL)
+    assert [(e.kind, e.contacts) for e in traj.events] == [("touchdown", ("ball",))]
+    assert traj.differentiable, traj.notes
+    model, nv = ball.model, ball.nv
+    cols = []
+    for k in range(2 * nv):
+        e = np.zeros(nv)
+        e[k % nv] = JAC_EPS
+        runs = []
+        for sign in (1.0, -1.0):
+            q, v = (pin.integrate(model, q0, sign * e), v0) if k < nv else (q0, v0 + sign * e)
+            run = cd.simulate(scene.with_state(q, v), T, **SIM_TOL)
+            assert [(x.kind, x.contacts) for x in run.events] == [(x.kind, x.contacts) for x in traj.events]
+            runs.append(run)
+        p, m = runs
+        cols.append(np.concatenate([pin.difference(model, m.q, p.q), p.v - m.v]) / (2 * JAC_EPS))
+    # central differences at ε = 1e-5 of runs at rtol 1e-12: truncation ~ε² |x'''| ~ 1e-10 and
+    # integration noise ~1e-12 / ε = 1e-7 relative, under the study's 1e-6
+    assert_fd("round flow jacobian (ball landing on an incline)", traj.jacobian, np.array(cols).T,
+              rtol=JAC_RTOL)
+    # after the plastic impact the ball rolls: its contact point does not move
+    kin = Kinematics(model)
+    kin.update(traj.q, traj.v)
+    assert np.abs(scene.contacts[0].rows(kin) @ traj.v).max() < 1e-12
+
+
+# -- r = 0 unchanged --------------------------------------------------------------------------
+def test_explicit_zero_radius_is_bit_identical():
+    """The tilted solo12 drop (the state study's scene) for 0.1 s with every contact given
+    radius=0.0 explicitly: the same floats, Jacobian included."""
+    from scipy.spatial.transform import Rotation
+
+    scene = cd.load_scene("solo12_drop")
+    q = scene.q0.copy()
+    q[3:7] = Rotation.from_euler("xyz", [0.03, 0.05, 0.0]).as_quat()
+    q[2] += 0.01
+    scene = scene.with_state(q)
+    explicit = cd.Scene(scene.robot, [dataclasses.replace(c, radius=0.0) for c in scene.contact_specs],
+                        scene.effort_specs, None, scene.q0, scene.v0)
+    assert all(c.rolling is None for c in explicit.contacts)
+    a = cd.simulate(scene, 0.104, jacobian=True)
+    b = cd.simulate(explicit, 0.104, jacobian=True)
+    assert [e.t for e in a.events] == [e.t for e in b.events] and a.events
+    assert np.array_equal(a.q, b.q) and np.array_equal(a.v, b.v) and np.array_equal(a.jacobian, b.jacobian)
+
+
+# -- input checks and the scene file --------------------------------------------------------
+@pytest.mark.parametrize("value,message", [
+    (-0.01, "radius must be >= 0, got -0.01"),
+    (float("nan"), "radius must be finite, got nan"),
+    (float("inf"), "radius must be finite, got inf"),
+    ("big", "radius must be a number, got 'big'"),
+])
+def test_radius_validation(value, message):
+    with pytest.raises(InvalidInputError, match=message):
+        Contact("ball", radius=value)
+
+
+def test_radius_with_against_is_refused():
+    with pytest.raises(InvalidInputError, match="radius 0.02 is for contacts with the ground only"):
+        Contact("FL_FOOT", against="HR_FOOT", radius=0.02)
+    assert Contact("FL_FOOT", against="HR_FOOT", radius=0.0).radius == 0.0
+
+
+SCENE = """robot = "solo12"
+floating_base = true
+gravity = [0.0, 0.0, -9.81]
+
+[[contact]]
+frame = "FL_FOOT"
+offset = 0.0
+friction = "stick"
+{extra}
+
+[initial]
+q = {{ root_joint = [0.0, 0.0, 0.4, 0.0, 0.0, 0.0, 1.0] }}
+"""
+
+
+def test_scene_file_radius(tmp_path):
+    path = tmp_path / "round.toml"
+    path.write_text(SCENE.format(extra="radius = 0.02"))
+    scene = load_scene(path)
+    assert scene.contact_specs[0].radius == 0.02 and scene.contacts[0].radius == 0.02
+    path.write_text(SCENE.format(extra=""))
+    assert load_scene(path).contact_specs[0].radius == 0.0
+    for bad, message in (("radius = -0.02", "radius must be >= 0, got -0.02"),
+                         ("radius = nan", "radius must be finite, got nan"),
+                         ('radius = "2 cm"', "radius must be a number, got '2 cm'"),
+                         ('radius = 0.02\nagainst = "HR_FOOT"', "for contacts with the ground only")):
+        path.write_text(SCENE.format(extra=bad))
+        with pytest.raises(InvalidInputError, match=message):
+            load_scene(path)
