@@ -28,6 +28,12 @@ The automatic rule (`choose_feet`), for a floating-base robot:
 A robot with a fixed base gets no automatic feet. `choose_feet` with
 ``given=`` takes the user's frames instead (any frame type), with an error
 listing the frames when a name is wrong.
+
+**Round feet.** `foot_spheres` reads each foot's collision sphere from the
+robot's URDF (Pinocchio's geometry model), and `round_feet` gives a scene's foot
+contacts the radius of their sphere (`contactdiff.model.contacts`: the gap to
+the sphere's lowest point, rolling without slipping), when the sphere is
+centred on the foot frame.
 """
 
 from __future__ import annotations
@@ -36,11 +42,12 @@ import dataclasses
 import re
 from dataclasses import dataclass, field
 from enum import Enum
+from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 
-from ..errors import unknown_name
+from ..errors import InvalidInputError, ModelLoadError, unknown_name
 
 TIE_HEIGHT = 1e-3
 """m: frames of one end this close in height count as equally low (names decide)."""
@@ -247,3 +254,143 @@ def _turned_upright(model: pin.Model, q: np.ndarray, choice: FootChoice):
     q = np.array(q, dtype=float)
     q[:7] = pin.SE3ToXYZQUAT(turned)
     return q, angle
+
+
+# -- round feet -------------------------------------------------------------------------
+SPHERE_CENTRE_TOL = 1e-6
+"""m: a collision sphere whose centre is this close to the foot frame is centred on it."""
+
+
+@dataclass(frozen=True)
+class FootSphere:
+    """A foot's collision sphere, as the robot's URDF gives it.
+
+    Attributes:
+        foot: foot frame name.
+        radius: sphere radius (m).
+        centre: the sphere's centre in the foot frame's axes, from its origin (m).
+        geometry: name of the collision geometry in Pinocchio's geometry model.
+    """
+
+    foot: str
+    radius: float
+    centre: tuple[float, float, float]
+    geometry: str
+
+    @property
+    def centre_offset(self) -> float:
+        """Distance (m) from the foot frame's origin to the sphere's centre."""
+        return float(np.linalg.norm(self.centre))
+
+    @property
+    def centred(self) -> bool:
+        """Whether the sphere is centred on the foot frame (within `SPHERE_CENTRE_TOL`)."""
+        return self.centre_offset <= SPHERE_CENTRE_TOL
+
+
+def _collision_model(robot) -> pin.GeometryModel:
+    if not robot.urdf:
+        raise InvalidInputError(f"robot {robot.name!r} was built in code: no URDF to read collision geometry from")
+    # package://NAME/... resolves under any folder holding NAME: try the URDF's ancestors
+    dirs = [str(p) for p in Path(robot.urdf).resolve().parents]
+    try:
+        return pin.buildGeomFromUrdf(robot.model, str(robot.urdf), pin.GeometryType.COLLISION, package_dirs=dirs)
+    except (ValueError, RuntimeError, OSError) as exc:
+        raise ModelLoadError(f"cannot load the collision geometry of robot {robot.name!r} "
+                             f"from {robot.urdf}: {exc}") from None
+
+
+def _geometry_kind(geometry) -> str:
+    return type(geometry).__name__
+
+
+def foot_spheres(robot, feet=None) -> dict[str, FootSphere | None]:
+    """Each foot's collision sphere, from the robot's URDF (``pin.buildGeomFromUrdf``).
+
+    A foot's sphere is a ``Sphere`` collision geometry of the foot frame's own
+    link; failing that, the sphere on the foot frame's joint nearest to it.
+
+    Args:
+        robot: a `Robot` loaded from a URDF.
+        feet: frame names, default ``robot.feet``.
+
+    Returns:
+        ``{foot: FootSphere or None}`` (None: no collision sphere; the foot may be a mesh).
+
+    Raises:
+        InvalidInputError: the robot has no URDF.
+        ModelLoadError: the collision geometry cannot be loaded (a mesh not found).
+    """
+    model = robot.model
+    geometry = _collision_model(robot)
+    found = {}
+    for foot in (robot.feet if feet is None else feet):
+        fid = robot.frame_id(foot)
+        frame = model.frames[fid]
+        spheres = [g for g in geometry.geometryObjects if _geometry_kind(g.geometry) == "Sphere"
+                   and g.parentJoint == frame.parentJoint]
+        own = [g for g in spheres if g.parentFrame == fid]
+
+        def centre(g):
+            return frame.placement.actInv(g.placement.translation)  # in the foot frame
+        candidates = own or spheres
+        if not candidates:
+            found[foot] = None
+            continue
+        best = min(candidates, key=lambda g: np.linalg.norm(centre(g)))
+        found[foot] = FootSphere(foot, float(best.geometry.radius), tuple(float(x) for x in centre(best)),
+                                 best.name)
+    return found
+
+
+def round_feet(scene, spheres: dict | None = None):
+    """The scene with its ground contacts at the robot's feet made round.
+
+    Each contact of a foot frame with the ground (``against`` unset) gets the
+    radius ``r`` of the foot's collision sphere (`foot_spheres`), and its offset
+    lowered by ``r``: every gap, and so every event, stays where it was (the
+    sphere's centre, the frame, is ``offset`` above the plane at contact, as
+    before), while a sticking foot now rolls instead of pivoting on a point.
+
+    Args:
+        scene: a `Scene` (e.g. ``Scene.from_robot(robot)``).
+        spheres: ``{foot: FootSphere}``, default ``foot_spheres(scene.robot)``.
+
+    Raises:
+        InvalidInputError: a foot contact has no collision sphere, or a sphere not
+            centred on its frame (the message gives the radius and the offset);
+            or no contact is at a foot.
+    """
+    import dataclasses as _dc
+
+    from .scene import Scene
+
+    robot = scene.robot
+    at_feet = [i for i, c in enumerate(scene.contact_specs) if c.frame in robot.feet and c.against is None]
+    if not at_feet:
+        raise InvalidInputError(f"scene {scene.name!r}: no ground contact at a foot of robot {robot.name!r} "
+                                f"(feet: {', '.join(robot.feet) or 'none'})")
+    if spheres is None:
+        spheres = foot_spheres(robot, sorted({scene.contact_specs[i].frame for i in at_feet}))
+    problems, off_centre = [], False
+    for i in at_feet:
+        foot = scene.contact_specs[i].frame
+        sphere = spheres.get(foot)
+        if sphere is None:
+            problems.append(f"{foot} has no collision sphere (a mesh, or no collision geometry)")
+        elif not sphere.centred:
+            problems.append(f"{foot}'s collision sphere {sphere.geometry!r} (radius {sphere.radius:g} m) is "
+                            f"centred {sphere.centre_offset:.6g} m from the frame, at "
+                            f"({', '.join(f'{x:.6g}' for x in sphere.centre)}) in its axes")
+            off_centre = True
+    if problems:
+        hint = (" (a round contact needs a frame at the sphere's centre: add one to the model and "
+                "give its Contact the radius)") if off_centre else " (give Contact(radius=...) by hand)"
+        raise InvalidInputError(f"robot {robot.name!r}: cannot round its feet: {'; '.join(problems)}{hint}")
+    contacts = list(scene.contact_specs)
+    for i in at_feet:
+        c, r = contacts[i], spheres[contacts[i].frame].radius
+        contacts[i] = _dc.replace(c, radius=r, offset=c.offset - r)
+    rounded = Scene(robot, contacts, scene.effort_specs, None, scene.q0, scene.v0, scene.name)
+    rounded.foot_choice = scene.foot_choice
+    return rounded

@@ -36,6 +36,7 @@ from contactdiff.dynamics.constraint_dynamics import eligible
 from contactdiff.dynamics.mode import ModeDynamics
 from contactdiff.errors import InvalidInputError
 from contactdiff.model.contacts import Contact
+from contactdiff.model.feet import foot_spheres, round_feet
 from contactdiff.model.kinematics import Kinematics
 from contactdiff.model.scene_file import load_scene
 
@@ -396,3 +397,54 @@ def test_scene_file_radius(tmp_path):
         path.write_text(SCENE.format(extra=bad))
         with pytest.raises(InvalidInputError, match=message):
             load_scene(path)
+
+
+# -- foot radii from the collision geometry ------------------------------------------------------
+def test_foot_spheres_of_the_quadrupeds():
+    """The URDFs' foot collision spheres: a1 and hyq put a <sphere radius="0.02"/> and
+    <sphere radius="0.02175"/> at the foot frame; anymal a <sphere radius="0.031"/> on
+    the foot link at 0.02325 m along the frame's z; solo12's feet are meshes."""
+    a1 = foot_spheres(cd.load_robot("a1"))
+    assert set(a1) == {"FL_foot", "FR_foot", "RL_foot", "RR_foot"}
+    assert all(s.radius == 0.02 and s.centred and s.centre == (0.0, 0.0, 0.0) for s in a1.values())
+    hyq = foot_spheres(cd.load_robot("hyq"))
+    assert all(s.radius == 0.02175 and s.centred for s in hyq.values()) and len(hyq) == 4
+    anymal = foot_spheres(cd.load_robot("anymal"))
+    for s in anymal.values():
+        assert s.radius == 0.031 and not s.centred
+        np.testing.assert_allclose(s.centre, [0.0, 0.0, 0.02325], atol=1e-12)  # URDF decimals, summed
+    with pytest.raises(InvalidInputError, match=r"radius 0.031 m\) is centred 0.02325 m from the frame"):
+        round_feet(cd.Scene.from_robot(cd.load_robot("anymal")))
+    solo = cd.load_robot("solo12")
+    assert foot_spheres(solo) == dict.fromkeys(solo.feet)
+    with pytest.raises(InvalidInputError, match="FL_FOOT has no collision sphere"):
+        round_feet(cd.Scene.from_robot(solo))
+
+
+def test_round_feet_keep_the_gaps_and_roll():
+    """round_feet gives each foot contact its sphere's radius and lowers its offset by it:
+    every gap is unchanged (to one rounding of offset - r + r), the tangent rows gain the
+    rolling term, and the mode leaves Pinocchio's path for the Python KKT one."""
+    robot = cd.load_robot("a1")
+    point = cd.Scene.from_robot(robot)
+    rounded = round_feet(point)
+    assert [c.radius for c in rounded.contact_specs] == [0.02] * 4
+    assert [c.offset for c in rounded.contact_specs] == [c.offset - 0.02 for c in point.contact_specs]
+    rng = np.random.default_rng(2)
+    kin = Kinematics(robot.model)
+    for q in (point.q0, robot.integrate(point.q0, 0.2 * rng.standard_normal(robot.nv))):
+        kin.update(q, np.zeros(robot.nv))
+        for a, b in zip(point.contacts, rounded.contacts):
+            assert b.gap(kin) == pytest.approx(a.gap(kin), abs=1e-16)
+            assert np.array_equal(a.rows(kin)[0], b.rows(kin)[0])
+            assert np.abs(a.rows(kin)[1:] - b.rows(kin)[1:]).max() > 1e-3  # r J_ω: 0.02 m × O(1)
+    assert eligible(point.contacts) and not eligible(rounded.contacts)
+    # a short drop onto the round feet: they land, stick and hold their rolling points
+    q = rounded.q0.copy()
+    q[2] += 0.005
+    traj = cd.simulate(rounded.with_state(q), 0.06)
+    assert [(e.kind, e.contacts) for e in traj.events] == [("touchdown", tuple(robot.feet))]
+    assert traj.modes[-1] == tuple(robot.feet)
+    kin.update(traj.q, traj.v)
+    for c in rounded.contacts:  # default tolerances (rtol 1e-8) on velocities of O(0.1) m/s
+        assert np.abs(c.rows(kin) @ traj.v).max() < 1e-7
