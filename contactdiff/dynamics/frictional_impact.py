@@ -46,8 +46,9 @@ that satisfies every condition of the law up to the scaled residual ``tol``
 converges quadratically). It does not mean the search is complete: for
 several spatial sliding contacts Newton may miss a direction from its
 starts (2 of 1800 random problems of 1-3 contacts raised `SolverError` with a
-candidate of two or three spatial sliders), so a `SolverError` there is not a
-proof that no solution exists (for planar and
+candidate of two or three spatial sliders; one was checked by a fine grid
+search: a valid solution exists and was missed), so a `SolverError` there is
+not a proof that no solution exists (for planar and
 sticking contacts the search is finite and complete).
 
 Enumeration order and tie rule
