@@ -73,6 +73,11 @@ class SolverError(ContactDiffError):
     """A complementarity or linear-algebra subproblem has no valid solution."""
 
 
+class EnergyGainError(SolverError):
+    """A frictional impact law's solution increases the kinetic energy (``e > 0`` with
+    friction coupling: Kane's paradox; `contactdiff.dynamics.frictional_impact`)."""
+
+
 def check_number(owner: str, name: str, value, *, minimum: float | None = None,
                  allow_inf: bool = False) -> float:
     """``value`` as a finite float (>= ``minimum`` if given; ``allow_inf`` admits
