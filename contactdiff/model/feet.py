@@ -32,8 +32,10 @@ listing the frames when a name is wrong.
 **Round feet.** `foot_spheres` reads each foot's collision sphere from the
 robot's URDF (Pinocchio's geometry model), and `round_feet` gives a scene's foot
 contacts the radius of their sphere (`contactdiff.model.contacts`: the gap to
-the sphere's lowest point, rolling without slipping), when the sphere is
-centred on the foot frame.
+the sphere's lowest point, rolling without slipping). A sphere centred on its
+foot frame rounds the contact in place; one centred elsewhere (ANYmal's) gets a
+frame of its own at its centre, ``<foot>_sphere``, in a copy of the robot's
+model, and the contact moves there.
 """
 
 from __future__ import annotations
@@ -343,23 +345,47 @@ def foot_spheres(robot, feet=None) -> dict[str, FootSphere | None]:
     return found
 
 
+SPHERE_FRAME_SUFFIX = "_sphere"
+"""A foot whose sphere is not centred on it gets the frame ``<foot>_sphere`` at the sphere's centre."""
+
+
 def round_feet(scene, spheres: dict | None = None):
     """The scene with its ground contacts at the robot's feet made round.
 
     Each contact of a foot frame with the ground (``against`` unset) gets the
-    radius ``r`` of the foot's collision sphere (`foot_spheres`), and its offset
-    lowered by ``r``: every gap, and so every event, stays where it was (the
-    sphere's centre, the frame, is ``offset`` above the plane at contact, as
-    before), while a sticking foot now rolls instead of pivoting on a point.
+    radius ``r`` of the foot's collision sphere (`foot_spheres`); the contact
+    keeps its name, so reports and parameters that name it still do.
+
+    * **Sphere centred on the foot frame** (a1, go1, hyq): the contact stays on
+      the frame and its offset is lowered by ``r``. Every gap, at every pose, is
+      unchanged (the frame is ``offset`` above the plane at contact, as before),
+      while a sticking foot now rolls instead of pivoting on a point. When every
+      foot is like this the scene keeps its robot, frames and all.
+    * **Sphere centred off the foot frame** (ANYmal: 0.02325 m along the frame's
+      z): a copy of the robot's model gets an operational frame ``<foot>_sphere``
+      (`SPHERE_FRAME_SUFFIX`) at the sphere's centre (the foot frame's parent
+      joint and axes, the centre's position), and the contact moves to it with
+      radius ``r``. Its offset is chosen so that its gap at the robot's
+      reference pose ``robot.q_ref`` equals the old one (to round-off):
+      ``offset + n · (c - p) - r``, ``c`` the centre and ``p`` the foot frame's
+      origin there. The contact point is then **the sphere's lowest point, no
+      longer the foot frame's origin**. At the reference pose this changes
+      nothing: same gaps, so the same touchdowns from the same states. Away from
+      it the gap follows the sphere, not the old point: a foot that tilts rolls
+      about the sphere's centre, so the gap changes by ``n · (c - p)`` varying
+      with the foot's orientation (up to the centre's 0.02325 m on ANYmal), and a
+      sticking foot rolls on its sphere where the point would have pivoted.
+      The scene's robot is then the copy (the same robot, feet and reference
+      pose, with the new frames); the given scene and its robot are untouched.
 
     Args:
         scene: a `Scene` (e.g. ``Scene.from_robot(robot)``).
         spheres: ``{foot: FootSphere}``, default ``foot_spheres(scene.robot)``.
 
     Raises:
-        InvalidInputError: a foot contact has no collision sphere, or a sphere not
-            centred on its frame (the message gives the radius and the offset);
-            or no contact is at a foot.
+        InvalidInputError: a foot contact has no collision sphere; or no contact
+            is at a foot; or a frame named ``<foot>_sphere`` already exists
+            elsewhere than the sphere's centre.
     """
     import dataclasses as _dc
 
@@ -368,29 +394,65 @@ def round_feet(scene, spheres: dict | None = None):
     robot = scene.robot
     at_feet = [i for i, c in enumerate(scene.contact_specs) if c.frame in robot.feet and c.against is None]
     if not at_feet:
+        spheres_at = {f + SPHERE_FRAME_SUFFIX for f in robot.feet}
+        done = any(c.frame in spheres_at and c.radius > 0 for c in scene.contact_specs)
         raise InvalidInputError(f"scene {scene.name!r}: no ground contact at a foot of robot {robot.name!r} "
-                                f"(feet: {', '.join(robot.feet) or 'none'})")
+                                f"(feet: {', '.join(robot.feet) or 'none'})"
+                                + ("; its foot contacts are already round" if done else ""))
     if spheres is None:
         spheres = foot_spheres(robot, sorted({scene.contact_specs[i].frame for i in at_feet}))
-    problems, off_centre = [], False
-    for i in at_feet:
-        foot = scene.contact_specs[i].frame
-        sphere = spheres.get(foot)
-        if sphere is None:
-            problems.append(f"{foot} has no collision sphere (a mesh, or no collision geometry)")
-        elif not sphere.centred:
-            problems.append(f"{foot}'s collision sphere {sphere.geometry!r} (radius {sphere.radius:g} m) is "
-                            f"centred {sphere.centre_offset:.6g} m from the frame, at "
-                            f"({', '.join(f'{x:.6g}' for x in sphere.centre)}) in its axes")
-            off_centre = True
-    if problems:
-        hint = (" (a round contact needs a frame at the sphere's centre: add one to the model and "
-                "give its Contact the radius)") if off_centre else " (give Contact(radius=...) by hand)"
-        raise InvalidInputError(f"robot {robot.name!r}: cannot round its feet: {'; '.join(problems)}{hint}")
+    missing = [foot for foot in dict.fromkeys(scene.contact_specs[i].frame for i in at_feet)
+               if spheres.get(foot) is None]
+    if missing:
+        raise InvalidInputError(
+            f"robot {robot.name!r}: cannot round its feet: "
+            + "; ".join(f"{foot} has no collision sphere (a mesh, or no collision geometry)" for foot in missing)
+            + " (give Contact(radius=...) by hand)")
+    off_centre = sorted({scene.contact_specs[i].frame for i in at_feet
+                         if not spheres[scene.contact_specs[i].frame].centred})
+    if off_centre:
+        rounded_robot, frames = _with_sphere_frames(robot, [spheres[foot] for foot in off_centre])
+        data = rounded_robot.model.createData()
+        pin.framesForwardKinematics(rounded_robot.model, data, rounded_robot.q_ref)
+    else:
+        rounded_robot, frames = robot, {}
     contacts = list(scene.contact_specs)
     for i in at_feet:
-        c, r = contacts[i], spheres[contacts[i].frame].radius
-        contacts[i] = _dc.replace(c, radius=r, offset=c.offset - r)
-    rounded = Scene(robot, contacts, scene.effort_specs, None, scene.q0, scene.v0, scene.name)
+        c = contacts[i]
+        r = spheres[c.frame].radius
+        if c.frame not in frames:
+            contacts[i] = _dc.replace(c, radius=r, offset=c.offset - r)
+            continue
+        n = np.array(c.normal)
+        centre = data.oMf[rounded_robot.model.getFrameId(frames[c.frame])].translation
+        foot = data.oMf[rounded_robot.model.getFrameId(c.frame)].translation
+        offset = c.offset + float(n @ centre - n @ foot) - r
+        contacts[i] = _dc.replace(c, frame=frames[c.frame], radius=r, offset=offset)
+    rounded = Scene(rounded_robot, contacts, scene.effort_specs, None, scene.q0, scene.v0, scene.name)
     rounded.foot_choice = scene.foot_choice
     return rounded
+
+
+def _with_sphere_frames(robot, spheres) -> tuple:
+    """A copy of ``robot`` whose model has an OP_FRAME ``<foot>_sphere`` at each sphere's
+    centre (parent joint and axes of the foot frame); returns ``(copy, {foot: frame})``.
+    A frame of that name already at the centre is used as it is."""
+    copy = robot.copy()
+    model = copy.model
+    frames = {}
+    for sphere in spheres:
+        foot = model.frames[model.getFrameId(sphere.foot)]
+        placement = foot.placement * pin.SE3(np.eye(3), np.array(sphere.centre))
+        name = sphere.foot + SPHERE_FRAME_SUFFIX
+        if model.existFrame(name):
+            there = model.frames[model.getFrameId(name)]
+            if there.parentJoint != foot.parentJoint or not np.allclose(
+                    there.placement.translation, placement.translation, rtol=0, atol=SPHERE_CENTRE_TOL):
+                raise InvalidInputError(
+                    f"robot {robot.name!r}: cannot add frame {name!r} at the centre of {sphere.foot}'s "
+                    "collision sphere: a frame of that name is already elsewhere")
+        else:
+            model.addFrame(pin.Frame(name, foot.parentJoint, model.getFrameId(sphere.foot), placement,
+                                     pin.FrameType.OP_FRAME), False)
+        frames[sphere.foot] = name
+    return copy, frames

@@ -18,7 +18,12 @@ Pinocchio's placements, never the contact code's own output:
   sticking impact, rolling) against central differences of the simulator;
 * r = 0: explicit ``radius=0.0`` gives bit-identical runs, and Pinocchio's 3-D
   contact dynamics is used only for point contacts;
-* the TOML key ``radius`` and its validation.
+* the TOML key ``radius`` and its validation;
+* round feet (``round_feet``): a1's spheres are centred on the feet (the contacts
+  stay there, bit for bit); ANYmal's are not, and its contacts move to a new frame
+  at each sphere's centre, checked against the centres Pinocchio's collision model
+  places (``buildGeomFromUrdf``, ``updateGeometryPlacements``) and against the
+  point-foot scene's gaps at the reference pose.
 """
 
 from __future__ import annotations
@@ -413,8 +418,6 @@ def test_foot_spheres_of_the_quadrupeds():
     for s in anymal.values():
         assert s.radius == 0.031 and not s.centred
         np.testing.assert_allclose(s.centre, [0.0, 0.0, 0.02325], atol=1e-12)  # URDF decimals, summed
-    with pytest.raises(InvalidInputError, match=r"radius 0.031 m\) is centred 0.02325 m from the frame"):
-        round_feet(cd.Scene.from_robot(cd.load_robot("anymal")))
     solo = cd.load_robot("solo12")
     assert foot_spheres(solo) == dict.fromkeys(solo.feet)
     with pytest.raises(InvalidInputError, match="FL_FOOT has no collision sphere"):
@@ -448,3 +451,142 @@ def test_round_feet_keep_the_gaps_and_roll():
     kin.update(traj.q, traj.v)
     for c in rounded.contacts:  # default tolerances (rtol 1e-8) on velocities of O(0.1) m/s
         assert np.abs(c.rows(kin) @ traj.v).max() < 1e-7
+
+
+# -- spheres off the foot frame: a frame at the centre ------------------------------------------
+def _sphere_centres(robot, q):
+    """World centres of the feet's collision spheres at ``q``, from Pinocchio's collision model
+    (the URDF's <collision><sphere> on each foot link), independently of foot_spheres."""
+    from pathlib import Path
+
+    model = robot.model
+    geom = pin.buildGeomFromUrdf(model, robot.urdf, pin.GeometryType.COLLISION,
+                                 package_dirs=[str(p) for p in Path(robot.urdf).parents])
+    data, geom_data = model.createData(), geom.createData()
+    pin.updateGeometryPlacements(model, data, geom, geom_data, q)
+    centres = {}
+    for foot in robot.feet:
+        fid = model.getFrameId(foot)
+        found = [k for k, g in enumerate(geom.geometryObjects)
+                 if g.parentFrame == fid and isinstance(g.geometry, pin.hppfcl.Sphere)]
+        assert len(found) == 1, (foot, found)
+        centres[foot] = geom_data.oMg[found[0]].translation.copy()
+    return centres
+
+
+@pytest.fixture(scope="module")
+def anymal_round():
+    point = cd.Scene.from_robot(cd.load_robot("anymal"))
+    frames_before = [f.name for f in point.robot.model.frames]
+    return point, round_feet(point), frames_before
+
+
+def test_anymal_feet_get_a_frame_at_the_sphere_centre(anymal_round):
+    """Each foot's contact moves to an OP_FRAME <foot>_sphere on the foot's joint, at the
+    sphere's centre (Pinocchio's collision placements, at the reference pose and at a
+    random one), with the sphere's radius and the contact's own name; the given scene
+    and its robot are untouched."""
+    point, rounded, frames_before = anymal_round
+    robot, new = point.robot, rounded.robot
+    assert new is not robot and [f.name for f in robot.model.frames] == frames_before
+    assert [f.name for f in new.model.frames] == frames_before + [f + "_sphere" for f in sorted(robot.feet)]
+    assert new.feet == robot.feet and np.array_equal(new.q_ref, robot.q_ref)
+    assert rounded.contact_names == point.contact_names == list(robot.feet)
+    with pytest.raises(InvalidInputError, match="no ground contact at a foot .* already round"):
+        round_feet(rounded)
+    assert [c.frame for c in rounded.contact_specs] == [f + "_sphere" for f in robot.feet]
+    assert [c.radius for c in rounded.contact_specs] == [0.031] * 4
+    for foot in robot.feet:
+        frame = new.model.frames[new.model.getFrameId(foot + "_sphere")]
+        assert frame.type == pin.FrameType.OP_FRAME
+        assert frame.parentJoint == robot.model.frames[robot.model.getFrameId(foot)].parentJoint
+    rng = np.random.default_rng(3)
+    data = new.model.createData()
+    for q in (robot.q_ref, robot.integrate(robot.q_ref, 0.3 * rng.standard_normal(robot.nv))):
+        centres = _sphere_centres(robot, q)
+        pin.framesForwardKinematics(new.model, data, q)
+        for foot, centre in centres.items():
+            # two compositions of the same placements, O(1 m) coordinates: round-off 1e-15 m
+            np.testing.assert_allclose(data.oMf[new.model.getFrameId(foot + "_sphere")].translation,
+                                       centre, rtol=0, atol=1e-14)
+
+
+def test_anymal_round_feet_keep_the_gaps_at_the_reference_pose(anymal_round):
+    """At the reference pose every gap equals the point-foot scene's (to 1e-12 m); the
+    offset is the plane's height along n of the sphere's bottom there. At another pose
+    the gap is the sphere's: n · c - r - offset with c the collision model's centre."""
+    point, rounded, _ = anymal_round
+    robot = point.robot
+    np.testing.assert_allclose(rounded.gaps(robot.q_ref), point.gaps(robot.q_ref), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(rounded.gaps(rounded.q0), point.gaps(point.q0), rtol=0, atol=1e-12)
+    centres = _sphere_centres(robot, robot.q_ref)
+    for c in rounded.contact_specs:  # the bottom of the sphere at the reference pose
+        assert c.offset == pytest.approx(np.array(c.normal) @ centres[c.name] - 0.031, abs=1e-12)
+    q = robot.integrate(robot.q_ref, 0.3 * np.random.default_rng(4).standard_normal(robot.nv))
+    centres = _sphere_centres(robot, q)
+    expected = [np.array(c.normal) @ centres[c.name] - c.radius - c.offset for c in rounded.contact_specs]
+    np.testing.assert_allclose(rounded.gaps(q), expected, rtol=0, atol=1e-12)
+    assert np.abs(rounded.gaps(q) - point.gaps(q)).max() > 1e-4  # the feet tilt: the gaps follow the spheres
+
+
+def test_anymal_drops_onto_round_feet(anymal_round):
+    """Dropped 5 mm, ANYmal lands on its four round feet at the point feet's touchdown time
+    (the gaps agree at every pose of the fall: the joints do not move in free fall), and
+    the feet stick: their rolling points hold still to the integrator's tolerance."""
+    point, rounded, _ = anymal_round
+    runs = []
+    for scene in (point, rounded):
+        q = scene.q0.copy()
+        q[2] += 0.005
+        runs.append(cd.simulate(scene.with_state(q), 0.15))
+    traj = runs[1]
+    feet = tuple(rounded.contact_names)
+    assert [(e.kind, e.contacts) for e in traj.events] == [("touchdown", feet)]
+    # touchdowns located by root finding on gaps equal to round-off (measured: the same float)
+    assert abs(traj.events[0].t - runs[0].events[0].t) < 1e-9
+    assert traj.modes[-1] == feet
+    kin = Kinematics(rounded.robot.model)
+    kin.update(traj.q, traj.v)
+    for c in rounded.contacts:  # default tolerances (rtol 1e-8) on velocities of O(1) m/s (measured 3e-10)
+        assert np.abs(c.rows(kin) @ traj.v).max() < 1e-7
+    assert np.abs(rounded.gaps(traj.q)).max() < 1e-9  # measured 1.4e-11 m
+
+
+def test_centred_spheres_are_unchanged():
+    """a1's spheres are centred on its feet: the scene keeps its robot and frames, and its
+    gaps are bit-identical to the contacts rounded in place (radius r, offset - r)."""
+    robot = cd.load_robot("a1")
+    point = cd.Scene.from_robot(robot)
+    frames = [f.name for f in robot.model.frames]
+    rounded = round_feet(point)
+    assert rounded.robot is robot and [f.name for f in robot.model.frames] == frames
+    assert [c.frame for c in rounded.contact_specs] == list(robot.feet)
+    by_hand = cd.Scene(robot, [dataclasses.replace(c, radius=0.02, offset=c.offset - 0.02)
+                               for c in point.contact_specs], q0=point.q0)
+    rng = np.random.default_rng(5)
+    for q in (point.q0, robot.integrate(point.q0, 0.3 * rng.standard_normal(robot.nv))):
+        assert np.array_equal(rounded.gaps(q), by_hand.gaps(q))
+
+
+def test_one_foot_off_centre_moves_that_contact_only():
+    """Given spheres: a1 with one sphere moved 1 cm along its foot's x. Only that contact
+    moves (to FL_foot_sphere); the others stay, bit for bit; all gaps at the reference pose
+    are the point scene's."""
+    from contactdiff.model.feet import FootSphere
+
+    robot = cd.load_robot("a1")
+    point = cd.Scene.from_robot(robot)
+    spheres = foot_spheres(robot)
+    spheres["FL_foot"] = FootSphere("FL_foot", 0.02, (0.01, 0.0, 0.0), "moved")
+    rounded = round_feet(point, spheres)
+    assert [c.frame for c in rounded.contact_specs] == ["FL_foot_sphere", "FR_foot", "RL_foot", "RR_foot"]
+    assert rounded.robot.model.nframes == robot.model.nframes + 1
+    np.testing.assert_allclose(rounded.gaps(robot.q_ref), point.gaps(robot.q_ref), rtol=0, atol=1e-12)
+    same = round_feet(point)
+    q = robot.integrate(robot.q_ref, 0.3 * np.random.default_rng(6).standard_normal(robot.nv))
+    assert np.array_equal(rounded.gaps(q)[1:], same.gaps(q)[1:])
+    data = rounded.robot.model.createData()
+    pin.framesForwardKinematics(rounded.robot.model, data, q)
+    foot = data.oMf[rounded.robot.model.getFrameId("FL_foot")]
+    np.testing.assert_allclose(data.oMf[rounded.robot.model.getFrameId("FL_foot_sphere")].translation,
+                               foot.act(np.array([0.01, 0.0, 0.0])), rtol=0, atol=1e-14)
