@@ -494,6 +494,13 @@ def test_anymal_feet_get_a_frame_at_the_sphere_centre(anymal_round):
     assert rounded.contact_names == point.contact_names == list(robot.feet)
     with pytest.raises(InvalidInputError, match="no ground contact at a foot .* already round"):
         round_feet(rounded)
+    # parameters name the contact, not its frame: the same names, and they still apply
+    contact_parameters = [n for n in point.parameter_names() if n.startswith("contact:")]
+    assert contact_parameters and contact_parameters == [
+        n for n in rounded.parameter_names() if n.startswith("contact:")]
+    lowered = rounded.with_parameters({"contact:LF_FOOT:offset": rounded.contact_specs[0].offset - 0.001})
+    assert lowered.contact_specs[0].frame == "LF_FOOT_sphere"
+    assert lowered.gaps(robot.q_ref)[0] == pytest.approx(0.001, abs=1e-12)
     assert [c.frame for c in rounded.contact_specs] == [f + "_sphere" for f in robot.feet]
     assert [c.radius for c in rounded.contact_specs] == [0.031] * 4
     for foot in robot.feet:
