@@ -399,6 +399,10 @@ def round_feet(scene, spheres: dict | None = None):
         raise InvalidInputError(f"scene {scene.name!r}: no ground contact at a foot of robot {robot.name!r} "
                                 f"(feet: {', '.join(robot.feet) or 'none'})"
                                 + ("; its foot contacts are already round" if done else ""))
+    rounded = [scene.contact_specs[i].name for i in at_feet if scene.contact_specs[i].radius > 0]
+    if rounded:  # their offsets already hold the spheres: lowering them again would sink the feet
+        raise InvalidInputError(f"scene {scene.name!r}: the contacts {', '.join(rounded)} are already round "
+                                f"(radius > 0); round_feet takes a scene with point feet")
     if spheres is None:
         spheres = foot_spheres(robot, sorted({scene.contact_specs[i].frame for i in at_feet}))
     missing = [foot for foot in dict.fromkeys(scene.contact_specs[i].frame for i in at_feet)

@@ -433,6 +433,8 @@ def test_round_feet_keep_the_gaps_and_roll():
     rounded = round_feet(point)
     assert [c.radius for c in rounded.contact_specs] == [0.02] * 4
     assert [c.offset for c in rounded.contact_specs] == [c.offset - 0.02 for c in point.contact_specs]
+    with pytest.raises(InvalidInputError, match="already round"):  # twice would sink the feet by r
+        round_feet(rounded)
     rng = np.random.default_rng(2)
     kin = Kinematics(robot.model)
     for q in (point.q0, robot.integrate(point.q0, 0.2 * rng.standard_normal(robot.nv))):
