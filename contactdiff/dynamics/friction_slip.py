@@ -2,13 +2,16 @@
 `contactdiff.dynamics.frictional_impact`.
 
 A sliding contact's tangential impulse is ``-μ Λ_N s`` with ``s`` the unit direction of
-its post-impact slip, itself a result of the impact: in 3-D an angle per sliding
-contact to solve for. One slider: its angle scanned around the circle, each sign
-change refined (Brent) and polished (Newton). Several: Newton from the pre-impact
-slip, from a rough solution of the whole law (a projected fixed point), from the
-frictionless slip and from the best points of a coarse grid. A mixin of the solver's
-problem class (its state: ``G``, ``u``, ``mu``, ``tol``, the candidate's layout and
-evaluation methods).
+its post-impact slip, itself a result of the impact: in 3-D an angle ``θ`` per sliding
+contact to solve for, ``g(θ) = wrap(atan2(u+_T(θ)) - θ) = 0``. The map ``θ -> g`` and
+its Jacobian are evaluated for a whole batch of angles at once (`SlipMap`: one
+stacked linear solve). One slider: the circle scanned, each sign change refined
+(Brent) and polished (Newton). Several: a grid on the torus, and Newton's method
+with a backtracking line search run together from every local minimum of the
+grid's ``max|g|`` (infeasible points ranked last) and from the pre-impact slip, a
+rough solution of the whole law (a projected fixed point) and the frictionless
+slip. A mixin of the solver's problem class (its state: ``G``, ``u``, ``mu``,
+``tol``, the candidate's layout and evaluation methods).
 """
 
 from __future__ import annotations
@@ -17,18 +20,22 @@ import itertools
 from collections.abc import Iterator
 
 import numpy as np
-from scipy.optimize import brentq
 
 # Newton on the slip angles of the spatial sliding contacts of a candidate.
-_NEWTON_MAX_ITER = 60
+_NEWTON_MAX_ITER = 40
 _NEWTON_ATOL = 1e-13  # rad, on wrap(atan2(u+_T) - θ)
 _NEWTON_LOOSE = 1e-8
 _NEWTON_MAX_STEP = 0.5 * np.pi
+_NEWTON_STALL = 8  # iterations without halving the best max|g|: the start is dropped
+_LINE_SEARCH = 0.5 ** np.arange(6)  # step fractions tried, largest first
 # Scan of the slip angle of one spatial slider; grid and starts for several.
 _SCAN_POINTS = 144
-_GRID_BUDGET = 1500
-_GRID_STARTS = 12
+_BISECT = 26  # halvings of a scan interval: 2π/144/2^26 ~ 6e-10 rad
+_GRID_POINTS = {2: 48, 3: 20}  # per axis; more sliders: _GRID_BUDGET in all
+_GRID_BUDGET = 20000
+_GRID_STARTS = 48
 _FP_SWEEPS = 300
+_DUPLICATE = 1e-8  # rad: two roots closer than this are one
 
 # A post-impact slip below this share of the velocity scale has no direction.
 SLIP_ZERO = 1e-14
@@ -56,28 +63,143 @@ def _wrap(a: np.ndarray) -> np.ndarray:
     return (a + np.pi) % (2.0 * np.pi) - np.pi
 
 
+def _solve_stack(K: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """``K[i] x[i] = rhs[i]`` for a stack; least squares (pseudo-inverse) if one is singular."""
+    try:
+        return np.linalg.solve(K, rhs)
+    except np.linalg.LinAlgError:
+        return np.linalg.pinv(K) @ rhs
+
+
+class SlipMap:
+    """``θ -> g(θ)`` of one candidate's spatial sliders, for a batch of angles.
+
+    With the friction columns of the sliders left out, ``Λ = B0 z`` and the
+    candidate's equations are ``K0 z = r``; slider ``k`` adds ``-μ_k Λ_N,k s_k``
+    on its tangential rows, so column ``c_k`` of ``G B`` gains
+    ``a_k(θ) = -μ_k G[:, T_k] s_k``. Then ``K(θ) z = r``,
+    ``u+ = u + G B0 z + Σ_k a_k z_ck`` and, differentiating,
+    ``dz/dθ_k = -K^-1 (da_k z_ck)[eq]``, ``du+/dθ_k = G B(θ) dz/dθ_k + da_k z_ck``.
+    """
+
+    def __init__(self, prob, states, dirs, spatial, lay, cross: bool):
+        self.cross = cross
+        cols_n, cols_t, eq, _ = lay
+        self.prob, self.eq = prob, eq
+        self.GB0 = prob.G @ prob.build_B(states, dirs, lay)
+        self.K0 = self.GB0[eq]
+        self.r = -prob.b[eq]
+        self.c = np.array([cols_n[k] for k in spatial], dtype=np.intp)
+        self.T = [prob.tang[k] for k in spatial]
+        self.GT = [-prob.mu[k] * prob.G[:, prob.tang[k]] for k in spatial]
+        self.mu_s = np.array([prob.mu[k] for k in spatial])
+        # inequalities of the law that a root must also satisfy (for ranking starts)
+        self.closed = np.array(list(cols_n.values()), dtype=np.intp)
+        self.stick = [(cols_n[k], cols_t[k], prob.mu[k]) for k in cols_t if prob.mu[k] < np.inf]
+        self.open_k = np.array([k for k in range(prob.n) if k not in cols_n], dtype=np.intp)
+
+    def __call__(self, theta: np.ndarray, jac: bool = True):
+        """For angles ``theta`` of shape (P, ns): the residual f (P, ns), its
+        Jacobian (P, ns, ns) or None, the feasibility of the law's other
+        conditions (P,), whether every slip is along (not against) its ``s``
+        (P,) and the scale of f (P,). With ``cross``, ``f_k = s_k x u+_T,k``
+        (smooth; scale: the velocity scale), else ``f_k = g_k`` (scale 1)."""
+        P, ns = theta.shape
+        cs, sn = np.cos(theta), np.sin(theta)
+        a = [self.GT[j] @ np.stack([cs[:, j], sn[:, j]]) for j in range(ns)]  # (m, P) each
+        K = np.repeat(self.K0[None], P, axis=0)
+        for j in range(ns):
+            K[:, :, self.c[j]] += a[j][self.eq].T
+        z = _solve_stack(K, np.broadcast_to(self.r, (P, self.r.size))[..., None])[..., 0]
+        zc = z[:, self.c]
+        up = self.prob.u + z @ self.GB0.T
+        for j in range(ns):
+            up += a[j].T * zc[:, j, None]
+        lam_max = np.maximum(np.abs(z).max(axis=1, initial=0.0), (np.abs(zc) * self.mu_s).max(axis=1))
+        vscale = self.prob.bmax + self.prob.gmax * lam_max
+        v = np.stack([up[:, t] for t in self.T], axis=1)  # (P, ns, 2)
+        r2 = (v * v).sum(axis=2)
+        moving = np.sqrt(r2) > SLIP_ZERO * vscale[:, None]
+        if self.cross:
+            f = cs * v[..., 1] - sn * v[..., 0]
+            aligned = ((cs * v[..., 0] + sn * v[..., 1] > 0.0) | ~moving).all(axis=1)
+        else:
+            f = np.where(moving, _wrap(np.arctan2(v[..., 1], v[..., 0]) - theta), 0.0)
+            aligned = np.ones(P, dtype=bool)
+            vscale = np.ones(P)
+        ok = np.isfinite(f).all(axis=1) & np.isfinite(z).all(axis=1)
+        feas = ok & self.feasible(z, up, lam_max, self.prob.bmax + self.prob.gmax * lam_max)
+        if not jac:
+            return f, None, feas, aligned, vscale
+        GB = np.repeat(self.GB0[None], P, axis=0)
+        for j in range(ns):
+            GB[:, :, self.c[j]] += a[j].T
+        rhs = np.empty((P, self.r.size, ns))
+        da = []
+        for j in range(ns):
+            da.append(self.GT[j] @ np.stack([-sn[:, j], cs[:, j]]))
+            rhs[:, :, j] = da[j][self.eq].T * zc[:, j, None]
+        dup = GB @ -_solve_stack(K, rhs)
+        for j in range(ns):
+            dup[:, :, j] += da[j].T * zc[:, j, None]
+        J = np.zeros((P, ns, ns)) if self.cross else np.repeat(-np.eye(ns)[None], P, axis=0)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            for i in range(ns):
+                dv = dup[:, self.T[i], :]  # (P, 2, ns)
+                if self.cross:  # d(c v1 - s v0) = c dv1 - s dv0 - (s v1 + c v0) dθ_i
+                    J[:, i, :] = cs[:, i, None] * dv[:, 1] - sn[:, i, None] * dv[:, 0]
+                    J[:, i, i] -= sn[:, i] * v[:, i, 1] + cs[:, i] * v[:, i, 0]
+                    continue
+                row = (v[:, i, 0, None] * dv[:, 1] - v[:, i, 1, None] * dv[:, 0]) / r2[:, i, None]
+                J[:, i, :] += np.where(moving[:, i, None], row, 0.0)
+                J[:, i, i] = np.where(moving[:, i], J[:, i, i], 1.0)  # no direction: any θ is consistent
+        return f, J, feas, aligned, vscale
+
+    def feasible(self, z, up, lam_max, vscale, rel=1e-6):
+        """Λ_N >= 0 of closed contacts, the cone of sticking ones, w_N >= 0 of open ones."""
+        ok = (z[:, self.closed] >= -rel * lam_max[:, None]).all(axis=1)
+        for c, cs, mu in self.stick:
+            ok &= np.linalg.norm(z[:, cs], axis=1) <= mu * z[:, c] + rel * lam_max
+        if self.open_k.size:
+            pr = self.prob
+            w = up[:, pr.normal[self.open_k]] + pr.e[self.open_k] * pr.u[pr.normal[self.open_k]]
+            ok &= (w >= -rel * vscale[:, None]).all(axis=1)
+        return ok
+
+
 class SlipDirections:
     """Slip-direction search of a candidate (module doc)."""
 
     def slip_roots(self, states, dirs, spatial, lay) -> Iterator[np.ndarray]:
-        """Slip angles θ with g(θ) = wrap(atan2(u+_T(θ)) - θ) = 0 (see slip_residual).
+        """Slip angles θ with g(θ) = 0, nearest the pre-impact slip directions first
+        (Euclidean distance of the wrapped angle differences).
 
         One spatial slider: g is scanned on a grid of _SCAN_POINTS angles from
         the pre-impact slip direction, each sign change is refined by Brent's
         method and polished by Newton, which rejects the wrap jumps (g = ±π)
-        and the poles (Λ_N infinite): all roots that the grid separates,
-        nearest the pre-impact direction first. Near a small post-impact slip
-        the direction turns fast (|dg/dθ| ~ 1e3 seen), so a steep sign change
-        is not taken for a jump. Several:
-        Newton from the pre-impact slip, from the post-impact slip of an
-        approximate solution of the whole law (`fixed_point_slip`), from the
-        frictionless post-impact slip, and from the _GRID_STARTS points of a coarse grid on the torus
-        with the smallest candidate residual.
+        and the poles (Λ_N infinite): all roots that the grid separates. Near a
+        small post-impact slip the direction turns fast (|dg/dθ| ~ 1e3 seen), so
+        a steep sign change is not taken for a jump. Several: `newton` from the
+        pre-impact slip, from the post-impact slip of an approximate solution of
+        the whole law (`fixed_point_slip`), from the frictionless post-impact
+        slip, and from the local minima of max|g| on a grid on the torus (one
+        start per basin rather than the best points, which cluster), at most
+        _GRID_STARTS of them, those where the law's other inequalities hold first.
         """
+        fmap = SlipMap(self, states, dirs, spatial, lay, cross=len(spatial) > 1)
         pre = np.array([np.arctan2(self.u[self.tang[k][1]], self.u[self.tang[k][0]]) for k in spatial])
         if len(spatial) == 1:
-            yield from self.roots_1d(states, dirs, spatial, lay, float(pre[0]))
-            return
+            roots = self.roots_1d(fmap, float(pre[0]))
+        else:
+            roots = self.roots_nd(fmap, states, dirs, spatial, lay, pre)
+        found: list[np.ndarray] = []
+        for theta in roots:  # the converged ones first: a duplicate keeps the more accurate
+            if not any(np.abs(_wrap(theta - f)).max() < _DUPLICATE for f in found):
+                found.append(theta)
+        yield from sorted(found, key=lambda t: float(np.linalg.norm(_wrap(t - pre))))
+
+    def roots_nd(self, fmap, states, dirs, spatial, lay, pre) -> list[np.ndarray]:
+        """Several spatial sliders: Newton on the cross form from the starts of `slip_roots`."""
         starts = [pre]
         ups = self.fixed_point_slip()
         starts.append(np.array([np.arctan2(ups[self.tang[k][1]], ups[self.tang[k][0]]) for k in spatial]))
@@ -85,27 +207,41 @@ class SlipDirections:
         starts.append(np.array([np.arctan2(free.up[self.tang[k][1]], free.up[self.tang[k][0]])
                                 for k in spatial]))
         ns = len(spatial)
-        per_axis = max(4, int(_GRID_BUDGET ** (1.0 / ns)))
+        per_axis = _GRID_POINTS.get(ns, max(4, int(_GRID_BUDGET ** (1.0 / ns))))
         axis = 2.0 * np.pi * np.arange(per_axis) / per_axis
-        scored = []
-        for offs in itertools.product(axis, repeat=ns):
-            th = pre + np.array(offs)
-            d = dict(dirs)
-            for j, k in enumerate(spatial):
-                d[k] = np.array([np.cos(th[j]), np.sin(th[j])])
-            ev = self.evaluate(states, d, lay)
-            r = self.residual(states, d, ev.lam, ev.up)  # ranks by all conditions, not g alone
-            if np.isfinite(r):
-                scored.append((r, len(scored), th))
-        scored.sort(key=lambda x: (x[0], x[1]))
-        starts.extend(th for _, _, th in scored[:_GRID_STARTS])
-        found: list[np.ndarray] = []
-        for theta0 in starts:
-            theta = self.newton(states, dirs, spatial, lay, theta0)
-            if theta is None or any(np.abs(_wrap(theta - f)).max() < 1e-9 for f in found):
-                continue
-            found.append(theta)
-            yield theta
+        grid = pre + np.array(list(itertools.product(axis, repeat=ns)))
+        f, _, feas, aligned, vscale = fmap(grid, jac=False)
+        merit = np.abs(f).max(axis=1) / vscale + np.where(feas & aligned, 0.0, 1.0)
+        merit = np.where(np.isfinite(merit), merit, np.inf).reshape((per_axis,) * ns)
+        local = np.isfinite(merit)
+        for ax in range(ns):
+            for sh in (1, -1):
+                local &= merit <= np.roll(merit, sh, axis=ax)
+        idx = np.flatnonzero(local.ravel())
+        idx = idx[np.argsort(merit.ravel()[idx], kind="stable")][:_GRID_STARTS]
+        starts.extend(grid[idx])
+        return self.newton(fmap, np.array(starts))
+
+    def roots_1d(self, fmap, pre: float) -> list[np.ndarray]:
+        """The slip angles of one spatial slider: the circle scanned, each sign change
+        bisected (_BISECT halvings, all at once) and polished by Newton."""
+        th = pre + 2.0 * np.pi * np.arange(_SCAN_POINTS + 1) / _SCAN_POINTS
+        gs = fmap(th[:, None], jac=False)[0][:, 0]
+        g0, g1 = gs[:-1], gs[1:]
+        fin = np.isfinite(g0) & np.isfinite(g1)
+        on = fin & (np.abs(g0) <= _NEWTON_LOOSE)  # on a grid point (e.g. the pre-impact slip kept)
+        ch = np.flatnonzero(fin & ~on & (g0 * g1 < 0.0))  # a root, a wrap jump (g = ±π) or a pole
+        lo, hi, glo = th[ch], th[ch + 1], g0[ch]
+        for _ in range(_BISECT if ch.size else 0):  # all brackets at once
+            mid = 0.5 * (lo + hi)
+            gm = fmap(mid[:, None], jac=False)[0][:, 0]
+            left = np.sign(gm) == np.sign(glo)  # the sign change is in [mid, hi]
+            lo, glo, hi = np.where(left, mid, lo), np.where(left, gm, glo), np.where(left, hi, mid)
+        roots = list(th[:-1][on]) + list(0.5 * (lo + hi))
+        if not roots:
+            return []
+        # a pole or a jump is not a root: Newton rejects it
+        return self.newton(fmap, np.array(roots)[:, None], max_iter=4)
 
     def fixed_point_slip(self) -> np.ndarray:
         """Post-impact row velocities of an approximate solution of the law, by
@@ -138,107 +274,63 @@ class SlipDirections:
         self._fp = self.u + self.G @ lam
         return self._fp
 
-    def roots_1d(self, states, dirs, spatial, lay, pre: float) -> Iterator[np.ndarray]:
-        """The slip angles of one spatial slider: the circle scanned, sign changes refined."""
-        def g(t: float) -> float:
-            return float(self.slip_residual(states, dirs, spatial, lay, np.array([t]), jac=False)[0][0])
-
-        th = pre + 2.0 * np.pi * np.arange(_SCAN_POINTS + 1) / _SCAN_POINTS
-        gs = np.array([g(t) for t in th])
-        roots = []
-        for i in range(_SCAN_POINTS):
-            g0, g1 = gs[i], gs[i + 1]
-            if not (np.isfinite(g0) and np.isfinite(g1)):
-                continue
-            if abs(g0) <= _NEWTON_LOOSE:  # on a grid point (e.g. the pre-impact slip kept)
-                roots.append(th[i])
-            elif g0 * g1 < 0.0:  # a root, a wrap jump (g = ±π) or a pole
-                try:
-                    r = brentq(g, th[i], th[i + 1], xtol=1e-15, maxiter=200)
-                except (RuntimeError, ValueError):
-                    continue
-                roots.append(r)
-        roots.sort(key=lambda r: abs(_wrap(np.array(r - pre))))
-        found: list[float] = []
-        for r in roots:
-            theta = self.newton(states, dirs, spatial, lay, np.array([r]), max_iter=4)
-            # a pole or a jump is not a root: Newton rejects it
-            if theta is None or any(abs(_wrap(theta[0] - f)) < 1e-9 for f in found):
-                continue
-            found.append(float(theta[0]))
-            yield theta
-
-    def slip_residual(self, states, dirs, spatial, lay, theta, jac: bool = True):
-        """g(θ) = wrap(atan2(u+_T(θ)) - θ) and its Jacobian (None if not ``jac``),
-        per spatial slider."""
-        d = dict(dirs)
-        ds = {}
-        for j, k in enumerate(spatial):
-            c, s = np.cos(theta[j]), np.sin(theta[j])
-            d[k] = np.array([c, s])
-            ds[k] = np.array([-s, c])
-        ev = self.evaluate(states, d, lay)
-        ns = len(spatial)
-        g = np.zeros(ns)
-        J = -np.eye(ns)
-        vscale = self.bmax + self.gmax * float(np.abs(ev.lam).max(initial=0.0))
-        if not jac:
-            for i, k in enumerate(spatial):
-                ut = ev.up[self.tang[k]]
-                if np.linalg.norm(ut) > SLIP_ZERO * vscale:
-                    g[i] = _wrap(np.arctan2(ut[1], ut[0]) - theta[i])
-            return g, None
-        cols_n = lay[0]
-        B = self.build_B(states, d, lay)
-        eq = lay[2]
-        dup = []
-        for k in spatial:
-            dB = np.zeros_like(B)
-            dB[self.tang[k], cols_n[k]] = -self.mu[k] * ds[k]
-            dK = (self.G @ dB)[eq]
-            try:
-                dz = -np.linalg.solve(ev.K, dK @ ev.z)
-            except np.linalg.LinAlgError:
-                dz = -np.linalg.lstsq(ev.K, dK @ ev.z, rcond=None)[0]
-            dup.append(self.G @ (dB @ ev.z + B @ dz))
-        for i, k in enumerate(spatial):
-            ut = ev.up[self.tang[k]]
-            r2 = float(ut @ ut)
-            if np.sqrt(r2) <= SLIP_ZERO * vscale:
-                J[i] = 0.0
-                J[i, i] = 1.0  # no direction: any θ is consistent
-                continue
-            g[i] = _wrap(np.arctan2(ut[1], ut[0]) - theta[i])
-            for j in range(ns):
-                du = dup[j][self.tang[k]]
-                J[i, j] += (ut[0] * du[1] - ut[1] * du[0]) / r2
-        return g, J
-
-    def newton(self, states, dirs, spatial, lay, theta0, max_iter=_NEWTON_MAX_ITER) -> np.ndarray | None:
-        """Damped Newton on g(θ) from theta0; the iterate once max|g| <= _NEWTON_ATOL,
-        else the best iterate if its max|g| <= _NEWTON_LOOSE (round-off of a
-        small slip: the candidate's residual check decides), else None."""
+    def newton(self, fmap, theta0: np.ndarray, max_iter: int = _NEWTON_MAX_ITER) -> list[np.ndarray]:
+        """Newton's method on f from each row of theta0 (all at once), with steps
+        capped at _NEWTON_MAX_STEP and a backtracking line search on ||f|| (the
+        largest fraction in _LINE_SEARCH that decreases it, else the smallest).
+        A start gives its iterate once max|f| <= _NEWTON_ATOL (relative to f's
+        scale) or its step is below round-off, else its best iterate if max|f|
+        <= _NEWTON_LOOSE (round-off of a small slip: the candidate's residual
+        check decides), else nothing; and nothing if a slip points against its
+        direction (a root of the cross form that is not one of the law)."""
         theta = np.array(theta0, dtype=float)
-        best = (np.inf, theta)
-        for _ in range(max_iter + 1):
-            g, J = self.slip_residual(states, dirs, spatial, lay, theta)
-            if not np.isfinite(g).all():
+        P, ns = theta.shape
+        best_f = np.full(P, np.inf)
+        last_gain = np.zeros(P, dtype=int)  # iteration of the last halving of best_f
+        best = theta.copy()
+        active = np.ones(P, dtype=bool)
+        done = np.zeros(P, dtype=bool)
+        for it in range(max_iter + 1):
+            ia = np.flatnonzero(active)
+            if not ia.size:
                 break
-            gmax = float(np.abs(g).max())
-            if gmax <= _NEWTON_ATOL:
-                return theta
-            if gmax < best[0]:
-                best = (gmax, theta)
+            f, J, _, aligned, scale = fmap(theta[ia], jac=it < max_iter)
+            fmax = np.abs(f).max(axis=1) / scale
+            fmax = np.where(np.isfinite(fmax) & aligned, fmax, np.inf)
+            better = fmax < best_f[ia]
+            last_gain[ia[fmax < 0.5 * best_f[ia]]] = it
+            best_f[ia[better]] = fmax[better]
+            best[ia[better]] = theta[ia[better]]
+            conv = fmax <= _NEWTON_ATOL
+            done[ia[conv]] = True
+            live = ~conv & np.isfinite(np.abs(f).max(axis=1)) & (it - last_gain[ia] <= _NEWTON_STALL)
+            active[ia[~live]] = False
+            if it == max_iter:
+                break
+            ia, f, J = ia[live], f[live], J[live]
+            if not ia.size:
+                break
             try:
-                step = -np.linalg.solve(J, g)
+                step = -np.linalg.solve(J, f[..., None])[..., 0]
             except np.linalg.LinAlgError:
-                step = -np.linalg.lstsq(J, g, rcond=None)[0]
-            big = np.abs(step).max()
-            if not np.isfinite(big):
-                return None
-            if big > _NEWTON_MAX_STEP:
-                step *= _NEWTON_MAX_STEP / big
-            theta = theta + step
-        return best[1] if best[0] <= _NEWTON_LOOSE else None
-
-    # ---- checks ------------------------------------------------------------
+                step = -(np.linalg.pinv(J) @ f[..., None])[..., 0]
+            big = np.abs(step).max(axis=1)
+            fin = np.isfinite(big)
+            active[ia[~fin]] = False
+            ia, f, step, big = ia[fin], f[fin], step[fin], big[fin]
+            tiny = big <= _NEWTON_ATOL * (1.0 + np.abs(theta[ia]).max(axis=1))  # at round-off
+            active[ia[tiny]] = False
+            ia, f, step, big = ia[~tiny], f[~tiny], step[~tiny], big[~tiny]
+            if not ia.size:
+                break
+            step *= np.minimum(1.0, _NEWTON_MAX_STEP / np.maximum(big, 1e-300))[:, None]
+            trial = theta[ia][:, None, :] + _LINE_SEARCH[None, :, None] * step[:, None, :]
+            ft = fmap(trial.reshape(-1, ns), jac=False)[0].reshape(ia.size, _LINE_SEARCH.size, ns)
+            nt = np.linalg.norm(ft, axis=2)
+            nt = np.where(np.isfinite(nt), nt, np.inf)
+            dec = nt < np.linalg.norm(f, axis=1)[:, None]
+            pick = np.where(dec.any(axis=1), dec.argmax(axis=1), _LINE_SEARCH.size - 1)
+            theta[ia] = trial[np.arange(ia.size), pick]
+        out = [theta[i] for i in range(P) if done[i]]
+        out += [best[i] for i in range(P) if not done[i] and best_f[i] <= _NEWTON_LOOSE]
+        return out
