@@ -3,15 +3,19 @@
 
 A sliding contact's tangential impulse is ``-μ Λ_N s`` with ``s`` the unit direction of
 its post-impact slip, itself a result of the impact: in 3-D an angle ``θ`` per sliding
-contact to solve for, ``g(θ) = wrap(atan2(u+_T(θ)) - θ) = 0``. The map ``θ -> g`` and
-its Jacobian are evaluated for a whole batch of angles at once (`SlipMap`: one
-stacked linear solve). One slider: the circle scanned, each sign change refined
-(Brent) and polished (Newton). Several: a grid on the torus, and Newton's method
-with a backtracking line search run together from every local minimum of the
-grid's ``max|g|`` (infeasible points ranked last) and from the pre-impact slip, a
-rough solution of the whole law (a projected fixed point) and the frictionless
-slip. A mixin of the solver's problem class (its state: ``G``, ``u``, ``mu``,
-``tol``, the candidate's layout and evaluation methods).
+contact to solve for, ``g(θ) = wrap(atan2(u+_T(θ)) - θ) = 0``. The map ``θ -> u+_T``
+and its Jacobian are evaluated for a whole batch of angles at once (`SlipMap`: one
+stacked linear solve). One slider: ``g`` scanned around the circle, each sign
+change bisected and polished (Newton). Several: the cross form
+``f_k = s_k x u+_T,k = ||u+_T,k|| sin g_k``, smooth on the torus (``g`` jumps by
+2π and, where a slip is small, turns so fast that a root is a needle a grid
+misses), solved by Newton's method with a backtracking line search run at once
+from every local minimum of ``max|f|`` on a grid (infeasible points ranked
+last), the pre-impact slip, a rough solution of the whole law (a projected
+fixed point) and the frictionless slip; roots with a slip against ``s``
+(``g = π``, also roots of ``f``) are dropped. A mixin of the solver's problem
+class (its state: ``G``, ``u``, ``mu``, ``tol``, the candidate's layout and
+evaluation methods).
 """
 
 from __future__ import annotations
@@ -30,11 +34,11 @@ _NEWTON_STALL = 8  # iterations without halving the best max|g|: the start is dr
 _LINE_SEARCH = 0.5 ** np.arange(6)  # step fractions tried, largest first
 # Scan of the slip angle of one spatial slider; grid and starts for several.
 _SCAN_POINTS = 144
-_BISECT = 26  # halvings of a scan interval: 2π/144/2^26 ~ 6e-10 rad
+_BISECT = 12  # halvings of a scan interval: 2π/144/2^12 ~ 1e-5 rad, then Newton
 _GRID_POINTS = {2: 48, 3: 20}  # per axis; more sliders: _GRID_BUDGET in all
 _GRID_BUDGET = 20000
 _GRID_STARTS = 48
-_FP_SWEEPS = 300
+_FP_SWEEPS = 100
 _DUPLICATE = 1e-8  # rad: two roots closer than this are one
 
 # A post-impact slip below this share of the velocity scale has no direction.
@@ -175,16 +179,17 @@ class SlipDirections:
         (Euclidean distance of the wrapped angle differences).
 
         One spatial slider: g is scanned on a grid of _SCAN_POINTS angles from
-        the pre-impact slip direction, each sign change is refined by Brent's
-        method and polished by Newton, which rejects the wrap jumps (g = ±π)
-        and the poles (Λ_N infinite): all roots that the grid separates. Near a
-        small post-impact slip the direction turns fast (|dg/dθ| ~ 1e3 seen), so
-        a steep sign change is not taken for a jump. Several: `newton` from the
-        pre-impact slip, from the post-impact slip of an approximate solution of
-        the whole law (`fixed_point_slip`), from the frictionless post-impact
-        slip, and from the local minima of max|g| on a grid on the torus (one
+        the pre-impact slip direction, each sign change is bisected and polished
+        by Newton, which rejects the wrap jumps (g = ±π) and the poles (Λ_N
+        infinite): all roots that the grid separates. Near a small post-impact
+        slip the direction turns fast (|dg/dθ| ~ 1e3 seen), so a steep sign
+        change is not taken for a jump. Several: `newton` on the cross form from
+        the pre-impact slip, from the post-impact slip of an approximate solution
+        of the whole law (`fixed_point_slip`), from the frictionless post-impact
+        slip, and from the local minima of max|f| on a grid on the torus (one
         start per basin rather than the best points, which cluster), at most
-        _GRID_STARTS of them, those where the law's other inequalities hold first.
+        _GRID_STARTS of them, those where the law's other inequalities hold and
+        the slips are along their directions first.
         """
         fmap = SlipMap(self, states, dirs, spatial, lay, cross=len(spatial) > 1)
         pre = np.array([np.arctan2(self.u[self.tang[k][1]], self.u[self.tang[k][0]]) for k in spatial])
@@ -241,7 +246,7 @@ class SlipDirections:
         if not roots:
             return []
         # a pole or a jump is not a root: Newton rejects it
-        return self.newton(fmap, np.array(roots)[:, None], max_iter=4)
+        return self.newton(fmap, np.array(roots)[:, None], max_iter=6)
 
     def fixed_point_slip(self) -> np.ndarray:
         """Post-impact row velocities of an approximate solution of the law, by
