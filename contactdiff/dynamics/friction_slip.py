@@ -5,8 +5,8 @@ A sliding contact's tangential impulse is ``-μ Λ_N s`` with ``s`` the unit dir
 its post-impact slip, itself a result of the impact: in 3-D an angle ``θ`` per sliding
 contact to solve for, ``g(θ) = wrap(atan2(u+_T(θ)) - θ) = 0``. The map ``θ -> u+_T``
 and its Jacobian are evaluated for a whole batch of angles at once (`SlipMap`: one
-stacked linear solve). One slider: ``g`` scanned around the circle, each sign
-change bisected and polished (Newton). Several: the cross form
+stacked linear solve). One slider: ``g`` scanned around the circle and beside
+the poles of ``Λ_N`` (closed form), each sign change bisected and polished (Newton). Several: the cross form
 ``f_k = s_k x u+_T,k = ||u+_T,k|| sin g_k``, smooth on the torus (``g`` jumps by
 2π and, where a slip is small, turns so fast that a root is a needle a grid
 misses), solved by Newton's method with a backtracking line search run at once
@@ -39,6 +39,7 @@ _GRID_POINTS = {2: 48, 3: 20}  # per axis; more sliders: _GRID_BUDGET in all
 _GRID_BUDGET = 20000
 _GRID_STARTS = 48
 _FP_SWEEPS = 100
+_POLE_GAP = 1e-9  # rad: scan points beside a pole of one slider's Λ_N
 _DUPLICATE = 1e-8  # rad: two roots closer than this are one
 
 # A post-impact slip below this share of the velocity scale has no direction.
@@ -159,6 +160,20 @@ class SlipMap:
                 J[:, i, i] = np.where(moving[:, i], J[:, i, i], 1.0)  # no direction: any θ is consistent
         return f, J, feas, aligned, vscale
 
+    def poles(self) -> np.ndarray:
+        """One slider: the angles where ``K(θ)`` is singular (``Λ_N`` infinite).
+        Only column ``c`` depends on θ, linearly in ``s``, so
+        ``det K = α + β cos θ + γ sin θ``: fitted at 0, π/2, π and solved."""
+        K = np.repeat(self.K0[None], 3, axis=0)
+        K[:, :, self.c[0]] += (self.GT[0] @ np.array([[1.0, 0.0, -1.0], [0.0, 1.0, 0.0]]))[self.eq].T
+        d0, d1, d2 = np.linalg.det(K)
+        al, be = 0.5 * (d0 + d2), 0.5 * (d0 - d2)
+        rad = float(np.hypot(be, d1 - al))
+        if not rad > abs(al):
+            return np.zeros(0)
+        phi, w = np.arctan2(d1 - al, be), np.arccos(-al / rad)
+        return np.array([phi - w, phi + w])
+
     def feasible(self, z, up, lam_max, vscale, rel=1e-6):
         """Λ_N >= 0 of closed contacts, the cone of sticking ones, w_N >= 0 of open ones."""
         ok = (z[:, self.closed] >= -rel * lam_max[:, None]).all(axis=1)
@@ -215,8 +230,8 @@ class SlipDirections:
         per_axis = _GRID_POINTS.get(ns, max(4, int(_GRID_BUDGET ** (1.0 / ns))))
         axis = 2.0 * np.pi * np.arange(per_axis) / per_axis
         grid = pre + np.array(list(itertools.product(axis, repeat=ns)))
-        f, _, feas, aligned, vscale = fmap(grid, jac=False)
-        merit = np.abs(f).max(axis=1) / vscale + np.where(feas & aligned, 0.0, 1.0)
+        f, _, feas, _, vscale = fmap(grid, jac=False)
+        merit = np.abs(f).max(axis=1) / vscale + np.where(feas, 0.0, 1.0)
         merit = np.where(np.isfinite(merit), merit, np.inf).reshape((per_axis,) * ns)
         local = np.isfinite(merit)
         for ax in range(ns):
@@ -231,6 +246,11 @@ class SlipDirections:
         """The slip angles of one spatial slider: the circle scanned, each sign change
         bisected (_BISECT halvings, all at once) and polished by Newton."""
         th = pre + 2.0 * np.pi * np.arange(_SCAN_POINTS + 1) / _SCAN_POINTS
+        # a root next to a pole: no sign change over their interval, so the scan
+        # is also split just beside each pole
+        poles = pre + np.mod(fmap.poles() - pre, 2.0 * np.pi)
+        th = np.unique(np.concatenate([th, np.clip(np.concatenate([poles - _POLE_GAP, poles + _POLE_GAP]),
+                                                   th[0], th[-1])]))
         gs = fmap(th[:, None], jac=False)[0][:, 0]
         g0, g1 = gs[:-1], gs[1:]
         fin = np.isfinite(g0) & np.isfinite(g1)

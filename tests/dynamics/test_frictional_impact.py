@@ -446,6 +446,45 @@ def test_two_sliders_small_slip_matches_brute_force():
                                -1.3382, atol=1e-4)  # the value found by a fine grid and Nelder-Mead
 
 
+def test_one_slider_root_beside_a_pole_matches_brute_force():
+    """One spatial contact whose slide root lies 0.008 rad from a pole of Λ_N
+    (the normal row's coefficient G_NN - μ G_NT.s vanishes there): both in one
+    interval of a coarse scan, with no sign change between them (an earlier scan
+    missed the root and raised SolverError). Reference: Λ_N = -(1 + e) u-_N /
+    (G_NN - μ G_NT.s) in closed form, the cross form s x u+_T scanned on 2e5
+    angles and each sign change with a finite positive Λ_N and the slip along s
+    refined by Brent's method; exactly one is valid, and the solver returns it."""
+    from scipy.optimize import brentq
+
+    rng, _, A, G, v, rows, mu = _random_case(1931, 1, 3)
+    e = rng.uniform(0, 1, size=1)
+    u = A @ v
+    out = solve_frictional_impact(G, u, rows, e, mu)
+    check_law(out, G, u, rows, approaching_e(u, rows, e), mu)
+    assert out.states == (SLIDE,)
+
+    def solve(th):
+        s = np.array([np.cos(th), np.sin(th)])
+        col = np.array([1.0, *(-mu[0] * s)])
+        lam_n = -(1 + e[0]) * u[0] / (G[0] @ col)
+        return s, lam_n, u + lam_n * (G @ col)
+
+    def cross(th):
+        s, _, up = solve(th)
+        return s[0] * up[2] - s[1] * up[1]
+
+    th = np.linspace(0.0, 2 * np.pi, 200_001)
+    f = np.array([cross(t) for t in th])
+    refs = []
+    for i in np.flatnonzero(np.sign(f[:-1]) != np.sign(f[1:])):
+        r = brentq(cross, th[i], th[i + 1], xtol=1e-15)
+        s, lam_n, up = solve(r)
+        if 0 < lam_n < 1e6 and s @ up[1:] > 0 and abs(cross(r)) < 1e-9:
+            refs.append(s)
+    assert len(refs) == 1
+    np.testing.assert_allclose(out.slide_directions[0], refs[0], atol=1e-9)
+
+
 # --------------------------------------------------------------------------
 # 5. errors name the bad value
 
