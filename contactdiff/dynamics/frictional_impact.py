@@ -49,8 +49,9 @@ that satisfies every condition of the law up to the scaled residual ``tol``
 (about 1e-15 in practice: the linear solves are backward stable and Newton
 converges quadratically). It does not mean the search is complete: for
 several spatial sliding contacts a root may lie between the grid's basins
-(none missed in 1800 random problems of 1-3 spatial contacts, where the
-earlier search on the angle residual missed 6), so a `SolverError` there is
+(none missed in 9000 random problems of 1-3 spatial contacts with ``e`` in
+[0, 1]; the earlier search on the angle residual, without the poles in the
+one-slider scan, missed 6 of the first 1800), so a `SolverError` there is
 not a proof that no solution exists (for planar and
 sticking contacts the search is finite and complete).
 
