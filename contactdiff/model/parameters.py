@@ -348,7 +348,7 @@ def with_parameters(scene: Scene, values: Mapping) -> Scene:
     numbers = [_number(p.name, v) for p, v in zip(params, values.values())]
     robot = scene.robot.copy()
     model = robot.model
-    bodies: dict[int, list[str]] = {}
+    bodies: dict[int, tuple[str, list[str]]] = {}  # joint -> (its body's name, the names changed)
     specs: dict[tuple[str, int], tuple[dict, list, list]] = {}
     for p, x in zip(params, numbers):
         if p.kind in _MODEL_KINDS:
@@ -356,7 +356,7 @@ def with_parameters(scene: Scene, values: Mapping) -> Scene:
                 raise InvalidInputError(f"parameter {p.name!r} (armature) must be >= 0, got {x!r}")
             _set_in_model(model, p, x)
             if p.kind is ParameterKind.BODY:
-                bodies.setdefault(p.joint, []).append(p.name)
+                bodies.setdefault(p.joint, (p.target, []))[1].append(p.name)
             continue
         where = "contact" if p.kind is ParameterKind.CONTACT else "effort"
         changes, names, xs = specs.setdefault((where, p.index), ({}, [], []))
@@ -368,8 +368,7 @@ def with_parameters(scene: Scene, values: Mapping) -> Scene:
             changes[p.field] = x
         names.append(p.name)
         xs.append(x)
-    for j, changed in bodies.items():
-        target = next(p.target for p in all_parameters(scene) if p.kind is ParameterKind.BODY and p.joint == j)
+    for j, (target, changed) in bodies.items():
         _check_body(target, model.inertias[j], changed)
     contacts, efforts = list(scene.contact_specs), list(scene.effort_specs)
     for (where, i), (changes, names, xs) in specs.items():
