@@ -63,17 +63,18 @@ class EventResets:
             # lift-offs in turn (each releasing contact's guard in the mode left by the
             # earlier ones): a sticking contact's force jump is not carried by another's guard
             guard = liftoff_guard(dyn, t, q, v, mode, releasing[0])
-            xi, xi_p = self._liftoff_sequence(t, q, v, mode, releasing, new_mode, guard)
             h_p = self.jumps.force_guard(q, v, t, mode, releasing[0]) if self.jumps else None
+            xi, xi_p = self._liftoff_sequence(t, q, v, mode, releasing, new_mode, guard, h_p)
             self._attach_sensitivity(event, xi, *guard, xi_p=xi_p, h_p=h_p)
         self.events.append(event)
         return new_mode, v
 
-    def _liftoff_sequence(self, t, q, v, mode, releasing, new_mode, first_guard):
+    def _liftoff_sequence(self, t, q, v, mode, releasing, new_mode, first_guard, first_h_p=None):
         """Saltation of the lift-off of ``releasing`` from ``mode``, one contact after the
         other in the given order at the same state (no jump: each force is zero there);
-        ``first_guard`` is the first one's `liftoff_guard`. Returns ``(Ξ, Ξ_p)``, the
-        parameter block None without parameters."""
+        ``first_guard`` is the first one's `liftoff_guard` and ``first_h_p`` its
+        parameter derivative (`ParameterJumps.force_guard`, with parameters). Returns
+        ``(Ξ, Ξ_p)``, the parameter block None without parameters."""
         n2 = 2 * self.scene.nv
         xi, current = np.eye(n2), tuple(mode)
         xi_p = np.zeros((n2, self.jumps.p)) if self.jumps else None
@@ -86,7 +87,7 @@ class EventResets:
             xi_k = saltation(np.eye(n2), Dh, F_minus, F_plus, h_t)
             xi = xi_k @ xi
             if xi_p is not None:
-                h_p = self.jumps.force_guard(q, v, t, current, k)
+                h_p = first_h_p if n == 0 else self.jumps.force_guard(q, v, t, current, k)
                 xi_p = xi_k @ xi_p + ParameterJumps.saltation(None, h_p, None, F_minus, F_plus,
                                                               float(Dh @ F_minus) + h_t)
             current = after
@@ -188,6 +189,9 @@ class EventResets:
             F_minus = vector_field(self.dyn, q, v_minus, t, mode)
             guard = min(touching, key=lambda i: speeds[i])
             Dh = gap_gradient(self.dyn, q, guard)
+            h_p = xi_p = None
+            if self.jumps:
+                h_p = self.jumps.gap_guard(guard)
             if len(touching) > 1:
                 override = {i: e[closed.index(i)] for i in closed}
                 sim = simultaneous_saltation(self.dyn, t, q, v_minus, mode, touching, override)
@@ -207,10 +211,9 @@ class EventResets:
                 F_plus = vector_field(self.dyn, q, v_plus, t, new_mode)
                 xi = saltation(DR, Dh, F_minus, F_plus)
                 if self.jumps:
-                    xi_p = ParameterJumps.saltation(reset_parameters(), self.jumps.gap_guard(guard), DR, F_minus,
-                                                    F_plus, float(Dh @ F_minus))
-            h_p = self.jumps.gap_guard(guard) if self.jumps else None
-            self._attach_sensitivity(event, xi, Dh, F_minus, xi_p=xi_p if self.jumps else None, h_p=h_p)
+                    xi_p = ParameterJumps.saltation(reset_parameters(), h_p, DR, F_minus, F_plus,
+                                                    float(Dh @ F_minus))
+            self._attach_sensitivity(event, xi, Dh, F_minus, xi_p=xi_p, h_p=h_p)
         self.events.append(event)
         return new_mode, v_plus
 
