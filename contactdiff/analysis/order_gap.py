@@ -230,11 +230,7 @@ def order_gap(scene: Scene, q, v_minus, contacts: Sequence = (0, 1), *, mode: Se
     v_after, mode_after = {}, {}
     for order in ((i, j), (j, i)):
         v, current = v_minus, before
-        for k in order:
-            kin.update(q, v)
-            if scene.contacts[k].rows(kin)[0] @ v >= 0.0:
-                continue  # sent away by the first impact: it does not land
-            step = touchdown(dyn, t, q, v, current, [k], guard=k)
+        for _, step in landings(dyn, t, q, v_minus, before, order):
             v, current = step.v_plus, step.mode_after
         v_after[order], mode_after[order] = v, current
     whole = resolve_impact(dyn, q, v_minus, sorted(set(before) | {i, j}))
@@ -266,6 +262,21 @@ def order_gap(scene: Scene, q, v_minus, contacts: Sequence = (0, 1), *, mode: Se
     if horizon is not None:
         _carry_forward(scene, result, horizon, bool(jacobian), dict(simulate_options or {}), m_norm, scale)
     return result
+
+
+def landings(dyn: ModeDynamics, t: float, q: np.ndarray, v_minus: np.ndarray, mode: tuple[int, ...],
+             order: Sequence[int]):
+    """The impacts of one landing order at ``q``: for each contact of ``order`` that still
+    approaches after the earlier ones (one sent away does not land), ``(v before, its
+    `touchdown`)``, each on the mode and velocity the earlier impacts left."""
+    v, current = v_minus, mode
+    for k in order:
+        dyn.kin.update(q, v)
+        if dyn.contact(k).rows(dyn.kin)[0] @ v >= 0.0:
+            continue
+        step = touchdown(dyn, t, q, v, current, [k], guard=k)
+        yield v, step
+        v, current = step.v_plus, step.mode_after
 
 
 def _carry_forward(scene: Scene, result: OrderGap, horizon: float, jacobian: bool, options: dict,

@@ -30,9 +30,9 @@ from ..dynamics.impacts import resolve_impact
 from ..dynamics.mode import ModeDynamics
 from ..dynamics.parameter_forces import ParameterForces
 from ..errors import InvalidInputError
-from ..integration.sensitivity import impact_parameter_jacobian, impact_reset_jacobian, touchdown
+from ..integration.sensitivity import impact_parameter_jacobian, impact_reset_jacobian
 from ..model.scene import Scene
-from .order_gap import OrderGap, _index, order_gap
+from .order_gap import OrderGap, _index, landings, order_gap
 
 ZERO_GAP = 1e-12
 """An outcome below this (relative) is the decoupled case: its norm has no derivative."""
@@ -98,14 +98,9 @@ def order_gap_gradient(scene: Scene, q, v_minus, contacts: Sequence = (0, 1), pa
 
     d_after = {}
     for order in ((i, j), (j, i)):
-        v, current, dv = v_minus, before, np.zeros((nv, len(params)))
-        for k in order:
-            dyn.kin.update(q, v)
-            if scene.contacts[k].rows(dyn.kin)[0] @ v >= 0.0:
-                continue  # sent away by the first impact: it does not land (as `order_gap`)
-            step = touchdown(dyn, t, q, v, current, [k], guard=k)
+        dv = np.zeros((nv, len(params)))
+        for v, step in landings(dyn, t, q, v_minus, before, order):
             dv = impact_reset_jacobian(dyn, q, v, step.impact)[nv:, nv:] @ dv + reset_parameters(step.impact, v)
-            v, current = step.v_plus, step.mode_after
         d_after[tuple(scene.contact_names[k] for k in order)] = dv
     whole = resolve_impact(dyn, q, v_minus, sorted(set(before) | {i, j}))
     d_sim = reset_parameters(whole, v_minus)
