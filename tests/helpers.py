@@ -25,6 +25,8 @@ from collections.abc import Callable
 import numpy as np
 import pinocchio as pin
 
+from contactdiff.model.kinematics import Kinematics
+
 EPS = 1e-6
 RTOL = 1e-6
 
@@ -107,3 +109,25 @@ def second_derivative_along(f: Callable[[np.ndarray], float], model: pin.Model, 
     fp = f(pin.integrate(model, q, h * v + 0.5 * h * h * a))
     fm = f(pin.integrate(model, q, -h * v + 0.5 * h * h * a))
     return (np.asarray(fp) - 2 * np.asarray(f(q)) + np.asarray(fm)) / (h * h)
+
+
+class ContactEvaluator:
+    """A bound contact's functions at any state, on its own `Kinematics` (for finite
+    differences of gaps, rows and drifts)."""
+
+    def __init__(self, robot, contact):
+        self.robot, self.c = robot, contact
+        self.kin = Kinematics(robot.model)
+
+    def at(self, q, v=None, derivatives=False):
+        self.kin.update(q, np.zeros(self.robot.nv) if v is None else v, derivatives=derivatives)
+        return self.kin
+
+    def gap(self, q):
+        return self.c.gap(self.at(q))
+
+    def rows(self, q):
+        return self.c.rows(self.at(q)).copy()
+
+    def drift(self, q, v):
+        return self.c.drift(self.at(q, v)).copy()

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 import pytest
-from helpers import EPS, assert_fd, fd_dq, fd_dv, random_state, second_derivative_along
+from helpers import EPS, ContactEvaluator, assert_fd, fd_dq, fd_dv, random_state, second_derivative_along
 
 from contactdiff.dynamics.mode import ModeDynamics
 from contactdiff.model.contacts import Contact
@@ -78,31 +78,10 @@ def _contact_case(name, i, seed=3):
     return robot, PLANAR_CONTACTS[name][i].bind(robot), *planar_state(robot, seed)
 
 
-class Evaluator:
-    """A contact's functions at any state, on its own Kinematics."""
-
-    def __init__(self, robot, contact):
-        self.robot, self.c = robot, contact
-        self.kin = Kinematics(robot.model)
-
-    def at(self, q, v=None, derivatives=False):
-        self.kin.update(q, np.zeros(self.robot.nv) if v is None else v, derivatives=derivatives)
-        return self.kin
-
-    def gap(self, q):
-        return self.c.gap(self.at(q))
-
-    def rows(self, q):
-        return self.c.rows(self.at(q)).copy()
-
-    def drift(self, q, v):
-        return self.c.drift(self.at(q, v)).copy()
-
-
 @pytest.mark.parametrize("name,i", CONTACT_CASES)
 def test_contact_rows_and_gap(name, i):
     robot, c, q, v = _contact_case(name, i)
-    ev = Evaluator(robot, c)
+    ev = ContactEvaluator(robot, c)
     model = robot.model
     A = ev.rows(q)
     assert A.shape == (c.n_rows, robot.nv)
@@ -123,7 +102,7 @@ def test_contact_gap_rate(name, i):
     """The gap rate read from the forward pass (frame velocities, no Jacobian) is
     d/dt gap(q ⊕ t v) at t = 0, and row 0 of the rows times v to round-off."""
     robot, c, q, v = _contact_case(name, i)
-    ev = Evaluator(robot, c)
+    ev = ContactEvaluator(robot, c)
     rate = c.gap_rate(ev.at(q, v))
     along = fd_dq(lambda qq: ev.gap(qq), robot.model, q) @ v
     assert_fd("gap rate vs d gap(q + t v)/dt", rate, along, value=ev.gap(q))
@@ -135,7 +114,7 @@ def test_contact_drift(name, i):
     """With ddq = 0 along q(t) = q ⊕ t v (constant tangent velocity v),
     d/dt [A(q(t)) v] = drift and d²/dt² gap(q(t)) = drift[0]."""
     robot, c, q, v = _contact_case(name, i)
-    ev = Evaluator(robot, c)
+    ev = ContactEvaluator(robot, c)
     model = robot.model
     drift = ev.drift(q, v)
     h = EPS
@@ -149,7 +128,7 @@ def test_contact_drift(name, i):
 @pytest.mark.parametrize("name,i", CONTACT_CASES)
 def test_contact_derivatives(name, i):
     robot, c, q, v = _contact_case(name, i)
-    ev = Evaluator(robot, c)
+    ev = ContactEvaluator(robot, c)
     model, nv = robot.model, robot.nv
     rng = np.random.default_rng(11)
     x = rng.standard_normal(nv)

@@ -34,7 +34,7 @@ import math
 import numpy as np
 import pinocchio as pin
 import pytest
-from helpers import EPS, assert_fd, fd_dq, fd_dv, random_state
+from helpers import EPS, ContactEvaluator, assert_fd, fd_dq, fd_dv, random_state
 
 import contactdiff as cd
 from contactdiff.dynamics.constraint_dynamics import eligible
@@ -99,25 +99,8 @@ def _case(ball, i, seed):
     return robot, spec.bind(robot), tangents, q, v
 
 
-class Evaluator:
-    """The contact's functions at any state, on its own Kinematics."""
-
-    def __init__(self, robot, contact):
-        self.robot, self.c = robot, contact
-        self.kin = Kinematics(robot.model)
-
-    def at(self, q, v=None, derivatives=False):
-        self.kin.update(q, np.zeros(self.robot.nv) if v is None else v, derivatives=derivatives)
-        return self.kin
-
-    def gap(self, q):
-        return self.c.gap(self.at(q))
-
-    def rows(self, q):
-        return self.c.rows(self.at(q)).copy()
-
-    def drift(self, q, v):
-        return self.c.drift(self.at(q, v)).copy()
+class Evaluator(ContactEvaluator):
+    """`ContactEvaluator` with the frame's placement."""
 
     def placement(self, q):
         data = self.robot.new_data()
