@@ -78,6 +78,13 @@ class EnergyGainError(SolverError):
     friction coupling: Kane's paradox; `contactdiff.dynamics.frictional_impact`)."""
 
 
+class PainleveError(SolverError):
+    """A contact slipping with Coulomb friction has no consistent contact force, or
+    several (Painlevé's paradox: the friction turns the normal force's effect on the
+    normal acceleration around, ``A_n M^-1 (A_n - μ s^T A_T)^T <= 0``;
+    `contactdiff.dynamics.slip`)."""
+
+
 def check_number(owner: str, name: str, value, *, minimum: float | None = None,
                  allow_inf: bool = False) -> float:
     """``value`` as a finite float (>= ``minimum`` if given; ``allow_inf`` admits

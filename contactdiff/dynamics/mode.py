@@ -14,6 +14,16 @@ forces are returned.
 A mode is a sorted tuple of *contact keys*: key ``i < n`` (``n`` contacts in the
 scene) is contact ``i`` with all its rows; key ``n + i`` is sticking contact
 ``i`` sliding, its normal row only (`BoundContact.sliding_view`).
+
+**Coulomb slip.** A sliding contact with a finite friction coefficient ``μ``
+keeps its normal row ``A_n`` as a constraint, and its force acts along
+``F = A_n - μ s^T A_T`` (``A_T`` its tangential rows, ``s`` its unit slip
+direction in tangent coordinates, `ModeDynamics.slip_direction`): the
+friction ``-μ λ_N s`` opposes the slip. The KKT system then has force rows
+``F`` and constraint rows ``A`` that differ, and ``G = A M^-1 F^T`` is not
+symmetric (LU instead of Cholesky); where ``G`` is singular or its sliding
+block has a non-positive diagonal the sliding problem has no or several
+solutions (Painlevé's paradox, `contactdiff.dynamics.slip`).
 """
 
 from __future__ import annotations
@@ -25,10 +35,11 @@ import numpy as np
 import pinocchio as pin
 from scipy.linalg.lapack import dposv as _dposv
 
-from ..errors import InvalidInputError, SolverError, check_number
+from ..errors import InvalidInputError, PainleveError, SolverError, check_number
 from ..model.scene import Scene
 from .constraint_dynamics import RigidContactMode
 from .constraint_dynamics import eligible as rigid_eligible
+from .slip import SlipRow, painleve_check, slip_direction
 
 
 @dataclass
@@ -90,7 +101,16 @@ class ModeDynamics:
         self.n_contacts = len(scene.contacts)
         self._views = list(scene.contacts) + [c.sliding_view() if c.sticking else None
                                               for c in scene.contacts]
+        self.slip_reference: dict[int, np.ndarray] = {}
+        """Per slipping contact (scene index), the unit direction (tangent coordinates)
+        its slip is continued along: a planar contact's slip sign, a spatial contact's
+        direction at its last accepted step (`slip_direction`); set by the hybrid loop."""
 
+    def slip_direction(self, index: int, slip_velocity: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+        """Unit slip direction ``s`` of scene contact ``index`` with tangential row
+        velocities ``slip_velocity`` (m/s), and ``ds/d(slip_velocity)`` (None where it
+        is zero); see `contactdiff.dynamics.slip.slip_direction`."""
+        return slip_direction(slip_velocity, self.slip_reference.get(index))
     # -- contact keys (see the module doc) ----------------------------------------------
     def contact(self, key: int):
         """The bound contact (or sliding view) of a contact key."""
@@ -127,7 +147,8 @@ class ModeDynamics:
                 slices.append(slice(start, start + c.n_rows))
                 start += c.n_rows
             rigid = RigidContactMode(self.model, contacts) if rigid_eligible(contacts) else None
-            entry = self._modes[active] = (contacts, tuple(slices), rigid)
+            slipping = tuple((k, s.start) for k, c, s in zip(active, contacts, slices) if c.slips)
+            entry = self._modes[active] = (contacts, tuple(slices), rigid, slipping)
         return entry
 
     def accelerator(self, active: Sequence[int]) -> ModeAccelerator:
@@ -200,7 +221,7 @@ class ModeDynamics:
         kin.update(q, v, derivatives=derivatives)
         if tau is None:
             tau = self.scene.tau(kin, t)
-        contacts, slices, rigid = self._mode(active)
+        contacts, slices, rigid, slipping = self._mode(active)
         if not contacts:  # free flow: ABA, O(n)
             if derivatives:
                 ddq_dq, ddq_dv, Minv = pin.computeABADerivatives(model, data, q, v, tau)
@@ -222,39 +243,59 @@ class ModeDynamics:
         A = np.vstack([c.rows(kin) for c in contacts])
         drift = np.concatenate([c.drift(kin) for c in contacts])
         MinvAT = Minv @ A.T
-        G = A @ MinvAT
-        forces = _solve_spd(G, -(drift + A @ a_free))
-        solution = ModeSolution(a_free + MinvAT @ forces, forces, active, slices)
+        slips = [SlipRow.at(self, key, row, kin, v) for key, row in slipping]
+        if slips:
+            F = A.copy()
+            for slip in slips:
+                F[slip.row] = slip.force_row
+            MinvFT = Minv @ F.T
+            G = A @ MinvFT
+            forces = _solve_general(G, -(drift + A @ a_free), slips, self.scene)
+        else:
+            MinvFT = MinvAT
+            G = A @ MinvAT
+            forces = _solve_spd(G, -(drift + A @ a_free))
+        solution = ModeSolution(a_free + MinvFT @ forces, forces, active, slices)
         if not derivatives:
             return solution
-        return solution, self._derivatives(q, v, t, solution, contacts, A, Minv, MinvAT, G)
+        return solution, self._derivatives(q, v, t, solution, contacts, A, Minv, MinvAT, MinvFT, G, slips)
 
-    def _derivatives(self, q, v, t, sol: ModeSolution, contacts, A, Minv, MinvAT, G) -> ModeDerivatives:
+    def _derivatives(self, q, v, t, sol: ModeSolution, contacts, A, Minv, MinvAT, MinvFT, G,
+                     slips) -> ModeDerivatives:
         """Differentiate the KKT system implicitly.
 
         With ``r(q, v, ddq) = M ddq + nle`` (RNEA), both sides differentiated give
             [M  -A^T] [d ddq]   [R = dtau - dr/d(q,v)|ddq + d(A^T lam)/dq]
             [A   0  ] [d lam] = [C = -d drift - d(A ddq)/dq|ddq           ]
         solved by the Schur complement on the Delassus matrix ``G = A M^-1 A^T``:
-        ``G d lam = C - A M^-1 R`` and ``d ddq = M^-1 (R + A^T d lam)``.
+        ``G d lam = C - A M^-1 R`` and ``d ddq = M^-1 (R + A^T d lam)``. A slipping
+        contact's force row ``F = A_n - μ s^T A_T`` replaces ``A^T`` by ``F^T`` on the
+        force side (``G = A M^-1 F^T``), and ``R`` gets the derivative of ``F^T lam``,
+        through the rows at fixed ``s`` and through ``s(q, v)`` (`SlipRow.force_derivatives`).
         """
         kin, nv = self.kin, self.model.nv
         dtau_dq, dtau_dv = self.scene.tau_derivatives(kin, t)
         dr_dq, dr_dv, _ = pin.computeRNEADerivatives(self.model, self.data, q, v, sol.ddq)
         R = np.hstack((dtau_dq - dr_dq, dtau_dv - dr_dv))
         C = np.zeros((A.shape[0], 2 * nv))
+        slipping = {slip.row: slip for slip in slips}
         for c, s in zip(contacts, sol.row_slices):
-            R[:, :nv] += c.rows_transpose_dq(kin, sol.forces[s])
+            slip = slipping.get(s.start)
+            if slip is None:
+                R[:, :nv] += c.rows_transpose_dq(kin, sol.forces[s])
+            else:
+                R += slip.force_derivatives(kin, sol.forces[s.start])
             drift_dq, drift_dv = c.drift_derivatives(kin)
             C[s, :nv] = -drift_dq - c.rows_times_dq(kin, sol.ddq)
             C[s, nv:] = -drift_dv
         MinvR = Minv @ R
-        dlam = _solve_spd(G, C - A @ MinvR)
-        dddq = MinvR + MinvAT @ dlam
-        # a generalised force d: lam moves by -G^-1 A M^-1 d, ddq by M^-1 (d + A^T dlam)
-        dlam_dtau = -_solve_spd(G, MinvAT.T)
+        solve = _solve_spd if not slips else (lambda G, b: _solve_general(G, b, slips, self.scene))
+        dlam = solve(G, C - A @ MinvR)
+        dddq = MinvR + MinvFT @ dlam
+        # a generalised force d: lam moves by -G^-1 A M^-1 d, ddq by M^-1 (d + F^T dlam)
+        dlam_dtau = -solve(G, MinvAT.T)
         return ModeDerivatives(dddq[:, :nv], dddq[:, nv:], dlam[:, :nv], dlam[:, nv:],
-                               Minv + MinvAT @ dlam_dtau, dlam_dtau)
+                               Minv + MinvFT @ dlam_dtau, dlam_dtau)
 
 
 class ModeAccelerator:
@@ -270,7 +311,7 @@ class ModeAccelerator:
 
     def __init__(self, dyn: ModeDynamics, active: tuple[int, ...]):
         self.dyn, self.active = dyn, active
-        contacts, _, self.rigid = dyn._mode(active)
+        contacts, _, self.rigid, _ = dyn._mode(active)
         self._kin, self._tau = dyn.kin, dyn.scene.tau
         self._raw = self._solution = None
         if self.rigid is not None:
@@ -298,6 +339,22 @@ class ModeAccelerator:
         if self._raw is not None:
             return self._normals @ self._raw
         return self._solution.normal_forces()
+
+
+def _solve_general(G: np.ndarray, b: np.ndarray, slips, scene) -> np.ndarray:
+    """Solve ``G x = b`` for the non-symmetric ``G = A M^-1 F^T`` of a mode with slipping
+    contacts (LU); a slipping contact whose own block of ``G`` is not positive, or a
+    singular ``G``, is Painlevé's paradox (`PainleveError`)."""
+    painleve_check(G, slips, scene.contact_names)
+    try:
+        x = np.linalg.solve(G, b)
+    except np.linalg.LinAlgError:
+        x = None
+    if x is None or not np.all(np.isfinite(x)):
+        names = ", ".join(scene.contacts[s.index].name for s in slips)
+        raise PainleveError(f"the sliding problem of {names} is singular (G = A M^-1 F^T = {G.tolist()}): "
+                            "no force makes the contacts' normal accelerations zero (Painlevé's paradox)")
+    return x
 
 
 def _solve_spd(G: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -38,7 +38,9 @@ from .kinematics import Kinematics
 from .robot import Robot
 
 FRICTION_MODES = ("none", "stick")
-"""``none``: frictionless, one row. ``stick``: no slip while active, three rows."""
+"""``none``: frictionless, one row. ``stick``: no slip while active, three rows.
+A number ``μ >= 0`` is Coulomb friction of that coefficient (``0`` is ``"none"``,
+``inf`` is ``"stick"``)."""
 
 _ROW_TOL = 1e-12  # a row whose Jacobian is this small everywhere cannot act (m per unit q)
 
@@ -54,6 +56,23 @@ def _unit_vector(value, *, owner: str) -> tuple[float, float, float]:
     return tuple(float(x) for x in n / norm)
 
 
+def _friction(value, owner: str) -> str | float:
+    """``"none"``, ``"stick"`` or a finite ``μ > 0`` (0 and inf map to the names)."""
+    if isinstance(value, str):
+        if value in FRICTION_MODES:
+            return value
+    elif not isinstance(value, bool) and isinstance(value, (int, float, np.integer, np.floating)):
+        mu = float(value)
+        if mu == 0.0:
+            return "none"
+        if mu == np.inf:
+            return "stick"
+        if mu > 0.0 and np.isfinite(mu):
+            return mu
+    raise InvalidInputError(f"{owner}: friction must be one of {', '.join(FRICTION_MODES)} or a Coulomb "
+                            f"coefficient mu >= 0; got {value!r}")
+
+
 @dataclass(frozen=True)
 class Contact:
     """A unilateral contact, independent of any robot.
@@ -64,7 +83,11 @@ class Contact:
         offset: gap at which contact closes (m): the plane's position along the normal
             (for a ground contact ``n · p = offset + radius`` on contact).
         restitution: Newton coefficient ``e`` in [0, 1] (0 plastic, 1 elastic).
-        friction: ``"none"`` (frictionless) or ``"stick"`` (no slip while active).
+        friction: ``"none"`` (frictionless), ``"stick"`` (no slip while active, infinite
+            friction) or a Coulomb coefficient ``μ >= 0`` (a number; stored as
+            ``"none"`` for 0 and ``"stick"`` for inf): the contact sticks while its
+            tangential force stays in the cone ``||λ_T|| <= μ λ_N`` and slips with the
+            force ``-μ λ_N s`` along its slip direction ``s`` otherwise.
         against: second frame; ``None`` is the ground (world origin).
         name: contact name, defaults to ``frame``.
         radius: radius (m, >= 0) of a sphere centred at the frame origin (a round
@@ -76,7 +99,7 @@ class Contact:
     normal: tuple[float, float, float] = (0.0, 0.0, 1.0)
     offset: float = 0.0
     restitution: float = 0.0
-    friction: str = "none"
+    friction: str | float = "none"
     against: str | None = None
     name: str | None = None
     radius: float = 0.0
@@ -93,9 +116,7 @@ class Contact:
         if not 0.0 <= e <= 1.0:
             raise InvalidInputError(f"{owner}: restitution must be in [0, 1], got {e!r}")
         set_(self, "restitution", e)
-        if self.friction not in FRICTION_MODES:
-            raise InvalidInputError(
-                f"{owner}: friction must be one of {', '.join(FRICTION_MODES)}; got {self.friction!r}")
+        set_(self, "friction", _friction(self.friction, owner))
         r = check_number(owner, "radius", self.radius, minimum=0.0)
         if r > 0.0 and self.against is not None:
             raise InvalidInputError(
@@ -105,8 +126,19 @@ class Contact:
 
     @property
     def sticking(self) -> bool:
-        """Whether the contact sticks (``friction == "stick"``: no slip while active)."""
-        return self.friction == "stick"
+        """Whether the contact holds tangential rows while it sticks (``"stick"`` or a
+        Coulomb coefficient)."""
+        return self.friction != "none"
+
+    @property
+    def mu(self) -> float:
+        """Coulomb coefficient: 0 for ``"none"``, inf for ``"stick"``."""
+        return {"none": 0.0, "stick": np.inf}.get(self.friction, self.friction)
+
+    @property
+    def coulomb(self) -> bool:
+        """Whether the friction is Coulomb's with a finite coefficient ``μ > 0``."""
+        return not isinstance(self.friction, str)
 
     def bind(self, robot: Robot) -> BoundContact:
         """Resolve frame names on ``robot`` and choose the constraint directions."""
@@ -175,6 +207,22 @@ class BoundContact:
         return reach
 
     sliding = False  # a normal-only view of a sticking contact (see `sliding_view`)
+    full = None  # the contact of a sliding view, with all its rows
+
+    @property
+    def mu(self) -> float:
+        """Coulomb coefficient acting on this contact or view: the spec's ``μ`` (inf for a
+        sticking contact); 0 for a frictionless contact, a contact without tangential
+        rows, and the sliding view of an infinitely sticking one (see `sliding_view`)."""
+        if self.n_rows == 1 and not (self.sliding and self.spec.coulomb):
+            return 0.0
+        return self.spec.mu
+
+    @property
+    def slips(self) -> bool:
+        """Whether this is a slipping view with Coulomb friction (force ``-μ λ_N s`` along its
+        slip direction ``s``, `contactdiff.dynamics.slip`)."""
+        return self.sliding and self.spec.coulomb and self.full.n_rows > 1
 
     @property
     def sticking(self) -> bool:
@@ -187,9 +235,13 @@ class BoundContact:
         At zero normal force Coulomb friction carries no tangential force, so a
         sticking contact whose release would let it sink keeps its normal row and
         drops its tangents (frictionless sliding) until its normal force vanishes.
+        A contact with a finite coefficient ``μ`` slips instead: the view keeps the
+        normal row as its constraint, and its force acts along ``n - μ s`` (the
+        friction ``-μ λ_N s`` opposing the slip velocity ``s``; ``slips`` is True).
+        ``full`` is the contact with all its rows.
         """
         view = copy.copy(self)
-        view.directions, view.rolling, view.sliding = self.directions[:1], None, True
+        view.directions, view.rolling, view.sliding, view.full = self.directions[:1], None, True, self
         return view
 
     @property

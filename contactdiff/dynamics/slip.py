@@ -1,0 +1,138 @@
+"""A contact slipping with Coulomb friction: its slip direction and force row.
+
+A contact with friction coefficient ``μ`` that slips keeps its normal row
+``A_n`` as a constraint (zero normal acceleration) and carries the force
+``λ_N (n - μ s)`` at the contact point: in generalised coordinates
+``F^T λ_N`` with the *force row*
+
+    F = A_n - μ s^T A_T,
+
+``A_T`` the contact's tangential rows (one on a planar model, two in 3-D,
+with the rolling terms of a round contact) and ``s`` the unit slip direction
+in tangent coordinates (`slip_direction`).
+
+**Slip direction.** In 3-D, ``s = u_T / ||u_T||`` with ``u_T = A_T v`` the
+slip velocity; on a planar contact ``s = ±1`` is fixed for the whole slip.
+The 3-D direction is continued through the stop: where ``u_T`` points against
+the contact's *reference* (its direction at the last accepted step), ``s`` is
+``-u_T / ||u_T||``. A slip that stops has ``u_T(t) = (t_s - t) c(t)`` with
+``c`` smooth, so the continued field is smooth through ``t_s`` and the stop
+is the zero of ``reference · u_T``, a sign change the guards locate like any
+other. Below `SLIP_SPEED_EPS` (the onset of a slip from sticking, where
+``u_T`` grows from 0) ``s`` is the reference itself.
+
+**Painlevé's paradox.** With one slipping contact the normal force solves
+``g λ_N = -b`` with ``g = A_n M^-1 F^T``: where ``g <= 0`` a normal force
+pushes the contact *into* the ground, and the sliding problem has no solution
+(``b < 0``) or two (``b > 0``). `PainleveError` names it (`painleve_check`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+SLIP_SPEED_EPS = 1e-10
+"""m/s: a 3-D slip slower than this takes its direction from the reference (a
+slip just starting from sticking; round-off in the slip velocity of a unit-scale
+model is about 1e-16 m/s)."""
+
+
+def slip_direction(slip_velocity: np.ndarray, reference: np.ndarray | None
+                   ) -> tuple[np.ndarray, np.ndarray | None]:
+    """Unit slip direction ``s`` (tangent coordinates) and ``ds/du_T`` (module doc).
+
+    Args:
+        slip_velocity: the tangential row velocities ``u_T = A_T v`` (m/s), 1 or 2.
+        reference: the unit direction the slip continues along (the planar sign, or
+            the 3-D direction at the last accepted step); None: the slip's own.
+
+    Returns:
+        ``(s, D)``: ``D = ±(I - s s^T) / ||u_T||`` in 3-D above `SLIP_SPEED_EPS`,
+        None where ``s`` does not depend on ``u_T`` (planar, or a slip too slow).
+        With no reference and no slip, ``s`` is zero (no friction direction).
+    """
+    u = np.asarray(slip_velocity, dtype=float)
+    if len(u) == 1:
+        if reference is not None:
+            return np.asarray(reference, dtype=float), None
+        return np.array([1.0 if u[0] >= 0.0 else -1.0]), None
+    speed = float(np.hypot(u[0], u[1]))
+    if speed <= SLIP_SPEED_EPS:
+        return (np.zeros(2) if reference is None else np.asarray(reference, dtype=float)), None
+    s = u / speed
+    sign = 1.0
+    if reference is not None and s @ reference < 0.0:
+        s, sign = -s, -1.0
+    return s, sign * (np.eye(2) - np.outer(s, s)) / speed
+
+
+@dataclass
+class SlipRow:
+    """The force row of one slipping contact at one state (module doc).
+
+    Attributes:
+        row: index of the contact's (normal) row in the mode's stacked rows.
+        index: scene index of the contact.
+        mu: Coulomb coefficient.
+        direction: unit slip direction ``s`` (tangent coordinates).
+        direction_jacobian: ``ds/du_T`` (None where constant).
+        tangent_rows: ``A_T`` (k × nv).
+        force_row: ``F = A_n - μ s^T A_T`` (nv,).
+        full: the bound contact with all its rows.
+    """
+
+    row: int
+    index: int
+    mu: float
+    direction: np.ndarray
+    direction_jacobian: np.ndarray | None
+    tangent_rows: np.ndarray
+    force_row: np.ndarray
+    full: object
+
+    @classmethod
+    def at(cls, dyn, key: int, row: int, kin, v: np.ndarray) -> SlipRow:
+        """The slip row of contact key ``key`` (a slipping view of ``dyn``) at the state
+        of ``kin`` with velocity ``v``."""
+        full = dyn.contact(key).full
+        index = dyn.contact_index(key)
+        A = full.rows(kin)
+        s, D = dyn.slip_direction(index, A[1:] @ v)
+        mu = full.spec.mu
+        return cls(row, index, mu, s, D, A[1:], A[0] - mu * (s @ A[1:]), full)
+
+    def friction(self, normal_force: float) -> np.ndarray:
+        """Tangential force ``-μ λ_N s`` (N, tangent coordinates) for normal force ``λ_N``."""
+        return -self.mu * normal_force * self.direction
+
+    def force_derivatives(self, kin, normal_force: float) -> np.ndarray:
+        """``d(F^T λ_N)/d(q, v)`` at fixed ``λ_N`` (nv × 2nv): through the rows at fixed
+        ``s``, and through ``s(u_T)`` with ``u_T = A_T(q) v`` (needs ``kin`` updated with
+        derivatives)."""
+        nv = self.tangent_rows.shape[1]
+        out = np.zeros((nv, 2 * nv))
+        lam = normal_force * np.concatenate(([1.0], -self.mu * self.direction))
+        out[:, :nv] = self.full.rows_transpose_dq(kin, lam)
+        if self.direction_jacobian is not None:
+            coef = -self.mu * normal_force * self.tangent_rows.T @ self.direction_jacobian
+            out[:, :nv] += coef @ self.full.rows_velocity_dq(kin)[1:]
+            out[:, nv:] += coef @ self.tangent_rows
+        return out
+
+
+def painleve_check(G: np.ndarray, slips, names) -> None:
+    """Raise `PainleveError` where a slipping contact's own block ``g = A_n M^-1 F^T`` of
+    ``G`` is not positive (module doc); ``slips`` are the mode's `SlipRow`, ``names``
+    the scene's contact names."""
+    from ..errors import PainleveError
+
+    for slip in slips:
+        g = G[slip.row, slip.row]
+        scale = max(1e-300, float(np.max(np.abs(np.diag(G)))))
+        if g <= 1e-12 * scale:
+            raise PainleveError(
+                f"contact {names[slip.index]!r} slipping with mu = {slip.mu:g} along {slip.direction.tolist()}: "
+                f"A_n M^-1 (A_n - mu s^T A_T)^T = {g:.6g} <= 0, so a pushing normal force accelerates it into the "
+                "ground: the sliding problem has no solution or two (Painlevé's paradox)")
