@@ -27,6 +27,13 @@ stopped by a tangential impulse with no normal one, which may lift it. Sliding
 there instead would leave its slip speed (measured up to 0.56 m/s on ANYmal's
 trot) to persist, frictionless, through its whole stance.
 Contacts are given as keys throughout (see `contactdiff.dynamics.mode`).
+
+Coulomb friction: when a closed contact has a finite coefficient ``μ``, the
+impact is the frictional law of `contactdiff.dynamics.frictional_impact`
+(Newton restitution on the normal rows, Coulomb's cone on the tangential
+impulse, maximal dissipation on the post-impact slip) over every closed
+contact, each with all its rows (a slipping one too); each contact ends open,
+sticking or sliding (``ImpactResult.states``).
 """
 
 from __future__ import annotations
@@ -40,6 +47,7 @@ import pinocchio as pin
 
 from ..errors import SolverError
 from .complementarity import ContactRows, impact_rhs, solve_contact_lcp
+from .frictional_impact import ContactState, solve_frictional_impact
 from .mode import ModeDynamics
 
 
@@ -61,6 +69,12 @@ class ImpactResult:
             relaxed infinite-friction state: tangential impulse only, slip stopped,
             normal impulse zero (module doc).
         rows: the row layout of ``contacts`` (`ContactRows`).
+        states: with Coulomb friction, the `ContactState` of each contact (None
+            otherwise); ``contacts`` then holds every contact with all its rows.
+        slide_directions: with Coulomb friction, each sliding contact's unit slip
+            direction (tangent coordinates; zeros otherwise).
+        friction: with Coulomb friction, each contact's coefficient (inf sticking, 0
+            frictionless).
     """
 
     v_plus: np.ndarray
@@ -73,6 +87,9 @@ class ImpactResult:
     active: tuple[int, ...] = ()
     rows: ContactRows | None = None
     tangential_only: tuple[int, ...] = ()
+    states: tuple[ContactState, ...] | None = None
+    slide_directions: tuple[np.ndarray, ...] = ()
+    friction: np.ndarray | None = None
 
 
 def _rows(dyn: ModeDynamics, contacts: Sequence[int]):
@@ -129,6 +146,8 @@ def resolve_impact(dyn: ModeDynamics, q: np.ndarray, v_minus: np.ndarray, contac
     contacts = tuple(contacts)
     model = dyn.model
     dyn.kin.update(q, v_minus)
+    if any(dyn.contact(k).spec.coulomb for k in contacts):
+        return _frictional_impact(dyn, q, v_minus, contacts, restitution)
     A, rows = _rows(dyn, contacts)
     e = np.array([dyn.contact(k).restitution for k in contacts]) if restitution is None \
         else np.array(restitution, dtype=float)
@@ -142,6 +161,25 @@ def resolve_impact(dyn: ModeDynamics, q: np.ndarray, v_minus: np.ndarray, contac
     normal = list(rows.normal)
     return ImpactResult(v_plus, solution.x[normal].copy(), solution.x, contacts, Av[normal],
                         (A @ v_plus)[normal], e, solution.active, rows, solution.tangential_only)
+
+
+def _frictional_impact(dyn: ModeDynamics, q, v_minus, contacts, restitution) -> ImpactResult:
+    """`resolve_impact` with Coulomb friction: every contact with all its rows (module doc)."""
+    keys = tuple(dyn.contact_index(k) if dyn.contact(k).spec.coulomb else k for k in contacts)
+    A, rows = _rows(dyn, keys)
+    e = np.array([dyn.contact(k).restitution for k in keys]) if restitution is None \
+        else np.array(restitution, dtype=float)
+    mu = np.array([dyn.contact(k).mu for k in keys])
+    MinvAT = pin.computeMinverse(dyn.model, dyn.data, q) @ A.T
+    Av = A @ v_minus
+    G = A @ MinvAT
+    solution = solve_frictional_impact(0.5 * (G + G.T), Av, rows, e, mu)
+    v_plus = v_minus + MinvAT @ solution.impulses
+    normal = list(rows.normal)
+    active = tuple(k for k, state in enumerate(solution.states) if state is not ContactState.OPEN)
+    return ImpactResult(v_plus, solution.impulses[normal].copy(), solution.impulses, keys, Av[normal],
+                        (A @ v_plus)[normal], solution.restitution, active, rows, (), solution.states,
+                        solution.slide_directions, mu)
 
 
 def choose_mode(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float,

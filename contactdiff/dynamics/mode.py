@@ -62,6 +62,11 @@ class ModeSolution:
         """Normal force of each active contact (N), in the order of ``active``."""
         return np.array([self.forces[s.start] for s in self.row_slices])
 
+    def row_forces(self) -> list[np.ndarray]:
+        """Row forces of each active contact (N: normal, then tangential), in the order
+        of ``active``."""
+        return [self.forces[s] for s in self.row_slices]
+
 
 @dataclass
 class ModeDerivatives:
@@ -312,6 +317,7 @@ class ModeAccelerator:
     def __init__(self, dyn: ModeDynamics, active: tuple[int, ...]):
         self.dyn, self.active = dyn, active
         contacts, _, self.rigid, _ = dyn._mode(active)
+        self._contacts = contacts
         self._kin, self._tau = dyn.kin, dyn.scene.tau
         self._raw = self._solution = None
         if self.rigid is not None:
@@ -339,6 +345,13 @@ class ModeAccelerator:
         if self._raw is not None:
             return self._normals @ self._raw
         return self._solution.normal_forces()
+
+    def row_forces(self) -> list[np.ndarray]:
+        """Row forces (N) of the mode's contacts (order of the mode) at the last call, as
+        `ModeSolution.row_forces`."""
+        if self._raw is not None:
+            return [c.directions @ self._raw[3 * k:3 * k + 3] for k, c in enumerate(self._contacts)]
+        return self._solution.row_forces()
 
 
 def _solve_general(G: np.ndarray, b: np.ndarray, slips, scene) -> np.ndarray:

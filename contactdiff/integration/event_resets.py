@@ -13,8 +13,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..dynamics.frictional_impact import ContactState
 from ..dynamics.impacts import choose_mode, liftoff_mode, resolve_impact
 from ..errors import GrazingError
+from .friction_events import settle_friction
 from .guards import Guard, GuardKind
 from .options import OnGrazing
 from .parameter_jumps import ParameterJumps
@@ -40,6 +42,8 @@ class EventResets:
         dyn = self.dyn
         touching = [g.contact for g in fired if g.kind is GuardKind.GAP]
         releasing = [g.contact for g in fired if g.kind is GuardKind.FORCE]
+        if not touching and not releasing:  # Coulomb friction's own events
+            return self._friction_event(t, q, v, mode, fired)
         if touching:
             # every contact closed at the instant takes part (docs/design.md §2), also one whose
             # guard did not fire within simultaneous_tol: left out, it would start the
@@ -113,6 +117,8 @@ class EventResets:
             e[closed.index(i)] = 0.0
         impact = resolve_impact(dyn, q, v_minus, closed, e)
         v_plus = impact.v_plus
+        if impact.states is not None:  # Coulomb friction: each contact sticks or slides on
+            closed = self._friction_keys(impact)
         scale = max(1.0, float(np.max(np.abs(impact.normal_speeds_before))))
         leaving = set(dyn.contacts_of(releasing))  # a releasing contact leaves whatever its key
         staying = [k for k, s in zip(closed, impact.normal_speeds_after)
@@ -136,6 +142,8 @@ class EventResets:
                     if SPEED_TOL * scale < s < self.options.zeno_speed and dyn.contact_index(k) not in leaving
                     and (dyn.contact_index(k) not in touching or e_k == 0.0)]
         new_mode = choose_mode(dyn, q, v_plus, t, staying + settling)
+        if impact.states is not None:
+            new_mode, _ = settle_friction(dyn, q, v_plus, t, new_mode)
         settled = [i for i in dyn.contacts_of(settling) if i in dyn.contacts_of(new_mode)]
         nonsmooth = {}  # the cascade rule's cut-off and a grazing touchdown are not smooth
         if settled:
@@ -216,6 +224,17 @@ class EventResets:
             self._attach_sensitivity(event, xi, Dh, F_minus, xi_p=xi_p, h_p=h_p)
         self.events.append(event)
         return new_mode, v_plus
+
+    def _friction_keys(self, impact) -> list[int]:
+        """The keys of a frictional impact's contacts after it: a contact with Coulomb
+        friction that slides takes its slipping key, its slip direction the impact's."""
+        dyn, keys = self.dyn, []
+        for k, state, s in zip(impact.contacts, impact.states, impact.slide_directions):
+            if dyn.contact(k).spec.coulomb and state is ContactState.SLIDE and np.any(s):
+                dyn.slip_reference[k] = np.array(s, dtype=float)
+                k = dyn.sliding_key(k)
+            keys.append(k)
+        return keys
 
     def _attach_sensitivity(self, event: Event, xi: np.ndarray, Dh: np.ndarray, F_minus: np.ndarray,
                             h_t: float = 0.0, xi_p: np.ndarray | None = None, h_p: np.ndarray | None = None) -> None:

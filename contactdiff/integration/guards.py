@@ -1,7 +1,10 @@
 """Guards of a mode over one accepted step: which crossed, when, and near misses.
 
 The guards of mode ``J`` are the gap of every open contact (downward through 0)
-and the normal force of every closed one (downward through 0). After each
+and the normal force of every closed one (downward through 0); with Coulomb
+friction also the cone margin ``μ λ_N - ||λ_T||`` of every sticking contact
+(stick → slip) and the slip velocity along its direction of every slipping one
+(slip → stick, `contactdiff.dynamics.slip`). After each
 accepted step every guard is checked over the step: a gap that ends below 0, or
 that dips below it and back within the step (found from the cubic Hermite
 interpolant of the end-point gaps and gap rates, and confirmed on the step's
@@ -33,11 +36,15 @@ class GuardKind(Enum):
     """the gap of an open contact"""
     FORCE = "force"
     """the normal force of a closed contact"""
+    CONE = "cone"
+    """the friction cone margin ``μ λ_N - ||λ_T||`` of a sticking contact with finite ``μ``"""
+    STOP = "stop"
+    """the slip velocity of a slipping contact along its slip direction"""
 
 
 @dataclass(frozen=True)
 class Guard:
-    """A guard: its kind and its contact (scene index for a gap, contact key for a force)."""
+    """A guard: its kind and its contact (scene index for a gap, contact key otherwise)."""
 
     kind: GuardKind
     contact: int
@@ -51,6 +58,19 @@ class NearMiss:
     contact: int
     gap: float
     band: float
+
+
+def mode_guards(dyn, mode) -> list[Guard]:
+    """The force-level and slip guards of ``mode``: a normal force per contact, a cone
+    margin per sticking contact with Coulomb friction, a slip velocity per slipping one."""
+    guards = [Guard(GuardKind.FORCE, key) for key in mode]
+    for key in mode:
+        contact = dyn.contact(key)
+        if contact.slips:
+            guards.append(Guard(GuardKind.STOP, key))
+        elif contact.spec.coulomb and contact.sticking and contact.n_rows > 1:
+            guards.append(Guard(GuardKind.CONE, key))
+    return guards
 
 
 class _Below(Exception):
@@ -78,11 +98,11 @@ class GuardFinder:
         Args:
             stepper: the stepper after an accepted step ``[t_old, t]``.
             dense: that step's dense output.
-            field: the mode's vector field (its normal forces on the dense output).
+            field: the mode's vector field (its guard values on the dense output).
             mode: the contact keys of the mode.
-            start: ``(gaps, gap rates, normal forces)`` at the step start: gaps (m)
-                and gap rates (m/s) of every scene contact, normal forces (N) of the
-                mode's contacts in the order of ``mode``.
+            start: ``(gaps, gap rates, guard values)`` at the step start: gaps (m)
+                and gap rates (m/s) of every scene contact, the values of the
+                field's own guards (``field.guard_values``).
             end: the same at the step end.
 
         Returns:
@@ -139,14 +159,14 @@ class GuardFinder:
                     continue
                 t_lo, g_lo = t_peak, g_peak
             found.append((locate_crossing(gap, t_lo, t_hi, g_lo, g_hi), Guard(GuardKind.GAP, i)))
-        for k, key in enumerate(mode):
+        for k, guard in enumerate(field.guards):
             if forces1[k] >= 0.0:
                 continue
 
-            def force(t, k=k):
+            def value(t, k=k):
                 qt, vt = dense(t)
-                return field.normal_forces(t, qt, vt)[k]
-            found.append((locate_crossing(force, t_a, t_b, forces0[k], forces1[k]), Guard(GuardKind.FORCE, key)))
+                return field.guard_values(t, qt, vt)[k]
+            found.append((locate_crossing(value, t_a, t_b, forces0[k], forces1[k]), guard))
         return found, misses
 
     def grazing_band(self, q) -> float:

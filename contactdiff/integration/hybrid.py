@@ -55,6 +55,7 @@ from ..errors import GrazingError, InvalidInputError, TooManyEventsError, TooMan
 from ..model.scene import Scene
 from ..model.scene_file import passive_note
 from .event_resets import EventResets
+from .friction_events import FrictionEvents, settle_friction
 from .events import simultaneous_group
 from .guards import GuardFinder, NearMiss
 from .method_choice import EXPLICIT, MethodChooser, spectral_radius
@@ -109,7 +110,7 @@ def simulate(scene: Scene, t_final: float, q0=None, v0=None, *, t0: float = 0.0,
     return HybridLoop(scene, t0, t_final, q0, v0, options).run()
 
 
-class HybridLoop(EventResets):
+class HybridLoop(EventResets, FrictionEvents):
     """The hybrid loop of one run (module docstring); `simulate` is ``HybridLoop(...).run()``.
 
     Args:
@@ -232,8 +233,10 @@ class HybridLoop(EventResets):
         if not closed:
             return (), v
         self.kin.update(q, v)
-        sliding = [i for i in closed if self.contacts[i].n_rows > 1
-                   and np.max(np.abs(self.contacts[i].rows(self.kin)[1:] @ v)) > self.options.grazing_speed]
+        slips = {i: self.contacts[i].rows(self.kin)[1:] @ v for i in closed if self.contacts[i].n_rows > 1}
+        slips = {i: u for i, u in slips.items() if np.max(np.abs(u)) > self.options.grazing_speed}
+        # a sliding contact with Coulomb friction slips on; with infinite friction an impact stops it
+        sliding = [i for i in slips if not self.contacts[i].spec.coulomb]
         if any(rates[i] < -self.options.grazing_speed for i in closed) or sliding:
             if self.sensitive:
                 self.phi = self._identity_phi()
@@ -242,7 +245,12 @@ class HybridLoop(EventResets):
                 self.initial_saltation = self._jumped(self._identity_phi(), self.events[-1])
             return mode, v_plus
         candidates = [i for i in closed if rates[i] <= self.options.grazing_speed]
+        for i in set(slips) & set(candidates):
+            self.dyn.slip_reference[i] = slips[i] / np.linalg.norm(slips[i])
+            candidates[candidates.index(i)] = self.dyn.sliding_key(i)
         mode = choose_mode(self.dyn, q, v, self.t0, candidates)
+        if any(self.contacts[self.dyn.contact_index(k)].spec.coulomb for k in mode):
+            mode, _ = settle_friction(self.dyn, q, v, self.t0, mode)
         return mode, held_velocity(self.dyn, q, v, mode)
 
     # -- the loop -------------------------------------------------------------------
@@ -270,7 +278,7 @@ class HybridLoop(EventResets):
         segment = Segment(t0=self.t0, t1=self.t0, mode=self._mode_names(mode), sliding=self._sliding_names(mode))
         self.segments.append(segment)
         gaps, rates = self._gaps_and_rates(stepper.q, stepper.v)
-        forces = field.normal_forces(stepper.t, stepper.q, stepper.v)
+        forces = field.guard_values(stepper.t, stepper.q, stepper.v)
         steps = 0
         next_break = -np.inf  # the efforts' next breakpoint: a time a step must end on
         while stepper.t < self.t_final:
@@ -292,15 +300,19 @@ class HybridLoop(EventResets):
             if options.dense:
                 segment.pieces.append(dense)
             gaps1, rates1 = self._gaps_and_rates(stepper.q, stepper.v)
-            forces1 = field.normal_forces(stepper.t, stepper.q, stepper.v)
+            forces1 = field.guard_values(stepper.t, stepper.q, stepper.v)
             crossings, misses = self.guards.crossings(stepper, dense, field, mode, (gaps, rates, forces),
                                                       (gaps1, rates1, forces1))
             if not crossings:
                 self._near_misses(misses, np.inf)
                 gaps, rates, forces = gaps1, rates1, forces1
-                if mode and self._project(stepper, mode, gaps1):
+                projected = mode and self._project(stepper, mode, gaps1)
+                if projected:
                     gaps, rates = self._gaps_and_rates(stepper.q, stepper.v)
-                    forces = field.normal_forces(stepper.t, stepper.q, stepper.v)
+                if field.slipping:
+                    field.advance(stepper.q, stepper.v)
+                if projected or field.slipping:
+                    forces = field.guard_values(stepper.t, stepper.q, stepper.v)
                 segment.t1 = stepper.t
                 if self.chooser is not None and stepper.t < self.t_final:
                     switch = self.chooser.after_step(h, stepper.q, stepper.v, stepper.t)
@@ -336,7 +348,7 @@ class HybridLoop(EventResets):
                               sliding=self._sliding_names(mode))
             self.segments.append(segment)
             gaps, rates = self._gaps_and_rates(stepper.q, stepper.v)
-            forces = field.normal_forces(stepper.t, stepper.q, stepper.v)
+            forces = field.guard_values(stepper.t, stepper.q, stepper.v)
             if stop:
                 return self._trajectory(stepper, Termination.STOPPED)
         return self._trajectory(stepper, Termination.T_FINAL)

@@ -1,6 +1,6 @@
 """The vector field of one contact mode, as a stepper sees it: accelerations, their
-Jacobian, their parameter Jacobian, and the mode's normal forces at the last point,
-with counters."""
+Jacobian, their parameter Jacobian, and the values of the mode's own guards (normal
+forces, friction cone margins, slip speeds) at the last point, with counters."""
 
 from __future__ import annotations
 
@@ -10,6 +10,7 @@ import numpy as np
 
 from ..dynamics.mode import ModeDynamics
 from ..dynamics.parameter_forces import ParameterForces
+from .guards import Guard, GuardKind, mode_guards
 
 
 class ModeField:
@@ -30,8 +31,13 @@ class ModeField:
                  parameters: ParameterForces | None = None):
         self.dyn, self.mode, self.fused, self.parameters = dyn, mode, fused, parameters
         self._plain = dyn.accelerator(mode)
-        self.last = None  # (t, q, v) of the last accel, and its normal forces' source
+        self.last = None  # (t, q, v) of the last accel, and its row forces' source
         self._last_forces = None
+        self.guards: list[Guard] = mode_guards(dyn, mode)
+        """The mode's force-level and slip guards, in the order of `guard_values`."""
+        self._positions = {key: k for k, key in enumerate(mode)}
+        self.slipping = any(g.kind is GuardKind.STOP for g in self.guards)
+        """Whether a contact slips with Coulomb friction (its direction is followed, `advance`)."""
         self.n_solve = self.n_derivatives = 0
         self._derivatives: OrderedDict = OrderedDict()
 
@@ -42,9 +48,9 @@ class ModeField:
         self.last = (t, q, v)
         if self.fused:
             sol = self._differentiate(t, q, v)
-            self._last_forces = sol.normal_forces
+            self._last_forces = sol.row_forces
             return sol.ddq
-        self._last_forces = self._plain.normal_forces
+        self._last_forces = self._plain.row_forces
         return self._plain(q, v, t)
 
     def _differentiate(self, t, q, v):
@@ -75,11 +81,53 @@ class ModeField:
         """``d ddq/dp`` (nv × p) at time ``t`` (s) and ``(q, v)``, for the field's ``parameters``."""
         return self._known(t, q, v)[2]
 
-    def normal_forces(self, t, q, v) -> np.ndarray:
-        """Normal forces (N) of the mode's contacts (order of ``mode``) at time ``t`` (s) and
+    def row_forces(self, t, q, v) -> list[np.ndarray]:
+        """Row forces (N) of the mode's contacts (order of ``mode``) at time ``t`` (s) and
         ``(q, v)``, reusing the last `accel` solve when it was at that point."""
         last = self.last
         if last is not None and last[0] == t and (last[1] is q or np.array_equal(last[1], q)) \
                 and (last[2] is v or np.array_equal(last[2], v)):  # the stepper's end point is its last stage
             return self._last_forces()
-        return self.dyn.solve(q, v, t, self.mode).normal_forces()
+        return self.dyn.solve(q, v, t, self.mode).row_forces()
+
+    def normal_forces(self, t, q, v) -> np.ndarray:
+        """Normal forces (N) of the mode's contacts (order of ``mode``) at ``(t, q, v)``."""
+        return np.array([f[0] for f in self.row_forces(t, q, v)])
+
+    def guard_values(self, t, q, v) -> np.ndarray:
+        """Value of each guard of `guards` at time ``t`` (s) and ``(q, v)``; a guard fires
+        where its value crosses 0 downward: a normal force (N), a sticking contact's cone
+        margin ``μ λ_N - ||λ_T||`` (N), a slipping contact's slip velocity along its
+        reference direction (m/s, `contactdiff.dynamics.slip`)."""
+        if not self.guards:
+            return np.zeros(0)
+        forces = self.row_forces(t, q, v)
+        values = np.empty(len(self.guards))
+        for j, guard in enumerate(self.guards):
+            k = self._positions[guard.contact]
+            if guard.kind is GuardKind.FORCE:
+                values[j] = forces[k][0]
+            elif guard.kind is GuardKind.CONE:
+                values[j] = self.dyn.contact(guard.contact).spec.mu * forces[k][0] - np.linalg.norm(forces[k][1:])
+            else:
+                values[j] = self.slip_speed(guard.contact, q, v)
+        return values
+
+    def slip_speed(self, key: int, q, v) -> float:
+        """Slip velocity (m/s) of slipping contact key ``key`` along its reference direction."""
+        dyn = self.dyn
+        dyn.kin.update(q, v)
+        u_T = dyn.contact(key).full.rows(dyn.kin)[1:] @ v
+        return float(dyn.slip_direction(dyn.contact_index(key), u_T)[0] @ u_T)
+
+    def advance(self, q, v) -> None:
+        """After an accepted step ending at ``(q, v)``: each 3-D slip continues along its
+        direction there (the reference of `contactdiff.dynamics.slip`)."""
+        dyn = self.dyn
+        for guard in self.guards:
+            if guard.kind is GuardKind.STOP:
+                dyn.kin.update(q, v)
+                index = dyn.contact_index(guard.contact)
+                u_T = dyn.contact(guard.contact).full.rows(dyn.kin)[1:] @ v
+                if len(u_T) == 2:
+                    dyn.slip_reference[index] = dyn.slip_direction(index, u_T)[0]

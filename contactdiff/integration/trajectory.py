@@ -18,11 +18,13 @@ import numpy as np
 
 from ..errors import InvalidInputError
 
-EVENT_KINDS = ("touchdown", "lift-off", "slip", "bounce", "grazing", "zeno")
+EVENT_KINDS = ("touchdown", "lift-off", "slip", "stick", "bounce", "grazing", "zeno")
 """``touchdown``: contacts close and stay closed (impact); ``lift-off``: an active
 contact's normal force reaches zero and it leaves; ``slip``: a sticking contact's
 normal force reaches zero but leaving would let it sink, so it slides (normal row
-only) until a later lift-off; ``bounce``: an impact after which the
+only) until a later lift-off, or a contact with Coulomb friction starts to slip
+(its tangential force reached the cone, or it stopped but friction cannot hold
+it); ``stick``: a slipping contact stopped and sticks; ``bounce``: an impact after which the
 contact leaves again; ``grazing``: a contact closes with zero normal speed;
 ``zeno``: an impact below the Zeno speed, after which the contact stays closed."""
 
@@ -34,6 +36,8 @@ class NonSmooth(Enum):
     ORDER = "the landing orders of a simultaneous touchdown give different saltation matrices"
     GRAZING = "a contact closed with zero normal speed"
     ZENO_CASCADE = "an impact cascade was ended by the Zeno rule (a contact lifted slower than zeno_speed kept closed)"
+    FRICTION_THRESHOLD = ("the tangential force sits on the friction cone's boundary without crossing it "
+                          "(neighbouring runs stick or slip: the stick/slip threshold)")
 
 
 class Termination(StrEnum):

@@ -1,0 +1,184 @@
+"""Events of Coulomb friction: stick → slip, slip → stick, and the mode after them.
+
+A mixin of `contactdiff.integration.hybrid.HybridLoop` (its state as for
+`contactdiff.integration.event_resets`). Neither event has a jump of the state:
+
+* **stick → slip** (guard: the cone margin ``h = μ λ_N - ||λ_T||`` of a sticking
+  contact reaching 0). The contact slips along ``s = -λ_T / ||λ_T||``, the
+  direction its tangential force resisted: the slip's friction ``-μ λ_N s`` then
+  equals the sticking force, so the field is continuous and ``Ξ = I`` (plus
+  round-off) as at a lift-off.
+* **slip → stick** (guard: the slip velocity along its direction reaching 0, in
+  3-D the whole slip velocity: `contactdiff.dynamics.slip`). The contact sticks
+  if the sticking force lies in the cone; otherwise friction cannot hold it and
+  it slips on, along ``-λ_T / ||λ_T||`` of the sticking force it would need (a
+  planar contact reverses). The field jumps; the reset holds the contact's rows
+  (`held_velocity`, removing the slip velocity left by the integration error),
+  so ``Ξ = DR + (F+ - DR F-) Dh / (Dh F-)``.
+
+Differentiability: a crossing is transversal when the guard's rate is not zero.
+The flow is not differentiable where the tangential force only touches the cone
+(stick → slip with a vanishing rate: neighbours on one side stay stuck), or
+where a stopped contact's sticking force lies on the cone's boundary (neighbours
+stick or slip on): the paper's stick/slip threshold. Those events carry
+`NonSmooth.FRICTION_THRESHOLD` with the numbers.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..dynamics.mode import ModeDynamics
+from ..errors import SolverError
+from .guards import Guard, GuardKind
+from .parameter_jumps import ParameterJumps
+from .projection import held_velocity, held_velocity_jacobian
+from .sensitivity import saltation, vector_field
+from .trajectory import Event, NonSmooth
+
+THRESHOLD_TOL = 1e-9
+"""Relative distance to the friction cone's boundary (of ``μ λ_N``), and relative
+guard rate (per second, of ``μ λ_N``), below which an event sits on the stick/slip
+threshold (round-off of the forces is about 1e-14 relative)."""
+
+
+def _sticks_with_friction(contact) -> bool:
+    return contact.spec.coulomb and not contact.sliding and contact.n_rows > 1
+
+
+def settle_friction(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float,
+                    mode: tuple[int, ...]) -> tuple[tuple[int, ...], list[int]]:
+    """The mode after Coulomb's law on ``mode`` at ``(q, v, t)``.
+
+    A sticking contact whose sticking force leaves the cone slips along
+    ``-λ_T / ||λ_T||`` (its reference direction is set on ``dyn``), and the solve is
+    repeated until every sticking contact is inside its cone. Returns the mode and
+    the scene indices of the contacts that were turned to slipping.
+
+    Raises:
+        PainleveError: a slipping contact has no consistent force (Painlevé).
+        SolverError: no settled mode within ``2 n + 1`` rounds.
+    """
+    turned: list[int] = []
+    mode = tuple(sorted(mode))
+    for _ in range(2 * len(mode) + 1):
+        sol = dyn.solve(q, v, t, mode)
+        over = []
+        for key, f in zip(mode, sol.row_forces()):
+            c = dyn.contact(key)
+            if _sticks_with_friction(c):
+                tangential = float(np.linalg.norm(f[1:]))
+                if tangential > c.spec.mu * f[0] + THRESHOLD_TOL * max(abs(f[0]), tangential):
+                    over.append((key, f))
+        if not over:
+            return mode, turned
+        keys = list(mode)
+        for key, f in over:
+            index = dyn.contact_index(key)
+            dyn.slip_reference[index] = -f[1:] / np.linalg.norm(f[1:])
+            keys[keys.index(key)] = dyn.sliding_key(index)
+            turned.append(index)
+        mode = tuple(sorted(keys))
+    raise SolverError(f"no mode satisfies Coulomb's law for contacts {mode} at t = {t!r}")
+
+
+def cone_guard(dyn: ModeDynamics, t: float, q, v, mode, key: int):
+    """The stick → slip guard of ``key`` in ``mode``: ``(Dh, F-, h_t, weights, margin)`` with
+    ``h = w · λ_rows``, ``w = (μ, -λ_T/||λ_T||)`` its gradient along the rows' forces."""
+    mode = tuple(mode)
+    sol, der = dyn.solve(q, v, t, mode, derivatives=True)
+    rows = sol.row_slices[mode.index(key)]
+    f = sol.forces[rows]
+    mu = dyn.contact(key).spec.mu
+    w = np.concatenate(([mu], -f[1:] / np.linalg.norm(f[1:])))
+    Dh = np.concatenate([w @ der.forces_dq[rows], w @ der.forces_dv[rows]])
+    h_t = 0.0
+    dyn.kin.update(q, v)
+    tau_t = dyn.scene.tau_time_derivative(dyn.kin, t)
+    if np.any(tau_t):  # the forces are affine in the efforts
+        tau = dyn.scene.tau(dyn.kin, t)
+        h_t = float(w @ (dyn.solve(q, v, t, mode, tau=tau + tau_t).forces[rows] - f))
+    return Dh, np.concatenate([v, sol.ddq]), h_t, (sol, der, rows, w), mu * f[0]
+
+
+def stop_guard(dyn: ModeDynamics, q, v, key: int) -> np.ndarray:
+    """Gradient (2nv,) of the slip → stick guard ``h = s · A_T(q) v`` of slipping key ``key``
+    (``s`` its slip direction, held fixed: the guard of `contactdiff.dynamics.slip`)."""
+    kin = dyn.kin
+    kin.update(q, v, derivatives=True)
+    full = dyn.contact(key).full
+    A_T = full.rows(kin)[1:]
+    s = dyn.slip_direction(dyn.contact_index(key), A_T @ v)[0]
+    return np.concatenate([s @ full.rows_velocity_dq(kin)[1:], s @ A_T])
+
+
+class FrictionEvents:
+    """The loop's stick → slip and slip → stick events (module doc)."""
+
+    def _friction_event(self, t, q, v, mode, fired: list[Guard]):
+        dyn = self.dyn
+        cone = [g.contact for g in fired if g.kind is GuardKind.CONE]
+        stops = [g.contact for g in fired if g.kind is GuardKind.STOP]
+        mode = tuple(mode)
+        sol = dyn.solve(q, v, t, mode)
+        forces = dict(zip(mode, sol.row_forces()))
+        keys = list(mode)
+        for k in cone:
+            f = forces[k]
+            dyn.slip_reference[k] = -f[1:] / np.linalg.norm(f[1:])
+            keys[keys.index(k)] = dyn.sliding_key(k)
+        for k in stops:
+            keys[keys.index(k)] = dyn.contact_index(k)
+        new_mode = tuple(sorted(keys))
+        v_plus = held_velocity(dyn, q, v, new_mode) if stops else v
+        new_mode, turned = settle_friction(dyn, q, v_plus, t, new_mode)
+        stuck = [dyn.contact_index(k) for k in stops if dyn.contact_index(k) in new_mode]
+        kind = "stick" if stuck and not cone else "slip"
+        fired_names = self._mode_names(cone + stops)
+        event = Event(t=t, kind=kind, contacts=fired_names, simultaneous=len(fired) > 1,
+                      q=q.copy(), v_minus=v.copy(), v_plus=v_plus.copy(), impulses={},
+                      mode_before=self._mode_names(mode), mode_after=self._mode_names(new_mode),
+                      sliding=self._sliding_names(new_mode))
+        if cone:
+            Dh, F_minus, h_t, solved, margin = cone_guard(dyn, t, q, v, mode, cone[0])
+            DR = None
+        else:
+            Dh, F_minus, h_t, margin = stop_guard(dyn, q, v, stops[0]), np.concatenate([v, sol.ddq]), 0.0, None
+            DR = held_velocity_jacobian(dyn, q, v_plus, new_mode) if stuck else None
+        F_plus = vector_field(dyn, q, v_plus, t, new_mode)
+        rate = float(Dh @ F_minus) + h_t
+        self._threshold_note(event, t, cone, stuck, rate, margin, q, v_plus, new_mode)
+        if self.sensitive:
+            n2 = 2 * self.scene.nv
+            xi = saltation(np.eye(n2) if DR is None else DR, Dh, F_minus, F_plus, h_t)
+            h_p = xi_p = None
+            if self.jumps:
+                if cone:
+                    sol_k, der_k, rows, w = solved
+                    h_p = w @ der_k.forces_dtau[rows] @ self.jumps.forces.forces(dyn.kin, q, v, sol_k.ddq, t)
+                else:
+                    h_p = np.zeros(self.jumps.p)  # the slip velocity does not depend on the parameters
+                xi_p = ParameterJumps.saltation(None, h_p, DR, F_minus, F_plus, rate)
+            self._attach_sensitivity(event, xi, Dh, F_minus, h_t, xi_p=xi_p, h_p=h_p)
+        self.events.append(event)
+        return new_mode, v_plus
+
+    def _threshold_note(self, event: Event, t, cone, stuck, rate, margin, q, v, new_mode) -> None:
+        """Mark an event on the stick/slip threshold as not differentiable (module doc)."""
+        dyn = self.dyn
+        if cone:
+            scale = max(abs(margin), 1e-300)
+            if abs(rate) <= THRESHOLD_TOL * scale:
+                event.nonsmooth[NonSmooth.FRICTION_THRESHOLD] = self._note(
+                    f"not differentiable at t = {t:.12g}: the tangential force of {', '.join(event.contacts)} "
+                    f"touches the friction cone without crossing it (cone margin rate {rate:.3g} N/s)")
+            return
+        sol = dyn.solve(q, v, event.t, new_mode)
+        for key, f in zip(new_mode, sol.row_forces()):
+            if dyn.contact_index(key) in stuck:
+                mu_n, tangential = dyn.contact(key).spec.mu * f[0], float(np.linalg.norm(f[1:]))
+                if mu_n - tangential <= THRESHOLD_TOL * max(mu_n, 1e-300):
+                    event.nonsmooth[NonSmooth.FRICTION_THRESHOLD] = self._note(
+                        f"not differentiable at t = {t:.12g}: {self.names[dyn.contact_index(key)]} stopped with its "
+                        f"sticking force on the friction cone (|λ_T| = {tangential:.6g} N, μ λ_N = {mu_n:.6g} N): "
+                        "neighbouring runs stick or slip on")
