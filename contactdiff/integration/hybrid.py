@@ -55,8 +55,8 @@ from ..errors import GrazingError, InvalidInputError, TooManyEventsError, TooMan
 from ..model.scene import Scene
 from ..model.scene_file import passive_note
 from .event_resets import EventResets
-from .friction_events import FrictionEvents, settle_friction
 from .events import simultaneous_group
+from .friction_events import FrictionEvents, settle_friction
 from .guards import GuardFinder, NearMiss
 from .method_choice import EXPLICIT, MethodChooser, spectral_radius
 from .mode_field import ModeField

@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pinocchio as pin
 
+from ..dynamics.frictional_impact import ContactState
 from ..dynamics.impacts import ImpactResult, choose_mode, resolve_impact
 from ..dynamics.mode import ModeDynamics
 from ..dynamics.parameter_forces import ParameterForces
@@ -74,6 +75,10 @@ def impact_reset_jacobian(dyn: ModeDynamics, q: np.ndarray, v_minus: np.ndarray,
     complementarity states held fixed: ``M (v+ - v-) = A^T Λ``, and on an
     active contact ``A_n v+ = -e A_n v-``, ``A_t v+ = 0``; on a tangential-only
     contact (the relaxed infinite-friction state) ``A_t v+ = 0`` with ``Λ_n = 0``.
+    A contact sliding with Coulomb friction (``impact.states``) holds its normal row
+    only, and its tangential impulse ``-μ Λ_N s`` follows ``s = u+_T / ||u+_T||``:
+    its force column is ``F = A_n - μ s^T A_T``, and ``δs = (I - s s^T) δu+_T / ||u+_T||``
+    moves ``v+`` through ``-μ Λ_N A_T^T δs`` (a planar slip keeps its sign, ``δs = 0``).
     """
     model, nv = dyn.model, dyn.model.nv
     held = sorted(set(impact.active) | set(impact.tangential_only))
@@ -84,29 +89,52 @@ def impact_reset_jacobian(dyn: ModeDynamics, q: np.ndarray, v_minus: np.ndarray,
     kin.update(q, v_minus, derivatives=True)
     v_plus = impact.v_plus
     M = pin.crba(model, dyn.data, q)
+    M = np.triu(M) + np.triu(M, 1).T
     dMdv_dq = (pin.computeRNEADerivatives(model, dyn.data, q, np.zeros(nv), v_plus - v_minus)[0]
                - pin.computeGeneralizedGravityDerivatives(model, dyn.data, q))
     rhs_q = -dMdv_dq
-    A_rows, con_q, e_rows = [], [], []
+    K_vv = M.copy()
+    A_rows, F_rows, con_q, e_rows = [], [], [], []
     for k in held:
         c = dyn.contact(impact.contacts[k])
         # a tangential-only contact keeps its tangential rows only; its normal impulse is 0
         kept = slice(0, c.n_rows) if k in impact.active else slice(1, c.n_rows)
         e_k = impact.restitution[k] if k in impact.active else 0.0
-        rhs_q += c.rows_transpose_dq(kin, impact.row_impulses[impact.rows.rows_of([k])])
-        A_rows.append(c.rows(kin)[kept])
+        impulses = impact.row_impulses[impact.rows.rows_of([k])]
+        rhs_q += c.rows_transpose_dq(kin, impulses)
+        rows = c.rows(kin)
         e_block = np.zeros(c.n_rows)
         e_block[0] = e_k
-        con_q.append((-c.rows_times_dq(kin, v_plus) - e_block[:, None] * c.rows_times_dq(kin, v_minus))[kept])
+        constraint_q = -c.rows_times_dq(kin, v_plus) - e_block[:, None] * c.rows_times_dq(kin, v_minus)
+        force_rows = rows[kept]
+        if _slides_with_friction(impact, k, c):
+            kept = slice(0, 1)
+            mu, s = impact.friction[k], impact.slide_directions[k]
+            force_rows = (rows[0] - mu * s @ rows[1:])[None, :]
+            if len(s) == 2:  # δs through the post-impact slip velocity
+                u_T = rows[1:] @ v_plus
+                D = (np.eye(2) - np.outer(s, s)) / np.linalg.norm(u_T)
+                coef = mu * impulses[0] * rows[1:].T @ D
+                K_vv += coef @ rows[1:]
+                rhs_q -= coef @ c.rows_times_dq(kin, v_plus)[1:]
+        A_rows.append(rows[kept])
+        F_rows.append(force_rows)
+        con_q.append(constraint_q[kept])
         e_rows.append(e_block[kept])
-    A, E = np.vstack(A_rows), np.diag(np.concatenate(e_rows))
+    A, F, E = np.vstack(A_rows), np.vstack(F_rows), np.diag(np.concatenate(e_rows))
     m = A.shape[0]
-    K = np.block([[M, -A.T], [A, np.zeros((m, m))]])
+    K = np.block([[K_vv, -F.T], [A, np.zeros((m, m))]])
     rhs = np.block([[rhs_q, M], [np.vstack(con_q), -E @ A]])
     X = np.linalg.lstsq(K, rhs, rcond=None)[0] if np.linalg.matrix_rank(K) < nv + m else np.linalg.solve(K, rhs)
     DR[nv:, :nv] = X[:nv, :nv]
     DR[nv:, nv:] = X[:nv, nv:]
     return DR
+
+
+def _slides_with_friction(impact: ImpactResult, k: int, contact) -> bool:
+    """Whether contact ``k`` of ``impact`` slides with finite friction on tangential rows."""
+    return (impact.states is not None and impact.states[k] is ContactState.SLIDE and contact.n_rows > 1
+            and 0.0 < impact.friction[k] < np.inf and bool(np.any(impact.slide_directions[k])))
 
 
 def impact_parameter_jacobian(dyn: ModeDynamics, q: np.ndarray, v_minus: np.ndarray, impact: ImpactResult,
