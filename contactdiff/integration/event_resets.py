@@ -16,7 +16,7 @@ import numpy as np
 from ..dynamics.frictional_impact import ContactState
 from ..dynamics.impacts import choose_mode, liftoff_mode, resolve_impact
 from ..errors import GrazingError
-from .friction_events import settle_friction
+from .friction_events import refuse_ambiguous_slip, settle_friction
 from .guards import Guard, GuardKind
 from .options import OnGrazing
 from .parameter_jumps import ParameterJumps
@@ -143,6 +143,7 @@ class EventResets:
                     and (dyn.contact_index(k) not in touching or e_k == 0.0)]
         new_mode = choose_mode(dyn, q, v_plus, t, staying + settling)
         if impact.states is not None:
+            refuse_ambiguous_slip(dyn, q, v_plus, t, staying + settling, new_mode)
             new_mode, _ = settle_friction(dyn, q, v_plus, t, new_mode)
         settled = [i for i in dyn.contacts_of(settling) if i in dyn.contacts_of(new_mode)]
         nonsmooth = {}  # the cascade rule's cut-off and a grazing touchdown are not smooth

@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..dynamics.mode import ModeDynamics
-from ..errors import SolverError
+from ..errors import PainleveError, SolverError
 from .guards import Guard, GuardKind
 from .parameter_jumps import ParameterJumps
 from .projection import held_velocity, held_velocity_jacobian
@@ -80,6 +80,19 @@ def settle_friction(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float,
             turned.append(index)
         mode = tuple(sorted(keys))
     raise SolverError(f"no mode satisfies Coulomb's law for contacts {mode} at t = {t!r}")
+
+
+def refuse_ambiguous_slip(dyn: ModeDynamics, q, v, t, candidates, mode) -> None:
+    """Raise `PainleveError` where a slipping candidate left out of ``mode`` (it would
+    separate) could also slide on with a pushing force: Painlevé's non-uniqueness. Each
+    such candidate's slipping mode is solved (`ModeDynamics.solve` refuses a
+    non-positive ``A_n M^-1 F^T``)."""
+    for key in candidates:
+        if dyn.contact(key).slips and key not in mode:
+            try:
+                dyn.solve(q, v, t, tuple(sorted(set(mode) | {key})))
+            except PainleveError as exc:
+                raise PainleveError(f"{exc}; here it could also separate: two consistent motions") from None
 
 
 def cone_guard(dyn: ModeDynamics, t: float, q, v, mode, key: int):

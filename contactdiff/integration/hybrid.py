@@ -56,7 +56,7 @@ from ..model.scene import Scene
 from ..model.scene_file import passive_note
 from .event_resets import EventResets
 from .events import simultaneous_group
-from .friction_events import FrictionEvents, settle_friction
+from .friction_events import FrictionEvents, refuse_ambiguous_slip, settle_friction
 from .guards import GuardFinder, NearMiss
 from .method_choice import EXPLICIT, MethodChooser, spectral_radius
 from .mode_field import ModeField
@@ -249,6 +249,7 @@ class HybridLoop(EventResets, FrictionEvents):
             self.dyn.slip_reference[i] = slips[i] / np.linalg.norm(slips[i])
             candidates[candidates.index(i)] = self.dyn.sliding_key(i)
         mode = choose_mode(self.dyn, q, v, self.t0, candidates)
+        refuse_ambiguous_slip(self.dyn, q, v, self.t0, candidates, mode)
         if any(self.contacts[self.dyn.contact_index(k)].spec.coulomb for k in mode):
             mode, _ = settle_friction(self.dyn, q, v, self.t0, mode)
         return mode, held_velocity(self.dyn, q, v, mode)

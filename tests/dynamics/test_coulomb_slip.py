@@ -217,3 +217,26 @@ def test_painleve_rod(rod, theta, mu, slip_sign):
     else:
         with pytest.raises(PainleveError, match="Painlevé"):
             dyn.solve(q, v, 0.0, (dyn.sliding_key(0),))
+
+
+@pytest.mark.parametrize("theta", [0.6, 1.0])
+@pytest.mark.parametrize("mu", [0.5, 1.4, 4.0])
+@pytest.mark.parametrize("slip_sign", [1.0, -1.0])
+@pytest.mark.parametrize("spin", [0.0, 8.0])
+def test_painleve_rod_in_simulate(rod, theta, mu, slip_sign, spin):
+    """A run that starts with the tip sliding on the ground raises `PainleveError` exactly
+    where ``g <= 0``. The tip's free normal acceleration is ``b = -9.81 + l sin θ θ̇²``
+    (the centripetal term of the tip at ``(x + l cos θ, z - l sin θ)``): with ``θ̇ = 0``
+    (``b < 0``) the Painlevé region has no solution, with ``θ̇ = 8`` (``b > 0``) two
+    (separate, or slide on pushed). Outside it the rod slides (``b < 0``) or lifts (``b > 0``)."""
+    q0 = np.array([0.0, ROD_HALF * math.sin(theta), theta])  # tip on the ground
+    # the tip slides along slip_sign at 1 m/s with zero normal speed: ẋ - l sin θ θ̇ = ±1, ż - l cos θ θ̇ = 0
+    v0 = np.array([slip_sign + ROD_HALF * math.sin(theta) * spin, ROD_HALF * math.cos(theta) * spin, spin])
+    scene = cd.Scene(rod, [Contact("tip", friction=mu)], gravity=[0, 0, -9.81], q0=q0, v0=v0)
+    b = -9.81 + ROD_HALF * math.sin(theta) * spin**2
+    if rod_g(theta, mu, slip_sign) <= 0.0:
+        with pytest.raises(PainleveError, match="Painlevé"):
+            cd.simulate(scene, 0.02)
+    else:
+        traj = cd.simulate(scene, 0.02)
+        assert traj.segments[0].sliding == (("tip",) if b < 0.0 else ())
