@@ -30,6 +30,29 @@ from contactdiff.model.kinematics import Kinematics
 EPS = 1e-6
 RTOL = 1e-6
 
+# A planar leg: a body free in x and z (1 kg) with a rigid leg (0.2 kg, 0.5 m) on a hip
+# hinge about y; its foot is the frame ``foot`` at the leg's end.
+LEG_URDF = """<?xml version="1.0"?>
+<robot name="leg">
+  <link name="world"/>
+  <link name="slider"><inertial><origin xyz="0 0 0"/><mass value="0.5"/>
+    <inertia ixx="0.001" iyy="0.001" izz="0.001" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <joint name="body_x" type="prismatic"><parent link="world"/><child link="slider"/>
+    <axis xyz="1 0 0"/><limit lower="-100" upper="100" effort="0" velocity="100"/></joint>
+  <link name="body"><inertial><origin xyz="0 0 0"/><mass value="0.5"/>
+    <inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <joint name="body_z" type="prismatic"><parent link="slider"/><child link="body"/>
+    <axis xyz="0 0 1"/><limit lower="-100" upper="100" effort="0" velocity="100"/></joint>
+  <link name="leg"><inertial><origin xyz="0 0 -0.25"/><mass value="0.2"/>
+    <inertia ixx="0.005" iyy="0.005" izz="0.005" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <joint name="hip" type="revolute"><parent link="body"/><child link="leg"/>
+    <axis xyz="0 1 0"/><limit lower="-3" upper="3" effort="0" velocity="100"/></joint>
+  <link name="foot"/>
+  <joint name="foot_joint" type="fixed"><parent link="leg"/><child link="foot"/>
+    <origin xyz="0 0 -0.5"/></joint>
+</robot>
+"""
+
 FD_ERRORS: dict[str, float] = {}
 
 
