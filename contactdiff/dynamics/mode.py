@@ -39,7 +39,7 @@ from ..errors import InvalidInputError, PainleveError, SolverError, check_number
 from ..model.scene import Scene
 from .constraint_dynamics import RigidContactMode
 from .constraint_dynamics import eligible as rigid_eligible
-from .slip import SlipRow, painleve_check, slip_direction
+from .slip import SLIP_SPEED_EPS, SlipRow, painleve_check, slip_direction
 
 
 @dataclass
@@ -110,12 +110,14 @@ class ModeDynamics:
         """Per slipping contact (scene index), the unit direction (tangent coordinates)
         its slip is continued along: a planar contact's slip sign, a spatial contact's
         direction at its last accepted step (`slip_direction`); set by the hybrid loop."""
+        self.slip_speed_floor = SLIP_SPEED_EPS
+        """m/s: a 3-D slip slower than this follows its reference (`contactdiff.dynamics.slip`)."""
 
     def slip_direction(self, index: int, slip_velocity: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
         """Unit slip direction ``s`` of scene contact ``index`` with tangential row
         velocities ``slip_velocity`` (m/s), and ``ds/d(slip_velocity)`` (None where it
         is zero); see `contactdiff.dynamics.slip.slip_direction`."""
-        return slip_direction(slip_velocity, self.slip_reference.get(index))
+        return slip_direction(slip_velocity, self.slip_reference.get(index), self.slip_speed_floor)
     # -- contact keys (see the module doc) ----------------------------------------------
     def contact(self, key: int):
         """The bound contact (or sliding view) of a contact key."""

@@ -18,8 +18,10 @@ the contact's *reference* (its direction at the last accepted step), ``s`` is
 ``-u_T / ||u_T||``. A slip that stops has ``u_T(t) = (t_s - t) c(t)`` with
 ``c`` smooth, so the continued field is smooth through ``t_s`` and the stop
 is the zero of ``reference · u_T``, a sign change the guards locate like any
-other. Below `SLIP_SPEED_EPS` (the onset of a slip from sticking, where
-``u_T`` grows from 0) ``s`` is the reference itself.
+other. Below a floor (`SLIP_SPEED_EPS`; the hybrid loop raises it to its
+``zeno_speed``, above the integration error of ``u_T``) ``s`` is the reference
+itself: at the onset of a slip from sticking ``u_T`` grows from 0 and its
+direction there is noise.
 
 **Painlevé's paradox.** With one slipping contact the normal force solves
 ``g λ_N = -b`` with ``g = A_n M^-1 F^T``: where ``g <= 0`` a normal force
@@ -39,7 +41,7 @@ slip just starting from sticking; round-off in the slip velocity of a unit-scale
 model is about 1e-16 m/s)."""
 
 
-def slip_direction(slip_velocity: np.ndarray, reference: np.ndarray | None
+def slip_direction(slip_velocity: np.ndarray, reference: np.ndarray | None, floor: float = SLIP_SPEED_EPS
                    ) -> tuple[np.ndarray, np.ndarray | None]:
     """Unit slip direction ``s`` (tangent coordinates) and ``ds/du_T`` (module doc).
 
@@ -47,9 +49,10 @@ def slip_direction(slip_velocity: np.ndarray, reference: np.ndarray | None
         slip_velocity: the tangential row velocities ``u_T = A_T v`` (m/s), 1 or 2.
         reference: the unit direction the slip continues along (the planar sign, or
             the 3-D direction at the last accepted step); None: the slip's own.
+        floor: slip speed (m/s) below which the reference is the direction.
 
     Returns:
-        ``(s, D)``: ``D = ±(I - s s^T) / ||u_T||`` in 3-D above `SLIP_SPEED_EPS`,
+        ``(s, D)``: ``D = ±(I - s s^T) / ||u_T||`` in 3-D above ``floor``,
         None where ``s`` does not depend on ``u_T`` (planar, or a slip too slow).
         With no reference and no slip, ``s`` is zero (no friction direction).
     """
@@ -59,7 +62,7 @@ def slip_direction(slip_velocity: np.ndarray, reference: np.ndarray | None
             return np.asarray(reference, dtype=float), None
         return np.array([1.0 if u[0] >= 0.0 else -1.0]), None
     speed = float(np.hypot(u[0], u[1]))
-    if speed <= SLIP_SPEED_EPS:
+    if speed <= floor or (reference is None and speed <= SLIP_SPEED_EPS):
         return (np.zeros(2) if reference is None else np.asarray(reference, dtype=float)), None
     s = u / speed
     sign = 1.0

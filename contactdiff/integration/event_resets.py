@@ -31,6 +31,11 @@ from .sensitivity import (
 )
 from .trajectory import Event, NonSmooth
 
+CREEP_FACTOR = 10.0
+"""A contact that an impact leaves slipping slower than this many slip-speed floors
+(``zeno_speed``) is held and sticks or slips by its forces: in an impact cascade the
+tangential impulses are as small as the normal ones (1e-7 N s on ANYmal), and so is
+the slip they leave (1e-6 m/s), whose direction is then the cascade's noise."""
 SPEED_TOL = 1e-12
 """m/s: a post-impact normal speed below this (scaled by the impact's speeds) counts as zero."""
 
@@ -118,7 +123,9 @@ class EventResets:
         impact = resolve_impact(dyn, q, v_minus, closed, e)
         v_plus = impact.v_plus
         if impact.states is not None:  # Coulomb friction: each contact sticks or slides on
-            closed = self._friction_keys(impact)
+            closed, creeping = self._friction_keys(q, impact)
+            if creeping:  # a slip below the noise floor is held: the contact sticks or slips by its forces
+                v_plus = held_velocity(dyn, q, v_plus, creeping)
         scale = max(1.0, float(np.max(np.abs(impact.normal_speeds_before))))
         leaving = set(dyn.contacts_of(releasing))  # a releasing contact leaves whatever its key
         staying = [k for k, s in zip(closed, impact.normal_speeds_after)
@@ -226,16 +233,26 @@ class EventResets:
         self.events.append(event)
         return new_mode, v_plus
 
-    def _friction_keys(self, impact) -> list[int]:
-        """The keys of a frictional impact's contacts after it: a contact with Coulomb
-        friction that slides takes its slipping key, its slip direction the impact's."""
-        dyn, keys = self.dyn, []
-        for k, state, s in zip(impact.contacts, impact.states, impact.slide_directions):
-            if dyn.contact(k).spec.coulomb and state is ContactState.SLIDE and np.any(s):
-                dyn.slip_reference[k] = np.array(s, dtype=float)
-                k = dyn.sliding_key(k)
+    def _friction_keys(self, q, impact) -> tuple[list[int], list[int]]:
+        """The keys of a frictional impact's contacts after it, and the closed ones whose
+        slip is below `CREEP_FACTOR` noise floors (``dyn.slip_speed_floor``). A contact with Coulomb
+        friction that slides faster takes its slipping key, its slip direction the
+        impact's; a slower one keeps its sticking key (its forces decide, afterwards)."""
+        dyn, keys, creeping = self.dyn, [], []
+        dyn.kin.update(q, impact.v_plus)
+        scale = max(1.0, float(np.max(np.abs(impact.normal_speeds_before))))
+        for k, state, s, u_n in zip(impact.contacts, impact.states, impact.slide_directions,
+                                    impact.normal_speeds_after):
+            contact = dyn.contact(k)
+            if contact.spec.coulomb and state is ContactState.SLIDE and np.any(s):
+                slip = float(np.linalg.norm(contact.rows(dyn.kin)[1:] @ impact.v_plus))
+                if slip > CREEP_FACTOR * dyn.slip_speed_floor:
+                    dyn.slip_reference[k] = np.array(s, dtype=float)
+                    k = dyn.sliding_key(k)
+                elif u_n <= SPEED_TOL * scale:
+                    creeping.append(k)
             keys.append(k)
-        return keys
+        return keys, creeping
 
     def _attach_sensitivity(self, event: Event, xi: np.ndarray, Dh: np.ndarray, F_minus: np.ndarray,
                             h_t: float = 0.0, xi_p: np.ndarray | None = None, h_p: np.ndarray | None = None) -> None:

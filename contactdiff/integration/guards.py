@@ -159,14 +159,23 @@ class GuardFinder:
                     continue
                 t_lo, g_lo = t_peak, g_peak
             found.append((locate_crossing(gap, t_lo, t_hi, g_lo, g_hi), Guard(GuardKind.GAP, i)))
+        floor = self.dyn.slip_speed_floor
         for k, guard in enumerate(field.guards):
             if forces1[k] >= 0.0:
                 continue
+            # a slip that starts at (or is stopped within noise of) zero speed fires only once
+            # its speed along its direction passes -floor: below floor its direction is noise
+            shift = floor if guard.kind is GuardKind.STOP and forces0[k] <= 0.0 else 0.0
+            if forces1[k] + shift >= 0.0:
+                continue
+            if forces0[k] + shift <= 0.0:  # already past it at the step start (a slip stopped by a reset)
+                found.append((t_a, guard))
+                continue
 
-            def value(t, k=k):
+            def value(t, k=k, shift=shift):
                 qt, vt = dense(t)
-                return field.guard_values(t, qt, vt)[k]
-            found.append((locate_crossing(value, t_a, t_b, forces0[k], forces1[k]), guard))
+                return field.guard_values(t, qt, vt)[k] + shift
+            found.append((locate_crossing(value, t_a, t_b, forces0[k] + shift, forces1[k] + shift), guard))
         return found, misses
 
     def grazing_band(self, q) -> float:
