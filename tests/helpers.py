@@ -52,6 +52,20 @@ LEG_URDF = """<?xml version="1.0"?>
     <origin xyz="0 0 -0.5"/></joint>
 </robot>
 """
+LEG_RAMP, LEG_RAMP_START = 30.0, 0.1  # N/s, s: the upward force on the leg's body ramps from t = 0.1 s
+
+
+def leg_lift(q, v, t):
+    """The leg's unloading effort: an upward force on the body ramping at ``LEG_RAMP``."""
+    return np.array([0.0, LEG_RAMP * max(0.0, t - LEG_RAMP_START), 0.0])
+
+
+def leg_lift_jacobian(q, v, t):
+    return np.zeros((3, 3)), np.zeros((3, 3))
+
+
+def leg_lift_rate(q, v, t):
+    return np.array([0.0, LEG_RAMP if t > LEG_RAMP_START else 0.0, 0.0])
 
 FD_ERRORS: dict[str, float] = {}
 

@@ -19,29 +19,17 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 import pytest
-from helpers import LEG_URDF, assert_fd
+from helpers import LEG_RAMP, LEG_RAMP_START, LEG_URDF, assert_fd, leg_lift, leg_lift_jacobian, leg_lift_rate
 
 import contactdiff as cd
 from contactdiff.dynamics.mode import ModeDynamics
 from contactdiff.integration.sensitivity import force_time_rate
 
-TILT, RAMP, RAMP_START = 0.4, 30.0, 0.1  # rad, N/s, s
+TILT, RAMP, RAMP_START = 0.4, LEG_RAMP, LEG_RAMP_START  # rad, N/s, s
 T_FINAL = 0.6  # s: touchdown ~0.045, slip ~0.325, lift-off ~0.487
 TOL = dict(rtol=1e-12, atol=1e-13)
 FD_TOL = dict(rtol=1e-13, atol=1e-14)  # perturbed runs of the FD (test_slip_jacobian_matches_fd)
 EPS = 1e-5
-
-
-def _lift(q, v, t):
-    return np.array([0.0, RAMP * max(0.0, t - RAMP_START), 0.0])
-
-
-def _lift_jacobian(q, v, t):
-    return np.zeros((3, 3)), np.zeros((3, 3))
-
-
-def _lift_rate(q, v, t):
-    return np.array([0.0, RAMP if t > RAMP_START else 0.0, 0.0])
 
 
 @pytest.fixture(scope="module")
@@ -52,7 +40,8 @@ def leg_robot(tmp_path_factory):
 
 
 def _scene(robot, exact_rate: bool = True) -> cd.Scene:
-    effort = cd.UserEffort(_lift, _lift_jacobian, name="lift", time_derivative=_lift_rate if exact_rate else None)
+    effort = cd.UserEffort(leg_lift, leg_lift_jacobian, name="lift",
+                           time_derivative=leg_lift_rate if exact_rate else None)
     q0 = np.array([0.0, 0.5 * np.cos(TILT) + 0.01, TILT])  # foot 1 cm up
     return cd.Scene(robot, [cd.Contact("foot", friction="stick")], [effort], gravity=[0, 0, -9.81],
                     q0=q0, v0=np.zeros(3), name="slipping leg")
@@ -87,7 +76,7 @@ def test_slip_sequence_and_physics(leg_run):
     fid = model.getFrameId("foot")
 
     def tau(q, v, t):
-        return _lift(q, v, t)
+        return leg_lift(q, v, t)
 
     # at the slip: released, the foot would accelerate into the ground (ABA, no contact)
     q, v, t = slip.q, slip.v_plus, slip.t
@@ -177,8 +166,8 @@ def test_force_time_rate_matches_fd(leg_run):
 
 def test_user_effort_time_derivative_is_validated(leg_robot):
     with pytest.raises(cd.InvalidInputError, match="time_derivative"):
-        cd.UserEffort(_lift, time_derivative=3.0)
-    bad = cd.UserEffort(_lift, _lift_jacobian, time_derivative=lambda q, v, t: np.array([np.nan, 0.0, 0.0]))
+        cd.UserEffort(leg_lift, time_derivative=3.0)
+    bad = cd.UserEffort(leg_lift, leg_lift_jacobian, time_derivative=lambda q, v, t: np.array([np.nan, 0.0, 0.0]))
     scene = cd.Scene(leg_robot, [cd.Contact("foot", friction="stick")], [bad], gravity=[0, 0, -9.81],
                      q0=_scene(leg_robot).q0)
     kin = scene.kinematics
@@ -198,7 +187,7 @@ def test_mode_choice_slides_where_sticking_has_no_solution(leg_run):
     assert dyn.solve(q, v, t, (0,)).normal_forces()[0] < 0.0  # sticking pulls
     model, data = scene.model, scene.model.createData()
     J, drift = _foot_normal_row(model, data, q, v, model.getFrameId("foot"))
-    assert J @ pin.aba(model, data, q, v, _lift(q, v, t)) + drift < 0.0  # free sinks
+    assert J @ pin.aba(model, data, q, v, leg_lift(q, v, t)) + drift < 0.0  # free sinks
     from contactdiff.dynamics.impacts import choose_mode
     assert choose_mode(dyn, q, v, t, [0]) == (dyn.sliding_key(0),)
     assert dyn.solve(q, v, t, (dyn.sliding_key(0),)).forces.shape == (1,)

@@ -19,12 +19,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from helpers import LEG_URDF, assert_fd
+from helpers import LEG_RAMP, LEG_RAMP_START, LEG_URDF, assert_fd, leg_lift, leg_lift_jacobian, leg_lift_rate
 
 import contactdiff as cd
 from contactdiff.dynamics.mode import ModeDynamics
 
-TILT, RAMP, RAMP_START = 0.4, 30.0, 0.1  # rad, N/s, s
+TILT, RAMP, RAMP_START = 0.4, LEG_RAMP, LEG_RAMP_START  # rad, N/s, s
 T_FINAL = 0.6  # s
 TOL = dict(rtol=1e-12, atol=1e-13)
 FD_TOL = dict(rtol=1e-13, atol=1e-14)
@@ -35,18 +35,6 @@ FD_TOL = dict(rtol=1e-13, atol=1e-14)
 EPS, FD_RTOL = 1e-6, 2e-7
 
 
-def _lift(q, v, t):
-    return np.array([0.0, RAMP * max(0.0, t - RAMP_START), 0.0])
-
-
-def _lift_jacobian(q, v, t):
-    return np.zeros((3, 3)), np.zeros((3, 3))
-
-
-def _lift_rate(q, v, t):
-    return np.array([0.0, RAMP if t > RAMP_START else 0.0, 0.0])
-
-
 @pytest.fixture(scope="module")
 def leg_robot(tmp_path_factory):
     path = tmp_path_factory.mktemp("leg") / "leg.urdf"
@@ -55,7 +43,7 @@ def leg_robot(tmp_path_factory):
 
 
 def _scene(robot, mu, x0=None) -> cd.Scene:
-    effort = cd.UserEffort(_lift, _lift_jacobian, name="lift", time_derivative=_lift_rate)
+    effort = cd.UserEffort(leg_lift, leg_lift_jacobian, name="lift", time_derivative=leg_lift_rate)
     q0, v0 = (np.array([0.0, 0.5 * np.cos(TILT) + 0.01, TILT]), np.zeros(3)) if x0 is None else (x0[:3], x0[3:])
     return cd.Scene(robot, [cd.Contact("foot", friction=mu)], [effort], gravity=[0, 0, -9.81], q0=q0, v0=v0)
 
