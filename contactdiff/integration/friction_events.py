@@ -96,8 +96,9 @@ def refuse_ambiguous_slip(dyn: ModeDynamics, q, v, t, candidates, mode) -> None:
 
 
 def cone_guard(dyn: ModeDynamics, t: float, q, v, mode, key: int):
-    """The stick → slip guard of ``key`` in ``mode``: ``(Dh, F-, h_t, weights, margin)`` with
-    ``h = w · λ_rows``, ``w = (μ, -λ_T/||λ_T||)`` its gradient along the rows' forces."""
+    """The stick → slip guard of ``key`` in ``mode``: ``(Dh, F-, h_t, solved, μ λ_N)`` with
+    ``h = w · λ_rows``, ``w = (μ, -λ_T/||λ_T||)`` its gradient along the rows' forces, and
+    ``solved = (solution, derivatives, row slice, w)`` for the parameters' block."""
     mode = tuple(mode)
     sol, der = dyn.solve(q, v, t, mode, derivatives=True)
     rows = sol.row_slices[mode.index(key)]
@@ -153,14 +154,14 @@ class FrictionEvents:
                       mode_before=self._mode_names(mode), mode_after=self._mode_names(new_mode),
                       sliding=self._sliding_names(new_mode))
         if cone:
-            Dh, F_minus, h_t, solved, margin = cone_guard(dyn, t, q, v, mode, cone[0])
+            Dh, F_minus, h_t, solved, cone_size = cone_guard(dyn, t, q, v, mode, cone[0])
             DR = None
         else:
-            Dh, F_minus, h_t, margin = stop_guard(dyn, q, v, stops[0]), np.concatenate([v, sol.ddq]), 0.0, None
+            Dh, F_minus, h_t, cone_size = stop_guard(dyn, q, v, stops[0]), np.concatenate([v, sol.ddq]), 0.0, None
             DR = held_velocity_jacobian(dyn, q, v_plus, new_mode) if stuck else None
         F_plus = vector_field(dyn, q, v_plus, t, new_mode)
         rate = float(Dh @ F_minus) + h_t
-        self._threshold_note(event, t, cone, stuck, rate, margin, q, v_plus, new_mode)
+        self._threshold_note(event, t, cone, stuck, rate, cone_size, q, v_plus, new_mode)
         if self.sensitive:
             n2 = 2 * self.scene.nv
             xi = saltation(np.eye(n2) if DR is None else DR, Dh, F_minus, F_plus, h_t)
@@ -176,11 +177,12 @@ class FrictionEvents:
         self.events.append(event)
         return new_mode, v_plus
 
-    def _threshold_note(self, event: Event, t, cone, stuck, rate, margin, q, v, new_mode) -> None:
-        """Mark an event on the stick/slip threshold as not differentiable (module doc)."""
+    def _threshold_note(self, event: Event, t, cone, stuck, rate, cone_size, q, v, new_mode) -> None:
+        """Mark an event on the stick/slip threshold as not differentiable (module doc);
+        ``cone_size`` is ``μ λ_N`` of a stick → slip event's contact."""
         dyn = self.dyn
         if cone:
-            scale = max(abs(margin), 1e-300)
+            scale = max(abs(cone_size), 1e-300)
             if abs(rate) <= THRESHOLD_TOL * scale:
                 event.nonsmooth[NonSmooth.FRICTION_THRESHOLD] = self._note(
                     f"not differentiable at t = {t:.12g}: the tangential force of {', '.join(event.contacts)} "
