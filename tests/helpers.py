@@ -168,3 +168,40 @@ class ContactEvaluator:
 
     def drift(self, q, v):
         return self.c.drift(self.at(q, v)).copy()
+
+    def assert_derivatives(self, prefix: str, q, v, x, lam) -> dict[str, np.ndarray]:
+        """Assert the contact's derivatives at ``(q, v)`` against central differences:
+        ``d(A v)/dq``, ``d drift/d(q, v)``, ``d(A x)/dq`` and ``d(A^T lam)/dq``, with FD
+        categories ``"{prefix} <name>"``. Returns the analytic matrices by name, and
+        ``rows_times_v_dq`` (``d(A x)/dq`` at ``x = v``), all taken before the FD moves
+        the kinematics."""
+        c, model = self.c, self.robot.model
+        kin = self.at(q, v, derivatives=True)
+        drift_dq, drift_dv = c.drift_derivatives(kin)
+        d = dict(rows_velocity_dq=c.rows_velocity_dq(kin).copy(), drift_dq=drift_dq.copy(),
+                 drift_dv=drift_dv.copy(), rows_times_dq=c.rows_times_dq(kin, x).copy(),
+                 rows_transpose_dq=c.rows_transpose_dq(kin, lam).copy(),
+                 rows_times_v_dq=c.rows_times_dq(kin, v).copy())
+        assert_fd(f"{prefix} rows_velocity_dq", d["rows_velocity_dq"], fd_dq(lambda qq: self.rows(qq) @ v, model, q),
+                  value=self.rows(q) @ v)
+        assert_fd(f"{prefix} drift_dq", d["drift_dq"], fd_dq(lambda qq: self.drift(qq, v), model, q),
+                  value=self.drift(q, v))
+        assert_fd(f"{prefix} drift_dv", d["drift_dv"], fd_dv(lambda vv: self.drift(q, vv), v), value=self.drift(q, v))
+        assert_fd(f"{prefix} rows_times_dq", d["rows_times_dq"], fd_dq(lambda qq: self.rows(qq) @ x, model, q),
+                  value=self.rows(q) @ x)
+        assert_fd(f"{prefix} rows_transpose_dq", d["rows_transpose_dq"],
+                  fd_dq(lambda qq: self.rows(qq).T @ lam, model, q), value=self.rows(q).T @ lam)
+        return d
+
+
+def sphere_urdf(mass: float, inertia: float) -> str:
+    """URDF of one free body ``ball`` (its frame at the centre of mass) of ``mass`` (kg) with
+    the isotropic rotational inertia ``inertia`` (kg m²); load it with ``floating_base=True``."""
+    return f"""<?xml version="1.0"?>
+<robot name="ball3d">
+  <link name="ball">
+    <inertial><origin xyz="0 0 0"/><mass value="{mass}"/>
+      <inertia ixx="{inertia}" ixy="0" ixz="0" iyy="{inertia}" iyz="0" izz="{inertia}"/></inertial>
+  </link>
+</robot>
+"""

@@ -12,7 +12,7 @@ import math
 import numpy as np
 import pinocchio as pin
 import pytest
-from helpers import assert_fd, fd_dq, fd_dv, random_state
+from helpers import assert_fd, fd_dq, fd_dv, random_state, sphere_urdf
 
 import contactdiff as cd
 from contactdiff.dynamics.mode import ModeDynamics
@@ -23,14 +23,7 @@ from contactdiff.model.contacts import Contact
 MU = 0.6
 TILTED = tuple(np.array([0.6, -0.3, 1.0]) / np.linalg.norm([0.6, -0.3, 1.0]))
 
-BALL_URDF = """<?xml version="1.0"?>
-<robot name="ball3d">
-  <link name="ball">
-    <inertial><origin xyz="0 0 0"/><mass value="2.0"/>
-      <inertia ixx="0.008" ixy="0" ixz="0" iyy="0.008" iyz="0" izz="0.008"/></inertial>
-  </link>
-</robot>
-"""
+BALL_URDF = sphere_urdf(2.0, 0.008)  # a solid sphere of radius 0.1 m: I = 2/5 m r²
 
 
 @pytest.fixture(scope="module")

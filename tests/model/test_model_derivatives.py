@@ -129,31 +129,18 @@ def test_contact_drift(name, i):
 def test_contact_derivatives(name, i):
     robot, c, q, v = _contact_case(name, i)
     ev = ContactEvaluator(robot, c)
-    model, nv = robot.model, robot.nv
+    nv = robot.nv
     rng = np.random.default_rng(11)
     x = rng.standard_normal(nv)
     lam = rng.standard_normal(c.n_rows)
 
-    kin = ev.at(q, v, derivatives=True)
-    rows_v_dq = c.rows_velocity_dq(kin).copy()
-    drift_dq, drift_dv = (m.copy() for m in c.drift_derivatives(kin))
-    rows_x_dq = c.rows_times_dq(kin, x).copy()
-    rows_t_dq = c.rows_transpose_dq(kin, lam).copy()
-    rows_vv_dq = c.rows_times_dq(kin, v).copy()
-    for m in (rows_v_dq, drift_dq, drift_dv, rows_x_dq):
-        assert m.shape == (c.n_rows, nv)
-    assert rows_t_dq.shape == (nv, nv)
-
-    assert_fd("contact rows_velocity_dq", rows_v_dq, fd_dq(lambda qq: ev.rows(qq) @ v, model, q),
-              value=ev.rows(q) @ v)
-    assert_fd("contact drift_dq", drift_dq, fd_dq(lambda qq: ev.drift(qq, v), model, q), value=ev.drift(q, v))
-    assert_fd("contact drift_dv", drift_dv, fd_dv(lambda vv: ev.drift(q, vv), v), value=ev.drift(q, v))
-    assert_fd("contact rows_times_dq", rows_x_dq, fd_dq(lambda qq: ev.rows(qq) @ x, model, q),
-              value=ev.rows(q) @ x)
-    assert_fd("contact rows_transpose_dq", rows_t_dq, fd_dq(lambda qq: ev.rows(qq).T @ lam, model, q),
-              value=ev.rows(q).T @ lam)
-    # d(A v)/dq is d(A x)/dq at x = v (kin has been reused by the FD above)
-    assert np.allclose(rows_v_dq, rows_vv_dq, rtol=1e-9, atol=1e-9 * max(1, abs(rows_v_dq).max()))
+    d = ev.assert_derivatives("contact", q, v, x, lam)
+    for name in ("rows_velocity_dq", "drift_dq", "drift_dv", "rows_times_dq"):
+        assert d[name].shape == (c.n_rows, nv)
+    assert d["rows_transpose_dq"].shape == (nv, nv)
+    # d(A v)/dq is d(A x)/dq at x = v
+    rows_v_dq = d["rows_velocity_dq"]
+    assert np.allclose(rows_v_dq, d["rows_times_v_dq"], rtol=1e-9, atol=1e-9 * max(1, abs(rows_v_dq).max()))
 
 
 def test_drift_is_not_the_spatial_acceleration():

@@ -34,7 +34,7 @@ import math
 import numpy as np
 import pinocchio as pin
 import pytest
-from helpers import EPS, ContactEvaluator, assert_fd, fd_dq, fd_dv, random_state
+from helpers import EPS, ContactEvaluator, assert_fd, fd_dq, random_state, sphere_urdf
 
 import contactdiff as cd
 from contactdiff.dynamics.constraint_dynamics import eligible
@@ -52,14 +52,7 @@ NORMAL = np.array([math.sin(ALPHA), 0.0, math.cos(ALPHA)])  # the incline's norm
 DOWNHILL = np.array([math.cos(ALPHA), 0.0, -math.sin(ALPHA)])  # unit, n · s = 0, g · s = g sin α > 0
 TILTED = tuple(np.array([0.6, -0.3, 1.0]) / np.linalg.norm([0.6, -0.3, 1.0]))
 
-BALL_URDF = f"""<?xml version="1.0"?>
-<robot name="ball3d">
-  <link name="ball">
-    <inertial><origin xyz="0 0 0"/><mass value="{MASS}"/>
-      <inertia ixx="{INERTIA}" ixy="0" ixz="0" iyy="{INERTIA}" iyz="0" izz="{INERTIA}"/></inertial>
-  </link>
-</robot>
-"""
+BALL_URDF = sphere_urdf(MASS, INERTIA)
 
 
 @pytest.fixture(scope="module")
@@ -173,23 +166,11 @@ def test_round_drift(ball, i):
 def test_round_derivatives(ball, i, seed):
     robot, c, _, q, v = _case(ball, i, seed)
     ev = Evaluator(robot, c)
-    model, nv = robot.model, robot.nv
+    nv = robot.nv
     rng = np.random.default_rng(seed + 100)
     x = rng.standard_normal(nv)
     lam = rng.standard_normal(c.n_rows)
-    kin = ev.at(q, v, derivatives=True)
-    rows_v_dq = c.rows_velocity_dq(kin).copy()
-    drift_dq, drift_dv = (m.copy() for m in c.drift_derivatives(kin))
-    rows_x_dq = c.rows_times_dq(kin, x).copy()
-    rows_t_dq = c.rows_transpose_dq(kin, lam).copy()
-    assert_fd("round rows_velocity_dq", rows_v_dq, fd_dq(lambda qq: ev.rows(qq) @ v, model, q),
-              value=ev.rows(q) @ v)
-    assert_fd("round drift_dq", drift_dq, fd_dq(lambda qq: ev.drift(qq, v), model, q), value=ev.drift(q, v))
-    assert_fd("round drift_dv", drift_dv, fd_dv(lambda vv: ev.drift(q, vv), v), value=ev.drift(q, v))
-    assert_fd("round rows_times_dq", rows_x_dq, fd_dq(lambda qq: ev.rows(qq) @ x, model, q),
-              value=ev.rows(q) @ x)
-    assert_fd("round rows_transpose_dq", rows_t_dq, fd_dq(lambda qq: ev.rows(qq).T @ lam, model, q),
-              value=ev.rows(q).T @ lam)
+    ev.assert_derivatives("round", q, v, x, lam)
 
 
 def test_sliding_view_of_a_round_contact_is_the_normal_row(ball):
