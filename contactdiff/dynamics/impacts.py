@@ -144,42 +144,32 @@ def resolve_impact(dyn: ModeDynamics, q: np.ndarray, v_minus: np.ndarray, contac
             Zeno sequence); ``None`` uses each contact's own.
     """
     contacts = tuple(contacts)
-    model = dyn.model
     dyn.kin.update(q, v_minus)
-    if any(dyn.contact(k).spec.coulomb for k in contacts):
-        return _frictional_impact(dyn, q, v_minus, contacts, restitution)
+    coulomb = any(dyn.contact(k).spec.coulomb for k in contacts)
+    if coulomb:  # every contact takes part with all its rows (module doc)
+        contacts = tuple(dyn.contact_index(k) if dyn.contact(k).spec.coulomb else k for k in contacts)
     A, rows = _rows(dyn, contacts)
     e = np.array([dyn.contact(k).restitution for k in contacts]) if restitution is None \
         else np.array(restitution, dtype=float)
-    MinvAT = pin.computeMinverse(model, dyn.data, q) @ A.T
-    Av = A @ v_minus
-    # Restitution restores compression only: a closed contact that is not approaching
-    # takes part plastically (with its own e, Newton's law could add energy).
-    e[Av[list(rows.normal)] >= 0.0] = 0.0
-    solution = solve_contact_lcp(A @ MinvAT, impact_rhs(Av, e, rows), rows, on_infeasible="relax")
-    v_plus = v_minus + MinvAT @ solution.x
-    normal = list(rows.normal)
-    return ImpactResult(v_plus, solution.x[normal].copy(), solution.x, contacts, Av[normal],
-                        (A @ v_plus)[normal], e, solution.active, rows, solution.tangential_only)
-
-
-def _frictional_impact(dyn: ModeDynamics, q, v_minus, contacts, restitution) -> ImpactResult:
-    """`resolve_impact` with Coulomb friction: every contact with all its rows (module doc)."""
-    keys = tuple(dyn.contact_index(k) if dyn.contact(k).spec.coulomb else k for k in contacts)
-    A, rows = _rows(dyn, keys)
-    e = np.array([dyn.contact(k).restitution for k in keys]) if restitution is None \
-        else np.array(restitution, dtype=float)
-    mu = np.array([dyn.contact(k).mu for k in keys])
     MinvAT = pin.computeMinverse(dyn.model, dyn.data, q) @ A.T
     Av = A @ v_minus
     G = A @ MinvAT
-    solution = solve_frictional_impact(0.5 * (G + G.T), Av, rows, e, mu)
-    v_plus = v_minus + MinvAT @ solution.impulses
     normal = list(rows.normal)
-    active = tuple(k for k, state in enumerate(solution.states) if state is not ContactState.OPEN)
-    return ImpactResult(v_plus, solution.impulses[normal].copy(), solution.impulses, keys, Av[normal],
-                        (A @ v_plus)[normal], solution.restitution, active, rows, (), solution.states,
-                        solution.slide_directions, mu)
+    if coulomb:
+        mu = np.array([dyn.contact(k).mu for k in contacts])
+        solution = solve_frictional_impact(0.5 * (G + G.T), Av, rows, e, mu)
+        v_plus = v_minus + MinvAT @ solution.impulses
+        active = tuple(k for k, state in enumerate(solution.states) if state is not ContactState.OPEN)
+        return ImpactResult(v_plus, solution.impulses[normal].copy(), solution.impulses, contacts, Av[normal],
+                            (A @ v_plus)[normal], solution.restitution, active, rows, (), solution.states,
+                            solution.slide_directions, mu)
+    # Restitution restores compression only: a closed contact that is not approaching
+    # takes part plastically (with its own e, Newton's law could add energy).
+    e[Av[normal] >= 0.0] = 0.0
+    solution = solve_contact_lcp(G, impact_rhs(Av, e, rows), rows, on_infeasible="relax")
+    v_plus = v_minus + MinvAT @ solution.x
+    return ImpactResult(v_plus, solution.x[normal].copy(), solution.x, contacts, Av[normal],
+                        (A @ v_plus)[normal], e, solution.active, rows, solution.tangential_only)
 
 
 def choose_mode(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float,

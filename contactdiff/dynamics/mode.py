@@ -118,6 +118,7 @@ class ModeDynamics:
         velocities ``slip_velocity`` (m/s), and ``ds/d(slip_velocity)`` (None where it
         is zero); see `contactdiff.dynamics.slip.slip_direction`."""
         return slip_direction(slip_velocity, self.slip_reference.get(index), self.slip_speed_floor)
+
     # -- contact keys (see the module doc) ----------------------------------------------
     def contact(self, key: int):
         """The bound contact (or sliding view) of a contact key."""

@@ -106,10 +106,6 @@ class SlipRow:
         mu = full.spec.mu
         return cls(row, index, mu, s, D, A[1:], A[0] - mu * (s @ A[1:]), full)
 
-    def friction(self, normal_force: float) -> np.ndarray:
-        """Tangential force ``-μ λ_N s`` (N, tangent coordinates) for normal force ``λ_N``."""
-        return -self.mu * normal_force * self.direction
-
     def force_derivatives(self, kin, normal_force: float) -> np.ndarray:
         """``d(F^T λ_N)/d(q, v)`` at fixed ``λ_N`` (nv × 2nv): through the rows at fixed
         ``s``, and through ``s(u_T)`` with ``u_T = A_T(q) v`` (needs ``kin`` updated with

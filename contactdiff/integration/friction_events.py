@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..dynamics.mode import ModeDynamics
+from ..dynamics.mode import ModeDynamics, ModeSolution
 from ..errors import PainleveError, SolverError
 from .guards import Guard, GuardKind
 from .parameter_jumps import ParameterJumps
@@ -42,42 +42,36 @@ guard rate (per second, of ``μ λ_N``), below which an event sits on the stick/
 threshold (round-off of the forces is about 1e-14 relative)."""
 
 
-def _sticks_with_friction(contact) -> bool:
-    return contact.spec.coulomb and not contact.sliding and contact.n_rows > 1
-
-
 def settle_friction(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float,
-                    mode: tuple[int, ...]) -> tuple[tuple[int, ...], list[int]]:
+                    mode: tuple[int, ...]) -> tuple[tuple[int, ...], ModeSolution]:
     """The mode after Coulomb's law on ``mode`` at ``(q, v, t)``.
 
     A sticking contact whose sticking force leaves the cone slips along
     ``-λ_T / ||λ_T||`` (its reference direction is set on ``dyn``), and the solve is
     repeated until every sticking contact is inside its cone. Returns the mode and
-    the scene indices of the contacts that were turned to slipping.
+    its `ModeSolution` there.
 
     Raises:
         PainleveError: a slipping contact has no consistent force (Painlevé).
         SolverError: no settled mode within ``2 n + 1`` rounds.
     """
-    turned: list[int] = []
     mode = tuple(sorted(mode))
     for _ in range(2 * len(mode) + 1):
         sol = dyn.solve(q, v, t, mode)
         over = []
         for key, f in zip(mode, sol.row_forces()):
             c = dyn.contact(key)
-            if _sticks_with_friction(c):
+            if c.holds_cone:
                 tangential = float(np.linalg.norm(f[1:]))
                 if tangential > c.spec.mu * f[0] + THRESHOLD_TOL * max(abs(f[0]), tangential):
                     over.append((key, f))
         if not over:
-            return mode, turned
+            return mode, sol
         keys = list(mode)
         for key, f in over:
             index = dyn.contact_index(key)
             dyn.slip_reference[index] = -f[1:] / np.linalg.norm(f[1:])
             keys[keys.index(key)] = dyn.sliding_key(index)
-            turned.append(index)
         mode = tuple(sorted(keys))
     raise SolverError(f"no mode satisfies Coulomb's law for contacts {mode} at t = {t!r}")
 
@@ -145,7 +139,7 @@ class FrictionEvents:
             keys[keys.index(k)] = dyn.contact_index(k)
         new_mode = tuple(sorted(keys))
         v_plus = held_velocity(dyn, q, v, new_mode) if stops else v
-        new_mode, turned = settle_friction(dyn, q, v_plus, t, new_mode)
+        new_mode, settled = settle_friction(dyn, q, v_plus, t, new_mode)
         stuck = [dyn.contact_index(k) for k in stops if dyn.contact_index(k) in new_mode]
         kind = "stick" if stuck and not cone else "slip"
         fired_names = self._mode_names(cone + stops)
@@ -161,7 +155,7 @@ class FrictionEvents:
             DR = held_velocity_jacobian(dyn, q, v_plus, new_mode) if stuck else None
         F_plus = vector_field(dyn, q, v_plus, t, new_mode)
         rate = float(Dh @ F_minus) + h_t
-        self._threshold_note(event, t, cone, stuck, rate, cone_size, q, v_plus, new_mode)
+        self._threshold_note(event, t, cone, stuck, rate, cone_size, settled)
         if self.sensitive:
             n2 = 2 * self.scene.nv
             xi = saltation(np.eye(n2) if DR is None else DR, Dh, F_minus, F_plus, h_t)
@@ -177,9 +171,10 @@ class FrictionEvents:
         self.events.append(event)
         return new_mode, v_plus
 
-    def _threshold_note(self, event: Event, t, cone, stuck, rate, cone_size, q, v, new_mode) -> None:
+    def _threshold_note(self, event: Event, t, cone, stuck, rate, cone_size, settled: ModeSolution) -> None:
         """Mark an event on the stick/slip threshold as not differentiable (module doc);
-        ``cone_size`` is ``μ λ_N`` of a stick → slip event's contact."""
+        ``cone_size`` is ``μ λ_N`` of a stick → slip event's contact, ``settled`` the
+        solution of the mode after the event."""
         dyn = self.dyn
         if cone:
             scale = max(abs(cone_size), 1e-300)
@@ -188,8 +183,7 @@ class FrictionEvents:
                     f"not differentiable at t = {t:.12g}: the tangential force of {', '.join(event.contacts)} "
                     f"touches the friction cone without crossing it (cone margin rate {rate:.3g} N/s)")
             return
-        sol = dyn.solve(q, v, event.t, new_mode)
-        for key, f in zip(new_mode, sol.row_forces()):
+        for key, f in zip(settled.active, settled.row_forces()):
             if dyn.contact_index(key) in stuck:
                 mu_n, tangential = dyn.contact(key).spec.mu * f[0], float(np.linalg.norm(f[1:]))
                 if mu_n - tangential <= THRESHOLD_TOL * max(mu_n, 1e-300):

@@ -68,7 +68,7 @@ def mode_guards(dyn, mode) -> list[Guard]:
         contact = dyn.contact(key)
         if contact.slips:
             guards.append(Guard(GuardKind.STOP, key))
-        elif contact.spec.coulomb and contact.sticking and contact.n_rows > 1:
+        elif contact.holds_cone:
             guards.append(Guard(GuardKind.CONE, key))
     return guards
 
@@ -111,8 +111,8 @@ class GuardFinder:
             the grazing band with zero normal speed and rose again).
         """
         t_a, t_b = stepper.t_old, stepper.t
-        gaps0, rates0, forces0 = start
-        gaps1, rates1, forces1 = end
+        gaps0, rates0, values0 = start
+        gaps1, rates1, values1 = end
         found = []
         misses = []
         active = self.dyn.contacts_of(mode)
@@ -161,21 +161,21 @@ class GuardFinder:
             found.append((locate_crossing(gap, t_lo, t_hi, g_lo, g_hi), Guard(GuardKind.GAP, i)))
         floor = self.dyn.slip_speed_floor
         for k, guard in enumerate(field.guards):
-            if forces1[k] >= 0.0:
+            if values1[k] >= 0.0:
                 continue
             # a slip that starts at (or is stopped within noise of) zero speed fires only once
             # its speed along its direction passes -floor: below floor its direction is noise
-            shift = floor if guard.kind is GuardKind.STOP and forces0[k] <= 0.0 else 0.0
-            if forces1[k] + shift >= 0.0:
+            shift = floor if guard.kind is GuardKind.STOP and values0[k] <= 0.0 else 0.0
+            if values1[k] + shift >= 0.0:
                 continue
-            if forces0[k] + shift <= 0.0:  # already past it at the step start (a slip stopped by a reset)
+            if values0[k] + shift <= 0.0:  # already past it at the step start (a slip stopped by a reset)
                 found.append((t_a, guard))
                 continue
 
             def value(t, k=k, shift=shift):
                 qt, vt = dense(t)
                 return field.guard_values(t, qt, vt)[k] + shift
-            found.append((locate_crossing(value, t_a, t_b, forces0[k] + shift, forces1[k] + shift), guard))
+            found.append((locate_crossing(value, t_a, t_b, values0[k] + shift, values1[k] + shift), guard))
         return found, misses
 
     def grazing_band(self, q) -> float:

@@ -113,21 +113,24 @@ class ModeField:
                 values[j] = self.slip_speed(guard.contact, q, v)
         return values
 
-    def slip_speed(self, key: int, q, v) -> float:
-        """Slip velocity (m/s) of slipping contact key ``key`` along its reference direction."""
+    def _slip(self, key: int, q, v) -> tuple[int, np.ndarray, np.ndarray]:
+        """Scene index, slip velocity ``u_T`` (m/s) and slip direction of slipping key ``key``."""
         dyn = self.dyn
         dyn.kin.update(q, v)
+        index = dyn.contact_index(key)
         u_T = dyn.contact(key).full.rows(dyn.kin)[1:] @ v
-        return float(dyn.slip_direction(dyn.contact_index(key), u_T)[0] @ u_T)
+        return index, u_T, dyn.slip_direction(index, u_T)[0]
+
+    def slip_speed(self, key: int, q, v) -> float:
+        """Slip velocity (m/s) of slipping contact key ``key`` along its reference direction."""
+        _, u_T, s = self._slip(key, q, v)
+        return float(s @ u_T)
 
     def advance(self, q, v) -> None:
         """After an accepted step ending at ``(q, v)``: each 3-D slip continues along its
         direction there (the reference of `contactdiff.dynamics.slip`)."""
-        dyn = self.dyn
         for guard in self.guards:
             if guard.kind is GuardKind.STOP:
-                dyn.kin.update(q, v)
-                index = dyn.contact_index(guard.contact)
-                u_T = dyn.contact(guard.contact).full.rows(dyn.kin)[1:] @ v
+                index, u_T, s = self._slip(guard.contact, q, v)
                 if len(u_T) == 2:
-                    dyn.slip_reference[index] = dyn.slip_direction(index, u_T)[0]
+                    self.dyn.slip_reference[index] = s

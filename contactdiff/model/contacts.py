@@ -219,6 +219,12 @@ class BoundContact:
         return self.spec.mu
 
     @property
+    def holds_cone(self) -> bool:
+        """Whether this contact sticks with a finite Coulomb coefficient: its tangential
+        force must stay in the cone ``||λ_T|| <= μ λ_N`` (else it slips)."""
+        return self.spec.coulomb and self.sticking and self.n_rows > 1
+
+    @property
     def slips(self) -> bool:
         """Whether this is a slipping view with Coulomb friction (force ``-μ λ_N s`` along its
         slip direction ``s``, `contactdiff.dynamics.slip`)."""
