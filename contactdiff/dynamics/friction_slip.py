@@ -200,7 +200,7 @@ class SlipDirections:
         slip the direction turns fast (|dg/dθ| ~ 1e3 seen), so a steep sign
         change is not taken for a jump. Several: `newton` on the cross form from
         the pre-impact slip, from the post-impact slip of an approximate solution
-        of the whole law (`fixed_point_slip`), from the frictionless post-impact
+        of the whole law (`fixed_point`), from the frictionless post-impact
         slip, and from the local minima of max|f| on a grid on the torus (one
         start per basin rather than the best points, which cluster), at most
         _GRID_STARTS of them, those where the law's other inequalities hold and
@@ -221,7 +221,7 @@ class SlipDirections:
     def roots_nd(self, fmap, states, dirs, spatial, lay, pre) -> list[np.ndarray]:
         """Several spatial sliders: Newton on the cross form from the starts of `slip_roots`."""
         starts = [pre]
-        ups = self.fixed_point_slip()
+        ups = self.fixed_point()[1]
         starts.append(np.array([np.arctan2(ups[self.tang[k][1]], ups[self.tang[k][0]]) for k in spatial]))
         free = self.evaluate(states, dirs, lay)  # sliders without their friction columns
         starts.append(np.array([np.arctan2(free.up[self.tang[k][1]], free.up[self.tang[k][0]])
@@ -268,9 +268,10 @@ class SlipDirections:
         # a pole or a jump is not a root: Newton rejects it
         return self.newton(fmap, np.array(roots)[:, None], max_iter=6)
 
-    def fixed_point_slip(self) -> np.ndarray:
-        """Post-impact row velocities of an approximate solution of the law, by
-        projected Gauss-Seidel on De Saxce's modified velocity (a start only).
+    def fixed_point(self) -> tuple[np.ndarray, np.ndarray]:
+        """Row impulses and post-impact row velocities ``(Λ, u+)`` of an approximate
+        solution of the law, by projected Gauss-Seidel on De Saxce's modified velocity
+        (a start and a guess only).
 
         Contact by contact, ``Λ_k <- P_K(Λ_k - ρ_k ŵ_k)`` with ``K`` the cone
         ``||Λ_T|| <= μ Λ_N``, ``ŵ = u+`` plus ``e u-_N + μ ||u+_T||`` on the
@@ -296,7 +297,7 @@ class SlipDirections:
                 lam[r] = project_cone(x, mu if t.size else 0.0)
             if np.abs(lam - old).max() <= 1e-14 * max(np.abs(lam).max(), 1e-300):
                 break
-        self._fp = self.u + self.G @ lam
+        self._fp = (lam, self.u + self.G @ lam)
         return self._fp
 
     def newton(self, fmap, theta0: np.ndarray, max_iter: int = _NEWTON_MAX_ITER) -> list[np.ndarray]:

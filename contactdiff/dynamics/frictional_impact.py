@@ -57,14 +57,21 @@ sticking contacts the search is finite and complete).
 
 Enumeration order and tie rule
 ------------------------------
-Closed sets from most contacts to fewest, lexicographic in the contact
-indices within a size (the order of `solve_contact_lcp`: contacts stay engaged
-where they can); within a closed set, fewest sliding contacts first (stick
-before slide), lexicographic within a count; a planar sliding contact tries
-the sign of its pre-impact slip first (+1 if there is none). With friction the
+When a contact has a finite ``μ > 0``, the candidate that an approximate
+solution of the law points to (projected Gauss-Seidel, `SlipDirections.fixed_point`:
+open where its normal impulse is zero, sticking where its slip is zero, else
+sliding) is tried first and checked like any other: where it is right, the
+dozens of candidates before it in the order below (each a search for slip
+directions) are skipped. Otherwise, and when that candidate fails: closed
+sets from most contacts to fewest, lexicographic in the contact indices within
+a size (the order of `solve_contact_lcp`: contacts stay engaged where they
+can); within a closed set, fewest sliding contacts first (stick before slide),
+lexicographic within a count; a planar sliding contact tries the sign of its
+pre-impact slip first (+1 if there is none). With friction the
 law may have several solutions (strong coupling, large ``μ``); the first valid
-candidate in this order is returned. With ``μ = inf`` everywhere this is
-exactly the active set that `solve_contact_lcp` enumerates first.
+candidate in this order is returned (the approximate solution's, if valid). With
+``μ = inf`` or ``0`` everywhere there is no first guess, and this is exactly the
+active set that `solve_contact_lcp` enumerates first.
 
 Energy (known limit)
 --------------------
@@ -109,6 +116,12 @@ __all__ = [
 #: Largest number of contacts accepted (at most 3^n state candidates, times
 #: the slip signs of planar sliding contacts).
 FRICTION_ENUMERATE_MAX = 8
+
+# A normal impulse, or a post-impact slip, below this share of its scale in the
+# approximate solution (`SlipDirections.fixed_point`) is taken for zero in the
+# candidate tried first: its sweeps stop at 1e-14 relative change or after a few
+# hundred, so a contact that should open or stick is far below this.
+_GUESS_ZERO = 1e-6
 
 
 
@@ -281,7 +294,7 @@ class _Impact(SlipDirections):
         self.tried = 0
         self.best: tuple[float, str] = (np.inf, "none")
         self.newton_failed: list[str] = []
-        self._fp: np.ndarray | None = None
+        self._fp: tuple[np.ndarray, np.ndarray] | None = None
 
     # ---- enumeration ---------------------------------------------------
     def candidates(self) -> Iterator[tuple[tuple[ContactState, ...], tuple[int, ...]]]:
@@ -300,7 +313,45 @@ class _Impact(SlipDirections):
                                 st[k] = ContactState.STICK
                         yield tuple(st), sliding
 
+    def predicted(self) -> tuple[tuple[ContactState, ...], tuple[int, ...]] | None:
+        """The candidate an approximate solution of the law points to (`fixed_point`):
+        open where its normal impulse is below `_GUESS_ZERO` of the largest, sticking
+        where its post-impact slip is below `_GUESS_ZERO` of the velocity scale, else
+        sliding; None without a contact of finite positive ``μ`` (the enumeration is
+        then linear solves only)."""
+        if all(self.frictionless[k] or self.sticky[k] for k in range(self.n)):
+            return None
+        lam, up = self.fixed_point()
+        lam_max = float(np.abs(lam).max())
+        if not np.isfinite(lam_max) or lam_max == 0.0:
+            return None
+        vscale = self.bmax + self.gmax * lam_max
+        states = []
+        for k in range(self.n):
+            t = self.tang[k]
+            if lam[self.normal[k]] <= _GUESS_ZERO * lam_max:
+                states.append(ContactState.OPEN)
+            elif self.frictionless[k]:
+                states.append(ContactState.SLIDE)
+            elif self.sticky[k] or np.linalg.norm(up[t]) <= _GUESS_ZERO * vscale:
+                states.append(ContactState.STICK)
+            else:
+                states.append(ContactState.SLIDE)
+        sliding = tuple(k for k, st in enumerate(states) if st is ContactState.SLIDE and not self.frictionless[k])
+        return tuple(states), sliding
+
     def solve(self) -> FrictionalImpact:
+        guess = self.predicted()
+        if guess is not None:
+            states, sliding = guess
+            planar = [k for k in sliding if self.tang[k].size == 1]
+            spatial = [k for k in sliding if self.tang[k].size == 2]
+            _, up = self.fixed_point()
+            signs = {k: (1.0 if up[self.tang[k][0]] >= 0.0 else -1.0) for k in planar}
+            self.tried += 1
+            out = self.try_candidate(states, signs, spatial)
+            if out is not None:
+                return out
         for states, sliding in self.candidates():
             planar = [k for k in sliding if self.tang[k].size == 1]
             spatial = [k for k in sliding if self.tang[k].size == 2]

@@ -155,6 +155,30 @@ def test_point_mass_planar(e, v_t):
         assert out.method == "enumerate"
 
 
+def test_first_guess_skips_the_enumeration_and_a_wrong_one_falls_back(monkeypatch):
+    """The candidate of the approximate solution is tried first: on the point mass
+    (decoupled rows, a unique solution) it is the answer, one candidate tried; a
+    wrong first guess only costs candidates, the answer is the same (the closed
+    forms of `test_point_mass_spatial`)."""
+    from contactdiff.dynamics import frictional_impact
+
+    m, mu, v_n, e = 2.0, 0.4, -1.5, 0.5
+    G, rows = np.eye(3) / m, ContactRows.from_sizes([3])
+    limit = mu * (1 + e) * abs(v_n)
+    d = np.array([np.cos(0.7), np.sin(0.7)])
+    cases = [(0.5 * limit, STICK), (2.0 * limit, SLIDE)]
+    for speed, state in cases:
+        out = solve_frictional_impact(G, [v_n, *(speed * d)], rows, e, mu)
+        assert out.states == (state,) and out.candidates == 1
+    monkeypatch.setattr(frictional_impact._Impact, "predicted", lambda self: ((OPEN,), ()))
+    for speed, state in cases:
+        out = solve_frictional_impact(G, [v_n, *(speed * d)], rows, e, mu)
+        assert out.states == (state,) and out.candidates > 1
+        lam_n = m * (1 + e) * abs(v_n)
+        expected_t = -m * speed * d if state is STICK else -mu * lam_n * d
+        np.testing.assert_allclose(out.impulses, [lam_n, *expected_t], rtol=1e-12, atol=1e-14)
+
+
 def test_point_mass_separating_is_open():
     """A contact that separates (v_n > 0) takes no impulse, whatever its slip."""
     out = solve_frictional_impact(np.eye(3), [0.5, 1.0, -2.0], ContactRows.from_sizes([3]), 1.0, 1.0)
