@@ -1,0 +1,106 @@
+"""A figure of one output over a sweep: a line over one quantity, a heatmap over two.
+
+The quantities drawn are those whose value changes between the rows (fixed
+ones are left out). Over two quantities whose points form a full grid, a
+heatmap; over two that do not (random samples), a scatter coloured by the
+output. Failed runs and missing values are gaps. Text values (a factory's
+``arg:robot``) are placed in their order of appearance. matplotlib is imported
+only here, only when drawing.
+"""
+
+from __future__ import annotations
+
+import numbers
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InvalidInputError, unknown_name
+from .rows import RESERVED, SweepResult
+
+
+def numeric_outputs(result: SweepResult) -> list[str]:
+    """Output columns holding numbers (or true/false) in some row, in column order."""
+    names: dict[str, None] = {}
+    for row in result:
+        for name, value in row.outputs.items():
+            if isinstance(value, (numbers.Real, bool)) and name not in RESERVED:
+                names.setdefault(name)
+    return list(names)
+
+
+def plot_sweep(result: SweepResult, path: str | Path, output: str | None = None) -> Path:
+    """Draw ``output`` (default: the job's, e.g. ``events`` for a plain simulation, else
+    the first numeric output) over the swept quantities and save it to ``path``.
+
+    Raises:
+        UnknownNameError: ``output`` is not a numeric output of the rows (they are listed).
+        InvalidInputError: not 1 or 2 varying quantities, or no row has a value.
+    """
+    from ..plotting import _pyplot
+
+    valid = numeric_outputs(result)
+    if output is None:
+        output = result.default_output if result.default_output in valid else (valid[0] if valid else None)
+    if output not in valid:
+        raise unknown_name("numeric output to plot", output, valid)
+    varying = [n for n in result.names if len({repr(v) for v in result.column(n)}) > 1]
+    if len(varying) not in (1, 2):
+        raise InvalidInputError(f"a sweep plot draws over 1 or 2 quantities; {len(varying)} vary here"
+                                + (f": {', '.join(varying)}" if varying else ""))
+    z = np.array([np.nan if v is None else float(v) for v in result.column(output)])
+    if not np.isfinite(z).any():
+        raise InvalidInputError(f"no row has a value of {output!r} to plot (every run failed?)")
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(7, 4.5), constrained_layout=True)
+    if len(varying) == 1:
+        x, labels = _axis(result.column(varying[0]))
+        order = np.argsort(x, kind="stable")
+        ax.plot(x[order], z[order], "o-", ms=4)
+        _label(ax.set_xticks, ax.set_xticklabels, labels)
+        ax.set_xlabel(varying[0])
+        ax.set_ylabel(output)
+    else:
+        (x, xlabels), (y, ylabels) = (_axis(result.column(n)) for n in varying)
+        xs, ys = np.unique(x), np.unique(y)
+        if len(xs) * len(ys) == len(z) and len({(a, b) for a, b in zip(x, y)}) == len(z):
+            grid = np.full((len(ys), len(xs)), np.nan)
+            grid[np.searchsorted(ys, y), np.searchsorted(xs, x)] = z
+            image = ax.pcolormesh(_edges(xs), _edges(ys), np.ma.masked_invalid(grid), shading="flat")
+        else:
+            image = ax.scatter(x, y, c=z, s=30)
+        fig.colorbar(image, ax=ax, label=output)
+        _label(ax.set_xticks, ax.set_xticklabels, xlabels)
+        _label(ax.set_yticks, ax.set_yticklabels, ylabels)
+        ax.set_xlabel(varying[0])
+        ax.set_ylabel(varying[1])
+    failed = len(result.failed)
+    ax.set_title(f"{output} over {len(result)} points" + (f" ({failed} failed)" if failed else ""))
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return Path(path)
+
+
+def _axis(values: list) -> tuple[np.ndarray, list[str] | None]:
+    """Positions of a column's values, and tick labels where they are text."""
+    if all(isinstance(v, numbers.Real) for v in values):
+        return np.array(values, dtype=float), None
+    labels = list(dict.fromkeys(str(v) for v in values))
+    return np.array([labels.index(str(v)) for v in values], dtype=float), labels
+
+
+def _label(set_ticks, set_labels, labels: list[str] | None) -> None:
+    if labels is not None:
+        set_ticks(range(len(labels)))
+        set_labels(labels)
+
+
+def _edges(centres: np.ndarray) -> np.ndarray:
+    """Cell edges around sorted centres (a single centre gets a unit cell)."""
+    if len(centres) == 1:
+        return np.array([centres[0] - 0.5, centres[0] + 0.5])
+    mid = (centres[1:] + centres[:-1]) / 2
+    return np.concatenate([[2 * centres[0] - mid[0]], mid, [2 * centres[-1] - mid[-1]]])
+
+
+__all__ = ["plot_sweep", "numeric_outputs"]

@@ -1,0 +1,218 @@
+"""What a sweep can vary, and how a point changes the scene and the run.
+
+A swept quantity's name says what it is (`QuantityKind`):
+
+============  ==========================  =============================================
+kind          name                        effect at a point
+============  ==========================  =============================================
+q             ``q:<coordinate>``          initial configuration coordinate
+                                          (`Robot.configuration_names`: ``body_pitch``,
+                                          ``root_joint[2]``; rad or m)
+v             ``v:<coordinate>``          initial velocity (`Robot.tangent_names`;
+                                          rad/s or m/s, tangent space)
+parameter     ``kind:target:field``       a named scene parameter (`Scene.parameter_names`,
+                                          in its unit: ``body:base_link:mass`` kg)
+option        ``t_final``, ``rtol``, ...  the run's final time (s) and `SimulateOptions`
+                                          numbers and ``method`` (`OPTIONS`)
+arg           ``arg:<name>``              keyword argument of a scene factory
+                                          (``arg:robot`` of ``trot_scene``)
+job           ``job:<name>``              an argument of the job (a built-in job's
+                                          option, or anything a user job reads)
+============  ==========================  =============================================
+
+`resolve` checks every name against the scene before any run (an unknown one
+lists the valid names); `apply` is what a worker does at each point.
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, fields
+from enum import StrEnum
+
+import numpy as np
+
+from ..errors import InvalidInputError, UnknownNameError
+from ..integration.options import SimulateOptions
+from ..model.parameters import ParameterKind
+from ..model.scene import Scene
+
+
+class QuantityKind(StrEnum):
+    """What a swept quantity changes (module table)."""
+
+    INITIAL_Q = "q"
+    INITIAL_V = "v"
+    PARAMETER = "parameter"
+    OPTION = "option"
+    SCENE_ARG = "arg"
+    JOB_ARG = "job"
+
+
+_NUMBER_FIELDS = {"float": float, "int": int, "float | None": float}
+OPTIONS: dict[str, type] = {"t_final": float} | {
+    f.name: _NUMBER_FIELDS[f.type] for f in fields(SimulateOptions) if f.type in _NUMBER_FIELDS} | {"method": str}
+"""Run options a sweep can vary, with their type: the final time ``t_final`` (s) and
+the numeric fields of `SimulateOptions` (``rtol``, ``atol``, ``max_steps``, ...; units
+there) and ``method``."""
+
+PREFIXES = {"q:": QuantityKind.INITIAL_Q, "v:": QuantityKind.INITIAL_V, "arg:": QuantityKind.SCENE_ARG,
+            "job:": QuantityKind.JOB_ARG}
+
+
+@dataclass(frozen=True)
+class Quantity:
+    """One swept quantity.
+
+    Attributes:
+        name: as swept (a row's column).
+        kind: its `QuantityKind`.
+        target: the coordinate label, parameter name, option field, or argument name.
+    """
+
+    name: str
+    kind: QuantityKind
+    target: str
+
+
+def resolve(names: Sequence[str], scene: Scene, arguments: Sequence[str] | None = (),
+            job_arguments: Sequence[str] | None = ()) -> tuple[Quantity, ...]:
+    """The `Quantity` of each name, checked against ``scene``.
+
+    Args:
+        names: the swept names.
+        scene: the scene (built from the sweep's source) the names refer to.
+        arguments: the scene factory's keyword arguments (None: any name; (): not a factory).
+        job_arguments: the job's arguments (None: any name, a user job).
+
+    Raises:
+        UnknownNameError: an unknown name; the message lists the valid ones (the
+            parameters of the kind named, or suggests close names).
+        InvalidInputError: ``arg:`` for a scene that is not built by a factory.
+    """
+    return tuple(_resolve_one(name, scene, arguments, job_arguments) for name in names)
+
+
+def _resolve_one(name: str, scene: Scene, arguments, job_arguments) -> Quantity:
+    if not isinstance(name, str):
+        raise InvalidInputError(f"sweep: a quantity name must be a string, got {name!r}")
+    if name in OPTIONS:
+        return Quantity(name, QuantityKind.OPTION, name)
+    for prefix, kind in PREFIXES.items():
+        if not name.startswith(prefix):
+            continue
+        target = name[len(prefix):]
+        if kind is QuantityKind.INITIAL_Q:
+            valid = scene.robot.configuration_names()
+        elif kind is QuantityKind.INITIAL_V:
+            valid = scene.robot.tangent_names()
+        elif kind is QuantityKind.SCENE_ARG:
+            if arguments == ():
+                raise InvalidInputError(f"sweep: {name!r} is an argument of a scene factory, but the scene "
+                                        f"{scene.name!r} is a name or file; give a function that builds it")
+            valid = arguments
+        else:
+            valid = job_arguments
+        if valid is not None and target not in valid:
+            raise UnknownNameError(f"unknown quantity {name!r}; valid {prefix}<name>: "
+                                   + (", ".join(prefix + v for v in valid) or "(none)"))
+        return Quantity(name, kind, target)
+    parameters = scene.parameter_names()
+    if name in parameters:
+        return Quantity(name, QuantityKind.PARAMETER, name)
+    raise _unknown(name, scene, parameters, arguments, job_arguments)
+
+
+def _unknown(name: str, scene: Scene, parameters: list[str], arguments, job_arguments) -> UnknownNameError:
+    kind = name.split(":", 1)[0]
+    if kind in {k.value for k in ParameterKind}:
+        same_kind = [p for p in parameters if p.split(":", 1)[0] == kind]
+        return UnknownNameError(f"unknown quantity {name!r}: not a parameter of scene {scene.name!r}; its "
+                                f"{kind} parameters: " + (", ".join(same_kind) or "(none)"))
+    valid = ([f"q:{c}" for c in scene.robot.configuration_names()] + [f"v:{c}" for c in scene.robot.tangent_names()]
+             + list(OPTIONS) + [f"arg:{a}" for a in (arguments or ())] + [f"job:{a}" for a in (job_arguments or ())])
+    close = difflib.get_close_matches(name, valid + parameters, n=3)
+    return UnknownNameError(
+        f"unknown quantity {name!r}; valid: " + ", ".join(valid)
+        + f", and the scene's {len(parameters)} parameters (kind:target:field, e.g. {parameters[0]}; "
+        "'contactdiff simulate SCENE --param list' lists them)"
+        + (f"; did you mean {', '.join(close)}?" if close else ""))
+
+
+def check_values(quantities: Sequence[Quantity], rows: Sequence[Sequence]) -> None:
+    """Refuse, before any run, a value that cannot be what its quantity is: anything but a
+    number for a coordinate, a velocity, a parameter or a numeric option.
+
+    Raises:
+        InvalidInputError: naming the quantity, the point and the value.
+    """
+    for k, q in enumerate(quantities):
+        if q.kind in (QuantityKind.SCENE_ARG, QuantityKind.JOB_ARG) or OPTIONS.get(q.name) is str:
+            continue
+        for i, row in enumerate(rows):
+            value = row[k]
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise InvalidInputError(f"sweep: {q.name} must be a number, got {value!r} at point #{i}")
+
+
+# -- at each point (in the worker) ---------------------------------------------------------
+def split(quantities: Sequence[Quantity], values: Sequence) -> dict[QuantityKind, dict]:
+    """A point's values by kind: ``{kind: {target: value}}``."""
+    out: dict[QuantityKind, dict] = {kind: {} for kind in QuantityKind}
+    for q, value in zip(quantities, values):
+        out[q.kind][q.target] = value
+    return out
+
+
+def apply(scene: Scene, by_kind: Mapping[QuantityKind, Mapping]) -> Scene:
+    """The scene with a point's parameters and initial state (a new scene; ``scene`` is kept).
+
+    Raises:
+        InvalidInputError, UnknownNameError, InconsistentStateError: a value the scene
+            refuses (`Scene.with_parameters`, `Scene.with_state`).
+    """
+    parameters = by_kind.get(QuantityKind.PARAMETER) or {}
+    if parameters:
+        scene = scene.with_parameters(parameters)
+    q0 = _joint_vectors(scene, by_kind.get(QuantityKind.INITIAL_Q) or {}, "q")
+    v0 = _joint_vectors(scene, by_kind.get(QuantityKind.INITIAL_V) or {}, "v")
+    if q0 or v0:
+        scene = scene.with_state(q0 or None, v0 or None)
+    return scene
+
+
+def run_options(values: Mapping) -> dict:
+    """Option values in their fields' types (``max_steps`` 1e5 -> 100000).
+
+    Raises:
+        InvalidInputError: a count that is not a whole number, or a method that is not text.
+    """
+    out = {}
+    for name, value in values.items():
+        kind = OPTIONS[name]
+        if kind is int and isinstance(value, float) and math.isfinite(value) and value == int(value):
+            value = int(value)
+        if kind is str and not isinstance(value, str):
+            raise InvalidInputError(f"sweep: {name} must be a name, got {value!r}")
+        out[name] = value
+    return out
+
+
+def _joint_vectors(scene: Scene, values: Mapping[str, float], kind: str) -> dict[str, np.ndarray]:
+    """Coordinate labels (``joint`` or ``joint[k]``) to whole-joint values, the other
+    coordinates of a joint taken from the scene's initial state."""
+    model = scene.model
+    base = scene.q0 if kind == "q" else scene.v0
+    out: dict[str, np.ndarray] = {}
+    for label, value in values.items():
+        joint, _, index = label.partition("[")
+        j = model.joints[model.getJointId(joint)]
+        start, size = (j.idx_q, j.nq) if kind == "q" else (j.idx_v, j.nv)
+        vector = out.setdefault(joint, base[start:start + size].copy())
+        vector[int(index.rstrip("]")) if index else 0] = value
+    return out
+
+
+__all__ = ["Quantity", "QuantityKind", "OPTIONS", "resolve", "check_values", "split", "apply", "run_options"]
