@@ -11,6 +11,7 @@ The public names, by concept (each lives in the subpackage named beside it):
                  NonSmooth, Termination, RunStats
     analysis     check_decoupling, DecouplingReport, order_gap, stride_map,
                  find_periodic_gait, first_touchdown, period_map
+    sweep        sweep (one scene over many points, on many cores or a cluster)
     errors       ContactDiffError and its subclasses
 """
 
@@ -43,6 +44,7 @@ from .model.robot import QUADRUPEDS, Robot, load_robot
 from .model.scene import Scene
 from .model.scene_file import load_scene, load_source
 from .paper import trot_touchdown
+from .sweep import sweep
 
 __version__ = "0.1.0"
 
@@ -52,7 +54,7 @@ __all__ = [
     "InconsistentStateError", "IntegrationError", "InvalidInputError", "JointSpring", "load_robot",
     "load_scene", "load_source", "ModeDynamics", "ModelLoadError", "NonSmooth", "order_gap",
     "period_map", "QUADRUPEDS", "Robot", "RunStats", "Scene", "Segment", "simulate", "SimulateOptions",
-    "SolverError", "Spring", "StoppedRunError", "stride_map", "StrideError", "Termination",
+    "SolverError", "Spring", "StoppedRunError", "stride_map", "StrideError", "sweep", "Termination",
     "TooManyEventsError", "TooManyStepsError", "Trajectory", "trot_scene", "trot_touchdown",
     "UnknownNameError", "UnknownRobotError", "UserEffort",
 ]

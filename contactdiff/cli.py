@@ -5,6 +5,8 @@
                         [--method M] [--rtol R] [--atol A] [--json] [--plot out.png]
     contactdiff stride SOURCE --foot NAME [--newton N] [--warmup SECONDS] [--t0 T] [--period T]
                         [--neutral x,y,yaw] [--min-flight S] [--json]
+    contactdiff sweep SCENE --grid NAME=lo:hi:n ... [--job JOB] [--t-final T] [--backend B] [--out FILE]
+                        (contactdiff.sweep.cli)
 
 SOURCE is a scene (TOML path or a name of robots/) or a robot (URDF path or
 example-robot-data name; its feet get ground contacts, chosen automatically or
@@ -82,7 +84,7 @@ def _add_plot(parser: argparse.ArgumentParser, help_text: str) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The ``contactdiff`` argument parser: subcommands check, simulate, bench and stride."""
+    """The ``contactdiff`` argument parser: subcommands check, simulate, bench, stride and sweep."""
     parser = _Parser(
         prog="contactdiff",
         description="Differentiability through contact: check robots for limb decoupling.")
@@ -201,6 +203,10 @@ def build_parser() -> argparse.ArgumentParser:
     stride.add_argument("--atol", type=_FINITE, default=1e-12, help="absolute tolerance (default 1e-12)")
     stride.add_argument("--json", action="store_true", help="print the result as JSON")
     stride.set_defaults(run=_run_stride)
+
+    from .sweep.cli import add_parser as add_sweep
+
+    add_sweep(sub)
     return parser
 
 
