@@ -1,0 +1,28 @@
+"""User jobs for the sweep tests, imported by name (``sweep_user_jobs:...``) in worker processes."""
+
+from __future__ import annotations
+
+import math
+import os
+
+import contactdiff as cd
+
+NOT_A_FUNCTION = 3
+
+
+def fall_time(scene, point):
+    """The ball's first touchdown time, and the point it was given."""
+    traj = cd.simulate(scene, point["t_final"])
+    return {"first_event": traj.events[0].t, "given": sorted(point), "nan": math.nan}
+
+
+def not_a_dict(scene, point):
+    return [1, 2]
+
+
+def clashing(scene, point):
+    return {"error": 1}
+
+
+def process_id(scene, point):
+    return {"pid": os.getpid()}
