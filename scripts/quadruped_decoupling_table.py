@@ -31,8 +31,11 @@ base's state (pose and velocity) HORIZON seconds later, where the stiffness
 acts (at the touchdown itself the spring is at rest and the stiffness enters
 nothing).
 
+The robots, and the trend's cases, run in parallel on local worker processes
+(`contactdiff.sweep`; ``--jobs N``, default one per core).
+
     python scripts/quadruped_decoupling_table.py [--json] [--plot out.png] [--robots solo12 a1]
-                                                 [--states trot|standing] [--no-trend]
+                                                 [--states trot|standing] [--no-trend] [--jobs N]
 """
 
 from __future__ import annotations
@@ -49,6 +52,7 @@ import numpy as np
 import contactdiff as cd
 from contactdiff.analysis.order_gap import diagonal_pairs, diagonal_touchdown, order_gap
 from contactdiff.model.compliance import add_compliant_feet, compliant_state
+from contactdiff.sweep import sweep
 
 # Reflected rotor inertia I_rotor · N² (kg m²) at each actuated joint: (low, high) bracket per robot.
 ARMATURES = {
@@ -259,46 +263,79 @@ def describe_states(scene, states) -> list[dict]:
     return out
 
 
-def robot_table(robots, source: str = "trot") -> list[dict]:
-    """One row per robot and armature (0 and the robot's ARMATURES bracket)."""
-    rows = []
-    for name in robots:
-        scene, states, source_label = touchdown_states(name, source)
-        described = describe_states(scene, states)
-        low, high = ARMATURES[name]
-        for armature in sorted({0.0, low, high}):
-            row = measure(scene, states, armature)
-            row.update(robot=name, source=source_label, states=len(states), touchdowns=described)
-            rows.append(row)
-    return rows
+def touchdown_scene(robot: str, states: str = "trot"):
+    """The scene of `touchdown_states` for a sweep's workers: it carries its touchdown
+    states and their label as ``scene.touchdowns`` (the trot is simulated once per
+    worker and robot)."""
+    scene, found, label = touchdown_states(robot, states)
+    scene.touchdowns = (found, label)
+    return scene
 
 
-def trend_table() -> list[dict]:
-    """Compliant feet on solo12 over foot mass × stiffness, at TREND_ARMATURE, at the
-    standing-pose diagonal touchdown (`diagonal_touchdown`; no trot, no efforts)."""
-    robot = cd.load_robot(TREND_ROBOT)
-    rows = []
-    for friction in ("stick", "none"):
-        base = cd.Scene.from_robot(robot, friction=friction).with_armature(TREND_ARMATURE)
-        q, v, pair = diagonal_touchdown(base)
-        cases = [(None, None)] + [(m, k) for m in TREND_FOOT_MASSES for k in TREND_STIFFNESSES]
-        for foot_mass, stiffness in cases:
-            if foot_mass is None:
-                scene, qc, vc = base, q, v
-            else:
-                scene = add_compliant_feet(base, stiffness, foot_mass)
-                qc, vc = compliant_state(base.robot, scene.robot, q, v)
-            report = cd.check_decoupling(scene, states=[(qc, vc)])
-            names = {scene.contact_names[k] for k in pair}
-            gap = order_gap(scene, qc, vc, pair, horizon=HORIZON if friction == "stick" else None,
-                            jacobian=friction == "stick", simulate_options=SIM)
-            rows.append({"friction": friction, "foot_mass": foot_mass, "stiffness": stiffness,
-                         "pair_coupling": next(p.max for p in report.pairs if set(p.contacts) == names),
-                         "max_coupling": report.max_coupling, "outcome_gap": gap.outcome,
-                         "saltation_gap": gap.saltation, "saltation_spread": gap.saltation_spread,
-                         "later_saltation_gap": gap.later_saltation,
-                         "later_base_saltation_gap": gap.later_saltation_on(range(6)) if gap.horizon else None})
-    return rows
+def robot_rows(scene, point) -> dict:
+    """A sweep job: the rows of one robot, at armature 0 and its ARMATURES bracket."""
+    states, label = scene.touchdowns
+    described = describe_states(scene, states)
+    low, high = ARMATURES[point["arg:robot"]]
+    return {"rows": [measure(scene, states, armature) | dict(robot=point["arg:robot"], source=label,
+                                                              states=len(states), touchdowns=described)
+                     for armature in sorted({0.0, low, high})]}
+
+
+def robot_table(robots, source: str = "trot", n_jobs: int | None = None) -> list[dict]:
+    """One row per robot and armature (0 and the robot's ARMATURES bracket), the robots
+    run in parallel (`contactdiff.sweep`, ``n_jobs`` worker processes, default one per core)."""
+    result = sweep(touchdown_scene, [{"arg:robot": name} for name in robots], robot_rows,
+                   fixed={"arg:states": source}, n_jobs=n_jobs)
+    return [row for r in _succeeded(result) for row in r.outputs["rows"]]
+
+
+def trend_scene(friction: str, foot_mass: float | None, stiffness: float | None):
+    """Solo12 at TREND_ARMATURE with ``friction`` feet, compliant ones (``foot_mass`` kg on a
+    spring of ``stiffness`` N/m along the shank) unless ``foot_mass`` is None; it carries its
+    standing-pose diagonal touchdown (`diagonal_touchdown`; no trot, no efforts) as
+    ``scene.touchdown = (q, v, pair)``."""
+    base = cd.Scene.from_robot(cd.load_robot(TREND_ROBOT), friction=friction).with_armature(TREND_ARMATURE)
+    q, v, pair = diagonal_touchdown(base)
+    if foot_mass is None:
+        base.touchdown = (q, v, pair)
+        return base
+    scene = add_compliant_feet(base, stiffness, foot_mass)
+    scene.touchdown = (*compliant_state(base.robot, scene.robot, q, v), pair)
+    return scene
+
+
+def trend_row(scene, point) -> dict:
+    """A sweep job: coupling and order gap at the touchdown; with sticking feet also the
+    gap between the one-sided derivatives HORIZON seconds later."""
+    q, v, pair = scene.touchdown
+    stick = point["arg:friction"] == "stick"
+    report = cd.check_decoupling(scene, states=[(q, v)])
+    names = {scene.contact_names[k] for k in pair}
+    gap = order_gap(scene, q, v, pair, horizon=HORIZON if stick else None, jacobian=stick, simulate_options=SIM)
+    return {"pair_coupling": next(p.max for p in report.pairs if set(p.contacts) == names),
+            "max_coupling": report.max_coupling, "outcome_gap": gap.outcome,
+            "saltation_gap": gap.saltation, "saltation_spread": gap.saltation_spread,
+            "later_saltation_gap": gap.later_saltation,
+            "later_base_saltation_gap": gap.later_saltation_on(range(6)) if gap.horizon else None}
+
+
+def trend_table(n_jobs: int | None = None) -> list[dict]:
+    """Compliant feet on solo12 over foot mass × stiffness (and rigid feet), sticking and
+    frictionless, at TREND_ARMATURE, at the standing-pose diagonal touchdown; the cases run
+    in parallel (`contactdiff.sweep`)."""
+    cases = [(None, None)] + [(m, k) for m in TREND_FOOT_MASSES for k in TREND_STIFFNESSES]
+    points = [{"arg:friction": f, "arg:foot_mass": m, "arg:stiffness": k} for f in ("stick", "none") for m, k in cases]
+    result = sweep(trend_scene, points, trend_row, n_jobs=n_jobs)
+    return [{"friction": r.point["arg:friction"], "foot_mass": r.point["arg:foot_mass"],
+             "stiffness": r.point["arg:stiffness"], **r.outputs} for r in _succeeded(result)]
+
+
+def _succeeded(result):
+    """The rows of a sweep, or its first failure raised as the error it was."""
+    for r in result.failed[:1]:
+        raise cd.ContactDiffError(f"{r.error.kind} at {r.point}: {r.error.message}")
+    return result
 
 
 # -- output ----------------------------------------------------------------------------
@@ -398,9 +435,11 @@ def main(argv=None) -> int:
     parser.add_argument("--no-trend", action="store_true", help="skip the compliant-feet trend on solo12")
     parser.add_argument("--json", action="store_true")
     parser.add_argument("--plot", metavar="PNG", help="draw the compliant-feet trend")
+    parser.add_argument("--jobs", type=int, default=None, metavar="N",
+                        help="worker processes (default: one per core; 1 runs in this process)")
     args = parser.parse_args(argv)
-    rows = robot_table(args.robots, args.states)
-    trend = [] if args.no_trend else trend_table()
+    rows = robot_table(args.robots, args.states, args.jobs)
+    trend = [] if args.no_trend else trend_table(args.jobs)
     if args.json:
         clean = lambda x: None if isinstance(x, float) and not math.isfinite(x) else x  # noqa: E731
         print(json.dumps({"armatures": ARMATURES, "robots": rows, "trend": trend},
