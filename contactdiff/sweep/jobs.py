@@ -204,10 +204,12 @@ def _order_gap(scene: Scene, t_final, options: dict, settings: dict) -> dict:
         for name in wanted:
             scene.contact_index(name)  # an unknown name lists the scene's contacts
     gaps, skipped = [], 0
-    for event, before in zip(traj.events, traj.segments):
+    sliding = set(traj.segments[0].sliding) if traj.segments else set()
+    for event in traj.events:  # an event's mode_after says which of its contacts slide
+        sliding_before, sliding = sliding, set(event.sliding)
         if event.kind != "touchdown" or len(event.contacts) < 2:
             continue
-        if before.sliding:  # order_gap takes sticking modes
+        if sliding_before & set(event.mode_before):  # order_gap takes sticking modes
             skipped += 1
             continue
         for pair in itertools.combinations(event.contacts, 2):
