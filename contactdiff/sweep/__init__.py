@@ -17,6 +17,9 @@ modules, one concept each:
     runner      sweep() and run_point()
     plot        a line (1-D) or a heatmap (2-D) of one output
     cli         the ``contactdiff sweep`` subcommand
+
+The top-level name ``contactdiff.sweep`` is the function; import the rest from
+this package by name (``from contactdiff.sweep import grid, random_points``).
 """
 
 from .engines import Backend
