@@ -6,6 +6,7 @@ file (`contactdiff.model.scene_file`).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping, Sequence
 
@@ -277,6 +278,15 @@ class Scene:
     def with_armature(self, armature: float) -> Scene:
         """The same scene with rotor inertia ``armature`` on the robot's actuated joints."""
         return self.with_robot(self.robot.with_armature(armature))
+
+    def with_friction(self, friction) -> Scene:
+        """The same scene with every contact's ``friction`` replaced (a Coulomb coefficient
+        μ >= 0, ``"stick"`` or ``"none"``, as `Contact` takes it)."""
+        contacts = [dataclasses.replace(spec, friction=friction) for spec in self.contact_specs]
+        # the robot already carries the scene's gravity: None keeps it (as `with_robot`)
+        scene = Scene(self.robot, contacts, self.effort_specs, None, self.q0, self.v0, self.name)
+        scene.foot_choice = self.foot_choice
+        return scene
 
     def with_state(self, q0=None, v0=None) -> Scene:
         """The same scene from another initial state: full arrays, or joint-name
