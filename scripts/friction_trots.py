@@ -2,7 +2,7 @@
 
 Each trot scene (``solo12_trot``, ``anymal_trot``) is run as it is (feet ``friction="stick"``,
 infinite friction) and with every foot contact replaced by the same contact with
-``friction=μ``, with the run settings of ``contactdiff bench --speed``
+``friction=μ`` (each μ given), with the run settings of ``contactdiff bench --speed``
 (``simulate(scene, t_final)``, default options, 3 s). Prints, per robot and friction:
 events by kind, impact-cascade bounces (``bounce`` events, and events whose
 ``nonsmooth`` holds ``ZENO_CASCADE``), slip events and the time feet spend slipping
@@ -12,20 +12,22 @@ rejected steps, the final base height over the start's and the base tilt; uprigh
 the base ends at least half its start height, tilted less than 45 deg.
 A run that raises is reported with its counts up to there, traceback, time reached and last events.
 
-    python scripts/friction_trots.py                 # μ = 0.8, 3 s
+    python scripts/friction_trots.py                 # μ = 0.7 and 0.8, 3 s
     python scripts/friction_trots.py --mu 0.5 --repeats 3 --json
+    python scripts/friction_trots.py --profile       # and where the Coulomb runs' time goes
 """
 
 from __future__ import annotations
 
 import argparse
-import dataclasses
+import bisect
 import json
 import statistics
 import sys
 import time
 import traceback
 from collections import Counter
+from contextlib import contextmanager
 
 import numpy as np
 import pinocchio as pin
@@ -34,15 +36,6 @@ import contactdiff as cd
 from contactdiff.integration.trajectory import EVENT_KINDS
 
 TROTS = ("solo12_trot", "anymal_trot")
-
-
-def with_friction(scene: cd.Scene, mu: float) -> cd.Scene:
-    """The scene with every contact's friction set to ``mu`` (as `Scene.with_robot` rebuilds a scene:
-    the robot already carries the scene's gravity, so ``gravity=None`` keeps it)."""
-    contacts = [dataclasses.replace(c.spec, friction=mu) for c in scene.contacts]
-    out = cd.Scene(scene.robot, contacts, scene.effort_specs, None, scene.q0, scene.v0, scene.name)
-    out.foot_choice = scene.foot_choice
-    return out
 
 
 def counts(events, segments) -> dict:
@@ -54,8 +47,66 @@ def counts(events, segments) -> dict:
             "slip_time": sum((s.t1 - s.t0) * len(s.sliding) for s in segments)}
 
 
-def run(scene: cd.Scene, t_final: float, repeats: int) -> dict:
-    """One scene's row: counts of the last run, median wall time; on an exception, the diagnosis."""
+@contextmanager
+def where_time_goes(record: list):
+    """Record each accepted step of the steppers as ``(t_old, t, rejected attempts, wall s)`` and each
+    impact as ``("impact", wall s)`` into ``record``, for this run only (timers wrapped around
+    ``step`` and the loop's ``resolve_impact``)."""
+    from contactdiff.integration import event_resets
+    from contactdiff.integration.explicit_rk import ExplicitRK
+    from contactdiff.integration.radau import Radau
+
+    steps = {cls: cls.step for cls in (ExplicitRK, Radau)}
+    impact = event_resets.resolve_impact
+
+    def timed_step(original):
+        def step(self):
+            t_old, rejected, start = self.t, self.n_rejected, time.perf_counter()
+            original(self)
+            record.append((t_old, self.t, self.n_rejected - rejected, time.perf_counter() - start))
+        return step
+
+    def timed_impact(*args, **kwargs):
+        start = time.perf_counter()
+        try:
+            return impact(*args, **kwargs)
+        finally:
+            record.append(("impact", time.perf_counter() - start))
+    try:
+        for cls, original in steps.items():
+            cls.step = timed_step(original)
+        event_resets.resolve_impact = timed_impact
+        yield record
+    finally:
+        for cls, original in steps.items():
+            cls.step = original
+        event_resets.resolve_impact = impact
+
+
+def time_shares(record: list, segments, wall: float) -> dict:
+    """Wall time of steps inside segments with a slipping contact, of the other steps and of
+    impacts, with the steps' counts and simulated time (s)."""
+    starts = [seg.t0 for seg in segments]
+    out = {part: {"wall": 0.0, "steps": 0, "rejected": 0, "sim_time": 0.0} for part in ("slipping", "other")}
+    impacts = 0.0
+    for item in record:
+        if item[0] == "impact":
+            impacts += item[1]
+            continue
+        t_old, t, rejected, seconds = item
+        seg = segments[max(0, bisect.bisect_right(starts, t_old) - 1)]
+        part = out["slipping" if seg.sliding else "other"]
+        part["wall"] += seconds
+        part["steps"] += 1
+        part["rejected"] += rejected
+        part["sim_time"] += t - t_old
+    return out | {"impacts": {"wall": impacts}, "rest": {"wall": wall - impacts - out["slipping"]["wall"]
+                                                          - out["other"]["wall"]}}
+
+
+def run(scene: cd.Scene, t_final: float, repeats: int, profile: bool = False) -> dict:
+    """One scene's row: counts of the last run, median wall time; on an exception, the diagnosis;
+    with ``profile`` one more run with `where_time_goes`."""
     walls, reached = [], [0.0, 0, 0]
     # what simulate(scene, t_final) runs; progress only records (t, events, accepted steps)
     options = cd.SimulateOptions(progress=lambda *p: reached.__setitem__(slice(None), p))
@@ -81,7 +132,16 @@ def run(scene: cd.Scene, t_final: float, repeats: int) -> dict:
         "wall": statistics.median(walls), "walls": walls, "steps": traj.stats.steps,
         "rejected_steps": traj.stats.rejected_steps, "termination": str(traj.termination),
         "base_height": height, "start_height": start_height, "tilt_deg": tilt,
-        "upright": height >= 0.5 * start_height and tilt < 45.0}
+        "upright": height >= 0.5 * start_height and tilt < 45.0} | (_profiled(scene, t_final) if profile else {})
+
+
+def _profiled(scene: cd.Scene, t_final: float) -> dict:
+    record = []
+    with where_time_goes(record):
+        start = time.perf_counter()
+        traj = cd.simulate(scene, t_final)
+        wall = time.perf_counter() - start
+    return {"profile": time_shares(record, traj.segments, wall) | {"total": {"wall": wall}}}
 
 
 def table(rows: list[dict], t_final: float) -> str:
@@ -105,6 +165,17 @@ def table(rows: list[dict], t_final: float) -> str:
     lines.append(f"{t_final:g} s each; td touchdown, lo lift-off, bnc bounce, graz grazing; zenoC: events with "
                  "NonSmooth.ZENO_CASCADE; slip s: foot-seconds slipping; wall: median; rej: rejected steps; "
                  "tilt: base z axis from vertical (deg); a FAILED row counts up to the failure")
+    for r in rows:
+        if "profile" in r:
+            p = r["profile"]
+            lines.append(f"\n{r['scene']} friction={r['friction']}: where the time goes (one more run, "
+                         f"{p['total']['wall']:.2f} s with timers)")
+            for part in ("slipping", "other"):
+                q = p[part]
+                lines.append(f"  steps in {part:>8} segments: {q['wall']:6.2f} s wall, {q['steps']:5d} steps "
+                             f"({q['rejected']} rejected), {q['sim_time']:.4f} s simulated")
+            lines.append(f"  impacts: {p['impacts']['wall']:.2f} s; "
+                         f"events, guards, the rest: {p['rest']['wall']:.2f} s")
     for r in fails:
         lines += [f"\n--- {r['scene']} friction={r['friction']}: {r['error']}", r["traceback"].rstrip(),
                   f"time reached {r['t_reached']!r} s; mode {r['last_mode']}, sliding {r['last_sliding']}; "
@@ -115,19 +186,24 @@ def table(rows: list[dict], t_final: float) -> str:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--mu", type=float, default=0.8, help="Coulomb coefficient of the feet")
+    parser.add_argument("--mu", type=float, nargs="+", default=[0.7, 0.8],
+                        help="Coulomb coefficients of the feet, one run each (default 0.7 0.8)")
     parser.add_argument("--t-final", type=float, default=3.0, help="simulated time of each run (s)")
     parser.add_argument("--repeats", type=int, default=1, help="timed runs per case (median kept)")
     parser.add_argument("--scenes", nargs="+", default=list(TROTS))
+    parser.add_argument("--profile", action="store_true",
+                        help="also time, in one more run of each Coulomb case, the steps in segments with a "
+                             "slipping foot, the other steps and the impacts")
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
     rows = []
     for name in args.scenes:
         stick = cd.load_scene(name)
-        for friction, scene in (("stick", stick), (args.mu, with_friction(stick, args.mu))):
+        for friction, scene in [("stick", stick)] + [(mu, stick.with_friction(mu)) for mu in args.mu]:
             print(f"running {name} friction={friction} for {args.t_final:g} s x {args.repeats} ...",
                   file=sys.stderr, flush=True)
-            row = {"scene": name, "friction": friction} | run(scene, args.t_final, args.repeats)
+            profile = args.profile and friction != "stick"
+            row = {"scene": name, "friction": friction} | run(scene, args.t_final, args.repeats, profile)
             done = row.get("error") or f"{row['events']} events, {row['wall']:.2f} s wall"
             print(f"  done: {done}", file=sys.stderr, flush=True)
             rows.append(row)
