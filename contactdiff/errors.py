@@ -78,11 +78,18 @@ class EnergyGainError(SolverError):
     friction coupling: Kane's paradox; `contactdiff.dynamics.frictional_impact`)."""
 
 
-class PainleveError(SolverError):
+class OutsideDomainError(SolverError):
+    """The vector field is not defined at the state asked for. A stepper meeting it at a
+    trial stage rejects the step and tries a shorter one (as CVODES treats a recoverable
+    right-hand-side failure); it is raised only if the step then underflows."""
+
+
+class PainleveError(OutsideDomainError):
     """A contact slipping with Coulomb friction has no consistent contact force, or
     several (Painlevé's paradox: the friction turns the normal force's effect on the
     normal acceleration around, ``A_n M^-1 (A_n - μ s^T A_T)^T <= 0``;
-    `contactdiff.dynamics.slip`)."""
+    `contactdiff.dynamics.slip`). Met at a trial stage of a step it only shortens the
+    step; raised when the trajectory itself gets there (or at an event's mode choice)."""
 
 
 def check_number(owner: str, name: str, value, *, minimum: float | None = None,

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from ..errors import InvalidInputError
+from ..errors import InvalidInputError, OutsideDomainError
 from . import tableaus
 from .dense import DenseOutput, LazyDenseOutput
 from .stepper import _MAX_FACTOR, _MIN_FACTOR, _SAFETY, Stepper, _combine, _rms, _rms_cols
@@ -122,7 +122,14 @@ class ExplicitRK(Stepper):
             wanted = h_abs  # the step the error control asked for, before t_bound clips it
             t_new, clipped = self._step_end(t, h_abs)
             h = t_new - t
-            y_new, q_new, ys, qs = self._stages(t, y, h, qc)
+            try:
+                y_new, q_new, ys, qs = self._stages(t, y, h, qc)
+            except OutsideDomainError as exc:  # a trial stage left the field's domain: shorter step
+                self._outside = exc
+                h_abs = h * _MIN_FACTOR
+                rejected = True
+                self.n_rejected += 1
+                continue
             scale = self.atol + self.rtol * np.maximum(mag_n, self._mag(y_new, q_new))
             err = self._error_norm(h, K, scale)
             if not math.isfinite(err):

@@ -47,11 +47,20 @@ run are one `SimulateOptions`.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..dynamics.impacts import choose_mode
 from ..dynamics.mode import ModeDynamics
-from ..errors import GrazingError, InvalidInputError, TooManyEventsError, TooManyStepsError, check_number
+from ..errors import (
+    GrazingError,
+    InvalidInputError,
+    OutsideDomainError,
+    TooManyEventsError,
+    TooManyStepsError,
+    check_number,
+)
 from ..model.scene import Scene
 from ..model.scene_file import passive_note
 from .event_resets import EventResets
@@ -363,7 +372,13 @@ class HybridLoop(EventResets, FrictionEvents):
         def accel(t, q, v):
             self.n_probe_evaluations += 1
             return self.dyn.solve(q, v, t, mode).ddq
-        return lambda q, v, t: spectral_radius(accel, q, v, t, self.group)
+
+        def probe(q, v, t):
+            try:
+                return spectral_radius(accel, q, v, t, self.group)
+            except OutsideDomainError:  # a probe point left the mode's domain: no measure, the method stays
+                return math.nan
+        return probe
 
     def _switch(self, stepper, method: str, field):
         """Continue from the stepper's current point with ``method``: a restart without a

@@ -7,7 +7,7 @@ import math
 import numpy as np
 from scipy.linalg.lapack import dgetrf, dgetrs, zgetrf, zgetrs
 
-from ..errors import IntegrationError, InvalidInputError
+from ..errors import IntegrationError, InvalidInputError, OutsideDomainError
 from .dense import DenseOutput
 from .stepper import _EPS, _MAX_FACTOR, _MIN_FACTOR, Stepper, _rms, _rms_cols
 
@@ -229,7 +229,11 @@ class Radau(Stepper):
             Z0 = self._predict(t, h, y, qc)
             while True:
                 self._ensure_lu(h)
-                converged, n_iter, Z, rate = self._newton(t, y, h, Z0, scale_newton, qc)
+                try:
+                    converged, n_iter, Z, rate = self._newton(t, y, h, Z0, scale_newton, qc)
+                except OutsideDomainError as exc:  # an iterate left the field's domain: shorter step
+                    self._outside, converged = exc, False
+                    break
                 if converged or self._current_jac:
                     break
                 self._J = self._call_jac(t, self.q, self.v)
@@ -248,7 +252,11 @@ class Radau(Stepper):
             if rejected and err > 1:  # Hairer's filtered estimate, more reliable after a rejection
                 fe = np.empty(self.n)
                 ye = y + err_vec
-                self._eval_into(t, ye, fe, qc)
+                try:
+                    self._eval_into(t, ye, fe, qc)
+                except OutsideDomainError as exc:  # keep the unfiltered estimate (> 1: rejected)
+                    self._outside = exc
+                    fe[:] = np.nan
                 if np.isfinite(fe).all():
                     err = _rms(self._solve(fe + ZE, True) / scale)
             if not math.isfinite(err):

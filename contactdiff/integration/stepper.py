@@ -40,7 +40,14 @@ from typing import Callable
 
 import numpy as np
 
-from ..errors import IntegrationError, InvalidInputError, check_number, check_vector
+from ..errors import (
+    ContactDiffError,
+    IntegrationError,
+    InvalidInputError,
+    OutsideDomainError,
+    check_number,
+    check_vector,
+)
 from .dense import DenseOutput
 from .lie import _as_group
 from .variational import VariationalAlgebra
@@ -254,6 +261,7 @@ class Stepper(VariationalAlgebra, abc.ABC):
             self._atol_phi = np.reshape(self._atol_phi, (-1, 1)) / pbar[None, :]
 
         self.n_steps = self.n_rejected = self.n_accel = self.n_jac = 0
+        self._outside = None
         self.t_old = self.q_old = self.v_old = self.phi_old = None
         self._y = self._point_y(self.q, self.v)
         self._f = self._point_f(self.t, self.q, self.v)
@@ -458,7 +466,10 @@ class Stepper(VariationalAlgebra, abc.ABC):
         h0 = min(h0, interval)
         y1 = y0 + h0 * f0
         f1 = np.empty(self.n)
-        self._eval_into(self.t + h0, y1, f1, None if self._vs else self.q)
+        try:
+            self._eval_into(self.t + h0, y1, f1, None if self._vs else self.q)
+        except OutsideDomainError:  # the trial point left the field's domain: the step will shrink
+            return min(h0, self.max_step)
         self._nonfinite_stage(self.t + h0, y1, f1[self.nv :])
         d2 = _rms((f1 - f0) / scale) / h0
         if d1 <= 1e-15 and d2 <= 1e-15:
@@ -473,6 +484,7 @@ class Stepper(VariationalAlgebra, abc.ABC):
         if t >= self.t_bound:
             raise IntegrationError(f"cannot step: t = {t!r} is already at t_bound = {self.t_bound!r}")
         min_step = 10.0 * abs(np.nextafter(t, np.inf) - t)
+        self._outside = None  # an `OutsideDomainError` met by a trial stage of this step
         return min_step, max(min(self.h_abs, self.max_step), min_step)
 
     def _step_end(self, t: float, h_abs: float) -> tuple[float, bool]:
@@ -482,7 +494,13 @@ class Stepper(VariationalAlgebra, abc.ABC):
         clipped = t + h_abs > self.t_bound
         return (self.t_bound if clipped else t + h_abs), clipped
 
-    def _underflow(self, h_abs: float, min_step: float) -> IntegrationError:
+    def _underflow(self, h_abs: float, min_step: float) -> ContactDiffError:
+        """The error of a step that shrank below ``min_step``: the field's own
+        `OutsideDomainError` if trial stages kept leaving its domain, else an `IntegrationError`."""
+        if self._outside is not None:
+            exc = self._outside
+            return type(exc)(f"{exc} (at t = {float(self.t)!r} s every step down to h = {h_abs:.3g} s "
+                             "reaches such states: the trajectory itself does)")
         return IntegrationError(
             f"{self.method}: step size underflow at t={float(self.t)!r}: h={h_abs:.3g} < {min_step:.3g} "
             f"(rtol={self.rtol:g}); the vector field may be singular or non-smooth here"

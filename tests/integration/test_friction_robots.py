@@ -17,6 +17,7 @@ import pytest
 from scipy.linalg import null_space
 
 import contactdiff as cd
+from contactdiff.dynamics.mode import ModeDynamics
 from contactdiff.errors import InvalidInputError
 
 T0, T1 = 0.09, 0.13  # s
@@ -78,3 +79,26 @@ def test_with_friction_replaces_every_contact_and_checks_the_value():
     assert [c.spec.friction for c in scene.contacts] == ["stick"] * 4  # the original is unchanged
     with pytest.raises(InvalidInputError, match="-1"):
         scene.with_friction(-1.0)
+
+
+def test_anymal_slip_onset_passes_trial_stages_outside_the_slip_domain():
+    """The ANYmal trot with μ = 0.8: at the right hind foot's slip onset (t ≈ 0.157 s) the slip
+    direction starts from the sticking force's and turns fast while the slip is slow, and a
+    trial stage of a too-long step turns it where A_n M^-1 (A_n - μ s^T A_T)^T < 0, outside the
+    slip mode's domain (Painlevé). Such a step is only rejected: the run goes on, and the
+    accepted slip keeps a pushing normal force along the whole segment (each sample solved again
+    in its mode, which would raise `PainleveError` outside the domain)."""
+    scene = cd.load_scene("anymal_trot").with_friction(0.8)
+    traj = cd.simulate(scene, 0.2, dense=True)
+    onset = [e for e in traj.events if e.kind == "slip" and e.contacts == ("RH_FOOT",)]
+    assert onset and onset[0].t == pytest.approx(0.1572, abs=1e-3)  # s
+    dyn = ModeDynamics(scene)
+    segment = next(s for s in traj.segments if s.t0 == onset[0].t)
+    assert "RH_FOOT" in segment.sliding
+    mode = tuple(sorted(dyn.sliding_key(i) if scene.contact_names[i] in segment.sliding else i
+                        for i in (scene.contact_names.index(n) for n in segment.mode)))
+    rh = mode.index(dyn.sliding_key(scene.contact_names.index("RH_FOOT")))
+    for t in np.linspace(segment.t0, segment.t1, 7)[1:-1]:  # inside: the segment ends in a lift-off, λ_N = 0
+        q, v = segment.at(t)
+        dyn.slip_reference[scene.contact_names.index("RH_FOOT")] = None
+        assert dyn.solve(q, v, t, mode).row_forces()[rh][0] > 0.0  # N: pushing

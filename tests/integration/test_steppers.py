@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.integrate import solve_ivp
 
-from contactdiff.errors import IntegrationError, InvalidInputError
+from contactdiff.errors import IntegrationError, InvalidInputError, OutsideDomainError
 from contactdiff.integration.steppers import (
     DOP853,
     METHODS,
@@ -525,3 +525,40 @@ def test_lazy_dense_output_equals_the_eager_one_after_later_steps(method):
     st.step()
     got = lazy(times)
     assert np.array_equal(got[0], expected[0]) and np.array_equal(got[1], expected[1])
+
+
+# --------------------------------------------------------------------------
+# A field defined on part of the state space: trial stages outside it
+# --------------------------------------------------------------------------
+
+def _bounded(accel, limit):
+    """``accel`` defined only where |q| <= limit (as a slip mode only where A_n M^-1 F^T > 0)."""
+    def bounded(t, q, v):
+        if abs(q[0]) > limit:
+            raise OutsideDomainError(f"q = {q[0]!r} outside |q| <= {limit}")
+        return accel(t, q, v)
+    return bounded
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_trial_stages_outside_the_domain_only_shorten_the_step(method):
+    """The oscillator (amplitude 1) on the domain |q| <= 1.001: a first step of 1 s puts its trial
+    stages far outside (|q| up to ~2 for ω = 2), so the step is rejected and retried shorter instead
+    of failing, and the run ends on the closed form (tolerance as in the harmonic test above)."""
+    s = make_stepper(method, _bounded(ho_accel, 1.001), VectorSpace(1), 0.0, [1.0], [0.0], rtol=1e-11, atol=1e-11,
+                     jac=ho_jac, first_step=1.0, t_bound=3.0)
+    run_to(s, 3.0)
+    assert s.n_rejected >= 1
+    np.testing.assert_allclose([s.q[0], s.v[0]], ho_exact(3.0), atol=1e-8)
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_a_trajectory_leaving_the_domain_raises_the_fields_error(method):
+    """x'' = x from (1, 1) grows as e^t and leaves |q| <= 2 at t = ln 2: every step there has a
+    stage outside, the step underflows, and the field's own error is raised, not an underflow."""
+    s = make_stepper(method, _bounded(lambda t, q, v: q, 2.0), VectorSpace(1), 0.0, [1.0], [1.0], rtol=1e-10,
+                     atol=1e-10, jac=lambda t, q, v: (np.eye(1), np.zeros((1, 1))), t_bound=3.0)
+    with pytest.raises(OutsideDomainError, match="the trajectory itself does") as info:
+        run_to(s, 3.0)
+    assert s.t == pytest.approx(np.log(2.0), abs=1e-6)  # s: it stopped where the state reached the edge
+    assert "outside |q| <= 2.0" in str(info.value)
