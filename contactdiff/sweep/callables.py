@@ -72,4 +72,14 @@ def keyword_names(function: Callable) -> tuple[str, ...] | None:
                  if p.kind in (inspect.Parameter.POSITIONAL_OR_KEYWORD, inspect.Parameter.KEYWORD_ONLY))
 
 
-__all__ = ["import_callable", "reference", "keyword_names", "is_reference"]
+def required_names(function: Callable) -> tuple[str, ...]:
+    """Names of ``function``'s arguments that have no default (those a call must give)."""
+    try:
+        parameters = inspect.signature(function).parameters.values()
+    except (TypeError, ValueError):
+        return ()
+    return tuple(p.name for p in parameters if p.default is inspect.Parameter.empty
+                 and p.kind in (inspect.Parameter.POSITIONAL_OR_KEYWORD, inspect.Parameter.KEYWORD_ONLY))
+
+
+__all__ = ["import_callable", "reference", "keyword_names", "required_names", "is_reference"]

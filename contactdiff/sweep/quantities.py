@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import difflib
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, fields
 from enum import StrEnum
 
@@ -77,13 +77,16 @@ class Quantity:
     target: str
 
 
-def resolve(names: Sequence[str], scene: Scene, arguments: Sequence[str] | None = (),
+def resolve(names: Sequence[str], scene: Scene | Callable[[], Scene], arguments: Sequence[str] | None = (),
             job_arguments: Sequence[str] | None = ()) -> tuple[Quantity, ...]:
     """The `Quantity` of each name, checked against ``scene``.
 
     Args:
         names: the swept names.
-        scene: the scene (built from the sweep's source) the names refer to.
+        scene: the scene the names refer to, or a function that builds it: called
+            only for a name that needs the scene (a coordinate, a parameter, an
+            unknown name), so that a sweep of a factory's arguments alone does not
+            build one here.
         arguments: the scene factory's keyword arguments (None: any name; (): not a factory).
         job_arguments: the job's arguments (None: any name, a user job).
 
@@ -92,10 +95,17 @@ def resolve(names: Sequence[str], scene: Scene, arguments: Sequence[str] | None 
             parameters of the kind named, or suggests close names).
         InvalidInputError: ``arg:`` for a scene that is not built by a factory.
     """
-    return tuple(_resolve_one(name, scene, arguments, job_arguments) for name in names)
+    built = scene if isinstance(scene, Scene) else None
+
+    def get() -> Scene:
+        nonlocal built
+        built = built or scene()
+        return built
+
+    return tuple(_resolve_one(name, get, arguments, job_arguments) for name in names)
 
 
-def _resolve_one(name: str, scene: Scene, arguments, job_arguments) -> Quantity:
+def _resolve_one(name: str, get: Callable[[], Scene], arguments, job_arguments) -> Quantity:
     if not isinstance(name, str):
         raise InvalidInputError(f"sweep: a quantity name must be a string, got {name!r}")
     if name in OPTIONS:
@@ -105,13 +115,13 @@ def _resolve_one(name: str, scene: Scene, arguments, job_arguments) -> Quantity:
             continue
         target = name[len(prefix):]
         if kind is QuantityKind.INITIAL_Q:
-            valid = scene.robot.configuration_names()
+            valid = get().robot.configuration_names()
         elif kind is QuantityKind.INITIAL_V:
-            valid = scene.robot.tangent_names()
+            valid = get().robot.tangent_names()
         elif kind is QuantityKind.SCENE_ARG:
             if arguments == ():
                 raise InvalidInputError(f"sweep: {name!r} is an argument of a scene factory, but the scene "
-                                        f"{scene.name!r} is a name or file; give a function that builds it")
+                                        f"{get().name!r} is a name or file; give a function that builds it")
             valid = arguments
         else:
             valid = job_arguments
@@ -119,10 +129,10 @@ def _resolve_one(name: str, scene: Scene, arguments, job_arguments) -> Quantity:
             raise UnknownNameError(f"unknown quantity {name!r}; valid {prefix}<name>: "
                                    + (", ".join(prefix + v for v in valid) or "(none)"))
         return Quantity(name, kind, target)
-    parameters = scene.parameter_names()
+    parameters = get().parameter_names()
     if name in parameters:
         return Quantity(name, QuantityKind.PARAMETER, name)
-    raise _unknown(name, scene, parameters, arguments, job_arguments)
+    raise _unknown(name, get(), parameters, arguments, job_arguments)
 
 
 def _unknown(name: str, scene: Scene, parameters: list[str], arguments, job_arguments) -> UnknownNameError:

@@ -21,7 +21,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..errors import InvalidInputError, check_number
+from ..errors import ContactDiffError, InvalidInputError, check_number
 from ..integration.options import SimulateOptions, field_names
 from . import quantities as Q
 from .engines import Engine
@@ -167,9 +167,19 @@ def _options(options) -> dict:
 
 def _context(source: SceneSource, points: PointSet, job: Job, t_final, options: dict) -> Context:
     """Check the sweep in this process (scene, names, values, settings) and describe it."""
-    first = points[0]
-    arguments = {n[4:]: v for n, v in first.items() if n.startswith("arg:")}
-    scene = source.build(arguments)
+    source.check_arguments(points.names)
+    arguments = {n[4:]: v for n, v in points[0].items() if n.startswith("arg:")}
+    if source.factory is None:
+        scene = source.build()  # a name or file: loading it here checks it (cheap), and one worker uses it
+    else:
+        def scene():  # a factory may be expensive (a trot simulated): built here only if a name needs it
+            try:
+                return source.build(arguments)
+            except ContactDiffError:
+                raise
+            except Exception as exc:  # the factory's own failure, named with its arguments
+                raise InvalidInputError(f"sweep: scene factory {source.label} failed with arguments {arguments} "
+                                        f"({type(exc).__name__}: {exc})") from None
     quantities = Q.resolve(points.names, scene, source.argument_names(), job.argument_names)
     Q.check_values(quantities, points.values)
     swept_t = "t_final" in points.names

@@ -18,7 +18,7 @@ from pathlib import Path
 
 from ..errors import InvalidInputError
 from ..model.scene import Scene
-from .callables import import_callable, is_reference, keyword_names, reference
+from .callables import import_callable, is_reference, keyword_names, reference, required_names
 
 SCENE_CACHE_SIZE = 8
 """Scenes a worker process keeps (distinct sources and factory arguments)."""
@@ -70,6 +70,20 @@ class SceneSource:
     def argument_names(self) -> tuple[str, ...] | None:
         """The factory's keyword arguments (None: any, it takes ``**kwargs``); () for a name or file."""
         return () if self.factory is None else keyword_names(self.factory)
+
+    def check_arguments(self, names) -> None:
+        """Refuse a sweep that leaves out an argument the factory needs (no default).
+
+        Raises:
+            InvalidInputError: naming the missing ``arg:<name>`` quantities.
+        """
+        if self.factory is None:
+            return
+        missing = [n for n in required_names(self.factory) if f"arg:{n}" not in names]
+        if missing:
+            raise InvalidInputError(f"sweep: scene factory {self.label} needs "
+                                    + ", ".join(f"arg:{n}" for n in missing)
+                                    + "; sweep it or fix it (fixed=, --set)")
 
     def build(self, args: Mapping | None = None) -> Scene:
         """The scene for the factory arguments ``args``, built once per process and kept.

@@ -26,3 +26,10 @@ def clashing(scene, point):
 
 def process_id(scene, point):
     return {"pid": os.getpid()}
+
+
+def ball_not_in(pid):
+    """A scene factory that refuses to run in process ``pid``."""
+    if os.getpid() == pid:
+        raise RuntimeError("built in the process that started the sweep")
+    return cd.load_scene("ball")

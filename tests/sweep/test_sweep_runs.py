@@ -157,6 +157,16 @@ def test_a_scene_factory_with_swept_and_fixed_arguments():
     assert result[0].point == {"arg:model": "soft", "arg:pitch": 0.0}
 
 
+def test_a_factory_is_built_in_the_workers_only_unless_a_name_needs_the_scene():
+    # an expensive factory (a trot simulated to find touchdowns) should not run once more just to check names
+    only_arguments = sweep("sweep_user_jobs:ball_not_in", {"arg:pid": [os.getpid()]}, t_final=1.0, n_jobs=2)
+    assert only_arguments[0].ok
+    with pytest.raises(InvalidInputError, match="RuntimeError: built in the process"):
+        sweep("sweep_user_jobs:ball_not_in", {"arg:pid": [os.getpid()], "q:z": [2.0]}, t_final=1.0, n_jobs=2)
+    with pytest.raises(InvalidInputError, match="needs arg:pid"):
+        sweep("sweep_user_jobs:ball_not_in", {"t_final": [1.0]}, n_jobs=2)
+
+
 def test_a_user_job_by_name_gets_the_scene_and_the_point():
     result = sweep("ball", grid({"q:z": [2.0]}), "sweep_user_jobs:fall_time", t_final=3.0, n_jobs=2)
     row = result[0]
