@@ -12,8 +12,6 @@ import numpy as np
 import pinocchio as pin
 import pytest
 from coulomb_models import (
-    BALL_URDF,
-    BLOCK3_URDF,
     FD_RTOL,
     INERTIA,
     JAC_REL,
@@ -25,7 +23,6 @@ from coulomb_models import (
     G,
     central_differences,
     event_kinds,
-    load,
     unit,
 )
 from helpers import assert_fd
@@ -33,16 +30,6 @@ from hypothesis import HealthCheck, assume, event, given, settings
 from hypothesis import strategies as st
 
 import contactdiff as cd
-
-
-@pytest.fixture(scope="module")
-def block3(tmp_path_factory):
-    return load(tmp_path_factory, "block3", BLOCK3_URDF)
-
-
-@pytest.fixture(scope="module")
-def ball(tmp_path_factory):
-    return load(tmp_path_factory, "ball", BALL_URDF, floating_base=True)
 
 
 # ==============================================================================================

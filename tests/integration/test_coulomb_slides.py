@@ -10,8 +10,6 @@ import math
 import numpy as np
 import pytest
 from coulomb_models import (
-    BLOCK2_URDF,
-    BLOCK3_URDF,
     FD_RTOL,
     JAC_REL,
     MASS,
@@ -22,24 +20,12 @@ from coulomb_models import (
     central_differences,
     constant_force,
     event_kinds,
-    load,
     unit,
 )
 from helpers import assert_fd
 
 import contactdiff as cd
 from contactdiff.dynamics.mode import ModeDynamics
-
-
-@pytest.fixture(scope="module")
-def block3(tmp_path_factory):
-    return load(tmp_path_factory, "block3", BLOCK3_URDF)
-
-
-@pytest.fixture(scope="module")
-def block2(tmp_path_factory):
-    return load(tmp_path_factory, "block2", BLOCK2_URDF)
-
 
 # ==============================================================================================
 # 1. a block sliding on flat ground in an arbitrary horizontal direction
