@@ -38,7 +38,7 @@ _BISECT = 12  # halvings of a scan interval: 2π/144/2^12 ~ 1e-5 rad, then Newto
 _GRID_POINTS = {2: 48, 3: 20}  # per axis; more sliders: _GRID_BUDGET in all
 _GRID_BUDGET = 20000
 _GRID_STARTS = 48
-_FP_SWEEPS = 100
+_FP_SWEEPS = 1000  # until a relative change of 1e-14; a cap, most touchdowns converge in far fewer
 _POLE_GAP = 1e-9  # rad: scan points beside a pole of one slider's Λ_N
 _DUPLICATE = 1e-8  # rad: two roots closer than this are one
 
@@ -276,7 +276,8 @@ class SlipDirections:
         Contact by contact, ``Λ_k <- P_K(Λ_k - ρ_k ŵ_k)`` with ``K`` the cone
         ``||Λ_T|| <= μ Λ_N``, ``ŵ = u+`` plus ``e u-_N + μ ||u+_T||`` on the
         normal row and ``ρ_k = 1 / max diag G_kk``. Its fixed points are the
-        solutions of the law; it need not converge (a few hundred sweeps).
+        solutions of the law; it need not converge (at most _FP_SWEEPS sweeps: on the
+        ANYmal trot's touchdowns 100 left sticking feet with a residual slip, 1000 do not).
         """
         if self._fp is not None:
             return self._fp

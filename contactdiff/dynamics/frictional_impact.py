@@ -119,8 +119,8 @@ FRICTION_ENUMERATE_MAX = 8
 
 # A normal impulse, or a post-impact slip, below this share of its scale in the
 # approximate solution (`SlipDirections.fixed_point`) is taken for zero in the
-# candidate tried first: its sweeps stop at 1e-14 relative change or after a few
-# hundred, so a contact that should open or stick is far below this.
+# candidate tried first: its sweeps stop at 1e-14 relative change (or at the cap,
+# `friction_slip._FP_SWEEPS`), so a contact that should open or stick is far below this.
 _GUESS_ZERO = 1e-6
 
 
