@@ -27,6 +27,8 @@ from .errors import (
     IntegrationError,
     InvalidInputError,
     ModelLoadError,
+    OutsideDomainError,
+    PainleveError,
     SolverError,
     StoppedRunError,
     StrideError,
@@ -44,7 +46,7 @@ from .model.robot import QUADRUPEDS, Robot, load_robot
 from .model.scene import Scene
 from .model.scene_file import load_scene, load_source
 from .paper import trot_touchdown
-from .sweep import sweep
+from .sweeps import sweep
 
 __version__ = "0.1.0"
 
@@ -53,6 +55,7 @@ __all__ = [
     "find_periodic_gait", "first_touchdown", "GrazingError", "HybridLoop",
     "InconsistentStateError", "IntegrationError", "InvalidInputError", "JointSpring", "load_robot",
     "load_scene", "load_source", "ModeDynamics", "ModelLoadError", "NonSmooth", "order_gap",
+    "OutsideDomainError", "PainleveError",
     "period_map", "QUADRUPEDS", "Robot", "RunStats", "Scene", "Segment", "simulate", "SimulateOptions",
     "SolverError", "Spring", "StoppedRunError", "stride_map", "StrideError", "sweep", "Termination",
     "TooManyEventsError", "TooManyStepsError", "Trajectory", "trot_scene", "trot_touchdown",
