@@ -6,7 +6,7 @@
     contactdiff stride SOURCE --foot NAME [--newton N] [--warmup SECONDS] [--t0 T] [--period T]
                         [--neutral x,y,yaw] [--min-flight S] [--json]
     contactdiff sweep SCENE --grid NAME=lo:hi:n ... [--job JOB] [--t-final T] [--backend B] [--out FILE]
-                        (contactdiff.sweep.cli)
+                        (contactdiff.sweeps.cli)
 
 SOURCE is a scene (TOML path or a name of robots/) or a robot (URDF path or
 example-robot-data name; its feet get ground contacts, chosen automatically or
@@ -204,7 +204,7 @@ def build_parser() -> argparse.ArgumentParser:
     stride.add_argument("--json", action="store_true", help="print the result as JSON")
     stride.set_defaults(run=_run_stride)
 
-    from .sweep.cli import add_parser as add_sweep
+    from .sweeps.cli import add_parser as add_sweep
 
     add_sweep(sub)
     return parser

@@ -52,7 +52,7 @@ import numpy as np
 import contactdiff as cd
 from contactdiff.analysis.order_gap import diagonal_pairs, diagonal_touchdown, order_gap
 from contactdiff.model.compliance import add_compliant_feet, compliant_state
-from contactdiff.sweep import sweep
+from contactdiff.sweeps import sweep
 
 # Reflected rotor inertia I_rotor · N² (kg m²) at each actuated joint: (low, high) bracket per robot.
 ARMATURES = {

@@ -38,7 +38,7 @@ import time
 import numpy as np
 
 import contactdiff as cd
-from contactdiff.sweep import grid, sweep
+from contactdiff.sweeps import grid, sweep
 
 SCENE = "solo12_trot"
 GAIN = "trot:kp"

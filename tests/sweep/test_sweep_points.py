@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from contactdiff.errors import InvalidInputError
-from contactdiff.sweep.points import (
+from contactdiff.sweeps.points import (
     Normal,
     Uniform,
     grid,

@@ -7,7 +7,7 @@ import pytest
 
 import contactdiff as cd
 from contactdiff.errors import InconsistentStateError, InvalidInputError, UnknownNameError
-from contactdiff.sweep.quantities import QuantityKind, apply, check_values, resolve, run_options, split
+from contactdiff.sweeps.quantities import QuantityKind, apply, check_values, resolve, run_options, split
 
 
 @pytest.fixture(scope="module")

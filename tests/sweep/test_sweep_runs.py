@@ -18,7 +18,7 @@ import pytest
 
 import contactdiff as cd
 from contactdiff.errors import InvalidInputError, ModelLoadError, UnknownNameError
-from contactdiff.sweep import engines, grid, point_list, sweep
+from contactdiff.sweeps import engines, grid, point_list, sweep
 
 BALL_HEIGHTS = {"q:z": "0.5:2:4"}
 

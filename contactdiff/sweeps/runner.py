@@ -5,7 +5,7 @@ every swept name means something, values are numbers where they must be, the
 run settings, the backend, the results file); then sends each worker
 ``(context, index, values)`` (`run_point`): the scene's source, never the
 scene. A worker rebuilds the scene once (`SceneSource.build`), derives the
-point's variant (`contactdiff.sweep.quantities.apply`), runs the job and
+point's variant (`contactdiff.sweeps.quantities.apply`), runs the job and
 returns the row, or the run's error: a failed point does not stop the sweep.
 Rows are appended to the results file as they arrive and returned in the
 order of the points.
@@ -93,18 +93,18 @@ def sweep(scene, points, job="simulate", *, t_final: float | None = None,
             rebuild the scene, Pinocchio objects do not pickle.
         points: a `PointSet` (`grid`, `point_list`, `random_points`), a mapping
             ``{name: values or "lo:hi:n"}`` (a grid) or a list of mappings. Names are
-            quantities (`contactdiff.sweep.quantities`).
+            quantities (`contactdiff.sweeps.quantities`).
         job: ``"simulate"`` (default), ``"jacobian"``, ``"order-gap"``, ``"stride"``
-            (`contactdiff.sweep.jobs`), ``"module:function"`` or a callable
+            (`contactdiff.sweeps.jobs`), ``"module:function"`` or a callable
             ``f(scene, point) -> dict``.
         t_final: final time (s) of every run, unless swept (required by the
             simulate, jacobian and order-gap jobs).
         options: `SimulateOptions` (or a mapping of its fields) for every run.
-        job_options: the job's own options (`contactdiff.sweep.jobs.JOB_OPTIONS`).
+        job_options: the job's own options (`contactdiff.sweeps.jobs.JOB_OPTIONS`).
         fixed: quantities with one value for every point (``{name: value}``); they
             are columns of the rows like the swept ones.
         backend: ``"loky"`` (local processes, default), ``"dask"`` or ``"ray"``
-            (`contactdiff.sweep.engines`).
+            (`contactdiff.sweeps.engines`).
         n_jobs: worker processes (default: one per core; 1 runs in this process).
         scheduler: a Dask scheduler's or Ray cluster's address (default: a local one).
         out: a results file (``.jsonl`` or ``.csv``) the rows are appended to as

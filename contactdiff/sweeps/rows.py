@@ -8,7 +8,7 @@ hold and what `SweepResult.to_pandas` tabulates:
     index, <point values...>, <outputs...>, error, error_message, run_time, sweep
 
 ``sweep`` identifies the sweep the row belongs to (scene, job, run settings and
-swept names; `contactdiff.sweep.runner`), so that a results file is resumed
+swept names; `contactdiff.sweeps.runner`), so that a results file is resumed
 only by the same sweep. Everything but ``run_time`` is the same, to the bit,
 whatever the backend and the number of workers.
 """
@@ -135,7 +135,7 @@ class SweepResult(list):
         return pd.DataFrame(self.to_dicts())
 
     def plot(self, path, output: str | None = None):
-        """Draw ``output`` over the sweep (`contactdiff.sweep.plot.plot_sweep`)."""
+        """Draw ``output`` over the sweep (`contactdiff.sweeps.plot.plot_sweep`)."""
         from .plot import plot_sweep
 
         return plot_sweep(self, path, output)

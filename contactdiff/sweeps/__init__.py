@@ -18,8 +18,8 @@ modules, one concept each:
     plot        a line (1-D) or a heatmap (2-D) of one output
     cli         the ``contactdiff sweep`` subcommand
 
-The top-level name ``contactdiff.sweep`` is the function; import the rest from
-this package by name (``from contactdiff.sweep import grid, random_points``).
+``contactdiff.sweep`` is the function; this package (``contactdiff.sweeps``) holds it
+and the rest (``from contactdiff.sweeps import grid, random_points``).
 """
 
 from .engines import Backend

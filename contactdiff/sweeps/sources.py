@@ -5,7 +5,7 @@ travel to another process), so a sweep sends workers a `SceneSource` and each
 worker builds the scene itself, once per process: `SceneSource.build` keeps the
 scenes it built (keyed by the source, a scene file's modification time and
 size, and the factory's arguments), and each point then derives its own
-variant (`contactdiff.sweep.quantities.apply`) without touching the kept one.
+variant (`contactdiff.sweeps.quantities.apply`) without touching the kept one.
 """
 
 from __future__ import annotations

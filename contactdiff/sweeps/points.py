@@ -1,7 +1,7 @@
 """The points of a sweep: a grid, an explicit list, or seeded random samples.
 
 A `PointSet` is a table: the names of the swept quantities
-(`contactdiff.sweep.quantities`) and one tuple of values per point, in the
+(`contactdiff.sweeps.quantities`) and one tuple of values per point, in the
 order the sweep runs them and returns its rows. Build one with
 
 * `grid` (every combination of value lists, the last name varying fastest;
