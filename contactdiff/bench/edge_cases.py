@@ -146,7 +146,7 @@ def pitch_for_gap_time(model: str, dt: float) -> float:
 
 
 def simultaneous_study(gaps=(1e-2, 1e-4, 1e-6, 1e-8, 1e-10, 1e-12, 1e-14), t_final: float = 1.5,
-                       tol: dict | None = None, rigid: bool = True) -> list[StudyRow]:
+                       tol: dict | None = None, rigid: bool = True, n_jobs: int | None = None) -> list[StudyRow]:
     """Feet landing Δt apart versus together.
 
     Soft (decoupled) trot: the final state x(Δt) and the flow Jacobian J(Δt)
@@ -156,38 +156,62 @@ def simultaneous_study(gaps=(1e-2, 1e-4, 1e-6, 1e-8, 1e-10, 1e-12, 1e-14), t_fin
     (down to rounding). Rigid (coupled) trot: the same error stays O(1) however
     small Δt (until the runs group the touchdowns as simultaneous at
     ``simultaneous_tol`` = 1e-9 s): the outcome jumps.
+
+    The runs are one sweep of `trot_touchdown` over the model and the pitch
+    (`contactdiff.sweeps`, ``n_jobs`` worker processes, default one per core).
     """
+    from ..sweeps import point_list, sweep
+
     tol = dict(TIGHT_TOL if tol is None else tol)
-    rows = []
     models = ("soft", "rigid") if rigid else ("soft",)
+    cases = [(model, dt) for model in models for dt in (0.0,) + tuple(gaps)]
+    points = point_list([{"arg:model": model, "arg:pitch": pitch_for_gap_time(model, dt) if dt else 0.0}
+                         for model, dt in cases])
+    runs = {}
+    for (model, dt), row in zip(cases, sweep(trot_touchdown, points, job=gap_run, t_final=t_final, options=tol,
+                                             n_jobs=n_jobs, progress=False)):
+        if row.error is not None:
+            raise ContactDiffError(f"near-simultaneous study, {model} trot, dt = {dt:g} s: "
+                                   f"{row.error.kind}: {row.error.message}")
+        runs[model, dt] = {k: np.asarray(v) if isinstance(v, list) else v for k, v in row.outputs.items()}
+    rows = []
     for model in models:
-        jac = model == "soft"
-        ref_scene = trot_touchdown(model, 0.0)
-        ref, _ = _run(ref_scene, t_final, jacobian=jac, **tol)
+        jac, ref, robot = model == "soft", runs[model, 0.0], trot_touchdown(model, 0.0).model
         for dt in gaps:
-            pitch = pitch_for_gap_time(model, dt)
-            scene = trot_touchdown(model, pitch)
-            traj, elapsed = _run(scene, t_final, jacobian=jac, **tol)
-            dx = np.concatenate([pin.difference(scene.model, ref.q, traj.q), traj.v - ref.v])
+            run = runs[model, dt]
+            dx = np.concatenate([pin.difference(robot, ref["q"], run["q"]), run["v"] - ref["v"]])
             err = float(np.max(np.abs(dx)))
-            touch = [e for e in traj.events if e.kind == "touchdown"]
-            details = {"pitch": pitch, "per_dt": err / dt,
-                       "events": [("simultaneous " if e.simultaneous else "") + e.kind for e in touch]}
+            details = {"pitch": run["pitch"], "per_dt": err / dt, "events": list(run["touchdowns"])}
             if jac:
-                d0 = np.concatenate([pin.difference(scene.model, ref.q0, scene.q0), scene.v0 - ref.v0])
-                details["linearisation_error"] = float(np.max(np.abs(dx - ref.jacobian @ d0)))
-                details["jacobian_change"] = float(np.max(np.abs(traj.jacobian - ref.jacobian)))
+                d0 = np.concatenate([pin.difference(robot, ref["q0"], run["q0"]), run["v0"] - ref["v0"]])
+                details["linearisation_error"] = float(np.max(np.abs(dx - ref["jacobian"] @ d0)))
+                details["jacobian_change"] = float(np.max(np.abs(run["jacobian"] - ref["jacobian"])))
                 details["jacobian_change_per_dt"] = details["jacobian_change"] / dt
                 ok = err <= 20 * dt + 1e-10 and details["jacobian_change"] <= 400 * dt + 1e-8
                 outcome = f"continuous (|dx|/dt {err / dt:.3g}, |dJ|/dt {details['jacobian_change_per_dt']:.3g})"
             else:
-                grouped = len(touch) == 1 and touch[0].simultaneous
+                grouped = details["events"] == ["simultaneous touchdown"]
                 ok = grouped or err > 1e-2
                 outcome = "grouped as simultaneous" if grouped else f"jump of {err:.3g} (order changes outcome)"
-            steps, evals = _counts(traj)
             rows.append(StudyRow("near-simultaneous", f"{model} trot", f"dt = {dt:g} s", "auto", err,
-                                 "the simultaneous run (dt = 0)", elapsed, steps, evals, outcome, ok, details))
+                                 "the simultaneous run (dt = 0)", run["time"], run["steps"], run["evaluations"],
+                                 outcome, ok, details))
     return rows
+
+
+def gap_run(scene: Scene, point: dict) -> dict:
+    """The sweep job of `simultaneous_study`: one touchdown scene run to ``t_final``, its
+    initial and final state, flow Jacobian (soft model), touchdowns, counts and time (s)."""
+    jac = point["arg:model"] == "soft"
+    options = {k: point[k] for k in ("rtol", "atol") if k in point}
+    traj, elapsed = _run(scene, point["t_final"], jacobian=jac, **options)
+    if isinstance(traj, ContactDiffError):
+        raise traj
+    steps, evals = _counts(traj)
+    return {"pitch": point["arg:pitch"], "q0": scene.q0, "v0": scene.v0, "q": traj.q, "v": traj.v,
+            "jacobian": traj.jacobian if jac else None, "time": elapsed, "steps": steps, "evaluations": evals,
+            "touchdowns": [("simultaneous " if e.simultaneous else "") + e.kind
+                           for e in traj.events if e.kind == "touchdown"]}
 
 
 # -- Zeno ---------------------------------------------------------------------------------
