@@ -127,10 +127,11 @@ def painleve_check(G: np.ndarray, slips, names) -> None:
     the scene's contact names."""
     from ..errors import PainleveError
 
+    diagonal = G.diagonal()
+    floor = 1e-12 * max(1e-300, float(np.abs(diagonal).max()))
     for slip in slips:
-        g = G[slip.row, slip.row]
-        scale = max(1e-300, float(np.max(np.abs(np.diag(G)))))
-        if g <= 1e-12 * scale:
+        g = float(diagonal[slip.row])
+        if g <= floor:
             raise PainleveError(
                 f"contact {names[slip.index]!r} slipping with mu = {slip.mu:g} along {slip.direction.tolist()}: "
                 f"A_n M^-1 (A_n - mu s^T A_T)^T = {g:.6g} <= 0, so a pushing normal force accelerates it into the "
