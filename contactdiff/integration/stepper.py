@@ -110,6 +110,9 @@ class Stepper(VariationalAlgebra, abc.ABC):
       ``variational_error_control``, accept only steps whose `_phi_scale`-scaled
       error of ``phi`` is also <= 1). Evaluate the field with `_eval_into` (it
       counts ``n_accel``) and its Jacobian with `_call_jac` (it counts ``n_jac``).
+      A trial evaluation that raises `OutsideDomainError` rejects the attempt:
+      keep the exception in ``_outside`` and try a shorter step (`_underflow`
+      then raises it).
     * ``dense(lazy=False)``: a `DenseOutput` of the last step on ``[t_old, t]``
       that stays valid after further steps.
     * ``_redo_variational(h)``: ``phi`` at ``t_old + h`` propagated from
@@ -123,7 +126,8 @@ class Stepper(VariationalAlgebra, abc.ABC):
     step's start (``y = (q, v)`` on a vector space; see `contactdiff.integration.lie`).
 
     Args:
-        accel: ``accel(t, q, v) -> dv/dt`` (nv,).
+        accel: ``accel(t, q, v) -> dv/dt`` (nv,); it may raise `OutsideDomainError`
+            where the field is not defined (see ``step()``).
         group: configuration space (`VectorSpace`, `PinocchioGroup`) or a
             ``pinocchio.Model``.
         t0: initial time (s).
