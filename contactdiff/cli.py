@@ -2,7 +2,7 @@
 
     contactdiff check SOURCE [--samples N] [--seed S] [--armature X] [--tol T] [--json]
     contactdiff simulate SOURCE --t-final T [--q JOINT=VALUE ...] [--v JOINT=VALUE ...]
-                        [--method M] [--rtol R] [--atol A] [--json] [--plot out.png]
+                        [--method M] [--rtol R] [--atol A] [--json] [--plot out.png] [--html out.html]
     contactdiff stride SOURCE --foot NAME [--newton N] [--warmup SECONDS] [--t0 T] [--period T]
                         [--neutral x,y,yaw] [--min-flight S] [--json]
     contactdiff sweep SCENE --grid NAME=lo:hi:n ... [--job JOB] [--t-final T] [--backend B] [--out FILE]
@@ -138,6 +138,12 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--json", action="store_true", help="print the trajectory summary as JSON")
     _add_plot(sim, "draw contact gaps over time with events marked; for a floating base, "
                    "the contact timeline and the base height, roll and pitch")
+    sim.add_argument("--html", metavar="FILE",
+                     help="write a self-contained HTML page that replays the run in 3-D in a browser, "
+                          "offline: the robot, its closed contacts, the events on a timeline "
+                          "(needs meshcat: pip install 'contactdiff[viz]')")
+    sim.add_argument("--fps", type=_FINITE, default=30.0,
+                     help="with --html: frames per second of simulated time (default 30; events are frames too)")
     sim.set_defaults(run=_run_simulate)
 
     bench = sub.add_parser(
@@ -268,6 +274,22 @@ def _check_plot_path(path: str) -> None:
         raise InvalidInputError(f"--plot {path!r}: unknown format {suffix!r}; valid: {', '.join(sorted(formats))}")
 
 
+def _check_html_path(path: str, fps: float) -> None:
+    """Refuse a replay that cannot be written, before any work is done: no meshcat,
+    a folder that does not exist or a folder as the file, or fps <= 0."""
+    from .replay import require_meshcat
+
+    require_meshcat()
+    target = Path(path)
+    if target.is_dir():
+        raise InvalidInputError(f"--html {path!r} is a folder; give a file name such as "
+                                f"{str(target / 'replay.html')!r}")
+    if not target.parent.is_dir():
+        raise InvalidInputError(f"--html {path!r}: folder {str(target.parent)!r} does not exist")
+    if not fps > 0:
+        raise InvalidInputError(f"--fps must be > 0, got {fps!r}")
+
+
 def _scene_from_args(args):
     """The scene of ``args.source`` (with ``--feet``, ``--floating-base``) with the
     initial state changed by ``--q`` / ``--v``."""
@@ -299,6 +321,8 @@ def _run_simulate(args) -> int:
 
     if args.plot:
         _check_plot_path(args.plot)
+    if args.html:
+        _check_html_path(args.html, args.fps)
     scene = _scene_from_args(args)
     if "list" in args.param:
         _print("\n".join(scene.parameter_names()))
@@ -307,19 +331,23 @@ def _run_simulate(args) -> int:
     with _ProgressBar(f"simulate {scene.name}", (0.0, args.t_final)) as bar:
         traj = simulate(scene, args.t_final, method=args.method, rtol=args.rtol, atol=args.atol,
                         jacobian=args.jacobian, max_steps=args.max_steps, progress=bar,
-                        dense=bool(args.plot),  # a plot samples the states between events
+                        dense=bool(args.plot or args.html),  # plot and replay sample states between events
                         parameters=parameters)
     if args.plot:
         from .plotting import plot_gait, plot_gaps
 
         # floating base: contact timeline, base height and attitude; else contact gaps
         (plot_gait if scene.robot.floating_base else plot_gaps)(traj, scene, args.plot)
+    if args.html:
+        traj.to_html(args.html, scene, fps=args.fps)
     if args.json:
         _print(json.dumps(traj.summary(), indent=2))
         return 0
     _print(_format_trajectory(traj, scene))
     if args.plot:
         _print(f"plot written to {args.plot}")
+    if args.html:
+        _print(f"replay written to {args.html}")
     return 0
 
 

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InvalidInputError
+from ..errors import ContactDiffError, InvalidInputError
 
 EVENT_KINDS = ("touchdown", "lift-off", "slip", "stick", "bounce", "grazing", "zeno")
 """``touchdown``: contacts close and stay closed (impact); ``lift-off``: an active
@@ -304,3 +304,36 @@ class Trajectory:
                  event_t=np.array([e.t for e in self.events]),
                  event_kind=np.array([e.kind for e in self.events], dtype=str),
                  event_contacts=np.array(["+".join(e.contacts) for e in self.events], dtype=str))
+
+    def to_html(self, path: str | Path, scene=None, *, fps: float = 30.0, **options) -> Path:
+        """Write a self-contained HTML page that replays this run in 3-D in a browser,
+        with no network: the robot, its closed contacts and a timeline of the events
+        (`contactdiff.replay`; needs meshcat, ``pip install 'contactdiff[viz]'``).
+
+        Args:
+            path: the ``.html`` file to write.
+            scene: the `Scene` simulated; default the scene named ``scene_name``
+                (a scene or robot name, or a file path).
+            fps: frames per second of simulated time; every event time is a frame too.
+            **options: ``contact_radius`` (m), ``title`` (see `contactdiff.replay.replay_html`).
+
+        Returns:
+            The path written.
+
+        Raises:
+            MissingExtraError: meshcat is not installed.
+            InvalidInputError: the run kept no dense output (``simulate(..., dense=True)``),
+                a bad option, or a scene that does not match the run.
+        """
+        from ..replay import write_html
+
+        if scene is None:
+            from ..model.scene_file import load_source
+
+            try:
+                scene = load_source(self.scene_name)
+            except ContactDiffError as exc:
+                raise InvalidInputError(f"to_html: scene {self.scene_name!r} cannot be loaded by name ({exc}); "
+                                        "pass the scene: traj.to_html(path, scene)") from None
+        return write_html(self, scene, path, fps=fps, **options)
+

@@ -1,0 +1,491 @@
+"""Replay a trajectory in the browser: one self-contained HTML file, no network needed.
+
+The page is meshcat's static viewer (three.js, inlined) with the robot, its
+contacts and an animation recorded in it, plus a timeline of the events::
+
+    traj = simulate(scene, 3.0, dense=True)
+    traj.to_html("trot.html", scene)          # or write_html(traj, scene, "trot.html")
+
+What is drawn:
+
+- the robot's visual geometry (meshes, boxes, spheres, cylinders of the URDF's
+  ``<visual>`` elements, loaded by Pinocchio's meshcat visualiser); a model
+  without any (the project's own ``robots/``) gets a sphere at the origin of
+  every body frame instead;
+- one red sphere per contact at its contact point (the frame origin, or the
+  lowest point of a round contact along its normal), shown exactly while the
+  contact is in the segment's mode (closed: sticking or sliding);
+- the events as ticks on a timeline under the view (colour by kind, a cursor at
+  the animation's time, a click seeks there) and listed as text.
+
+Frames: the states on a uniform grid of ``fps`` frames per second of simulated
+time from ``traj.t0`` to ``traj.t`` (the last one at ``traj.t``), plus the
+state at every event time (where a contact's marker switches), taken from the
+dense output (``simulate(..., dense=True)``). Animation time 0 is ``traj.t0``;
+the viewer plays one simulated second per second (its ``timeScale`` slider
+changes that). Positions are in metres in the world frame (z up), as in the
+model.
+
+meshcat (the optional extra ``contactdiff[viz]``) is imported only here and only
+when a page is written. Its own export (``Visualizer.static_html``) starts a
+ZMQ/web server process; this module records meshcat's commands in-process
+instead (`_Recorder`) and writes the page the same way that server does, so no
+process is started and no port is opened.
+"""
+
+from __future__ import annotations
+
+import base64
+import bisect
+import html
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+from .errors import ContactDiffError, InvalidInputError
+
+DEFAULT_FPS = 30.0
+"""Frames per second of simulated time."""
+
+MAX_FRAMES = 200_000
+"""Refuse pages with more frames than this (a long run at a high ``fps``)."""
+
+ROOT = "contactdiff"
+"""Name of the meshcat node under which the robot and the contacts are drawn."""
+
+EVENT_COLOURS = {"touchdown": "#d62728", "lift-off": "#2ca02c", "slip": "#bcbd22", "stick": "#17becf",
+                 "bounce": "#ff7f0e", "grazing": "#9467bd", "zeno": "#000000"}
+"""Timeline colour of each event kind (CSS)."""
+
+_EVENT_TOL = 1e-9  # s: a grid time this close to an event time is replaced by the event's
+
+
+class MissingExtraError(ContactDiffError, ImportError):
+    """An optional dependency of the replay (meshcat) is not installed."""
+
+
+def require_meshcat():
+    """The meshcat modules, or `MissingExtraError` naming the extra to install."""
+    try:
+        import meshcat
+        import meshcat.animation
+        import meshcat.geometry
+        import umsgpack
+    except ImportError as exc:
+        raise MissingExtraError(f"the browser replay needs meshcat ({exc}): "
+                                "pip install 'contactdiff[viz]'") from None
+    return meshcat, umsgpack
+
+
+# -- frames -------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Frames:
+    """The sampled animation.
+
+    Attributes:
+        times: frame times (s), increasing, from ``t0`` to ``t``.
+        q: configurations (n, nq).
+        modes: names of the closed contacts at each frame (right limit at events).
+        event: True where the frame is an event time.
+    """
+
+    times: np.ndarray
+    q: np.ndarray
+    modes: list[tuple[str, ...]]
+    event: np.ndarray
+
+
+def frame_times(traj, fps: float = DEFAULT_FPS) -> tuple[np.ndarray, np.ndarray]:
+    """Times of the frames (s) and whether each is an event time.
+
+    A uniform grid ``t0 + k / fps`` up to ``traj.t`` (which is added if the grid
+    misses it), merged with the event times; a grid time within 1e-9 s of an event
+    is dropped for it.
+    """
+    fps = _fps(fps)
+    span = traj.t - traj.t0
+    n = int(math.floor(span * fps + 1e-9)) + 1
+    if n > MAX_FRAMES:
+        raise InvalidInputError(f"replay: {span:g} s at fps = {fps:g} gives {n} frames, more than "
+                                f"{MAX_FRAMES}; lower fps")
+    grid = traj.t0 + np.arange(n) / fps
+    if traj.t - grid[-1] > _EVENT_TOL:
+        grid = np.append(grid, traj.t)
+    events = np.unique([e.t for e in traj.events if traj.t0 <= e.t <= traj.t])
+    keep = np.array([not events.size or np.min(np.abs(events - t)) > _EVENT_TOL for t in grid], dtype=bool)
+    times = np.concatenate([grid[keep], events])
+    is_event = np.concatenate([np.zeros(keep.sum(), bool), np.ones(events.size, bool)])
+    order = np.argsort(times, kind="stable")
+    return times[order], is_event[order]
+
+
+def sample_frames(traj, fps: float = DEFAULT_FPS) -> Frames:
+    """The states and contact modes at the `frame_times` of ``traj`` (needs its dense output)."""
+    if not traj.dense:
+        raise InvalidInputError("replay: this run kept no dense output, so the states between events are "
+                                "gone: simulate(..., dense=True) keeps them")
+    times, is_event = frame_times(traj, fps)
+    by_time = {}
+    for e in traj.events:
+        by_time.setdefault(e.t, e)  # the first event's q: q is continuous through a cascade
+    starts = [s.t0 for s in traj.segments]
+    qs, modes = [], []
+    for t, at_event in zip(times, is_event):
+        t = float(t)
+        qs.append(by_time[t].q.copy() if at_event else traj.at(t)[0])
+        i = bisect.bisect_right(starts, t) - 1  # the last segment starting at or before t
+        modes.append(tuple(traj.segments[i].mode) if i >= 0 else ())
+    return Frames(times, np.array(qs), modes, is_event)
+
+
+def _fps(fps) -> float:
+    try:
+        value = float(fps)
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"replay: fps must be a number, got {fps!r}") from None
+    if not math.isfinite(value) or value <= 0:
+        raise InvalidInputError(f"replay: fps must be finite and > 0, got {fps!r}")
+    return value
+
+
+# -- geometry ---------------------------------------------------------------------------------
+def visual_model(robot) -> pin.GeometryModel:
+    """The visual geometry of ``robot``'s URDF, as Pinocchio's loaders read it (meshes
+    found through ``package://`` against every folder above the URDF, which is where
+    example-robot-data's loader points too). Empty if the robot has no URDF or its
+    URDF has no ``<visual>``; the robot's own (dynamics-only) model is not changed."""
+    if not robot.urdf:
+        return pin.GeometryModel()
+    urdf = Path(robot.urdf)
+    try:
+        return pin.buildGeomFromUrdf(robot.model, str(urdf), pin.GeometryType.VISUAL,
+                                     package_dirs=[str(p) for p in urdf.parents])
+    except (RuntimeError, ValueError) as exc:
+        raise InvalidInputError(f"replay: cannot read the visual geometry of {str(urdf)!r}: {exc}") from None
+
+
+def _body_spheres(robot, radius: float) -> pin.GeometryModel:
+    """A sphere of ``radius`` (m) at the origin of every body frame: the stand-in
+    for a model without visual geometry."""
+    import coal
+
+    geoms = pin.GeometryModel()
+    for fid, frame in enumerate(robot.model.frames):
+        if frame.type != pin.FrameType.BODY:
+            continue
+        g = pin.GeometryObject(f"{frame.name}_sphere", frame.parentJoint, fid, frame.placement,
+                               coal.Sphere(radius))
+        g.meshColor = np.array([0.35, 0.45, 0.75, 1.0])
+        geoms.addGeometryObject(g)
+    return geoms
+
+
+def model_size(robot, q: np.ndarray) -> float:
+    """Size of the robot (m): the largest distance between two joint origins at
+    configuration ``q``, at least 0.05 m; sets the default marker sizes."""
+    data = robot.model.createData()
+    pin.forwardKinematics(robot.model, data, np.asarray(q, dtype=float))
+    points = np.array([data.oMi[j].translation for j in range(robot.model.njoints)])
+    spread = np.max(np.linalg.norm(points[:, None] - points[None], axis=-1)) if len(points) > 1 else 0.0
+    return max(float(spread), 0.05)
+
+
+# -- recording meshcat's commands --------------------------------------------------------
+class _Recorder:
+    """Stands in for meshcat's server window: keeps the scene's commands by path, as
+    the server's scene tree does, so the page can be written without a server."""
+
+    def __init__(self, umsgpack):
+        self._pack = umsgpack.packb
+        self.nodes: dict[tuple[str, ...], dict] = {}
+        self.animation: bytes | None = None
+
+    def _node(self, path: tuple[str, ...]) -> dict:
+        return self.nodes.setdefault(path, {"object": None, "properties": [], "transform": None})
+
+    def send(self, command) -> None:
+        """Record a meshcat command (``set_object``, ``set_transform``, ``set_property``,
+        ``set_animation``, ``delete``)."""
+        data = command.lower()
+        path = tuple(p for p in data["path"].split("/") if p)
+        packed = self._pack(data)
+        kind = data["type"]
+        if kind == "set_object":
+            node = self._node(path)
+            node["object"], node["properties"] = packed, []
+        elif kind == "set_transform":
+            self._node(path)["transform"] = packed
+        elif kind == "set_property":
+            self._node(path)["properties"].append(packed)
+        elif kind == "set_animation":
+            self.animation = packed
+        elif kind == "delete":
+            for key in [k for k in self.nodes if k[:len(path)] == path]:
+                del self.nodes[key]
+
+    def commands(self) -> list[bytes]:
+        """Every command, in the order meshcat's server replays them (objects, their
+        properties and transforms node by node, the animation last)."""
+        out = []
+        for node in self.nodes.values():
+            out += ([node["object"]] if node["object"] else []) + node["properties"]
+            out += [node["transform"]] if node["transform"] else []
+        return out + ([self.animation] if self.animation else [])
+
+
+# -- the page --------------------------------------------------------------------------------
+def replay_html(traj, scene, *, fps: float = DEFAULT_FPS, contact_radius: float | None = None,
+                title: str | None = None) -> str:
+    """The replay page of ``traj`` as HTML text (see the module docstring).
+
+    Args:
+        traj: a `Trajectory` with dense output (``simulate(..., dense=True)``).
+        scene: the `Scene` it was computed on (its robot and contacts).
+        fps: frames per second of simulated time (> 0).
+        contact_radius: radius of the contact markers (m); default 4% of the robot's
+            size at the first state (`model_size`).
+        title: the page's title; default the scene's name.
+
+    Raises:
+        MissingExtraError: meshcat is not installed.
+        InvalidInputError: no dense output, a bad ``fps`` or radius, or a scene whose
+            robot does not match the trajectory.
+    """
+    meshcat, umsgpack = require_meshcat()
+    from pinocchio.visualize import MeshcatVisualizer
+
+    robot = scene.robot
+    if len(traj.q0) != robot.nq:
+        raise InvalidInputError(f"replay: the trajectory's q has {len(traj.q0)} entries but scene "
+                                f"{scene.name!r}'s robot has nq = {robot.nq}; pass the scene it was computed on")
+    size = model_size(robot, traj.q0)
+    radius = 0.04 * size if contact_radius is None else _positive(contact_radius, "contact_radius")
+    frames = sample_frames(traj, fps)
+    fps = _fps(fps)
+
+    geoms = visual_model(robot)
+    if geoms.ngeoms == 0:
+        geoms = _body_spheres(robot, 0.6 * radius)
+    recorder = _Recorder(umsgpack)
+    viewer = meshcat.Visualizer(window=recorder)
+    viz = MeshcatVisualizer(robot.model, None, geoms)
+    viz.initViewer(viewer=viewer)
+    viz.loadViewerModel(rootNodeName=ROOT)
+    contacts = _load_contact_markers(viewer, scene, radius, meshcat)
+
+    animation = meshcat.animation.Animation(default_framerate=fps)
+    _record_robot(animation, viewer, viz, robot, geoms, frames, fps, meshcat)
+    _record_contacts(animation, viewer, scene, contacts, frames, fps, meshcat)
+    viewer.set_animation(animation, play=True, repetitions=1)
+    _place_camera(viewer, robot, frames, size)
+
+    info = {"scene": scene.name, "t0": traj.t0, "t": traj.t, "fps": fps, "frames": len(frames.times),
+            "contacts": list(contacts),
+            "events": [{"t": e.t, "kind": e.kind, "contacts": list(e.contacts)} for e in traj.events]}
+    return _page(recorder.commands(), info, title or f"contactdiff replay: {scene.name}", meshcat)
+
+
+def write_html(traj, scene, path: str | Path, **options) -> Path:
+    """Write `replay_html` to ``path`` (UTF-8) and return the path.
+
+    ``options`` are those of `replay_html`; a missing folder raises `InvalidInputError`.
+    """
+    target = Path(path)
+    if target.is_dir():
+        raise InvalidInputError(f"replay: {str(path)!r} is a folder; give a file name such as "
+                                f"{str(target / 'replay.html')!r}")
+    if not target.parent.is_dir():
+        raise InvalidInputError(f"replay: folder {str(target.parent)!r} of {str(path)!r} does not exist")
+    target.write_text(replay_html(traj, scene, **options), encoding="utf-8")
+    return target
+
+
+def _positive(value, name: str) -> float:
+    try:
+        out = float(value)
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"replay: {name} must be a number, got {value!r}") from None
+    if not math.isfinite(out) or out <= 0:
+        raise InvalidInputError(f"replay: {name} must be finite and > 0 (m), got {value!r}")
+    return out
+
+
+def _load_contact_markers(viewer, scene, radius: float, meshcat) -> dict[str, tuple[str, ...]]:
+    """A red sphere per contact under ``ROOT/contacts``; returns name -> meshcat path."""
+    geometry, paths = meshcat.geometry, {}
+    material = geometry.MeshPhongMaterial(color=0xD62728)
+    for c in scene.contacts:
+        node = viewer[f"{ROOT}/contacts/{c.name}"]
+        node.set_object(geometry.Sphere(radius), material)
+        node.set_property("visible", False)
+        paths[c.name] = node.path
+    return paths
+
+
+def _track(clip_tracks: dict, name: str, jstype: str, keys: np.ndarray, values: list, meshcat) -> None:
+    clip_tracks[name] = meshcat.animation.AnimationTrack(name, jstype, list(keys), values)
+
+
+def _clip(animation, path, fps: float, meshcat):
+    clip = meshcat.animation.AnimationClip(fps=fps)
+    animation.clips[path] = clip
+    return clip.tracks
+
+
+def _record_robot(animation, viewer, viz, robot, geoms, frames: Frames, fps: float, meshcat) -> None:
+    """Position and quaternion tracks of every visual geometry, one key per frame;
+    a constant scale key where the mesh is scaled."""
+    model, data, gdata = robot.model, robot.model.createData(), pin.GeometryData(geoms)
+    keys = _frame_keys(frames, fps)
+    poses = [[] for _ in range(geoms.ngeoms)]
+    for q in frames.q:
+        pin.forwardKinematics(model, data, q)
+        pin.updateGeometryPlacements(model, data, geoms, gdata)
+        for i in range(geoms.ngeoms):
+            poses[i].append(pin.SE3(gdata.oMg[i]))
+    for i, g in enumerate(geoms.geometryObjects):
+        node = viewer[viz.getViewerNodeName(g, pin.GeometryType.VISUAL)]
+        tracks = _clip(animation, node.path, fps, meshcat)
+        _track(tracks, "position", "vector3", keys, [p.translation.tolist() for p in poses[i]], meshcat)
+        _track(tracks, "quaternion", "quaternion", keys,
+               [pin.Quaternion(p.rotation).coeffs().tolist() for p in poses[i]], meshcat)  # x y z w
+        scale = np.asarray(g.meshScale, dtype=float)
+        if not np.allclose(scale, 1.0):
+            _track(tracks, "scale", "vector3", keys[:1], [scale.tolist()], meshcat)
+
+
+def _record_contacts(animation, viewer, scene, paths: dict, frames: Frames, fps: float, meshcat) -> None:
+    """Position and visibility tracks of the contact markers: visible exactly while
+    the contact is in the mode (a discrete track: each key holds until the next)."""
+    keys = _frame_keys(frames, fps)
+    points = {c.name: [] for c in scene.contacts}
+    for q in frames.q:
+        for c in scene.contacts:
+            points[c.name].append(_contact_point(scene, c, q).tolist())
+    for c in scene.contacts:
+        tracks = _clip(animation, paths[c.name], fps, meshcat)
+        _track(tracks, "position", "vector3", keys, points[c.name], meshcat)
+        _track(tracks, "visible", "boolean", keys, [c.name in m for m in frames.modes], meshcat)
+
+
+def _place_camera(viewer, robot, frames: Frames, size: float) -> None:
+    """Put the viewer's camera where it sees the whole run: it looks at the world
+    origin (meshcat's orbit target) from the side and above, at a distance that
+    covers the robot's size and how far its joints travel."""
+    model, data = robot.model, robot.model.createData()
+    reach = 0.0
+    for q in frames.q[:: max(1, len(frames.q) // 50)]:
+        pin.forwardKinematics(model, data, q)
+        reach = max(reach, max(np.linalg.norm(data.oMi[j].translation) for j in range(model.njoints)))
+    distance = 2.2 * max(size, reach)
+    x, y, z = distance * np.array([0.55, -0.75, 0.35])  # world frame, z up
+    # meshcat's camera node is rotated to three.js's y-up axes: (x, y, z) -> (x, z, -y)
+    viewer["/Cameras/default/rotated/<object>"].set_property("position", [float(x), float(z), float(-y)])
+
+
+def _contact_point(scene, contact, q: np.ndarray) -> np.ndarray:
+    """World position (m) of the contact point: the frame origin, moved by the radius
+    against the normal for a round contact."""
+    model, data = scene.robot.model, scene.robot.data
+    pin.framesForwardKinematics(model, data, q)
+    point = data.oMf[contact.fid].translation.copy()
+    radius = float(getattr(contact.spec, "radius", 0.0) or 0.0)
+    return point - radius * np.asarray(contact.normal, dtype=float)
+
+
+def _frame_keys(frames: Frames, fps: float) -> np.ndarray:
+    """Key times in frames (meshcat divides by the clip's fps): (t - t0) * fps."""
+    return ((frames.times - frames.times[0]) * fps).tolist()
+
+
+def _page(commands: list[bytes], info: dict, title: str, meshcat) -> str:
+    """The HTML page: meshcat's viewer script inlined, every command as a ``data:``
+    URI, the replay's facts as JSON and the timeline, as meshcat's server writes it."""
+    script = Path(meshcat.__file__).parent / "viewer" / "dist" / "main.min.js"
+    if not script.is_file():
+        raise MissingExtraError(f"meshcat's viewer script {str(script)!r} is missing: "
+                                "pip install --force-reinstall meshcat")
+    viewer_js = script.read_text(encoding="utf-8").replace("</script", "<\\/script")
+    drawing = "".join(
+        'fetch("data:application/octet-binary;base64,{}")'
+        ".then(r => r.arrayBuffer()).then(b => viewer.handle_command_bytearray(new Uint8Array(b)));\n"
+        .format(base64.b64encode(c).decode("ascii")) for c in commands)
+    info_json = json.dumps(info).replace("</", "<\\/")
+    events = "".join(
+        f"<li>{e['t']:.6f} s: {html.escape(e['kind'])} ({html.escape(', '.join(e['contacts']))})</li>"
+        for e in info["events"]) or "<li>none</li>"
+    return _TEMPLATE.format(title=html.escape(title), viewer_js=viewer_js, drawing=drawing, info=info_json,
+                            n_events=len(info["events"]), events=events, timeline_js=_TIMELINE_JS,
+                            colours=json.dumps(EVENT_COLOURS))
+
+
+_TIMELINE_JS = """
+(function () {
+  const info = JSON.parse(document.getElementById("contactdiff-replay").textContent);
+  const colours = JSON.parse(document.getElementById("contactdiff-colours").textContent);
+  const bar = document.getElementById("timeline"), cursor = document.getElementById("cursor");
+  const span = Math.max(info.t - info.t0, 1e-12);
+  for (const e of info.events) {
+    const tick = document.createElement("div");
+    tick.className = "tick";
+    tick.style.left = (100 * (e.t - info.t0) / span) + "%";
+    tick.style.background = colours[e.kind] || "#555";
+    tick.title = e.t.toFixed(6) + " s: " + e.kind + " (" + e.contacts.join(", ") + ")";
+    bar.appendChild(tick);
+  }
+  bar.addEventListener("click", (ev) => {
+    const r = bar.getBoundingClientRect();
+    const time = span * Math.min(1, Math.max(0, (ev.clientX - r.left) / r.width));
+    viewer.animator.pause();
+    viewer.animator.seek(time);
+    viewer.animator.display_progress(time);
+  });
+  const clock = document.getElementById("clock");
+  function follow() {
+    const time = viewer.animator.time || 0;
+    cursor.style.left = (100 * Math.min(time, span) / span) + "%";
+    clock.textContent = "t = " + (info.t0 + time).toFixed(3) + " s";
+    requestAnimationFrame(follow);
+  }
+  follow();
+})();
+"""
+
+_TEMPLATE = """<!DOCTYPE html>
+<html>
+<head><meta charset="utf-8"><title>{title}</title>
+<style>
+body {{ margin: 0; font: 13px sans-serif; }}
+#meshcat-pane {{ width: 100vw; height: 100vh; overflow: hidden; }}
+#replay-panel {{ position: fixed; left: 12px; right: 280px; bottom: 10px; background: rgba(255,255,255,0.85);
+  padding: 6px 10px; border-radius: 4px; }}
+#timeline {{ position: relative; height: 18px; background: #ddd; cursor: pointer; margin-top: 4px; }}
+#timeline .tick {{ position: absolute; top: 0; width: 2px; height: 18px; }}
+#cursor {{ position: absolute; top: -3px; width: 2px; height: 24px; background: #1f77b4; }}
+#replay-panel details {{ max-height: 30vh; overflow: auto; }}
+</style></head>
+<body>
+<div id="meshcat-pane"></div>
+<div id="replay-panel"><b>{title}</b> <span id="clock"></span>
+ <div id="timeline"><div id="cursor"></div></div>
+ <details><summary>{n_events} events (time, kind, contacts)</summary><ol id="events">{events}</ol></details>
+</div>
+<script type="application/json" id="contactdiff-replay">{info}</script>
+<script type="application/json" id="contactdiff-colours">{colours}</script>
+<script>
+{viewer_js}
+</script>
+<script>
+var viewer = new MeshCat.Viewer(document.getElementById("meshcat-pane"));
+{drawing}
+</script>
+<script>
+{timeline_js}
+</script>
+</body>
+</html>
+"""

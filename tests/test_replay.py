@@ -1,0 +1,202 @@
+"""The browser replay: one self-contained HTML page per trajectory (contactdiff.replay)."""
+
+from __future__ import annotations
+
+import base64
+import importlib.util
+import json
+import re
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from contactdiff.cli import main
+from contactdiff.integration.hybrid import simulate
+from contactdiff.model.scene_file import load_source
+from contactdiff.replay import MissingExtraError, frame_times, sample_frames
+
+ROOT = Path(__file__).resolve().parents[1]
+FPS = 20.0
+
+
+@pytest.fixture(scope="module")
+def run():
+    """planar_trot_soft for 2 s: both feet land at t = 1 (one touchdown), then lift off."""
+    scene = load_source("planar_trot_soft")
+    return scene, simulate(scene, 2.0, dense=True)
+
+
+@pytest.fixture(scope="module")
+def page(run, tmp_path_factory):
+    pytest.importorskip("meshcat")
+    scene, traj = run
+    path = tmp_path_factory.mktemp("replay") / "trot.html"
+    traj.to_html(path, scene, fps=FPS)
+    return path, path.read_text()
+
+
+def _commands(text: str) -> list[dict]:
+    """The meshcat commands embedded in the page as data URIs, unpacked."""
+    import umsgpack
+
+    blobs = re.findall(r'fetch\("data:application/octet-binary;base64,([A-Za-z0-9+/=]+)"\)', text)
+    return [umsgpack.unpackb(base64.b64decode(b)) for b in blobs]
+
+
+def _animation(text: str) -> list[dict]:
+    (command,) = [c for c in _commands(text) if c["type"] == "set_animation"]
+    return command["animations"]
+
+
+def test_the_run_has_the_events_the_tests_rely_on(run):
+    _, traj = run
+    assert [e.kind for e in traj.events][:1] == ["touchdown"]
+    assert any(e.kind == "lift-off" for e in traj.events)
+
+
+def test_the_page_needs_no_network(page):
+    _, text = page
+    # every script is inline and every asset a data: URI
+    assert not re.search(r"<script[^>]*\bsrc\s*=", text, re.I)
+    assert not re.search(r"<link[^>]*\bhref\s*=", text, re.I)
+    assert not re.search(r"""\b(?:src|href)\s*=\s*["']?\s*(?:https?:)?//""", text, re.I)
+    assert not re.search(r"""\bimport\s*(?:\(\s*)?["'](?:https?:)?//""", text, re.I)
+    assert not re.search(r"""url\(\s*["']?\s*(?:https?:)?//""", text, re.I)
+    assert not re.search(r"""fetch\(\s*["'`](?!data:)""", text, re.I)
+    fetched = re.findall(r"""fetch\(\s*["'`]([a-z]+):""", text, re.I)
+    assert fetched and set(fetched) == {"data"}
+    # the embedded commands point nowhere either
+    for command in _commands(text):
+        assert not re.search(rb"https?://", json.dumps(command, default=repr).encode())
+
+
+def test_the_page_holds_every_frame(run, page):
+    _, traj = run
+    _, text = page
+    times, is_event = frame_times(traj, FPS)
+    assert len(times) == 41 + sum(1 for t in {e.t for e in traj.events} if abs(t * FPS - round(t * FPS)) > 1e-6)
+    assert times[0] == traj.t0 and times[-1] == pytest.approx(traj.t)
+    assert set(np.round(times[is_event], 12)) == set(np.round([e.t for e in traj.events], 12))
+    info = json.loads(re.search(r'id="contactdiff-replay">(.*?)</script>', text, re.S).group(1))
+    assert info["frames"] == len(times) and info["fps"] == FPS
+    animations = _animation(text)
+    assert len(animations) >= 3  # body spheres and two contact markers
+    for animation in animations:
+        assert animation["clip"]["fps"] == FPS
+        for track in animation["clip"]["tracks"]:
+            if track["name"] in (".position", ".quaternion", ".visible"):
+                keys = [k["time"] for k in track["keys"]]
+                assert keys == pytest.approx(list((times - traj.t0) * FPS))
+
+
+def test_contact_markers_show_only_while_closed(run, page):
+    scene, traj = run
+    _, text = page
+    times, _ = frame_times(traj, FPS)
+    tracks = {a["path"].rsplit("/", 1)[-1]: a["clip"]["tracks"] for a in _animation(text)
+              if "/contacts/" in a["path"]}
+    assert set(tracks) == {"rear_foot", "front_foot"}
+    touchdown = next(e for e in traj.events if e.kind == "touchdown")
+    for name, clip in tracks.items():
+        (visible,) = [t for t in clip if t["name"] == ".visible"]
+        assert visible["type"] == "boolean"
+        shown = [k["value"] for k in visible["keys"]]
+        for t, value in zip(times, shown):
+            mode = next(s.mode for s in reversed(traj.segments) if s.t0 <= t)
+            assert value == (name in mode), (name, t)
+        # off before the touchdown, on from its exact time on
+        assert not any(v for t, v in zip(times, shown) if t < touchdown.t)
+        assert shown[list(times).index(touchdown.t)] is True
+        # the marker sits at the foot: on the ground (z = 0) while closed
+        (position,) = [t for t in clip if t["name"] == ".position"]
+        z = np.array([k["value"][2] for k in position["keys"]])
+        assert np.all(np.abs(z[np.array(shown)]) < 1e-6)
+        assert np.max(z) > 0.1
+
+
+def test_sampled_states_come_from_the_dense_output(run):
+    _, traj = run
+    frames = sample_frames(traj, FPS)
+    k = len(frames.times) // 3
+    assert np.allclose(frames.q[k], traj.at(float(frames.times[k]))[0])
+
+
+def test_the_events_are_listed_in_the_page(run, page):
+    _, traj = run
+    _, text = page
+    for e in traj.events:
+        assert f"{e.t:.6f} s: {e.kind}" in text
+
+
+def test_a_run_without_dense_output_is_refused(run, tmp_path):
+    pytest.importorskip("meshcat")
+    from contactdiff.errors import InvalidInputError
+
+    scene, _ = run
+    sparse = simulate(scene, 0.5)
+    with pytest.raises(InvalidInputError, match=r"dense=True"):
+        sparse.to_html(tmp_path / "x.html", scene)
+    with pytest.raises(InvalidInputError, match=r"fps must be finite and > 0, got -1"):
+        frame_times(sparse, -1)
+
+
+def test_missing_meshcat_gives_the_named_error(run, tmp_path, monkeypatch):
+    scene, traj = run
+    monkeypatch.setitem(sys.modules, "meshcat", None)  # import meshcat raises ImportError
+    with pytest.raises(MissingExtraError, match=r"pip install 'contactdiff\[viz\]'"):
+        traj.to_html(tmp_path / "x.html", scene)
+    assert not (tmp_path / "x.html").exists()
+    status = main(["simulate", "ball", "--t-final", "0.1", "--html", str(tmp_path / "y.html")])
+    assert status == 2 and not (tmp_path / "y.html").exists()
+
+
+def test_cli_html_writes_the_page(tmp_path, capsys):
+    pytest.importorskip("meshcat")
+    out = tmp_path / "ball.html"
+    assert main(["simulate", "ball", "--t-final", "1.6", "--html", str(out), "--fps", "10"]) == 0
+    assert f"replay written to {out}" in capsys.readouterr().out
+    text = out.read_text()
+    assert text.startswith("<!DOCTYPE html>")
+    info = json.loads(re.search(r'id="contactdiff-replay">(.*?)</script>', text, re.S).group(1))
+    # the ball (g = 1, from z = 1) bounces at t = sqrt(2): 17 grid frames at 10 fps, plus that one
+    assert info["scene"] == "ball" and [e["kind"] for e in info["events"]] == ["bounce"]
+    assert info["events"][0]["t"] == pytest.approx(2 ** 0.5) and info["frames"] == 18
+
+
+def test_cli_html_refuses_a_missing_folder(tmp_path, capsys):
+    pytest.importorskip("meshcat")
+    assert main(["simulate", "ball", "--t-final", "0.1", "--html", str(tmp_path / "no" / "x.html")]) == 2
+    assert "does not exist" in capsys.readouterr().err
+
+
+def _screenshot_script():
+    spec = importlib.util.spec_from_file_location("replay_screenshot", ROOT / "scripts" / "replay_screenshot.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.mark.browser
+def test_the_page_loads_in_headless_chromium(run, page):
+    sync_api = pytest.importorskip("playwright.sync_api")
+    script = _screenshot_script()
+    path, _ = page
+    _, traj = run
+    with sync_api.sync_playwright() as p:
+        try:
+            browser, tab, blocked = script.open_page(p, 800, 500)
+        except script.NoBrowserError as exc:
+            pytest.skip(str(exc))
+        try:
+            facts = script.load_replay(tab, path)
+            script.seek(tab, 1.5)
+            shown = tab.evaluate("""['rear_foot', 'front_foot'].map(
+                n => viewer.scene_tree.find(['meshcat', 'contactdiff', 'contacts', n]).object.visible)""")
+        finally:
+            browser.close()
+    assert facts["errors"] == [] and blocked == []
+    assert facts["duration"] == pytest.approx(traj.t - traj.t0)
+    mode = next(s.mode for s in reversed(traj.segments) if s.t0 <= 1.5)
+    assert shown == [n in mode for n in ("rear_foot", "front_foot")]
