@@ -21,6 +21,7 @@ from .guards import Guard, GuardKind
 from .options import OnGrazing
 from .parameter_jumps import ParameterJumps
 from .projection import close, held_velocity, held_velocity_jacobian
+from .resting import CASCADE_ROUNDS, cascade_outcome, resting_contacts
 from .sensitivity import (
     gap_gradient,
     impact_reset_jacobian,
@@ -38,6 +39,9 @@ tangential impulses are as small as the normal ones (1e-7 N s on ANYmal), and so
 the slip they leave (1e-6 m/s), whose direction is then the cascade's noise."""
 SPEED_TOL = 1e-12
 """m/s: a post-impact normal speed below this (scaled by the impact's speeds) counts as zero."""
+RESTING_GAP_TOL = 1e-9
+"""Outcomes of an impact against a resting contact differing by less than this share of
+the velocities (the impact law's round-off is about 1e-15 of them) count as one."""
 
 
 class EventResets:
@@ -102,6 +106,29 @@ class EventResets:
             current = after
         return xi, xi_p
 
+    def _resting_outcomes(self, t, q, v_minus, v_plus, mode, closed, touching, nonsmooth):
+        """Where a landing meets a coupled resting contact (`contactdiff.integration.resting`):
+        mark ``nonsmooth`` and return both outcomes, if they differ; else None."""
+        dyn = self.dyn
+        resting = resting_contacts(dyn, q, v_minus, t, mode, closed, touching)
+        if not resting:
+            return None
+        v_cascade, impacts = cascade_outcome(dyn, q, v_minus, closed, list(resting), touching)
+        dyn.kin.update(q, v_plus)
+        scale = max(float(np.max(np.abs(v_minus))), float(np.max(np.abs(v_plus))), 1e-300)
+        gap = float(np.max(np.abs(v_cascade - v_plus)))
+        if gap <= RESTING_GAP_TOL * scale:
+            return None
+        pairs = "; ".join(f"{self.names[dyn.contact_index(k)]} (coupling "
+                          + ", ".join(f"{self.names[j]} {c:.3g}" for j, c in coupled.items()) + ")"
+                          for k, coupled in resting.items())
+        ended = f"{impacts} impacts" if impacts <= CASCADE_ROUNDS else f"not ended after {CASCADE_ROUNDS} impacts"
+        nonsmooth[NonSmooth.RESTING_CONTACT] = self._note(
+            f"not differentiable at t = {t:.12g}: {', '.join(self.names[i] for i in touching)} landed against "
+            f"resting {pairs}; opened by a perturbation, the impact is a cascade ({ended}) whose velocity after "
+            f"differs by up to {gap:.3g} (event.outcomes)")
+        return {"simultaneous": v_plus.copy(), "cascade": v_cascade}
+
     def _impact(self, t, q, v_minus, mode, closed, touching, releasing=(), initial=False):
         """Impact of the ``closed`` contacts (keys: a sliding contact takes part with its
         normal row), ``touching`` being those whose guard fired (at the start,
@@ -121,6 +148,7 @@ class EventResets:
         for i in zeno:
             e[closed.index(i)] = 0.0
         impact = resolve_impact(dyn, q, v_minus, closed, e)
+        impact_keys = list(closed)
         v_plus = impact.v_plus
         if impact.states is not None:  # Coulomb friction: each contact sticks or slides on
             closed, creeping = self._friction_keys(q, impact)
@@ -174,12 +202,14 @@ class EventResets:
             kind = "touchdown"
         else:
             kind = "bounce"
+        outcomes = None if initial else self._resting_outcomes(t, q, v_minus, v_plus, mode, impact_keys, touching,
+                                                                nonsmooth)
         impulses = {self.names[dyn.contact_index(k)]: float(x) for k, x in zip(closed, impact.impulses)}
         event = Event(t=t, kind=kind, contacts=self._mode_names(touching), simultaneous=len(touching) > 1,
                       q=q.copy(), v_minus=v_minus.copy(), v_plus=v_plus.copy(), impulses=impulses,
                       mode_before=self._mode_names(mode), mode_after=self._mode_names(new_mode),
                       normal_speeds={self.names[i]: s for i, s in speeds.items()},
-                      sliding=self._sliding_names(new_mode), nonsmooth=nonsmooth)
+                      sliding=self._sliding_names(new_mode), nonsmooth=nonsmooth, outcomes=outcomes)
         def reset_jacobian():
             DR = impact_reset_jacobian(self.dyn, q, v_minus, impact)
             if settled:  # the reset is the impact followed by holding the settled contacts

@@ -36,6 +36,9 @@ class NonSmooth(Enum):
     ORDER = "the landing orders of a simultaneous touchdown give different saltation matrices"
     GRAZING = "a contact closed with zero normal speed"
     ZENO_CASCADE = "an impact cascade was ended by the Zeno rule (a contact lifted slower than zeno_speed kept closed)"
+    RESTING_CONTACT = ("a contact landed while a contact coupled to it through the inverse mass rested (closed "
+                       "with zero normal force): opened by a perturbation, the impact is a cascade with another "
+                       "outcome (`Event.outcomes`)")
     FRICTION_THRESHOLD = ("the tangential force sits on the friction cone's boundary without crossing it "
                           "(neighbouring runs stick or slip: the stick/slip threshold)")
 
@@ -117,6 +120,10 @@ class Event:
         saltation_orders: at a simultaneous touchdown, the saltation matrix of
             every landing order (keys: contact names in landing order).
         sliding: the contacts of ``mode_after`` that slide (normal row only).
+        outcomes: at an impact against a resting contact (`NonSmooth.RESTING_CONTACT`),
+            the velocity after it (nv,) of each outcome: ``"simultaneous"`` (the run's,
+            ``v_plus``) and ``"cascade"`` (the resting contacts opened by a perturbation;
+            `contactdiff.integration.resting`).
     """
 
     t: float
@@ -137,12 +144,14 @@ class Event:
     sliding: tuple[str, ...] = ()
     parameter_saltation: np.ndarray | None = None
     parameter_time_gradient: np.ndarray | None = None
+    outcomes: dict[str, np.ndarray] | None = None
 
     @property
     def differentiable(self) -> bool:
         """False where the flow has only a piecewise-linear (Bouligand) derivative:
         the landing orders of a simultaneous event disagree, a grazing touchdown,
-        or an impact cascade cut off by the Zeno rule (see ``nonsmooth``)."""
+        an impact cascade cut off by the Zeno rule, an impact against a resting
+        contact, the stick/slip threshold (see ``nonsmooth``)."""
         return not self.nonsmooth
 
     def to_dict(self) -> dict:
@@ -156,6 +165,8 @@ class Event:
         if self.parameter_saltation is not None:
             extra["parameter_saltation"] = self.parameter_saltation.tolist()
             extra["parameter_time_gradient"] = self.parameter_time_gradient.tolist()
+        if self.outcomes:
+            extra["outcomes"] = {name: v.tolist() for name, v in self.outcomes.items()}
         if self.saltation_orders:
             extra["saltation_orders"] = {" > ".join(k): m.tolist() for k, m in self.saltation_orders.items()}
         return extra | {
