@@ -277,15 +277,10 @@ def _check_plot_path(path: str) -> None:
 def _check_html_path(path: str, fps: float) -> None:
     """Refuse a replay that cannot be written, before any work is done: no meshcat,
     a folder that does not exist or a folder as the file, or fps <= 0."""
-    from .replay import require_meshcat
+    from .replay import html_target, require_meshcat
 
     require_meshcat()
-    target = Path(path)
-    if target.is_dir():
-        raise InvalidInputError(f"--html {path!r} is a folder; give a file name such as "
-                                f"{str(target / 'replay.html')!r}")
-    if not target.parent.is_dir():
-        raise InvalidInputError(f"--html {path!r}: folder {str(target.parent)!r} does not exist")
+    html_target(path)
     if not fps > 0:
         raise InvalidInputError(f"--fps must be > 0, got {fps!r}")
 

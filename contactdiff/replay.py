@@ -106,7 +106,7 @@ def frame_times(traj, fps: float = DEFAULT_FPS) -> tuple[np.ndarray, np.ndarray]
     misses it), merged with the event times; a grid time within 1e-9 s of an event
     is dropped for it.
     """
-    fps = _fps(fps)
+    fps = _positive(fps, "fps", "frames per second")
     span = traj.t - traj.t0
     n = int(math.floor(span * fps + 1e-9)) + 1
     if n > MAX_FRAMES:
@@ -140,16 +140,6 @@ def sample_frames(traj, fps: float = DEFAULT_FPS) -> Frames:
         i = bisect.bisect_right(starts, t) - 1  # the last segment starting at or before t
         modes.append(tuple(traj.segments[i].mode) if i >= 0 else ())
     return Frames(times, np.array(qs), modes, is_event)
-
-
-def _fps(fps) -> float:
-    try:
-        value = float(fps)
-    except (TypeError, ValueError):
-        raise InvalidInputError(f"replay: fps must be a number, got {fps!r}") from None
-    if not math.isfinite(value) or value <= 0:
-        raise InvalidInputError(f"replay: fps must be finite and > 0, got {fps!r}")
-    return value
 
 
 # -- geometry ---------------------------------------------------------------------------------
@@ -265,7 +255,7 @@ def replay_html(traj, scene, *, fps: float = DEFAULT_FPS, contact_radius: float 
     size = model_size(robot, traj.q0)
     radius = 0.04 * size if contact_radius is None else _positive(contact_radius, "contact_radius")
     frames = sample_frames(traj, fps)
-    fps = _fps(fps)
+    fps = _positive(fps, "fps", "frames per second")
 
     geoms = visual_model(robot)
     if geoms.ngeoms == 0:
@@ -294,23 +284,31 @@ def write_html(traj, scene, path: str | Path, **options) -> Path:
 
     ``options`` are those of `replay_html`; a missing folder raises `InvalidInputError`.
     """
+    target = html_target(path)
+    target.write_text(replay_html(traj, scene, **options), encoding="utf-8")
+    return target
+
+
+def html_target(path: str | Path) -> Path:
+    """``path`` as a file a page can be written to, else `InvalidInputError`: a folder,
+    or a file in a folder that does not exist."""
     target = Path(path)
     if target.is_dir():
         raise InvalidInputError(f"replay: {str(path)!r} is a folder; give a file name such as "
                                 f"{str(target / 'replay.html')!r}")
     if not target.parent.is_dir():
         raise InvalidInputError(f"replay: folder {str(target.parent)!r} of {str(path)!r} does not exist")
-    target.write_text(replay_html(traj, scene, **options), encoding="utf-8")
     return target
 
 
-def _positive(value, name: str) -> float:
+def _positive(value, name: str, unit: str = "m") -> float:
+    """``value`` as a finite float > 0, else `InvalidInputError` naming it and its unit."""
     try:
         out = float(value)
     except (TypeError, ValueError):
         raise InvalidInputError(f"replay: {name} must be a number, got {value!r}") from None
     if not math.isfinite(out) or out <= 0:
-        raise InvalidInputError(f"replay: {name} must be finite and > 0 (m), got {value!r}")
+        raise InvalidInputError(f"replay: {name} must be finite and > 0 ({unit}), got {value!r}")
     return out
 
 

@@ -138,7 +138,7 @@ def test_a_run_without_dense_output_is_refused(run, tmp_path):
     sparse = simulate(scene, 0.5)
     with pytest.raises(InvalidInputError, match=r"dense=True"):
         sparse.to_html(tmp_path / "x.html", scene)
-    with pytest.raises(InvalidInputError, match=r"fps must be finite and > 0, got -1"):
+    with pytest.raises(InvalidInputError, match=r"fps must be finite and > 0 \(frames per second\), got -1"):
         frame_times(sparse, -1)
 
 
