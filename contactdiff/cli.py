@@ -22,41 +22,10 @@ import json
 import os
 import sys
 import time
-from pathlib import Path
 
+from .cli_args import COUNT, FINITE, NONNEGATIVE, POSITIVE, SEED, Number, add_plot, check_plot_path
+from .cli_args import print_flushed as _print
 from .errors import ContactDiffError, InvalidInputError
-
-
-class _Number:
-    """An argparse type: a number (``int`` or ``float``) in a range, with a message
-    that names the range rather than a Python function."""
-
-    def __init__(self, kind: type, minimum: float | None = None, *, strict: bool = False,
-                 what: str | None = None):
-        self.kind, self.minimum, self.strict = kind, minimum, strict
-        self.what = what or ("an integer" if kind is int else "a finite number")
-
-    def __call__(self, text: str):
-        try:
-            value = self.kind(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"must be {self._range()}, got {text!r}") from None
-        if value != value or value in (float("inf"), float("-inf")) or (
-                self.minimum is not None and (value <= self.minimum if self.strict else value < self.minimum)):
-            raise argparse.ArgumentTypeError(f"must be {self._range()}, got {text!r}")
-        return value
-
-    def _range(self) -> str:
-        if self.minimum is None:
-            return self.what
-        return f"{self.what} {'>' if self.strict else '>='} {self.minimum:g}"
-
-
-_COUNT = _Number(int, 0)
-_SEED = _Number(int, 0, what="an integer seed")
-_NONNEGATIVE = _Number(float, 0.0)
-_POSITIVE = _Number(float, 0.0, strict=True)
-_FINITE = _Number(float)
 
 
 class _Parser(argparse.ArgumentParser):
@@ -78,11 +47,6 @@ def _add_source(parser: argparse.ArgumentParser) -> None:
                         help="load a URDF path with a free-flyer base (its feet are then found)")
 
 
-def _add_plot(parser: argparse.ArgumentParser, help_text: str) -> None:
-    parser.add_argument("--plot", metavar="FILE", help=help_text + " (any format matplotlib writes: "
-                                                                    "png, pdf, svg, ...)")
-
-
 def build_parser() -> argparse.ArgumentParser:
     """The ``contactdiff`` argument parser: subcommands check, simulate, bench, stride and sweep."""
     parser = _Parser(
@@ -94,13 +58,13 @@ def build_parser() -> argparse.ArgumentParser:
         description="Measure how far a scene is from the paper's assumptions: inverse-mass "
                     "coupling of every contact pair, and limbs decoupled through the body.")
     _add_source(check)
-    check.add_argument("--samples", type=_COUNT, default=20,
+    check.add_argument("--samples", type=COUNT, default=20,
                        help="random poses besides the reference (default 20)")
-    check.add_argument("--seed", type=_SEED, default=0, help="seed of the random poses, >= 0 (default 0)")
-    check.add_argument("--armature", type=_NONNEGATIVE, default=0.0,
+    check.add_argument("--seed", type=SEED, default=0, help="seed of the random poses, >= 0 (default 0)")
+    check.add_argument("--armature", type=NONNEGATIVE, default=0.0,
                        help="rotor inertia added to actuated joints, kg m^2; the report "
                             "is compared with the one without it")
-    check.add_argument("--tol", type=_POSITIVE, default=1e-9,
+    check.add_argument("--tol", type=POSITIVE, default=1e-9,
                        help="relative size below which a coupling counts as zero (default 1e-9)")
     check.add_argument("--json", action="store_true", help="print the report as JSON")
     check.set_defaults(run=_run_check)
@@ -113,7 +77,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Integrate a scene event by event (touchdown, lift-off, bounce) and "
                     "print its events and final state.")
     _add_source(sim)
-    sim.add_argument("--t-final", type=_FINITE, required=True, help="final time (s)")
+    sim.add_argument("--t-final", type=FINITE, required=True, help="final time (s)")
     sim.add_argument("--q", action="append", default=[], metavar="JOINT=VALUE",
                      help="initial joint coordinate (repeatable); comma-separated for multi-dof joints")
     sim.add_argument("--v", action="append", default=[], metavar="JOINT=VALUE",
@@ -121,11 +85,11 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--method", default="auto", choices=("auto",) + tuple(METHODS),
                      help="stepper: auto (DOP853, switching to Radau while stiff; the default), "
                           "or one used throughout")
-    sim.add_argument("--rtol", type=_FINITE, default=1e-8,
+    sim.add_argument("--rtol", type=FINITE, default=1e-8,
                      help=f"relative tolerance in [{RTOL_MIN:.3g}, {RTOL_MAX:g}] (default 1e-8)")
-    sim.add_argument("--atol", type=_FINITE, default=1e-10,
+    sim.add_argument("--atol", type=FINITE, default=1e-10,
                      help=f"absolute tolerance in (0, {ATOL_MAX:g}] (m, rad, m/s; default 1e-10)")
-    sim.add_argument("--max-steps", type=_COUNT, default=MAX_STEPS,
+    sim.add_argument("--max-steps", type=COUNT, default=MAX_STEPS,
                      help="step budget: a run needing more accepted steps stops with an error "
                           f"(default {MAX_STEPS})")
     sim.add_argument("--jacobian", action="store_true",
@@ -136,13 +100,13 @@ def build_parser() -> argparse.ArgumentParser:
                           "scene:gravity_z; repeatable; 'all' for every parameter of the scene; "
                           "'list' prints the names); with --jacobian also the state's flow Jacobian")
     sim.add_argument("--json", action="store_true", help="print the trajectory summary as JSON")
-    _add_plot(sim, "draw contact gaps over time with events marked; for a floating base, "
+    add_plot(sim, "draw contact gaps over time with events marked; for a floating base, "
                    "the contact timeline and the base height, roll and pitch")
     sim.add_argument("--html", metavar="FILE",
                      help="write a self-contained HTML page that replays the run in 3-D in a browser, "
                           "offline: the robot, its closed contacts, the events on a timeline "
                           "(needs meshcat: pip install 'contactdiff[viz]')")
-    sim.add_argument("--fps", type=_FINITE, default=30.0,
+    sim.add_argument("--fps", type=FINITE, default=30.0,
                      help="with --html: frames per second of simulated time (default 30; events are frames too)")
     sim.set_defaults(run=_run_simulate)
 
@@ -153,19 +117,19 @@ def build_parser() -> argparse.ArgumentParser:
                     "project's scenes, and the cost of flow Jacobians against finite differences.")
     bench.add_argument("--scenes", nargs="+", metavar="SCENE", help="scenes to run (default all)")
     bench.add_argument("--quick", action="store_true", help="a tiny sweep of a few seconds (tests, CI)")
-    bench.add_argument("--repeats", type=_Number(int, 1), default=3,
+    bench.add_argument("--repeats", type=Number(int, 1), default=3,
                        help="timing repeats, median kept (default 3)")
     bench.add_argument("--json", action="store_true", help="print the results as JSON")
-    _add_plot(bench, "write the log-log error vs run time plot")
+    add_plot(bench, "write the log-log error vs run time plot")
     bench.add_argument("--studies", action="store_true",
                        help="also run the stiff and extreme-case studies and measure what a scene "
                             "costs beyond its needs (with --quick: seconds; without: minutes)")
     bench.add_argument("--speed", action="store_true",
                        help="instead: time the quadruped trots against real time and against Pinocchio's "
                             "own calls (--scenes chooses the trots)")
-    bench.add_argument("--t-final", type=_Number(float, 0.0, strict=True), default=3.0,
+    bench.add_argument("--t-final", type=Number(float, 0.0, strict=True), default=3.0,
                        help="with --speed: simulated time of each timed run, s (default 3)")
-    bench.add_argument("--memory", type=_Number(float, 0.0, strict=True), metavar="SECONDS",
+    bench.add_argument("--memory", type=Number(float, 0.0, strict=True), metavar="SECONDS",
                        help="with --speed: also the peak memory of a solo12 trot this long keeping events only")
     bench.set_defaults(run=_run_bench)
 
@@ -178,24 +142,24 @@ def build_parser() -> argparse.ArgumentParser:
                     "touchdown.")
     _add_source(stride)
     stride.add_argument("--foot", required=True, help="contact whose touchdowns define the section")
-    stride.add_argument("--newton", type=_COUNT, default=0, metavar="N",
+    stride.add_argument("--newton", type=COUNT, default=0, metavar="N",
                         help="Newton iterations towards a periodic gait (default 0: one stride)")
-    stride.add_argument("--tol", type=_NONNEGATIVE, default=1e-9,
+    stride.add_argument("--tol", type=NONNEGATIVE, default=1e-9,
                         help="residual at which Newton stops (default 1e-9); it also stops where the "
                              "residual is within the map's resolution, twice its change when the stride "
                              "is computed again at 10 times tighter tolerances")
-    stride.add_argument("--t0", type=_FINITE, default=0.0, help="start time (s, default 0)")
-    stride.add_argument("--t-max", type=_FINITE, default=10.0, help="longest stride (s, default 10)")
-    stride.add_argument("--min-stride", type=_FINITE, default=None,
+    stride.add_argument("--t0", type=FINITE, default=0.0, help="start time (s, default 0)")
+    stride.add_argument("--t-max", type=FINITE, default=10.0, help="longest stride (s, default 10)")
+    stride.add_argument("--min-stride", type=FINITE, default=None,
                         help="shortest stride (s): earlier re-landings of the foot are skipped "
                              "(default: half the clock period of a clock-driven scene, else 0)")
-    stride.add_argument("--min-flight", type=_FINITE, default=None,
+    stride.add_argument("--min-flight", type=FINITE, default=None,
                         help="shortest flight (s) before a touchdown that ends a stride: re-landings of "
                              "impact cascades are skipped (default: 5 %% of the clock period, else 0)")
-    stride.add_argument("--warmup", type=_FINITE, default=0.0, metavar="SECONDS",
+    stride.add_argument("--warmup", type=FINITE, default=0.0, metavar="SECONDS",
                         help="simulate this long before the search: a stable gait settles on its own "
                              "(default 0)")
-    stride.add_argument("--period", type=_FINITE, default=None,
+    stride.add_argument("--period", type=FINITE, default=None,
                         help="clock period (s) of a clock-driven scene (default: from its controller)")
     stride.add_argument("--neutral", default=None, metavar="MOVES",
                         help="neutral moves removed, comma-separated from x, y, yaw, or 'none' "
@@ -205,8 +169,8 @@ def build_parser() -> argparse.ArgumentParser:
     stride.add_argument("--v", action="append", default=[], metavar="JOINT=VALUE",
                         help="initial joint velocity (repeatable)")
     stride.add_argument("--method", default="DOP853", choices=METHODS, help="stepper (default DOP853)")
-    stride.add_argument("--rtol", type=_FINITE, default=1e-10, help="relative tolerance (default 1e-10)")
-    stride.add_argument("--atol", type=_FINITE, default=1e-12, help="absolute tolerance (default 1e-12)")
+    stride.add_argument("--rtol", type=FINITE, default=1e-10, help="relative tolerance (default 1e-10)")
+    stride.add_argument("--atol", type=FINITE, default=1e-12, help="absolute tolerance (default 1e-12)")
     stride.add_argument("--json", action="store_true", help="print the result as JSON")
     stride.set_defaults(run=_run_stride)
 
@@ -243,7 +207,7 @@ def _run_bench(args) -> int:
         return 0
 
     if args.plot:
-        _check_plot_path(args.plot)
+        check_plot_path(args.plot)
     result = run_bench(scenes=args.scenes, repeats=args.repeats, quick=args.quick, studies=args.studies)
     if args.plot:
         from .plotting import plot_bench
@@ -253,25 +217,6 @@ def _run_bench(args) -> int:
     if args.plot and not args.json:
         _print(f"plot written to {args.plot}")
     return 0
-
-
-def _check_plot_path(path: str) -> None:
-    """Refuse a plot file that cannot be written, before any work is done: no
-    matplotlib, a folder that does not exist, or a format matplotlib cannot write."""
-    try:
-        from matplotlib.figure import Figure
-    except ImportError:
-        raise InvalidInputError("--plot needs matplotlib: pip install 'contactdiff[plot]'") from None
-    target = Path(path)
-    folder = target.parent
-    if not folder.is_dir():
-        raise InvalidInputError(f"--plot {path!r}: folder {str(folder)!r} does not exist")
-    if target.is_dir():
-        raise InvalidInputError(f"--plot {path!r} is a folder; give a file name such as {str(target / 'plot.png')!r}")
-    formats = Figure().canvas.get_supported_filetypes()
-    suffix = target.suffix.lower().lstrip(".")
-    if suffix and suffix not in formats:
-        raise InvalidInputError(f"--plot {path!r}: unknown format {suffix!r}; valid: {', '.join(sorted(formats))}")
 
 
 def _check_html_path(path: str, fps: float) -> None:
@@ -315,7 +260,7 @@ def _run_simulate(args) -> int:
     from .integration.hybrid import simulate
 
     if args.plot:
-        _check_plot_path(args.plot)
+        check_plot_path(args.plot)
     if args.html:
         _check_html_path(args.html, args.fps)
     scene = _scene_from_args(args)
@@ -474,10 +419,6 @@ def _run_check(args) -> int:
         _print(f"\narmature {args.armature:g}: max coupling {baseline.max_coupling:.3e} -> "
                f"{report.max_coupling:.3e}; verdict {baseline.verdict} -> {report.verdict}")
     return 0
-
-
-def _print(text: str) -> None:
-    print(text, flush=True)  # flushed here, so that a closed pipe raises inside main's guard
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -15,6 +15,7 @@ import argparse
 import json
 from pathlib import Path
 
+from ..cli_args import COUNT, FINITE, SEED, Number, add_plot, check_plot_path, print_flushed
 from ..errors import InvalidInputError, ModelLoadError
 
 TABLE_ROWS = 200
@@ -23,7 +24,6 @@ TABLE_ROWS = 200
 
 def add_parser(sub) -> None:
     """Add ``sweep`` to the ``contactdiff`` subcommands ``sub``."""
-    from ..cli import _COUNT, _FINITE, _SEED, _add_plot, _Number
     from .engines import Backend
     from .jobs import JobKind
     from .points import DISTRIBUTIONS
@@ -46,8 +46,8 @@ def add_parser(sub) -> None:
     points.add_argument("--random", action="append", default=[], metavar="NAME=DIST",
                         help=f"random samples, DIST {' or '.join(f'{d}:A:B' for d in DISTRIBUTIONS)} "
                              "(uniform low:high, normal mean:std)")
-    points.add_argument("--samples", type=_Number(int, 1), default=None, help="number of random samples")
-    points.add_argument("--seed", type=_SEED, default=0, help="seed of the random samples (default 0)")
+    points.add_argument("--samples", type=Number(int, 1), default=None, help="number of random samples")
+    points.add_argument("--seed", type=SEED, default=0, help="seed of the random samples (default 0)")
     points.add_argument("--points", metavar="FILE", help="explicit points from a JSON list of objects or JSON Lines")
     points.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                         help="a quantity fixed at one value for every point (repeatable)")
@@ -55,20 +55,20 @@ def add_parser(sub) -> None:
     job.add_argument("--job", default=JobKind.SIMULATE.value, metavar="JOB",
                      help=f"{', '.join(JobKind)}, or module:function taking (scene, point) and returning a dict "
                           "(default simulate)")
-    job.add_argument("--t-final", type=_FINITE, default=None, help="final time (s) of every run, unless swept")
-    job.add_argument("--rtol", type=_FINITE, default=None, help="relative tolerance (default: the job's)")
-    job.add_argument("--atol", type=_FINITE, default=None, help="absolute tolerance (m, rad, m/s; default: the job's)")
+    job.add_argument("--t-final", type=FINITE, default=None, help="final time (s) of every run, unless swept")
+    job.add_argument("--rtol", type=FINITE, default=None, help="relative tolerance (default: the job's)")
+    job.add_argument("--atol", type=FINITE, default=None, help="absolute tolerance (m, rad, m/s; default: the job's)")
     job.add_argument("--method", default=None, help="stepper (default: the job's)")
-    job.add_argument("--max-steps", type=_COUNT, default=None, help="step budget of each run")
+    job.add_argument("--max-steps", type=COUNT, default=None, help="step budget of each run")
     job.add_argument("--param", action="append", default=[], metavar="NAME",
                      help="jacobian job: also differentiate in this scene parameter (repeatable; 'all')")
     job.add_argument("--contacts", metavar="A,B", help="order-gap job: only this pair of contacts")
     job.add_argument("--foot", help="stride job: the contact whose touchdowns define the stride")
-    job.add_argument("--newton", type=_COUNT, default=None, metavar="N", help="stride job: Newton iterations")
+    job.add_argument("--newton", type=COUNT, default=None, metavar="N", help="stride job: Newton iterations")
     engine = parser.add_argument_group("engine")
     engine.add_argument("--backend", default=Backend.LOKY.value,
                         help=f"{', '.join(Backend)} (default loky: local processes, no server)")
-    engine.add_argument("--jobs", type=_Number(int, 1), default=None, metavar="N",
+    engine.add_argument("--jobs", type=Number(int, 1), default=None, metavar="N",
                         help="worker processes (default: one per core; 1 runs in this process)")
     engine.add_argument("--scheduler", metavar="ADDRESS",
                         help="dask: scheduler address (tcp://host:8786); ray: cluster address (auto); "
@@ -78,7 +78,7 @@ def add_parser(sub) -> None:
                         help="results file, .jsonl or .csv, written as runs finish; run again with the same "
                              "file to skip the points already done")
     output.add_argument("--retry-failed", action="store_true", help="with --out: run failed points again")
-    _add_plot(output, "draw one output over a 1-D (line) or 2-D (heatmap) sweep")
+    add_plot(output, "draw one output over a 1-D (line) or 2-D (heatmap) sweep")
     output.add_argument("--plot-output", metavar="NAME", help="the output to plot (default: the job's)")
     output.add_argument("--json", action="store_true", help="print every row as JSON")
     parser.set_defaults(run=run)
@@ -86,11 +86,10 @@ def add_parser(sub) -> None:
 
 def run(args) -> int:
     """Run ``contactdiff sweep`` from parsed ``args``; return the exit status."""
-    from ..cli import _check_plot_path, _print
     from .runner import sweep
 
     if args.plot:
-        _check_plot_path(args.plot)
+        check_plot_path(args.plot)
     options = {k: v for k, v in (("rtol", args.rtol), ("atol", args.atol), ("method", args.method),
                                  ("max_steps", args.max_steps)) if v is not None}
     job_options = {k: v for k, v in (("parameters", args.param or None), ("contacts", args.contacts),
@@ -101,11 +100,11 @@ def run(args) -> int:
     if args.plot:
         result.plot(args.plot, args.plot_output)
     if args.json:
-        _print(json.dumps({"names": list(result.names), "points": len(result), "skipped": result.skipped,
+        print_flushed(json.dumps({"names": list(result.names), "points": len(result), "skipped": result.skipped,
                            "failed": len(result.failed), "wall_time": result.wall_time,
                            "rows": result.to_dicts()}, indent=2))
         return 0
-    _print(format_result(result, args))
+    print_flushed(format_result(result, args))
     return 0
 
 

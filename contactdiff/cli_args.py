@@ -1,0 +1,73 @@
+"""Argument types and checks shared by the ``contactdiff`` subcommands (`contactdiff.cli`,
+`contactdiff.sweeps.cli`): numbers in a range with messages that name the range, the
+``--plot`` option and its early check, and flushed printing."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from .errors import InvalidInputError
+
+
+class Number:
+    """An argparse type: a number (``int`` or ``float``) in a range, with a message
+    that names the range rather than a Python function."""
+
+    def __init__(self, kind: type, minimum: float | None = None, *, strict: bool = False,
+                 what: str | None = None):
+        self.kind, self.minimum, self.strict = kind, minimum, strict
+        self.what = what or ("an integer" if kind is int else "a finite number")
+
+    def __call__(self, text: str):
+        """``text`` as the number, or `argparse.ArgumentTypeError` naming the range."""
+        try:
+            value = self.kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"must be {self._range()}, got {text!r}") from None
+        if value != value or value in (float("inf"), float("-inf")) or (
+                self.minimum is not None and (value <= self.minimum if self.strict else value < self.minimum)):
+            raise argparse.ArgumentTypeError(f"must be {self._range()}, got {text!r}")
+        return value
+
+    def _range(self) -> str:
+        if self.minimum is None:
+            return self.what
+        return f"{self.what} {'>' if self.strict else '>='} {self.minimum:g}"
+
+
+COUNT = Number(int, 0)
+SEED = Number(int, 0, what="an integer seed")
+NONNEGATIVE = Number(float, 0.0)
+POSITIVE = Number(float, 0.0, strict=True)
+FINITE = Number(float)
+
+
+def add_plot(parser: argparse.ArgumentParser, help_text: str) -> None:
+    """The ``--plot FILE`` option, its help ``help_text`` and the formats."""
+    parser.add_argument("--plot", metavar="FILE", help=help_text + " (any format matplotlib writes: "
+                                                                    "png, pdf, svg, ...)")
+
+
+def check_plot_path(path: str) -> None:
+    """Refuse a plot file that cannot be written, before any work is done: no
+    matplotlib, a folder that does not exist, or a format matplotlib cannot write."""
+    try:
+        from matplotlib.figure import Figure
+    except ImportError:
+        raise InvalidInputError("--plot needs matplotlib: pip install 'contactdiff[plot]'") from None
+    target = Path(path)
+    folder = target.parent
+    if not folder.is_dir():
+        raise InvalidInputError(f"--plot {path!r}: folder {str(folder)!r} does not exist")
+    if target.is_dir():
+        raise InvalidInputError(f"--plot {path!r} is a folder; give a file name such as {str(target / 'plot.png')!r}")
+    formats = Figure().canvas.get_supported_filetypes()
+    suffix = target.suffix.lower().lstrip(".")
+    if suffix and suffix not in formats:
+        raise InvalidInputError(f"--plot {path!r}: unknown format {suffix!r}; valid: {', '.join(sorted(formats))}")
+
+
+def print_flushed(text: str) -> None:
+    """Print ``text`` and flush, so that a closed pipe raises where the caller guards it."""
+    print(text, flush=True)  # flushed here, so that a closed pipe raises inside main's guard
