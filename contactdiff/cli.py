@@ -25,7 +25,7 @@ import time
 
 from .cli_args import COUNT, FINITE, NONNEGATIVE, POSITIVE, SEED, Number, add_plot, check_plot_path
 from .cli_args import print_flushed as _print
-from .errors import ContactDiffError, InvalidInputError
+from .errors import ContactDiffError, InvalidInputError, check_output_file
 
 
 class _Parser(argparse.ArgumentParser):
@@ -222,10 +222,10 @@ def _run_bench(args) -> int:
 def _check_html_path(path: str, fps: float) -> None:
     """Refuse a replay that cannot be written, before any work is done: no meshcat,
     a folder that does not exist or a folder as the file, or fps <= 0."""
-    from .replay import html_target, require_meshcat
+    from .replay import require_meshcat
 
     require_meshcat()
-    html_target(path)
+    check_output_file("--html", path, "replay.html")
     if not fps > 0:
         raise InvalidInputError(f"--fps must be > 0, got {fps!r}")
 

@@ -5,9 +5,8 @@
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
-from .errors import InvalidInputError
+from .errors import InvalidInputError, check_output_file
 
 
 class Number:
@@ -56,12 +55,7 @@ def check_plot_path(path: str) -> None:
         from matplotlib.figure import Figure
     except ImportError:
         raise InvalidInputError("--plot needs matplotlib: pip install 'contactdiff[plot]'") from None
-    target = Path(path)
-    folder = target.parent
-    if not folder.is_dir():
-        raise InvalidInputError(f"--plot {path!r}: folder {str(folder)!r} does not exist")
-    if target.is_dir():
-        raise InvalidInputError(f"--plot {path!r} is a folder; give a file name such as {str(target / 'plot.png')!r}")
+    target = check_output_file("--plot", path, "plot.png")
     formats = Figure().canvas.get_supported_filetypes()
     suffix = target.suffix.lower().lstrip(".")
     if suffix and suffix not in formats:

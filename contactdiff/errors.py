@@ -6,6 +6,8 @@ finite set of values is valid, lists them.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 
 class ContactDiffError(Exception):
     """Base class of every error raised on purpose by contactdiff."""
@@ -98,7 +100,7 @@ def check_number(owner: str, name: str, value, *, minimum: float | None = None,
     ±inf), else `InvalidInputError` naming ``owner`` and ``name`` and showing the value.
 
     The project's one set of input checks: `check_number`, `check_count`,
-    `check_vector`; every module validates through them."""
+    `check_vector`, `check_output_file`; every module validates through them."""
     try:
         x = float(value)
     except (TypeError, ValueError):
@@ -144,3 +146,17 @@ def unknown_name(kind: str, name: object, valid) -> UnknownNameError:
     """Build an `UnknownNameError` listing the valid names of `kind`."""
     listed = ", ".join(sorted(str(v) for v in valid)) or "(none)"
     return UnknownNameError(f"unknown {kind} {name!r}; valid: {listed}")
+
+
+def check_output_file(option: str, path, example: str) -> Path:
+    """``path`` as a file to write: not a folder, in a folder that exists; else
+    `InvalidInputError` naming ``option`` (``--plot``, ``--out``, ...) and the path,
+    and suggesting ``example`` as a file name inside a folder given by mistake."""
+    target = Path(path)
+    if target.is_dir():
+        raise InvalidInputError(f"{option} {str(path)!r} is a folder; give a file name such as "
+                                f"{str(target / example)!r}")
+    if not target.parent.is_dir():
+        raise InvalidInputError(f"{option} {str(path)!r}: folder {str(target.parent)!r} does not exist")
+    return target
+

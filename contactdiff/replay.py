@@ -46,7 +46,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from .errors import ContactDiffError, InvalidInputError
+from .errors import ContactDiffError, InvalidInputError, check_output_file
 
 DEFAULT_FPS = 30.0
 """Frames per second of simulated time."""
@@ -284,20 +284,8 @@ def write_html(traj, scene, path: str | Path, **options) -> Path:
 
     ``options`` are those of `replay_html`; a missing folder raises `InvalidInputError`.
     """
-    target = html_target(path)
+    target = check_output_file("replay: file", path, "replay.html")
     target.write_text(replay_html(traj, scene, **options), encoding="utf-8")
-    return target
-
-
-def html_target(path: str | Path) -> Path:
-    """``path`` as a file a page can be written to, else `InvalidInputError`: a folder,
-    or a file in a folder that does not exist."""
-    target = Path(path)
-    if target.is_dir():
-        raise InvalidInputError(f"replay: {str(path)!r} is a folder; give a file name such as "
-                                f"{str(target / 'replay.html')!r}")
-    if not target.parent.is_dir():
-        raise InvalidInputError(f"replay: folder {str(target.parent)!r} of {str(path)!r} does not exist")
     return target
 
 

@@ -21,7 +21,7 @@ import json
 from enum import StrEnum
 from pathlib import Path
 
-from ..errors import InvalidInputError, ModelLoadError
+from ..errors import InvalidInputError, ModelLoadError, check_output_file
 
 
 class FileFormat(StrEnum):
@@ -52,11 +52,7 @@ class ResultsFile:
         if suffix not in FORMATS:
             raise InvalidInputError(f"--out {str(path)!r}: unknown format {suffix or '(no suffix)'!r}; valid: "
                                     + ", ".join(FORMATS))
-        if self.path.is_dir():
-            raise InvalidInputError(f"--out {str(path)!r} is a folder; give a file such as "
-                                    f"{str(self.path / ('results' + suffix))!r}")
-        if not self.path.parent.is_dir():
-            raise InvalidInputError(f"--out {str(path)!r}: folder {str(self.path.parent)!r} does not exist")
+        check_output_file("--out", path, "results" + suffix)
         self.format = FileFormat(suffix)
         self._header: list[str] | None = None
 
