@@ -233,9 +233,7 @@ def _stride(scene: Scene, t_final, options: dict, settings: dict) -> dict:
     foot = settings.pop("foot", None) or (scene.contact_names[0] if scene.contact_names else None)
     if foot is None:
         raise InvalidInputError(f"stride job: scene {scene.name!r} has no contacts")
-    settings.setdefault("iterations", 0)
-    if "iterations" in settings:
-        settings["iterations"] = int(settings["iterations"])
+    settings["iterations"] = int(settings.get("iterations", 0))
     gait = find_periodic_gait(scene, foot, **settings, **options)
     moduli = [abs(m) for m in gait.multipliers]
     return {"foot": foot, "stride_time": gait.stride.stride_time, "residual": gait.residuals[-1],

@@ -186,10 +186,11 @@ def apply(scene: Scene, by_kind: Mapping[QuantityKind, Mapping]) -> Scene:
     parameters = by_kind.get(QuantityKind.PARAMETER) or {}
     if parameters:
         scene = scene.with_parameters(parameters)
-    q0 = _joint_vectors(scene, by_kind.get(QuantityKind.INITIAL_Q) or {}, "q")
-    v0 = _joint_vectors(scene, by_kind.get(QuantityKind.INITIAL_V) or {}, "v")
-    if q0 or v0:
-        scene = scene.with_state(q0 or None, v0 or None)
+    robot = scene.robot
+    q0 = _with_coordinates(scene.q0, robot.configuration_names(), by_kind.get(QuantityKind.INITIAL_Q))
+    v0 = _with_coordinates(scene.v0, robot.tangent_names(), by_kind.get(QuantityKind.INITIAL_V))
+    if q0 is not None or v0 is not None:
+        scene = scene.with_state(q0, v0)
     return scene
 
 
@@ -210,18 +211,15 @@ def run_options(values: Mapping) -> dict:
     return out
 
 
-def _joint_vectors(scene: Scene, values: Mapping[str, float], kind: str) -> dict[str, np.ndarray]:
-    """Coordinate labels (``joint`` or ``joint[k]``) to whole-joint values, the other
-    coordinates of a joint taken from the scene's initial state."""
-    model = scene.model
-    base = scene.q0 if kind == "q" else scene.v0
-    out: dict[str, np.ndarray] = {}
+def _with_coordinates(base: np.ndarray, labels: list[str], values: Mapping | None) -> np.ndarray | None:
+    """``base`` with the coordinates named by ``labels`` (`Robot.configuration_names` or
+    `Robot.tangent_names`, in the vector's order) set to ``values``; None if there are none."""
+    if not values:
+        return None
+    out = base.copy()
+    index = {label: k for k, label in enumerate(labels)}
     for label, value in values.items():
-        joint, _, index = label.partition("[")
-        j = model.joints[model.getJointId(joint)]
-        start, size = (j.idx_q, j.nq) if kind == "q" else (j.idx_v, j.nv)
-        vector = out.setdefault(joint, base[start:start + size].copy())
-        vector[int(index.rstrip("]")) if index else 0] = value
+        out[index[label]] = value
     return out
 
 
