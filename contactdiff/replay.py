@@ -348,10 +348,12 @@ def _record_contacts(animation, viewer, scene, paths: dict, frames: Frames, fps:
     """Position and visibility tracks of the contact markers: visible exactly while
     the contact is in the mode (a discrete track: each key holds until the next)."""
     keys = _frame_keys(frames, fps)
+    model, data = scene.robot.model, scene.robot.model.createData()
     points = {c.name: [] for c in scene.contacts}
-    for q in frames.q:
+    for q in frames.q:  # the contact point: the frame origin, less the radius along the normal (round)
+        pin.framesForwardKinematics(model, data, q)
         for c in scene.contacts:
-            points[c.name].append(_contact_point(scene, c, q).tolist())
+            points[c.name].append((data.oMf[c.fid].translation - c.radius * c.normal).tolist())
     for c in scene.contacts:
         tracks = _clip(animation, paths[c.name], fps, meshcat)
         _track(tracks, "position", "vector3", keys, points[c.name], meshcat)
@@ -371,16 +373,6 @@ def _place_camera(viewer, robot, frames: Frames, size: float) -> None:
     x, y, z = distance * np.array([0.55, -0.75, 0.35])  # world frame, z up
     # meshcat's camera node is rotated to three.js's y-up axes: (x, y, z) -> (x, z, -y)
     viewer["/Cameras/default/rotated/<object>"].set_property("position", [float(x), float(z), float(-y)])
-
-
-def _contact_point(scene, contact, q: np.ndarray) -> np.ndarray:
-    """World position (m) of the contact point: the frame origin, moved by the radius
-    against the normal for a round contact."""
-    model, data = scene.robot.model, scene.robot.data
-    pin.framesForwardKinematics(model, data, q)
-    point = data.oMf[contact.fid].translation.copy()
-    radius = float(getattr(contact.spec, "radius", 0.0) or 0.0)
-    return point - radius * np.asarray(contact.normal, dtype=float)
 
 
 def _frame_keys(frames: Frames, fps: float) -> np.ndarray:
