@@ -23,7 +23,7 @@ import os
 import sys
 import time
 
-from .cli_args import COUNT, FINITE, NONNEGATIVE, POSITIVE, SEED, Number, add_plot, check_plot_path
+from .cli_args import COUNT, FINITE, NONNEGATIVE, POSITIVE, SEED, Number, add_plot, assignment, check_plot_path
 from .cli_args import print_flushed as _print
 from .errors import ContactDiffError, InvalidInputError, check_output_file
 
@@ -245,9 +245,7 @@ def _scene_from_args(args):
 def _assignments(items: list[str], flag: str) -> dict:
     out = {}
     for item in items:
-        name, sep, value = item.partition("=")
-        if not sep or not name:
-            raise InvalidInputError(f"{flag} takes JOINT=VALUE, got {item!r}")
+        name, value = assignment(item, flag, "JOINT=VALUE")
         try:
             numbers = [float(x) for x in value.split(",")]
         except ValueError:

@@ -1,6 +1,6 @@
 """Argument types and checks shared by the ``contactdiff`` subcommands (`contactdiff.cli`,
 `contactdiff.sweeps.cli`): numbers in a range with messages that name the range, the
-``--plot`` option and its early check, and flushed printing."""
+``--plot`` option and its early check, ``NAME=VALUE`` items, and flushed printing."""
 
 from __future__ import annotations
 
@@ -65,3 +65,13 @@ def check_plot_path(path: str) -> None:
 def print_flushed(text: str) -> None:
     """Print ``text`` and flush, so that a closed pipe raises where the caller guards it."""
     print(text, flush=True)  # flushed here, so that a closed pipe raises inside main's guard
+
+
+def assignment(item: str, flag: str, form: str) -> tuple[str, str]:
+    """``NAME=TEXT`` as ``(name, text)``, else `InvalidInputError` showing the ``form``
+    ``flag`` takes (``JOINT=VALUE``, ``NAME=VALUES``)."""
+    name, sep, text = item.partition("=")
+    if not sep or not name or not text:
+        raise InvalidInputError(f"{flag} takes {form}, got {item!r}")
+    return name, text
+

@@ -15,7 +15,7 @@ import argparse
 import json
 from pathlib import Path
 
-from ..cli_args import COUNT, FINITE, SEED, Number, add_plot, check_plot_path, print_flushed
+from ..cli_args import COUNT, FINITE, SEED, Number, add_plot, assignment, check_plot_path, print_flushed
 from ..errors import InvalidInputError, ModelLoadError
 
 TABLE_ROWS = 200
@@ -131,9 +131,7 @@ def _assignments(items: list[str], flag: str) -> dict[str, str]:
     """``NAME=TEXT`` items as ``{name: text}`` (the text is parsed by the points module)."""
     out = {}
     for item in items:
-        name, sep, text = item.partition("=")
-        if not sep or not name or not text:
-            raise InvalidInputError(f"{flag} takes NAME=VALUES, got {item!r}")
+        name, text = assignment(item, flag, "NAME=VALUES")
         if name in out:
             raise InvalidInputError(f"{flag} names {name!r} twice")
         out[name] = text
