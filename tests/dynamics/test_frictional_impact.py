@@ -314,13 +314,21 @@ def test_rod_kane_energy_gain_is_flagged():
 # --------------------------------------------------------------------------
 # 3. limits: μ = inf is the sticking LCP, μ = 0 the frictionless one
 
+# the same random problems, 1-4 contacts, for both limits
+LIMITS = settings(max_examples=60, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
+LIMIT_PROBLEMS = given(seed=seeds, n=st.integers(1, 4), dim=st.sampled_from([2, 3]), e=st.floats(0.0, 1.0))
 
-@settings(max_examples=60, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
-@given(seed=seeds, n=st.integers(1, 4), dim=st.sampled_from([2, 3]), e=st.floats(0.0, 1.0))
+
+def limit_problem(seed, n, dim):
+    """``(G, u-, rows)`` of the random problem drawn from ``seed`` (`random_problem`)."""
+    _, A, G, v, rows = random_problem(np.random.default_rng(seed), n, dim)
+    return G, A @ v, rows
+
+
+@LIMITS
+@LIMIT_PROBLEMS
 def test_infinite_friction_is_the_sticking_lcp(seed, n, dim, e):
-    rng = np.random.default_rng(seed)
-    _, A, G, v, rows = random_problem(rng, n, dim)
-    u = A @ v
+    G, u, rows = limit_problem(seed, n, dim)
     try:
         ref = solve_contact_lcp(G, impact_rhs(u, e, rows), rows, method="enumerate")
     except SolverError:
@@ -334,12 +342,10 @@ def test_infinite_friction_is_the_sticking_lcp(seed, n, dim, e):
     np.testing.assert_allclose(out.impulses, ref.x, atol=1e-9 * scale)
 
 
-@settings(max_examples=60, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
-@given(seed=seeds, n=st.integers(1, 4), dim=st.sampled_from([2, 3]), e=st.floats(0.0, 1.0))
+@LIMITS
+@LIMIT_PROBLEMS
 def test_zero_friction_is_the_frictionless_lcp(seed, n, dim, e):
-    rng = np.random.default_rng(seed)
-    _, A, G, v, rows = random_problem(rng, n, dim)
-    u = A @ v
+    G, u, rows = limit_problem(seed, n, dim)
     nrm = list(rows.normal)
     one = ContactRows.from_sizes([1] * n)
     ref = solve_contact_lcp(G[np.ix_(nrm, nrm)], impact_rhs(u[nrm], e, one), one)
