@@ -287,7 +287,7 @@ def robot_table(robots, source: str = "trot", n_jobs: int | None = None) -> list
     run in parallel (`contactdiff.sweep`, ``n_jobs`` worker processes, default one per core)."""
     result = sweep(touchdown_scene, [{"arg:robot": name} for name in robots], robot_rows,
                    fixed={"arg:states": source}, n_jobs=n_jobs)
-    return [row for r in _succeeded(result) for row in r.outputs["rows"]]
+    return [row for r in result.raise_failure() for row in r.outputs["rows"]]
 
 
 def trend_scene(friction: str, foot_mass: float | None, stiffness: float | None):
@@ -328,14 +328,7 @@ def trend_table(n_jobs: int | None = None) -> list[dict]:
     points = [{"arg:friction": f, "arg:foot_mass": m, "arg:stiffness": k} for f in ("stick", "none") for m, k in cases]
     result = sweep(trend_scene, points, trend_row, n_jobs=n_jobs)
     return [{"friction": r.point["arg:friction"], "foot_mass": r.point["arg:foot_mass"],
-             "stiffness": r.point["arg:stiffness"], **r.outputs} for r in _succeeded(result)]
-
-
-def _succeeded(result):
-    """The rows of a sweep, or its first failure raised as the error it was."""
-    for r in result.failed[:1]:
-        raise cd.ContactDiffError(f"{r.error.kind} at {r.point}: {r.error.message}")
-    return result
+             "stiffness": r.point["arg:stiffness"], **r.outputs} for r in result.raise_failure()]
 
 
 # -- output ----------------------------------------------------------------------------

@@ -167,13 +167,9 @@ def simultaneous_study(gaps=(1e-2, 1e-4, 1e-6, 1e-8, 1e-10, 1e-12, 1e-14), t_fin
     cases = [(model, dt) for model in models for dt in (0.0,) + tuple(gaps)]
     points = point_list([{"arg:model": model, "arg:pitch": pitch_for_gap_time(model, dt) if dt else 0.0}
                          for model, dt in cases])
-    runs = {}
-    for (model, dt), row in zip(cases, sweep(trot_touchdown, points, job=gap_run, t_final=t_final, options=tol,
-                                             n_jobs=n_jobs, progress=False)):
-        if row.error is not None:
-            raise ContactDiffError(f"near-simultaneous study, {model} trot, dt = {dt:g} s: "
-                                   f"{row.error.kind}: {row.error.message}")
-        runs[model, dt] = {k: np.asarray(v) if isinstance(v, list) else v for k, v in row.outputs.items()}
+    result = sweep(trot_touchdown, points, job=gap_run, t_final=t_final, options=tol, n_jobs=n_jobs, progress=False)
+    runs = {case: {k: np.asarray(v) if isinstance(v, list) else v for k, v in row.outputs.items()}
+            for case, row in zip(cases, result.raise_failure())}
     rows = []
     for model in models:
         jac, ref, robot = model == "soft", runs[model, 0.0], trot_touchdown(model, 0.0).model

@@ -18,6 +18,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
+from ..errors import ContactDiffError, InvalidInputError
+
 RESERVED = ("index", "error", "error_message", "run_time", "sweep")
 """Columns of every row besides the point's values and the outputs."""
 
@@ -112,6 +114,13 @@ class SweepResult(list):
         """The rows whose run failed."""
         return [r for r in self if not r.ok]
 
+    def raise_failure(self) -> SweepResult:
+        """These rows if every run succeeded; else the first failed point's error, raised
+        as a `ContactDiffError` naming the point (for studies that need every row)."""
+        for r in self.failed[:1]:
+            raise ContactDiffError(f"{r.error.kind} at {r.point}: {r.error.message}")
+        return self
+
     def to_dicts(self, run_time: bool = True) -> list[dict]:
         """Every row's flat form (`Row.to_dict`)."""
         return [r.to_dict(run_time) for r in self]
@@ -129,8 +138,6 @@ class SweepResult(list):
         try:
             import pandas as pd
         except ImportError:
-            from ..errors import InvalidInputError
-
             raise InvalidInputError("to_pandas needs pandas: pip install 'contactdiff[pandas]'") from None
         return pd.DataFrame(self.to_dicts())
 

@@ -74,6 +74,10 @@ def test_a_failing_point_is_recorded_and_the_sweep_goes_on():
     assert result[1].outputs == {} and result.failed == [result[1], result[2]]
     flat = result[1].to_dict()
     assert flat["error"] == "InconsistentStateError" and flat["q:z"] == -0.1
+    with pytest.raises(cd.ContactDiffError, match=r"InconsistentStateError at \{'q:z': -0.1, 'max_steps': 1000\}"):
+        result.raise_failure()  # the first failure, named with its point
+    fine = sweep("ball", {"q:z": [1.0]}, t_final=1.0, n_jobs=1)
+    assert fine.raise_failure() is fine  # nothing failed: the rows themselves
 
 
 def test_resuming_from_a_partial_results_file(tmp_path, ball_rows):
