@@ -3,7 +3,8 @@
 The public names, by concept (each lives in the subpackage named beside it):
 
     model        load_robot, Robot, QUADRUPEDS, Scene, load_scene, load_source,
-                 Contact, JointSpring, Spring, UserEffort, Effort
+                 Contact, JointSpring, Spring, UserEffort, Effort,
+                 SceneObject, RobotFrame, add_objects (objects beside a robot)
     control      trot_scene (the trot controller's scenes of the quadrupeds)
     paper        trot_touchdown (the paper's Fig. 1 scenes at any initial pitch)
     dynamics     ModeDynamics (accelerations and contact forces in any contact mode)
@@ -42,6 +43,7 @@ from .integration.options import SimulateOptions
 from .integration.trajectory import Event, NonSmooth, RunStats, Segment, Termination, Trajectory
 from .model.contacts import Contact
 from .model.efforts import Effort, JointSpring, Spring, UserEffort
+from .model.objects import RobotFrame, SceneObject, add_objects
 from .model.robot import QUADRUPEDS, Robot, load_robot
 from .model.scene import Scene
 from .model.scene_file import load_scene, load_source
@@ -51,12 +53,13 @@ from .sweeps import sweep
 __version__ = "0.1.0"
 
 __all__ = [
-    "check_decoupling", "Contact", "ContactDiffError", "DecouplingReport", "Effort", "Event",
+    "add_objects", "check_decoupling", "Contact", "ContactDiffError", "DecouplingReport", "Effort", "Event",
     "find_periodic_gait", "first_touchdown", "GrazingError", "HybridLoop",
     "InconsistentStateError", "IntegrationError", "InvalidInputError", "JointSpring", "load_robot",
     "load_scene", "load_source", "ModeDynamics", "ModelLoadError", "NonSmooth", "order_gap",
     "OutsideDomainError", "PainleveError",
-    "period_map", "QUADRUPEDS", "Robot", "RunStats", "Scene", "Segment", "simulate", "SimulateOptions",
+    "period_map", "QUADRUPEDS", "Robot", "RobotFrame", "RunStats", "Scene", "SceneObject", "Segment",
+    "simulate", "SimulateOptions",
     "SolverError", "Spring", "StoppedRunError", "stride_map", "StrideError", "sweep", "Termination",
     "TooManyEventsError", "TooManyStepsError", "Trajectory", "trot_scene", "trot_touchdown",
     "UnknownNameError", "UnknownRobotError", "UserEffort",

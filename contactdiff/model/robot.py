@@ -62,6 +62,8 @@ class Robot:
             may be empty.
         actuated: names of the joints that carry a motor (armature is added to these).
         foot_choice: how the feet were chosen (`FootChoice`), for reports.
+        objects: the free objects appended to the model (`contactdiff.model.objects`),
+            their joints after the robot's.
     """
 
     model: pin.Model
@@ -72,6 +74,7 @@ class Robot:
     feet: tuple[str, ...] = ()
     actuated: tuple[str, ...] = ()
     foot_choice: FootChoice | None = None
+    objects: tuple = ()
     _data: pin.Data | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
@@ -167,7 +170,7 @@ class Robot:
     def copy(self) -> Robot:
         """A copy whose model can be changed (gravity, armature) without touching this one."""
         return Robot(pin.Model(self.model), self.name, self.urdf, self.floating_base,
-                     self.q_ref.copy(), self.feet, self.actuated, self.foot_choice)
+                     self.q_ref.copy(), self.feet, self.actuated, self.foot_choice, self.objects)
 
     def with_armature(self, armature: float) -> Robot:
         """A copy with reflected rotor inertia ``armature`` (kg m² or kg) on every actuated joint."""

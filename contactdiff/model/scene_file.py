@@ -17,16 +17,19 @@ from ..control.trot_scenes import TROT_PARAMETERS
 from ..errors import InvalidInputError, ModelLoadError, UnknownRobotError, unknown_name
 from .contacts import Contact
 from .efforts import JointSpring, Spring
+from .objects import RobotFrame, SceneObject, add_objects, empty_robot
 from .robot import ROBOTS_DIR, example_robot_data_names, load_robot, own_robot_names
 from .scene import Scene
 
-_TOP_KEYS = ("robot", "floating_base", "gravity", "name", "description", "contact", "spring",
-             "joint_spring", "trot", "initial")
+_TOP_KEYS = ("robot", "floating_base", "gravity", "name", "description", "frame", "object", "contact",
+             "spring", "joint_spring", "trot", "initial")
 _TROT_KEYS = TrotController.KEYS
 _CONTACT_KEYS = ("frame", "normal", "offset", "restitution", "friction", "against", "name", "radius")
 _SPRING_KEYS = ("frame_a", "frame_b", "stiffness", "damping", "rest_length")
 _JOINT_SPRING_KEYS = ("joint", "stiffness", "damping", "rest")
 _INITIAL_KEYS = ("q", "v")
+_FRAME_KEYS = ("name", "parent", "position", "rpy")
+_OBJECT_KEYS = ("name", "shape", "mass", "size", "radius", "length", "urdf", "position", "rpy", "fixed", "points")
 
 
 def _check_keys(where: str, table, valid: Sequence[str], required: Sequence[str] = ()) -> None:
@@ -108,16 +111,7 @@ def load_scene(source: str | Path) -> Scene:
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
         raise ModelLoadError(f"cannot read scene file {str(path)!r}: {exc}") from None
     where = f"scene {path.name}"
-    _check_keys(where, doc, _TOP_KEYS, required=("robot",))
-    robot_source = doc["robot"]
-    if not isinstance(robot_source, str):
-        raise InvalidInputError(f"{where}: robot must be a file name or robot name, got {robot_source!r}")
-    floating = doc.get("floating_base")
-    if floating is not None and not isinstance(floating, bool):
-        raise InvalidInputError(f"{where}: floating_base must be true or false, got {floating!r}")
-    relative = path.parent / robot_source
-    robot = load_robot(relative if robot_source.endswith(".urdf") else robot_source, floating)
-
+    robot = _scene_robot(where, doc, path.parent)
     contacts = []
     for i, entry in enumerate(_entries(doc, "contact")):
         _check_keys(f"{where} [[contact]] #{i + 1}", entry, _CONTACT_KEYS, required=("frame",))
@@ -144,6 +138,38 @@ def load_scene(source: str | Path) -> Scene:
             raise InvalidInputError(f"{where}: initial.{key} must be a table of joint = value")
     return Scene(robot, contacts, efforts, doc.get("gravity"), initial.get("q"), initial.get("v"),
                  doc.get("name", path.stem))
+
+
+def _scene_robot(where: str, doc: Mapping, folder: Path):
+    """The scene's robot with its extra ``[[frame]]`` and its ``[[object]]`` (docs/scene-files.md);
+    a scene of objects alone has no ``robot``."""
+    _check_keys(where, doc, _TOP_KEYS)
+    objects = []
+    for i, entry in enumerate(_entries(doc, "object")):
+        _check_keys(f"{where} [[object]] #{i + 1}", entry, _OBJECT_KEYS, required=("name",))
+        objects.append(SceneObject(**entry))
+    if not objects:
+        _check_keys(where, doc, _TOP_KEYS, required=("robot",))
+    robot_source = doc.get("robot")
+    floating = doc.get("floating_base")
+    if robot_source is None:
+        if floating is not None:
+            raise InvalidInputError(f"{where}: floating_base applies to a robot; this scene has none")
+        robot = empty_robot()
+    else:
+        if not isinstance(robot_source, str):
+            raise InvalidInputError(f"{where}: robot must be a file name or robot name, got {robot_source!r}")
+        if floating is not None and not isinstance(floating, bool):
+            raise InvalidInputError(f"{where}: floating_base must be true or false, got {floating!r}")
+        relative = folder / robot_source
+        robot = load_robot(relative if robot_source.endswith(".urdf") else robot_source, floating)
+    frames = []
+    for i, entry in enumerate(_entries(doc, "frame")):
+        _check_keys(f"{where} [[frame]] #{i + 1}", entry, _FRAME_KEYS, required=("name", "parent"))
+        frames.append(RobotFrame(**entry))
+    if not (objects or frames):
+        return robot
+    return add_objects(robot, objects, frames, base=folder)
 
 
 def load_source(source: str | Path, floating_base: bool | None = None,

@@ -1,0 +1,289 @@
+"""Free objects beside a robot (boxes, spheres, cylinders, URDF models) and extra frames.
+
+A scene for manipulation holds a robot and objects the robot touches. Each
+object becomes part of the robot's Pinocchio model: a free-flyer joint on the
+universe named after the object (``q`` ``[x y z qx qy qz qw]``, world frame;
+``v`` its linear then angular velocity in the object's own frame, as every
+Pinocchio free-flyer), carrying the object's body, appended after the robot's
+joints, so the robot's coordinates keep their indices. A ``fixed`` object has
+no joint: its frames hang on the universe at its pose.
+
+Frames of an object (the names contacts use, ``frame`` and ``against``):
+
+* ``NAME``: its centre (the centre of mass of a shape);
+* ``NAME/POINT`` for each of its ``points`` (m, in the object's frame);
+* a box also has its eight corners ``NAME/+x+y-z`` (signs of the half sizes);
+* a URDF object keeps its own frames and joints, each prefixed ``NAME/``, and its
+  root joint is named ``NAME``.
+
+`RobotFrame` adds a named point to a frame of the robot (a fingertip, a pad).
+`add_objects` builds the combined `Robot`; its ``objects`` attribute lists the
+objects (the replay draws their shapes). A sphere's contacts with the ground
+are round contacts of its radius (`Contact.radius`).
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+from ..errors import InvalidInputError, check_number, check_vector, unknown_name
+from .robot import Robot
+
+SHAPES = ("box", "sphere", "cylinder")
+"""Shapes an object may have without a URDF: a box (``size``: three edge lengths, m),
+a sphere (``radius``), a cylinder along its own z axis (``radius`` and ``length``)."""
+
+_DIMENSIONS = {"box": ("size",), "sphere": ("radius",), "cylinder": ("radius", "length")}
+
+
+def _pose(owner: str, position, rpy) -> pin.SE3:
+    p = check_vector(owner, "position", position, 3)
+    r = check_vector(owner, "rpy", rpy, 3)
+    return pin.SE3(pin.rpy.rpyToMatrix(*r), p)
+
+
+def _points(owner: str, points) -> tuple[tuple[str, tuple[float, float, float]], ...]:
+    if not isinstance(points, Mapping):
+        raise InvalidInputError(f"{owner}: points must be a table of name = [x, y, z] (m), got {points!r}")
+    out = []
+    for name, xyz in points.items():
+        if not isinstance(name, str) or not name or "/" in name:
+            raise InvalidInputError(f"{owner}: point names must be non-empty and without '/', got {name!r}")
+        out.append((name, tuple(float(x) for x in check_vector(owner, f"point {name!r}", xyz, 3))))
+    return tuple(out)
+
+
+@dataclass(frozen=True)
+class SceneObject:
+    """An object of a scene: a shape of given size and mass, or a URDF model.
+
+    Args:
+        name: the object's name: its joint, its centre frame, the prefix of its other frames.
+        shape: one of `SHAPES`; ignored for a URDF object.
+        mass: kg, > 0 (shapes; a URDF model has its own masses).
+        size: a box's edge lengths along its x, y, z axes (m, > 0).
+        radius: a sphere's or a cylinder's radius (m, > 0).
+        length: a cylinder's length along its z axis (m, > 0).
+        urdf: path of a URDF file (instead of a shape).
+        position: the object's initial position (m, world frame).
+        rpy: its initial orientation, roll-pitch-yaw about the world x, y, z axes (rad).
+        fixed: True fixes the object in the world at its pose (no joint).
+        points: named points of the object (m, object frame), frames ``NAME/POINT``.
+
+    Raises:
+        InvalidInputError: an unknown shape (the shapes are listed), a missing or
+            extra dimension, a non-positive size or mass, non-finite numbers.
+    """
+
+    name: str
+    shape: str = "box"
+    mass: float = 1.0
+    size: tuple[float, float, float] | None = None
+    radius: float | None = None
+    length: float | None = None
+    urdf: str | None = None
+    position: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    fixed: bool = False
+    points: Mapping | tuple = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or not self.name or "/" in self.name:
+            raise InvalidInputError(f"object name must be a non-empty name without '/', got {self.name!r}")
+        owner = f"object {self.name!r}"
+        set_ = object.__setattr__
+        if not isinstance(self.fixed, bool):
+            raise InvalidInputError(f"{owner}: fixed must be true or false, got {self.fixed!r}")
+        _pose(owner, self.position, self.rpy)
+        set_(self, "position", tuple(float(x) for x in self.position))
+        set_(self, "rpy", tuple(float(x) for x in self.rpy))
+        points = dict(self.points) if isinstance(self.points, tuple) else self.points
+        set_(self, "points", _points(owner, points))
+        given = [k for k in ("size", "radius", "length") if getattr(self, k) is not None]
+        if self.urdf is not None:
+            if given:
+                raise InvalidInputError(f"{owner}: a URDF object takes its shape from its file; "
+                                        f"drop {', '.join(given)}")
+            set_(self, "urdf", str(self.urdf))
+            return
+        if self.shape not in SHAPES:
+            raise unknown_name(f"shape of {owner}", self.shape, SHAPES)
+        needed = _DIMENSIONS[self.shape]
+        for key in needed:
+            if getattr(self, key) is None:
+                raise InvalidInputError(f"{owner}: a {self.shape} needs {' and '.join(needed)}")
+        extra = [k for k in given if k not in needed]
+        if extra:
+            raise InvalidInputError(f"{owner}: a {self.shape} has no {', '.join(extra)} "
+                                    f"(it takes {' and '.join(needed)})")
+        set_(self, "mass", check_number(owner, "mass", self.mass, minimum=0.0))
+        if not self.mass > 0.0:
+            raise InvalidInputError(f"{owner}: mass must be > 0 kg, got {self.mass!r}")
+        if self.size is not None:
+            size = check_vector(owner, "size", self.size, 3)
+            if not np.all(size > 0.0):
+                raise InvalidInputError(f"{owner}: size must be three edge lengths > 0 m, got {self.size!r}")
+            set_(self, "size", tuple(float(x) for x in size))
+        for key in ("radius", "length"):
+            value = getattr(self, key)
+            if value is not None:
+                value = check_number(owner, key, value, minimum=0.0)
+                if not value > 0.0:
+                    raise InvalidInputError(f"{owner}: {key} must be > 0 m, got {value!r}")
+                set_(self, key, value)
+
+    @property
+    def pose(self) -> pin.SE3:
+        """The object's initial pose in the world."""
+        return _pose(self.name, self.position, self.rpy)
+
+    def inertia(self) -> pin.Inertia:
+        """Spatial inertia of a shape about its centre (uniform density)."""
+        if self.shape == "box":
+            return pin.Inertia.FromBox(self.mass, *self.size)
+        if self.shape == "sphere":
+            return pin.Inertia.FromSphere(self.mass, self.radius)
+        return pin.Inertia.FromCylinder(self.mass, self.radius, self.length)
+
+    def local_points(self) -> list[tuple[str, np.ndarray]]:
+        """Named points of the object's frame (m): the box corners, then ``points``."""
+        out = []
+        if self.urdf is None and self.shape == "box":
+            half = np.array(self.size) / 2.0
+            for signs in itertools.product((1, -1), repeat=3):
+                label = "".join(("+" if s > 0 else "-") + axis for s, axis in zip(signs, "xyz"))
+                out.append((label, half * np.array(signs)))
+        return out + [(name, np.array(xyz)) for name, xyz in self.points]
+
+
+@dataclass(frozen=True)
+class RobotFrame:
+    """A named point fixed to a frame of the robot (a fingertip, a finger pad).
+
+    Args:
+        name: the new frame's name.
+        parent: the frame it is fixed to.
+        position: its position in the parent frame (m).
+        rpy: its orientation in the parent frame (rad).
+    """
+
+    name: str
+    parent: str
+    position: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    def __post_init__(self) -> None:
+        for key in ("name", "parent"):
+            if not isinstance(getattr(self, key), str) or not getattr(self, key):
+                raise InvalidInputError(f"frame {key} must be a frame name, got {getattr(self, key)!r}")
+        _pose(f"frame {self.name!r}", self.position, self.rpy)
+        object.__setattr__(self, "position", tuple(float(x) for x in self.position))
+        object.__setattr__(self, "rpy", tuple(float(x) for x in self.rpy))
+
+
+def empty_robot() -> Robot:
+    """A robot without joints or bodies: the world of a scene made of objects only."""
+    return Robot(pin.Model(), "world")
+
+
+def add_objects(robot: Robot, objects: Sequence[SceneObject] = (), frames: Sequence[RobotFrame] = (),
+                base: Path | None = None) -> Robot:
+    """``robot`` with extra frames and objects, as a new `Robot` (``robot`` is untouched).
+
+    Args:
+        robot: the robot (`empty_robot` for objects alone).
+        objects: the objects, appended in order.
+        frames: extra frames on the robot, added first.
+        base: folder that relative URDF paths of objects are read from.
+
+    Raises:
+        InvalidInputError: a name already taken by a frame or joint (the model's
+            names and the new ones must be unique), or an unknown parent frame.
+    """
+    model = pin.Model(robot.model)
+    q_parts = [robot.q_ref]
+    for extra in frames:
+        _check_free(model, extra.name, f"frame {extra.name!r}")
+        parent = robot.frame_id(extra.parent)
+        holder = model.frames[parent]
+        placement = holder.placement * _pose(extra.name, extra.position, extra.rpy)
+        model.addFrame(pin.Frame(extra.name, holder.parentJoint, parent, placement, pin.FrameType.OP_FRAME))
+    names = [o.name for o in objects]
+    for name in {n for n in names if names.count(n) > 1}:
+        raise InvalidInputError(f"object names must be unique; repeated: {name!r}")
+    for obj in objects:
+        if not isinstance(obj, SceneObject):
+            raise InvalidInputError(f"objects must be SceneObject specs, got {obj!r}")
+        _check_free(model, obj.name, f"object {obj.name!r}")
+        if obj.urdf is not None:
+            model, q_obj = _append_urdf(model, obj, base)
+        else:
+            model, q_obj = _append_shape(model, obj)
+        q_parts.append(q_obj)
+    q_ref = np.concatenate(q_parts) if q_parts else np.zeros(0)
+    return Robot(model, robot.name, robot.urdf, robot.floating_base, q_ref, robot.feet, robot.actuated,
+                 robot.foot_choice, objects=robot.objects + tuple(objects))
+
+
+def _check_free(model: pin.Model, name: str, what: str) -> None:
+    if model.existFrame(name) or model.existJointName(name):
+        raise InvalidInputError(f"{what}: the name {name!r} is already a frame or joint of the model; "
+                                "choose another")
+
+
+def _free_flyer_q(pose: pin.SE3) -> np.ndarray:
+    return pin.SE3ToXYZQUAT(pose)
+
+
+def _append_shape(model: pin.Model, obj: SceneObject) -> tuple[pin.Model, np.ndarray]:
+    if obj.fixed:
+        jid, placement, q_obj = 0, obj.pose, np.zeros(0)
+        centre = model.addFrame(pin.Frame(obj.name, 0, 0, placement, pin.FrameType.OP_FRAME))
+    else:
+        jid = model.addJoint(0, pin.JointModelFreeFlyer(), pin.SE3.Identity(), obj.name)
+        model.appendBodyToJoint(jid, obj.inertia(), pin.SE3.Identity())
+        centre = model.addBodyFrame(obj.name, jid, pin.SE3.Identity(), 0)
+        placement, q_obj = pin.SE3.Identity(), _free_flyer_q(obj.pose)
+    for label, xyz in obj.local_points():
+        name = f"{obj.name}/{label}"
+        _check_free(model, name, f"point {label!r} of object {obj.name!r}")
+        model.addFrame(pin.Frame(name, jid, centre, placement * pin.SE3(np.eye(3), xyz),
+                                 pin.FrameType.OP_FRAME))
+    return model, q_obj
+
+
+def _append_urdf(model: pin.Model, obj: SceneObject, base: Path | None) -> tuple[pin.Model, np.ndarray]:
+    from .robot import load_robot
+
+    path = Path(obj.urdf)
+    if not path.is_absolute() and base is not None:
+        path = base / path
+    loaded = load_robot(path, floating_base=not obj.fixed).model
+    for j in range(1, loaded.njoints):  # the root free-flyer is the object's own name
+        loaded.names[j] = obj.name if (j == 1 and not obj.fixed) else f"{obj.name}/{loaded.names[j]}"
+    for i in range(len(loaded.frames)):
+        frame = loaded.frames[i]
+        frame.name = obj.name if (i == 1 and not obj.fixed) else f"{obj.name}/{frame.name}"
+        loaded.frames[i] = frame
+    if obj.points:
+        raise InvalidInputError(f"object {obj.name!r}: points are for shapes; a URDF object has its "
+                                f"own frames (points {[name for name, _ in obj.points]})")
+    nq_before = model.nq
+    placement = obj.pose if obj.fixed else pin.SE3.Identity()
+    try:
+        model = pin.appendModel(model, loaded, 0, placement)
+    except (RuntimeError, ValueError) as exc:
+        raise InvalidInputError(f"object {obj.name!r}: cannot add URDF {str(path)!r}: {exc}") from None
+    q_obj = pin.neutral(model)[nq_before:]
+    if not obj.fixed:
+        q_obj[:7] = _free_flyer_q(obj.pose)
+    return model, q_obj
+
+
+__all__ = ["SceneObject", "RobotFrame", "SHAPES", "add_objects", "empty_robot"]
