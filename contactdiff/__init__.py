@@ -5,7 +5,8 @@ The public names, by concept (each lives in the subpackage named beside it):
     model        load_robot, Robot, QUADRUPEDS, Scene, load_scene, load_source,
                  Contact, JointSpring, Spring, UserEffort, Effort,
                  SceneObject, RobotFrame, add_objects (objects beside a robot)
-    control      trot_scene (the trot controller's scenes of the quadrupeds)
+    control      trot_scene (the trot controller's scenes of the quadrupeds), JointTargets
+                 (a manipulator's PD tracking of a joint-space schedule)
     paper        trot_touchdown (the paper's Fig. 1 scenes at any initial pitch)
     dynamics     ModeDynamics (accelerations and contact forces in any contact mode)
     integration  simulate, SimulateOptions, HybridLoop, Trajectory, Event, Segment,
@@ -19,6 +20,7 @@ The public names, by concept (each lives in the subpackage named beside it):
 from .analysis.decoupling import DecouplingReport, check_decoupling
 from .analysis.gait import find_periodic_gait, first_touchdown, period_map, stride_map
 from .analysis.order_gap import order_gap
+from .control.joint_targets import JointTargets
 from .control.trot_scenes import trot_scene
 from .dynamics.mode import ModeDynamics
 from .errors import (
@@ -55,7 +57,8 @@ __version__ = "0.1.0"
 __all__ = [
     "add_objects", "check_decoupling", "Contact", "ContactDiffError", "DecouplingReport", "Effort", "Event",
     "find_periodic_gait", "first_touchdown", "GrazingError", "HybridLoop",
-    "InconsistentStateError", "IntegrationError", "InvalidInputError", "JointSpring", "load_robot",
+    "InconsistentStateError", "IntegrationError", "InvalidInputError", "JointSpring", "JointTargets",
+    "load_robot",
     "load_scene", "load_source", "ModeDynamics", "ModelLoadError", "NonSmooth", "order_gap",
     "OutsideDomainError", "PainleveError",
     "period_map", "QUADRUPEDS", "Robot", "RobotFrame", "RunStats", "Scene", "SceneObject", "Segment",

@@ -12,6 +12,7 @@ import tomllib
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
+from ..control.joint_targets import JointTargets
 from ..control.trot_controller import TrotController
 from ..control.trot_scenes import TROT_PARAMETERS
 from ..errors import InvalidInputError, ModelLoadError, UnknownRobotError, unknown_name
@@ -22,7 +23,7 @@ from .robot import ROBOTS_DIR, example_robot_data_names, load_robot, own_robot_n
 from .scene import Scene
 
 _TOP_KEYS = ("robot", "floating_base", "gravity", "name", "description", "frame", "object", "contact",
-             "spring", "joint_spring", "trot", "initial")
+             "spring", "joint_spring", "joint_targets", "trot", "initial")
 _TROT_KEYS = TrotController.KEYS
 _CONTACT_KEYS = ("frame", "normal", "offset", "restitution", "friction", "against", "name", "radius")
 _SPRING_KEYS = ("frame_a", "frame_b", "stiffness", "damping", "rest_length")
@@ -125,6 +126,10 @@ def load_scene(source: str | Path) -> Scene:
         _check_keys(f"{where} [[joint_spring]] #{i + 1}", entry, _JOINT_SPRING_KEYS,
                     required=("joint", "stiffness"))
         efforts.append(JointSpring(**entry))
+    for i, entry in enumerate(_entries(doc, "joint_targets")):
+        _check_keys(f"{where} [[joint_targets]] #{i + 1}", entry, JointTargets.KEYS,
+                    required=("joints", "times", "targets", "stiffness"))
+        efforts.append(JointTargets(**entry))
     if "trot" in doc:  # a TrotController (contactdiff.control.trot_controller) on the legs
         _check_keys(f"{where} [trot]", doc["trot"], _TROT_KEYS)
         stance = doc["trot"].get("stance", {})
