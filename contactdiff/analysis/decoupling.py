@@ -428,6 +428,8 @@ class _Checker:
             body = sorted(self.body)
             if body:
                 for i, j in itertools.combinations(range(len(self.limbs)), 2):
+                    if not (self.limbs[i] and self.limbs[j]):  # a contact of the body alone (an object
+                        continue                               # on the ground): no mixed derivative
                     value = self._mixed_body_derivative(q, v, t, body, self.limbs[i], self.limbs[j]) / fscale
                     additive[(i, j)] = max(additive.get((i, j), 0.0), value)
         terms = []
