@@ -12,6 +12,8 @@ What is drawn:
   ``<visual>`` elements, loaded by Pinocchio's meshcat visualiser); a model
   without any (the project's own ``robots/``) gets a sphere at the origin of
   every body frame instead;
+- each object of the scene (`contactdiff.model.objects`) as its shape (box,
+  sphere, cylinder); a URDF object as spheres at its body frames;
 - one red sphere per contact at its contact point (the frame origin, or the
   lowest point of a round contact along its normal), shown exactly while the
   contact is in the segment's mode (closed: sticking or sliding);
@@ -158,20 +160,51 @@ def visual_model(robot) -> pin.GeometryModel:
         raise InvalidInputError(f"replay: cannot read the visual geometry of {str(urdf)!r}: {exc}") from None
 
 
+def _shaped_objects(robot) -> set[str]:
+    """Names of the frames of the robot's objects that have a shape (drawn as the shape)."""
+    names = set()
+    for obj in robot.objects:
+        if obj.urdf is None:
+            names.add(obj.name)
+            names.update(f"{obj.name}/{label}" for label, _ in obj.local_points())
+    return names
+
+
 def _body_spheres(robot, radius: float) -> pin.GeometryModel:
-    """A sphere of ``radius`` (m) at the origin of every body frame: the stand-in
-    for a model without visual geometry."""
+    """A sphere of ``radius`` (m) at the origin of every body frame (but those of
+    shaped objects): the stand-in for a model without visual geometry."""
     import coal
 
     geoms = pin.GeometryModel()
+    shaped = _shaped_objects(robot)
     for fid, frame in enumerate(robot.model.frames):
-        if frame.type != pin.FrameType.BODY:
+        if frame.type != pin.FrameType.BODY or frame.name in shaped:
             continue
         g = pin.GeometryObject(f"{frame.name}_sphere", frame.parentJoint, fid, frame.placement,
                                coal.Sphere(radius))
         g.meshColor = np.array([0.35, 0.45, 0.75, 1.0])
         geoms.addGeometryObject(g)
     return geoms
+
+
+OBJECT_COLOUR = (0.85, 0.55, 0.25, 1.0)
+"""RGBA of the objects' shapes."""
+
+
+def _add_object_shapes(geoms: pin.GeometryModel, robot) -> None:
+    """Each shaped object of ``robot`` as its box, sphere or cylinder, at its centre frame."""
+    import coal
+
+    for obj in robot.objects:
+        if obj.urdf is not None:
+            continue
+        shape = {"box": lambda: coal.Box(*obj.size), "sphere": lambda: coal.Sphere(obj.radius),
+                 "cylinder": lambda: coal.Cylinder(obj.radius, obj.length)}[obj.shape]()
+        fid = robot.frame_id(obj.name)
+        frame = robot.model.frames[fid]
+        g = pin.GeometryObject(f"{obj.name}_{obj.shape}", frame.parentJoint, fid, frame.placement, shape)
+        g.meshColor = np.array(OBJECT_COLOUR)
+        geoms.addGeometryObject(g)
 
 
 def model_size(robot, q: np.ndarray) -> float:
@@ -260,6 +293,7 @@ def replay_html(traj, scene, *, fps: float = DEFAULT_FPS, contact_radius: float 
     geoms = visual_model(robot)
     if geoms.ngeoms == 0:
         geoms = _body_spheres(robot, 0.6 * radius)
+    _add_object_shapes(geoms, robot)
     recorder = _Recorder(umsgpack)
     viewer = meshcat.Visualizer(window=recorder)
     viz = MeshcatVisualizer(robot.model, None, geoms)

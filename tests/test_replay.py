@@ -200,3 +200,23 @@ def test_the_page_loads_in_headless_chromium(run, page):
     assert facts["duration"] == pytest.approx(traj.t - traj.t0)
     mode = next(s.mode for s in reversed(traj.segments) if s.t0 <= 1.5)
     assert shown == [n in mode for n in ("rear_foot", "front_foot")]
+
+
+def test_objects_are_drawn_as_their_shapes_where_the_run_puts_them(tmp_path):
+    """Newton's cradle: three spheres of radius 0.02 m, the last frame at the run's end
+    (ball 1 back at -0.04 - u/3 (0.3 - 0.1) = -0.1067 m, module doc of its test)."""
+    pytest.importorskip("meshcat")
+    scene = load_source("newtons_cradle")
+    traj = simulate(scene, 0.3, dense=True)
+    path = traj.to_html(tmp_path / "cradle.html", scene, fps=FPS)
+    commands = _commands(path.read_text())
+    shapes = {c["path"].rsplit("/", 1)[-1]: c["object"]["geometries"][0] for c in commands
+              if c["type"] == "set_object" and "/visuals/" in c["path"]}
+    assert set(shapes) == {"ball1_sphere", "ball2_sphere", "ball3_sphere"}
+    assert all(g["type"] == "SphereGeometry" and g["radius"] == 0.02 for g in shapes.values())
+    last = {a["path"].rsplit("/", 1)[-1]: a["clip"]["tracks"][0]["keys"][-1]["value"]
+            for a in _animation(path.read_text())}
+    for k, name in enumerate(("ball1", "ball2", "ball3")):
+        start = scene.robot.model.joints[scene.robot.joint_id(name)].idx_q
+        assert last[f"{name}_sphere"] == pytest.approx(traj.q[start:start + 3].tolist(), abs=1e-12)
+    assert last["ball1_sphere"][0] == pytest.approx(-0.04 - 0.2 / 3, abs=1e-9)
