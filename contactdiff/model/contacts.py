@@ -9,14 +9,19 @@ sticking contact two tangents): ``A_d = d^T (J_p - J_p')`` with ``J`` the linear
 LOCAL_WORLD_ALIGNED Jacobian, and ``drift_d = d^T (J̇_p - J̇_p') v``, so that the
 row's acceleration is ``A_d ddq + drift_d``. The first row is the gap's gradient.
 
-**Round contacts.** A contact of radius ``r > 0`` (ground contacts only) is a
-sphere of radius ``r`` centred at the frame origin ``p``. Its lowest point along
-the normal is ``p - r n``, so the gap is ``a(q) = n · p - r - offset``, and the
+**Round contacts.** A contact of radius ``r > 0`` is a sphere of radius ``r``
+centred at the frame origin ``p``. Its lowest point along the normal is
+``p - r n``, so the gap is ``a(q) = n · (p - p') - r - offset``, and the
 material point of the sphere there moves at ``v_p + ω × (-r n) = v_p + r n × ω``
 (``ω`` the frame's angular velocity, world axes). Its rows are
 
-    A_d = d^T J_v + r (d × n)^T J_ω           (``J_v``, ``J_ω``: linear and angular
+    A_d = d^T (J_v - J_p') + r (d × n)^T J_ω  (``J_v``, ``J_ω``: linear and angular
                                                LOCAL_WORLD_ALIGNED Jacobians)
+
+Against a second frame ``p'`` (a sphere touching a robot's finger, or an
+object's face) the other body's point is its frame origin: its velocity stands
+for that of the touched surface, exactly so when that body does not turn, or
+when ``p'`` sits where the sphere touches.
 
 since ``d · (n × ω) = (d × n) · ω``: the normal row has no rotation term (it stays
 the gap's gradient), a tangent row holds the rolling point still, so a sticking
@@ -92,7 +97,8 @@ class Contact:
         name: contact name, defaults to ``frame``.
         radius: radius (m, >= 0) of a sphere centred at the frame origin (a round
             foot, a ball): the gap is measured to its lowest point along the normal
-            and a sticking contact rolls (module doc). Ground contacts only.
+            and a sticking contact rolls (module doc), on the ground or on the body
+            of ``against``.
     """
 
     frame: str
@@ -117,12 +123,7 @@ class Contact:
             raise InvalidInputError(f"{owner}: restitution must be in [0, 1], got {e!r}")
         set_(self, "restitution", e)
         set_(self, "friction", _friction(self.friction, owner))
-        r = check_number(owner, "radius", self.radius, minimum=0.0)
-        if r > 0.0 and self.against is not None:
-            raise InvalidInputError(
-                f"{owner}: radius {self.radius!r} is for contacts with the ground only; a round contact "
-                f"against frame {self.against!r} is not supported (drop radius, or use against = none)")
-        set_(self, "radius", r)
+        set_(self, "radius", check_number(owner, "radius", self.radius, minimum=0.0))
 
     @property
     def sticking(self) -> bool:

@@ -73,13 +73,16 @@ CASES = [  # (robot, contact, tangent rows kept)
     ("solo12", Contact("FR_FOOT", normal=TILTED, friction="stick"), 2),
     ("planar_trot_rigid", Contact("front_foot", radius=0.05, friction="stick"), 1),
     ("planar_trot_rigid", Contact("front_foot", normal=(-0.4, 0.0, 1.0), radius=0.05, friction="stick"), 1),
+    # a ball object against a finger on a slide: the finger's point moves too
+    ("finger+ball", Contact("ball", against="tip", normal=TILTED, radius=RADIUS, offset=0.01,
+                            friction="stick"), 2),
 ]
 IDS = [f"{r}-{c.frame}-r{c.radius}-n{i}" for i, (r, c, _) in enumerate(CASES)]
 
 
 def _case(ball, i, seed):
     name, spec, tangents = CASES[i]
-    robot = ball if name == "ball" else cd.load_robot(name)
+    robot = {"ball": lambda: ball, "finger+ball": _finger_and_ball}.get(name, lambda: cd.load_robot(name))()
     rng = np.random.default_rng(seed)
     if robot.model.nq == robot.model.nv:  # planar: pitch well away from 0
         q = robot.q_ref + rng.uniform(-0.6, 0.6, robot.nq)
@@ -92,6 +95,12 @@ def _case(ball, i, seed):
     return robot, spec.bind(robot), tangents, q, v
 
 
+def _finger_and_ball():
+    """The project's finger on its slide and a free ball (a sphere object, I = 2/5 m r²)."""
+    return cd.add_objects(cd.load_robot("finger"), [cd.SceneObject("ball", "sphere", MASS, radius=RADIUS,
+                                                                   position=(RADIUS, 0.0, 0.03))])
+
+
 class Evaluator(ContactEvaluator):
     """`ContactEvaluator` with the frame's placement."""
 
@@ -99,6 +108,14 @@ class Evaluator(ContactEvaluator):
         data = self.robot.new_data()
         pin.framesForwardKinematics(self.robot.model, data, q)
         return data.oMf[self.c.fid]
+
+    def against_point(self, q):
+        """The other frame's origin (world, m); zero for a ground contact."""
+        if self.c.against_fid is None:
+            return np.zeros(3)
+        data = self.robot.new_data()
+        pin.framesForwardKinematics(self.robot.model, data, q)
+        return data.oMf[self.c.against_fid].translation
 
 
 def test_ball_gap_closed_form(ball):
@@ -132,9 +149,9 @@ def test_round_rows_are_the_rolling_point_velocity(ball, i):
     base = ev.placement(q)
     local = base.rotation.T @ (-r * n)  # the bottom point in the frame's own axes
 
-    def material(qq, d):
+    def material(qq, d):  # less the other frame's point, for a contact against one
         m = ev.placement(qq)
-        return d @ (m.translation + m.rotation @ local)
+        return d @ (m.translation + m.rotation @ local - ev.against_point(qq))
 
     assert_fd("round rows[0] vs d gap/dq", A[0], fd_dq(ev.gap, robot.model, q), value=ev.gap(q))
     for k, d in enumerate(c.directions):
@@ -146,6 +163,9 @@ def test_round_rows_are_the_rolling_point_velocity(ball, i):
     pin.updateFramePlacements(robot.model, data)
     twist = pin.getFrameVelocity(robot.model, data, c.fid, pin.LOCAL_WORLD_ALIGNED)
     expected = c.directions @ (twist.linear + np.cross(twist.angular, -r * n))
+    if c.against_fid is not None:
+        expected -= c.directions @ pin.getFrameVelocity(robot.model, data, c.against_fid,
+                                                        pin.LOCAL_WORLD_ALIGNED).linear
     # one product of O(1) entries over nv terms: round-off 1e-15 relative
     np.testing.assert_allclose(A @ v, expected, rtol=0, atol=1e-13 * max(1.0, np.abs(expected).max()))
 
@@ -331,10 +351,25 @@ def test_radius_validation(value, message):
         Contact("ball", radius=value)
 
 
-def test_radius_with_against_is_refused():
-    with pytest.raises(InvalidInputError, match="radius 0.02 is for contacts with the ground only"):
-        Contact("FL_FOOT", against="HR_FOOT", radius=0.02)
-    assert Contact("FL_FOOT", against="HR_FOOT", radius=0.0).radius == 0.0
+def test_a_ball_rolls_down_a_sticking_vertical_face():
+    """A ball held by a sticking round contact against the finger's vertical face (normal
+    x, no ground) rolls down it as down an incline of 90°: a = 5/7 g, the friction
+    (2/7) m g holds it up, the normal force is 0, and the finger, pushed by nothing
+    along its slide, does not move."""
+    robot = _finger_and_ball()
+    face = Contact("ball", against="tip", normal=(1.0, 0.0, 0.0), offset=0.0, radius=RADIUS, friction="stick")
+    scene = cd.Scene(robot, [face], gravity=[0.0, 0.0, -9.81])  # the ball's centre r from the tip: touching
+    sol = cd.ModeDynamics(scene).solve(scene.q0, scene.v0, 0.0, (0,))
+    ball_v = robot.model.joints[robot.joint_id("ball")].idx_v
+    # sums of a few O(g) products: round-off ~1e-15 g
+    np.testing.assert_allclose(sol.ddq[ball_v:ball_v + 3], [0.0, 0.0, -5 / 7 * 9.81], atol=1e-12)
+    # the touching point c = p - r x stays: v + ω × (-r x) = 0, so falling (-z) turns about +y: α_y = a / r
+    assert sol.ddq[ball_v + 4] == pytest.approx(5 / 7 * 9.81 / RADIUS, abs=1e-10)
+    assert sol.ddq[robot.scalar_joint("slide")[1]] == pytest.approx(0.0, abs=1e-12)
+    normal, *tangential = sol.forces
+    assert normal == pytest.approx(0.0, abs=1e-12)
+    vertical = face.bind(robot).directions[1:, 2] @ tangential
+    assert vertical == pytest.approx(2 / 7 * MASS * 9.81, abs=1e-12)
 
 
 SCENE = """robot = "solo12"
@@ -361,8 +396,7 @@ def test_scene_file_radius(tmp_path):
     assert load_scene(path).contact_specs[0].radius == 0.0
     for bad, message in (("radius = -0.02", "radius must be >= 0, got -0.02"),
                          ("radius = nan", "radius must be finite, got nan"),
-                         ('radius = "2 cm"', "radius must be a number, got '2 cm'"),
-                         ('radius = 0.02\nagainst = "HR_FOOT"', "for contacts with the ground only")):
+                         ('radius = "2 cm"', "radius must be a number, got '2 cm'")):
         path.write_text(SCENE.format(extra=bad))
         with pytest.raises(InvalidInputError, match=message):
             load_scene(path)
