@@ -258,7 +258,7 @@ class ModeDynamics:
                 F[slip.row] = slip.force_row
             MinvFT = Minv @ F.T
             G = A @ MinvFT
-            forces = _solve_general(G, -(drift + A @ a_free), slips, self.scene)
+            forces = _solve_general(G, -(drift + A @ a_free), slips, self.scene, A @ MinvAT, contacts)
         else:
             MinvFT = MinvAT
             G = A @ MinvAT
@@ -357,10 +357,12 @@ class ModeAccelerator:
         return self._solution.row_forces()
 
 
-def _solve_general(G: np.ndarray, b: np.ndarray, slips, scene) -> np.ndarray:
+def _solve_general(G: np.ndarray, b: np.ndarray, slips, scene, delassus: np.ndarray | None = None,
+                   contacts=()) -> np.ndarray:
     """Solve ``G x = b`` for the non-symmetric ``G = A M^-1 F^T`` of a mode with slipping
     contacts (LU); a slipping contact whose own block of ``G`` is not positive, or a
-    singular ``G``, is Painlevé's paradox (`PainleveError`)."""
+    singular ``G``, is Painlevé's paradox (`PainleveError`), unless the rows themselves
+    are redundant (``delassus = A M^-1 A^T`` singular), which the error says instead."""
     painleve_check(G, slips, scene.contact_names)
     try:
         x = np.linalg.solve(G, b)
@@ -368,6 +370,13 @@ def _solve_general(G: np.ndarray, b: np.ndarray, slips, scene) -> np.ndarray:
         x = None
     if x is None or not np.all(np.isfinite(x)):
         names = ", ".join(scene.contacts[s.index].name for s in slips)
+        rank = np.linalg.matrix_rank(delassus) if delassus is not None else len(G)
+        if rank < len(G):
+            held = ", ".join(dict.fromkeys(c.name for c in contacts))
+            raise PainleveError(
+                f"the contacts {held} hold redundant rows (rank {rank} of {len(G)}: two of them "
+                f"hold the same motion), so the friction of sliding {names} has no unique force; make "
+                "one of the contacts that hold the same motion frictionless")
         raise PainleveError(f"the sliding problem of {names} is singular (G = A M^-1 F^T = {G.tolist()}): "
                             "no force makes the contacts' normal accelerations zero (Painlevé's paradox)")
     return x

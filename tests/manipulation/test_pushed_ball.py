@@ -136,3 +136,11 @@ def test_the_checker_finds_the_push_and_the_ground_orthogonal(scene):
     (pair,) = report.pairs
     assert pair.max < 1e-15  # products of O(1/m) numbers that cancel exactly in exact arithmetic
     assert report.verdict == "orthogonal only"  # each gap moves with the ball, the body
+
+
+def test_friction_on_the_finger_too_is_refused_as_redundant_rows(scene):
+    """A sticking finger holds the ball's vertical motion, as the ground's normal does:
+    with the ground sliding, the friction force has no unique value (say so, not Painlevé)."""
+    both = scene.with_friction(0.1)
+    with pytest.raises(cd.PainleveError, match=r"redundant rows \(rank 3 of 4"):
+        cd.simulate(both, T_END)
