@@ -120,11 +120,11 @@ def counting_derivative_work():
     derivatives: keys ``"derivative_solves"`` and ``"dynamics_solves"``."""
     original_solve = ModeDynamics.solve
     with counting([(pin, name) for name in DERIVATIVE_FUNCTIONS if hasattr(pin, name)]) as counts:
-        def solve(self, q, v, t, active=(), *, derivatives=False):
+        def solve(self, q, v, t, active=(), *, derivatives=False, **options):
             counts["dynamics_solves"] += 1
             if derivatives:
                 counts["derivative_solves"] += 1
-            return original_solve(self, q, v, t, active, derivatives=derivatives)
+            return original_solve(self, q, v, t, active, derivatives=derivatives, **options)
         ModeDynamics.solve = solve
         try:
             yield counts

@@ -239,19 +239,13 @@ class EventResets:
             if self.jumps:
                 h_p = self.jumps.gap_guard(guard)
             if len(touching) > 1:
-                override = {i: e[closed.index(i)] for i in closed}
-                sim = simultaneous_saltation(self.dyn, t, q, v_minus, mode, touching, override)
+                sim = self._landing_orders(event, t, q, v_minus, mode, touching, closed, e)
                 xi = sim.matrix
                 if self.jumps:  # the simultaneous reset plus one guard term per contact
                     xi_p = reset_parameters()
                     for k, (jump, rate) in sim.corrections.items():
                         xi_p += np.outer(jump, self.jumps.gap_guard(k)) / rate
                 event.saltation_orders = {tuple(self.names[i] for i in k): m for k, m in sim.orders.items()}
-                if not sim.differentiable:
-                    event.nonsmooth[NonSmooth.ORDER] = self._note(
-                        f"not differentiable at t = {t:.12g}: the landing orders of "
-                        f"{', '.join(self.names[i] for i in touching)} give saltation matrices "
-                        f"differing by {sim.spread:.2e} (relative)")
             else:
                 DR = reset_jacobian()
                 F_plus = vector_field(self.dyn, q, v_plus, t, new_mode)
@@ -260,8 +254,23 @@ class EventResets:
                     xi_p = ParameterJumps.saltation(reset_parameters(), h_p, DR, F_minus, F_plus,
                                                     float(Dh @ F_minus))
             self._attach_sensitivity(event, xi, Dh, F_minus, xi_p=xi_p, h_p=h_p)
+        elif len(touching) > 1 and not initial:  # the verdict must not depend on what was asked for
+            self._landing_orders(event, t, q, v_minus, mode, touching, closed, e)
         self.events.append(event)
         return new_mode, v_plus
+
+    def _landing_orders(self, event, t, q, v_minus, mode, touching, closed, e):
+        """The saltation matrices of every landing order of a simultaneous touchdown
+        (`simultaneous_saltation`), flagging ``event`` with `NonSmooth.ORDER` where they
+        differ."""
+        override = {i: e[closed.index(i)] for i in closed}
+        sim = simultaneous_saltation(self.dyn, t, q, v_minus, mode, touching, override)
+        if not sim.differentiable:
+            event.nonsmooth[NonSmooth.ORDER] = self._note(
+                f"not differentiable at t = {t:.12g}: the landing orders of "
+                f"{', '.join(self.names[i] for i in touching)} give saltation matrices "
+                f"differing by {sim.spread:.2e} (relative)")
+        return sim
 
     def _friction_keys(self, q, impact) -> tuple[list[int], list[int]]:
         """The keys of a frictional impact's contacts after it, and the closed ones whose

@@ -12,18 +12,31 @@ import contactdiff as cd
 from contactdiff.bench import footprint
 
 
-@pytest.mark.parametrize("name,t_final", [("planar_trot_soft", 1.8), ("solo12_drop", 0.3), ("ball", 3.0)])
+@pytest.mark.parametrize("name,t_final", [("solo12_trot", 0.5), ("pushed_ball", 0.6), ("ball", 3.0)])
 @pytest.mark.parametrize("method", ["auto", "DOP853"])
 def test_no_derivative_work_without_jacobian(name, t_final, method):
-    """A plain run calls no Pinocchio derivative algorithm and solves no mode with
-    derivatives (auto measures stiffness by difference quotients); asking for the
-    Jacobian calls them."""
+    """A plain run without simultaneous touchdowns calls no Pinocchio derivative
+    algorithm and solves no mode with derivatives (auto measures stiffness by
+    difference quotients); asking for the Jacobian calls them."""
     scene = cd.load_scene(name)
+    assert not any(e.simultaneous for e in cd.simulate(scene, t_final, method=method).events)
     plain = footprint.derivative_work(scene, t_final, method=method)
     assert plain["pinocchio_derivative_calls"] == 0 and plain["derivative_solves"] == 0
     assert plain["dynamics_solves"] > 0
     with_jacobian = footprint.derivative_work(scene, t_final, method=method, jacobian=True)
     assert with_jacobian["pinocchio_derivative_calls"] > 0
+
+
+@pytest.mark.parametrize("name,t_final", [("planar_trot_soft", 1.8), ("solo12_drop", 0.3), ("panda_lift", 0.3)])
+def test_the_landing_order_verdict_does_not_depend_on_the_jacobian(name, t_final):
+    """A simultaneous touchdown's verdict (do its landing orders give one saltation
+    matrix?) is the same whether sensitivities were asked for or not: a plain run
+    computes the orders' saltation matrices at that event only."""
+    plain = cd.simulate(cd.load_scene(name), t_final)
+    full = cd.simulate(cd.load_scene(name), t_final, jacobian=True)
+    assert any(e.simultaneous for e in plain.events)
+    assert [set(e.nonsmooth) for e in plain.events] == [set(e.nonsmooth) for e in full.events]
+    assert plain.differentiable == full.differentiable
 
 
 def test_stiff_method_needs_jacobians_only_for_its_newton_matrix():
