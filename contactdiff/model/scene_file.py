@@ -29,6 +29,7 @@ _CONTACT_KEYS = ("frame", "normal", "offset", "restitution", "friction", "agains
 _SPRING_KEYS = ("frame_a", "frame_b", "stiffness", "damping", "rest_length")
 _JOINT_SPRING_KEYS = ("joint", "stiffness", "damping", "rest")
 _INITIAL_KEYS = ("q", "v")
+_EFFORT_KEYS = ("trot", "spring", "joint_spring", "joint_targets")  # the tables that put efforts on a robot
 _FRAME_KEYS = ("name", "parent", "position", "rpy")
 _OBJECT_KEYS = ("name", "shape", "mass", "size", "radius", "length", "urdf", "position", "rpy", "fixed", "points")
 
@@ -64,7 +65,7 @@ def driving_scenes(robot_name: str) -> list[str]:
             doc = tomllib.loads(path.read_text())
         except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
             continue
-        if doc.get("robot") == robot_name and any(k in doc for k in ("trot", "spring", "joint_spring")):
+        if doc.get("robot") == robot_name and any(k in doc for k in _EFFORT_KEYS):
             found.append(path.stem)
     return found
 
