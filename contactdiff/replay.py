@@ -49,6 +49,7 @@ import numpy as np
 import pinocchio as pin
 
 from .errors import ContactDiffError, InvalidInputError, check_output_file
+from .replay_geometry import drawn_geometry, marker_radius, model_size
 
 DEFAULT_FPS = 30.0
 """Frames per second of simulated time."""
@@ -144,79 +145,6 @@ def sample_frames(traj, fps: float = DEFAULT_FPS) -> Frames:
     return Frames(times, np.array(qs), modes, is_event)
 
 
-# -- geometry ---------------------------------------------------------------------------------
-def visual_model(robot) -> pin.GeometryModel:
-    """The visual geometry of ``robot``'s URDF, as Pinocchio's loaders read it (meshes
-    found through ``package://`` against every folder above the URDF, which is where
-    example-robot-data's loader points too). Empty if the robot has no URDF or its
-    URDF has no ``<visual>``; the robot's own (dynamics-only) model is not changed."""
-    if not robot.urdf:
-        return pin.GeometryModel()
-    urdf = Path(robot.urdf)
-    try:
-        return pin.buildGeomFromUrdf(robot.model, str(urdf), pin.GeometryType.VISUAL,
-                                     package_dirs=[str(p) for p in urdf.parents])
-    except (RuntimeError, ValueError) as exc:
-        raise InvalidInputError(f"replay: cannot read the visual geometry of {str(urdf)!r}: {exc}") from None
-
-
-def _shaped_objects(robot) -> set[str]:
-    """Names of the frames of the robot's objects that have a shape (drawn as the shape)."""
-    names = set()
-    for obj in robot.objects:
-        if obj.urdf is None:
-            names.add(obj.name)
-            names.update(f"{obj.name}/{label}" for label, _ in obj.local_points())
-    return names
-
-
-def _body_spheres(robot, radius: float) -> pin.GeometryModel:
-    """A sphere of ``radius`` (m) at the origin of every body frame (but those of
-    shaped objects): the stand-in for a model without visual geometry."""
-    import coal
-
-    geoms = pin.GeometryModel()
-    shaped = _shaped_objects(robot)
-    for fid, frame in enumerate(robot.model.frames):
-        if frame.type != pin.FrameType.BODY or frame.name in shaped:
-            continue
-        g = pin.GeometryObject(f"{frame.name}_sphere", frame.parentJoint, fid, frame.placement,
-                               coal.Sphere(radius))
-        g.meshColor = np.array([0.35, 0.45, 0.75, 1.0])
-        geoms.addGeometryObject(g)
-    return geoms
-
-
-OBJECT_COLOUR = (0.85, 0.55, 0.25, 1.0)
-"""RGBA of the objects' shapes."""
-
-
-def _add_object_shapes(geoms: pin.GeometryModel, robot) -> None:
-    """Each shaped object of ``robot`` as its box, sphere or cylinder, at its centre frame."""
-    import coal
-
-    for obj in robot.objects:
-        if obj.urdf is not None:
-            continue
-        shape = {"box": lambda: coal.Box(*obj.size), "sphere": lambda: coal.Sphere(obj.radius),
-                 "cylinder": lambda: coal.Cylinder(obj.radius, obj.length)}[obj.shape]()
-        fid = robot.frame_id(obj.name)
-        frame = robot.model.frames[fid]
-        g = pin.GeometryObject(f"{obj.name}_{obj.shape}", frame.parentJoint, fid, frame.placement, shape)
-        g.meshColor = np.array(OBJECT_COLOUR)
-        geoms.addGeometryObject(g)
-
-
-def model_size(robot, q: np.ndarray) -> float:
-    """Size of the robot (m): the largest distance between two joint origins at
-    configuration ``q``, at least 0.05 m; sets the default marker sizes."""
-    data = robot.model.createData()
-    pin.forwardKinematics(robot.model, data, np.asarray(q, dtype=float))
-    points = np.array([data.oMi[j].translation for j in range(robot.model.njoints)])
-    spread = np.max(np.linalg.norm(points[:, None] - points[None], axis=-1)) if len(points) > 1 else 0.0
-    return max(float(spread), 0.05)
-
-
 # -- recording meshcat's commands --------------------------------------------------------
 class _Recorder:
     """Stands in for meshcat's server window: keeps the scene's commands by path, as
@@ -270,7 +198,8 @@ def replay_html(traj, scene, *, fps: float = DEFAULT_FPS, contact_radius: float 
         scene: the `Scene` it was computed on (its robot and contacts).
         fps: frames per second of simulated time (> 0).
         contact_radius: radius of the contact markers (m); default 4% of the robot's
-            size at the first state (`model_size`).
+            size at the first state (`model_size`), at most 30 % of its objects' smallest
+            half-dimension.
         title: the page's title; default the scene's name.
 
     Raises:
@@ -286,14 +215,11 @@ def replay_html(traj, scene, *, fps: float = DEFAULT_FPS, contact_radius: float 
         raise InvalidInputError(f"replay: the trajectory's q has {len(traj.q0)} entries but scene "
                                 f"{scene.name!r}'s robot has nq = {robot.nq}; pass the scene it was computed on")
     size = model_size(robot, traj.q0)
-    radius = 0.04 * size if contact_radius is None else _positive(contact_radius, "contact_radius")
+    radius = marker_radius(robot, size) if contact_radius is None else _positive(contact_radius, "contact_radius")
     frames = sample_frames(traj, fps)
     fps = _positive(fps, "fps", "frames per second")
 
-    geoms = visual_model(robot)
-    if geoms.ngeoms == 0:
-        geoms = _body_spheres(robot, 0.6 * radius)
-    _add_object_shapes(geoms, robot)
+    geoms = drawn_geometry(robot, 0.6 * radius)
     recorder = _Recorder(umsgpack)
     viewer = meshcat.Visualizer(window=recorder)
     viz = MeshcatVisualizer(robot.model, None, geoms)
