@@ -33,7 +33,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import InvalidInputError, check_number, check_vector, unknown_name
-from .robot import Robot
+from .robot import Robot, load_robot
 
 SHAPES = ("box", "sphere", "cylinder")
 """Shapes an object may have without a URDF: a box (``size``: three edge lengths, m),
@@ -226,19 +226,14 @@ def add_objects(robot: Robot, objects: Sequence[SceneObject] = (), frames: Seque
         else:
             model, q_obj = _append_shape(model, obj)
         q_parts.append(q_obj)
-    q_ref = np.concatenate(q_parts) if q_parts else np.zeros(0)
-    return Robot(model, robot.name, robot.urdf, robot.floating_base, q_ref, robot.feet, robot.actuated,
-                 robot.foot_choice, objects=robot.objects + tuple(objects))
+    return Robot(model, robot.name, robot.urdf, robot.floating_base, np.concatenate(q_parts), robot.feet,
+                 robot.actuated, robot.foot_choice, objects=robot.objects + tuple(objects))
 
 
 def _check_free(model: pin.Model, name: str, what: str) -> None:
     if model.existFrame(name) or model.existJointName(name):
         raise InvalidInputError(f"{what}: the name {name!r} is already a frame or joint of the model; "
                                 "choose another")
-
-
-def _free_flyer_q(pose: pin.SE3) -> np.ndarray:
-    return pin.SE3ToXYZQUAT(pose)
 
 
 def _append_shape(model: pin.Model, obj: SceneObject) -> tuple[pin.Model, np.ndarray]:
@@ -249,7 +244,7 @@ def _append_shape(model: pin.Model, obj: SceneObject) -> tuple[pin.Model, np.nda
         jid = model.addJoint(0, pin.JointModelFreeFlyer(), pin.SE3.Identity(), obj.name)
         model.appendBodyToJoint(jid, obj.inertia(), pin.SE3.Identity())
         centre = model.addBodyFrame(obj.name, jid, pin.SE3.Identity(), 0)
-        placement, q_obj = pin.SE3.Identity(), _free_flyer_q(obj.pose)
+        placement, q_obj = pin.SE3.Identity(), pin.SE3ToXYZQUAT(obj.pose)
     for label, xyz in obj.local_points():
         name = f"{obj.name}/{label}"
         _check_free(model, name, f"point {label!r} of object {obj.name!r}")
@@ -259,8 +254,9 @@ def _append_shape(model: pin.Model, obj: SceneObject) -> tuple[pin.Model, np.nda
 
 
 def _append_urdf(model: pin.Model, obj: SceneObject, base: Path | None) -> tuple[pin.Model, np.ndarray]:
-    from .robot import load_robot
-
+    if obj.points:
+        raise InvalidInputError(f"object {obj.name!r}: points are for shapes; a URDF object has its "
+                                f"own frames (points {[name for name, _ in obj.points]})")
     path = Path(obj.urdf)
     if not path.is_absolute() and base is not None:
         path = base / path
@@ -271,9 +267,6 @@ def _append_urdf(model: pin.Model, obj: SceneObject, base: Path | None) -> tuple
         frame = loaded.frames[i]
         frame.name = obj.name if (i == 1 and not obj.fixed) else f"{obj.name}/{frame.name}"
         loaded.frames[i] = frame
-    if obj.points:
-        raise InvalidInputError(f"object {obj.name!r}: points are for shapes; a URDF object has its "
-                                f"own frames (points {[name for name, _ in obj.points]})")
     nq_before = model.nq
     placement = obj.pose if obj.fixed else pin.SE3.Identity()
     try:
@@ -282,7 +275,7 @@ def _append_urdf(model: pin.Model, obj: SceneObject, base: Path | None) -> tuple
         raise InvalidInputError(f"object {obj.name!r}: cannot add URDF {str(path)!r}: {exc}") from None
     q_obj = pin.neutral(model)[nq_before:]
     if not obj.fixed:
-        q_obj[:7] = _free_flyer_q(obj.pose)
+        q_obj[:7] = pin.SE3ToXYZQUAT(obj.pose)
     return model, q_obj
 
 

@@ -100,6 +100,11 @@ def test_a_urdf_object_keeps_its_frames_under_its_name(tmp_path):
     assert robot.joint_names == ["brick"] and robot.nq == 7
     np.testing.assert_allclose(_placements(robot, ["brick/tip"])["brick/tip"].translation, [1.0, 2.0, 3.2],
                                atol=ATOL)
+    fixed = add_objects(empty_robot(), [SceneObject("brick", urdf="brick.urdf", position=(1.0, 2.0, 3.0),
+                                                    rpy=(np.pi / 2, 0.0, 0.0), fixed=True)], base=tmp_path)
+    assert fixed.nq == 0  # no joint: its frames hang on the universe at its pose (x turned 90°: z -> -y)
+    np.testing.assert_allclose(_placements(fixed, ["brick/tip"])["brick/tip"].translation, [1.0, 1.8, 3.0],
+                               atol=1e-12)
 
 
 @pytest.mark.parametrize("spec, message", [
