@@ -94,6 +94,25 @@ class PainleveError(OutsideDomainError):
     step; raised when the trajectory itself gets there (or at an event's mode choice)."""
 
 
+def check_names(owner: str, what: str, value) -> tuple[str, ...]:
+    """``value`` (a sequence, not one string) as a tuple of one or more distinct
+    non-empty names, else `InvalidInputError` naming ``owner`` and ``what`` (``joints``,
+    ``feet``) and showing the value."""
+    where = f"{owner}: {what}" if owner else what
+    try:
+        names = tuple(value) if not isinstance(value, str) else None
+    except TypeError:
+        names = None
+    if names is None:
+        raise InvalidInputError(f"{where} must be a sequence of names, got {value!r}")
+    if not names or not all(isinstance(n, str) and n for n in names):
+        raise InvalidInputError(f"{where} must be one or more non-empty names, got {value!r}")
+    repeated = sorted({n for n in names if names.count(n) > 1})
+    if repeated:
+        raise InvalidInputError(f"{where} must be distinct; repeated: {', '.join(map(repr, repeated))}")
+    return names
+
+
 def check_number(owner: str, name: str, value, *, minimum: float | None = None,
                  allow_inf: bool = False) -> float:
     """``value`` as a finite float (>= ``minimum`` if given; ``allow_inf`` admits

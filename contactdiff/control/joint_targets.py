@@ -43,24 +43,9 @@ from typing import ClassVar
 import numpy as np
 import pinocchio as pin
 
-from ..errors import InvalidInputError, check_number
+from ..errors import InvalidInputError, check_names, check_number
 from ..model.kinematics import Kinematics
 from ..model.robot import Robot
-
-
-def _joint_names(owner: str, value) -> tuple[str, ...]:
-    if isinstance(value, str):
-        raise InvalidInputError(f"{owner}: joints must be a sequence of joint names, got {value!r}")
-    try:
-        names = tuple(value)
-    except TypeError:
-        raise InvalidInputError(f"{owner}: joints must be a sequence of joint names, got {value!r}") from None
-    if not names or not all(isinstance(n, str) and n for n in names):
-        raise InvalidInputError(f"{owner}: joints must be one or more non-empty names, got {value!r}")
-    repeated = sorted({n for n in names if names.count(n) > 1})
-    if repeated:
-        raise InvalidInputError(f"{owner}: joints must be distinct; repeated: {', '.join(map(repr, repeated))}")
-    return names
 
 
 def _times(owner: str, value) -> tuple[float, ...]:
@@ -145,7 +130,7 @@ class JointTargets:
         if not isinstance(self.name, str) or not self.name:
             raise InvalidInputError(f"joint targets: name must be a non-empty string, got {self.name!r}")
         owner = self.name
-        joints = _joint_names(owner, self.joints)
+        joints = check_names(owner, "joints", self.joints)
         times = _times(owner, self.times)
         values = {"joints": joints, "times": times, "targets": _targets(owner, self.targets, joints, len(times)),
                   "stiffness": _gains(owner, "stiffness", self.stiffness, joints),

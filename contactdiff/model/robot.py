@@ -26,7 +26,7 @@ from xml.etree import ElementTree
 import numpy as np
 import pinocchio as pin
 
-from ..errors import InvalidInputError, ModelLoadError, UnknownRobotError, unknown_name
+from ..errors import InvalidInputError, ModelLoadError, UnknownRobotError, check_names, unknown_name
 from .feet import FootChoice, FootRule, choose_feet
 
 
@@ -251,17 +251,10 @@ def load_robot(source: str | Path, floating_base: bool | None = None,
 
 
 def _frame_list(feet) -> tuple[str, ...]:
+    """Foot frames: names, or one string of comma-separated names (the command line's)."""
     if isinstance(feet, str):
         feet = [f.strip() for f in feet.split(",") if f.strip()]
-    try:
-        names = tuple(feet)
-    except TypeError:
-        raise InvalidInputError(f"feet must be frame names, got {feet!r}") from None
-    if not names or not all(isinstance(n, str) and n for n in names):
-        raise InvalidInputError(f"feet must be one or more frame names, got {feet!r}")
-    if len(set(names)) != len(names):
-        raise InvalidInputError(f"feet must be distinct frames, got {list(names)}")
-    return names
+    return check_names("", "feet", feet)
 
 
 def _unloadable_reason(name: str, loader) -> str:
