@@ -18,10 +18,14 @@ the contact's *reference* (its direction at the last accepted step), ``s`` is
 ``-u_T / ||u_T||``. A slip that stops has ``u_T(t) = (t_s - t) c(t)`` with
 ``c`` smooth, so the continued field is smooth through ``t_s`` and the stop
 is the zero of ``reference · u_T``, a sign change the guards locate like any
-other. Below a floor (`SLIP_SPEED_EPS`; the hybrid loop raises it to its
+other. Below a floor ``ε`` (`SLIP_SPEED_EPS`; the hybrid loop raises it to its
 ``zeno_speed``, above the integration error of ``u_T``) ``s`` is the reference
-itself: at the onset of a slip from sticking ``u_T`` grows from 0 and its
-direction there is noise.
+``r`` itself: at the onset of a slip from sticking ``u_T`` grows from 0 and its
+direction there is noise. Between ``ε`` and ``2ε`` it turns from ``r`` to the
+slip's own direction ``ŵ`` along ``b = a ŵ + (1 - a) r``, ``s = b / ||b||``,
+with the smooth step ``a = 3x² - 2x³``, ``x = ||u_T|| / ε - 1``: the field is
+C¹ through the band (a slip whose direction is not the reference's would
+otherwise jump there, and no step could cross it), and exact above ``2ε``.
 
 **Painlevé's paradox.** With one slipping contact the normal force solves
 ``g λ_N = -b`` with ``g = A_n M^-1 F^T``: where ``g <= 0`` a normal force
@@ -68,7 +72,18 @@ def slip_direction(slip_velocity: np.ndarray, reference: np.ndarray | None, floo
     sign = 1.0
     if reference is not None and s @ reference < 0.0:
         s, sign = -s, -1.0
-    return s, sign * (np.eye(2) - np.outer(s, s)) / speed
+    if reference is None or speed >= 2.0 * floor:
+        return s, sign * (np.eye(2) - np.outer(s, s)) / speed
+    # the band [floor, 2 floor]: from the reference to the slip's own direction (module doc)
+    r = np.asarray(reference, dtype=float)
+    x = speed / floor - 1.0
+    a, da = x * x * (3.0 - 2.0 * x), 6.0 * x * (1.0 - x) / floor  # da / d||u||
+    b = a * s + (1.0 - a) * r
+    norm = float(np.linalg.norm(b))
+    blended = b / norm
+    # db/dw = da ŵ-derivative terms: (ŵ - r) ŵᵀ da + a (I - ŵ ŵᵀ) / ||w||, w = sign u
+    db_dw = np.outer(s - r, s) * da + a * (np.eye(2) - np.outer(s, s)) / speed
+    return blended, sign * (np.eye(2) - np.outer(blended, blended)) / norm @ db_dw
 
 
 @dataclass

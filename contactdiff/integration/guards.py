@@ -168,14 +168,16 @@ class GuardFinder:
             shift = floor if guard.kind is GuardKind.STOP and values0[k] <= 0.0 else 0.0
             if values1[k] + shift >= 0.0:
                 continue
-            if values0[k] + shift <= 0.0:  # already past it at the step start (a slip stopped by a reset)
-                found.append((t_a, guard))
-                continue
-
             def value(t, k=k, shift=shift):
                 qt, vt = dense(t)
                 return field.guard_values(t, qt, vt)[k] + shift
-            found.append((locate_crossing(value, t_a, t_b, values0[k] + shift, values1[k] + shift), guard))
+            # the start's value afresh: a slip direction set since it was stored (at an event's
+            # mode choice) moves the forces of the contacts it pushes on
+            start = value(t_a)
+            if start <= 0.0:  # already past it at the step start (a slip stopped by a reset)
+                found.append((t_a, guard))
+                continue
+            found.append((locate_crossing(value, t_a, t_b, start, values1[k] + shift), guard))
         return found, misses
 
     def grazing_band(self, q) -> float:

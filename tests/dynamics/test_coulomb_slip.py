@@ -233,3 +233,29 @@ def test_painleve_rod_in_simulate(rod, theta, mu, slip_sign, spin):
     else:
         traj = cd.simulate(scene, 0.02)
         assert traj.segments[0].sliding == (("tip",) if b < 0.0 else ())
+
+
+def test_slip_direction_turns_smoothly_through_the_noise_floor():
+    """Between the floor ε and 2ε the direction turns from the reference to the slip's own
+    (slip.py): continuous at both ends, exact above 2ε, and ``D = ds/du_T`` matches central
+    differences inside the band (steps 1e-6 ε: the band's curvature scale is ε)."""
+    eps, r = 1e-6, np.array([0.0, 1.0])
+    own = np.array([0.8, 0.6])  # the slip's own direction, 53° from the reference
+    below, _ = slip_direction(own * eps * (1 - 1e-12), r, eps)
+    entering, _ = slip_direction(own * eps * (1 + 1e-12), r, eps)
+    leaving, _ = slip_direction(own * 2 * eps * (1 - 1e-12), r, eps)
+    above, _ = slip_direction(own * 2 * eps * (1 + 1e-12), r, eps)
+    np.testing.assert_allclose(below, r, atol=0)
+    np.testing.assert_allclose(entering, r, atol=1e-11)  # the smooth step's value ~ 3 (1e-12)²
+    np.testing.assert_allclose(leaving, own, atol=1e-11)
+    np.testing.assert_allclose(above, own, rtol=1e-15)
+    h = 1e-6 * eps
+    for speed in (1.1 * eps, 1.5 * eps, 1.9 * eps):
+        for u in (own * speed, -own * speed):  # the second against r: continued through a stop
+            s, D = slip_direction(u, r, eps)
+            assert s @ r > 0.0  # it keeps the reference's side
+            assert abs(np.linalg.norm(s) - 1.0) < 1e-15
+            fd = np.column_stack([(slip_direction(u + h * e, r, eps)[0]
+                                   - slip_direction(u - h * e, r, eps)[0]) / (2 * h) for e in np.eye(2)])
+            # truncation ~ (h / ε)² |D|, round-off ~ 1e-16 / h: both below 1e-6 |D|
+            np.testing.assert_allclose(D, fd, rtol=0, atol=1e-6 * np.abs(D).max())
