@@ -325,3 +325,25 @@ def test_a_box_off_the_centre_line_is_pushed_by_one_finger_first_and_rocks(scene
     assert rocking and all(set(e.contacts) <= set(TABLE) for e in rocking)
     assert not traj.differentiable
     assert {reason for e in traj.events for reason in e.nonsmooth} == {cd.NonSmooth.ZENO_CASCADE}
+
+
+def test_pads_below_the_lift_s_friction_need_slip_at_the_cone_and_lose_the_box(scene):
+    """μ = 0.15 is below what the lift's largest acceleration needs (0.162, above): the pads
+    start to slip during the lift, where each one's force reaches its cone's edge
+    (||λ_T|| = μ λ_N, the slip's event condition), the box slides out of the grasp and falls
+    back (only its bottom face's three supports are modelled, so it may pass the table)."""
+    slippery = _coulomb(scene, 0.15)
+    traj = cd.simulate(slippery, T_FINAL)
+    slips = [e for e in traj.events if e.kind == "slip"]
+    first = slips[0]
+    assert LIFT_START < first.t < LIFT_END
+    assert {c for e in slips for c in e.contacts} == set(FINGERS)
+    (k,) = [slippery.contact_index(name) for name in first.contacts]
+    active = [slippery.contact_index(name) for name in first.mode_before]
+    sol = cd.ModeDynamics(slippery).solve(first.q, first.v_minus, first.t, active)
+    f = sol.row_forces()[active.index(k)]
+    # located to the guard's tolerance on a force of ~1 N: 1e-6 of the normal force
+    assert np.linalg.norm(f[1:]) == pytest.approx(0.15 * f[0], rel=1e-6)
+    released = [e for e in traj.events if e.kind == "lift-off" and set(e.contacts) & set(FINGERS)]
+    assert {c for e in released for c in e.contacts} == set(FINGERS) and released[-1].t < T_FINAL
+    assert traj.segments[-1].mode and set(traj.segments[-1].mode) <= set(TABLE)  # back on its supports
