@@ -206,7 +206,8 @@ def _compliant_robot(robot: Robot, feet: list[str], foot_mass: float, mass_from:
         fmap[fid] = new.addFrame(frame, False)  # inertias were appended to the joints already
     _copy_coordinate_data(old, new, jmap)
     q_ref = _map_configuration(old, new, jmap, robot.q_ref)
-    return Robot(new, f"{robot.name}+compliant feet", "", robot.floating_base, q_ref, robot.feet, robot.actuated)
+    return Robot(new, f"{robot.name}+compliant feet", "", robot.floating_base, q_ref, robot.feet, robot.actuated,
+                 objects=robot.objects)
 
 
 _Q_FIELDS = ("lowerPositionLimit", "upperPositionLimit")

@@ -226,6 +226,9 @@ def add_objects(robot: Robot, objects: Sequence[SceneObject] = (), frames: Seque
         else:
             model, q_obj = _append_shape(model, obj)
         q_parts.append(q_obj)
+    # the model's named configurations (an SRDF's "standing") get the objects' poses too
+    for entry in list(model.referenceConfigurations):
+        model.referenceConfigurations[entry.key()] = np.concatenate([entry.data(), *q_parts[1:]])
     return Robot(model, robot.name, robot.urdf, robot.floating_base, np.concatenate(q_parts), robot.feet,
                  robot.actuated, robot.foot_choice, objects=robot.objects + tuple(objects))
 

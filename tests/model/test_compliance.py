@@ -230,3 +230,20 @@ def test_add_compliant_feet_rejects_bad_input(solo):
         add_compliant_feet(user, 1000.0, 0.01)
     with pytest.raises(InvalidInputError, match="shape"):
         compliant_state(solo, add_compliant_feet(solo, 1000.0, 0.01).robot, np.zeros(3))
+
+
+def test_objects_beside_the_robot_stay_where_they_were():
+    """A box beside solo12 keeps its joint, its frames and its pose on the compliant robot
+    (the springs only add joints inside the legs), and the robot keeps its objects' list
+    (the replay draws them from it)."""
+    box = cd.SceneObject("box", "box", 0.5, size=(0.1, 0.1, 0.1), position=(0.6, 0.0, 0.05))
+    robot = cd.add_objects(cd.load_robot("solo12"), [box])
+    # the SRDF's named poses cover the box too (the compliant model maps each of them)
+    assert {len(entry.data()) for entry in robot.model.referenceConfigurations} == {robot.nq}
+    compliant = add_compliant_feet(robot, stiffness=2000.0, foot_mass=0.01).robot
+    assert compliant.objects == (box,) and compliant.joint_names[-1] == "box"
+    for model, q in ((robot.model, robot.q_ref), (compliant.model, compliant.q_ref)):
+        data = model.createData()
+        pin.framesForwardKinematics(model, data, q)
+        corner = data.oMf[model.getFrameId("box/+x+y-z")].translation
+        np.testing.assert_allclose(corner, [0.65, 0.05, 0.0], atol=1e-15)  # the pose plus half the size
