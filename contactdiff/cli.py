@@ -71,6 +71,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     from .integration.options import ATOL_MAX, MAX_STEPS, RTOL_MAX, RTOL_MIN
     from .integration.steppers import METHODS
+    from .replay import DEFAULT_FPS
 
     sim = sub.add_parser(
         "simulate", help="event-driven simulation: events, final state",
@@ -106,8 +107,9 @@ def build_parser() -> argparse.ArgumentParser:
                      help="write a self-contained HTML page that replays the run in 3-D in a browser, "
                           "offline: the robot, its closed contacts, the events on a timeline "
                           "(needs meshcat: pip install 'contactdiff[viz]')")
-    sim.add_argument("--fps", type=POSITIVE, default=30.0,
-                     help="with --html: frames per second of simulated time (default 30; events are frames too)")
+    sim.add_argument("--fps", type=POSITIVE, default=DEFAULT_FPS,
+                     help=f"with --html: frames per second of simulated time (default {DEFAULT_FPS:g}; "
+                          "events are frames too)")
     sim.set_defaults(run=_run_simulate)
 
     bench = sub.add_parser(

@@ -316,7 +316,7 @@ class Trajectory:
                  event_kind=np.array([e.kind for e in self.events], dtype=str),
                  event_contacts=np.array(["+".join(e.contacts) for e in self.events], dtype=str))
 
-    def to_html(self, path: str | Path, scene=None, *, fps: float = 30.0, **options) -> Path:
+    def to_html(self, path: str | Path, scene=None, **options) -> Path:
         """Write a self-contained HTML page that replays this run in 3-D in a browser,
         with no network: the robot, its closed contacts and a timeline of the events
         (`contactdiff.replay`; needs meshcat, ``pip install 'contactdiff[viz]'``).
@@ -325,8 +325,9 @@ class Trajectory:
             path: the ``.html`` file to write.
             scene: the `Scene` simulated; default the scene named ``scene_name``
                 (a scene or robot name, or a file path).
-            fps: frames per second of simulated time; every event time is a frame too.
-            **options: ``contact_radius`` (m), ``title`` (see `contactdiff.replay.replay_html`).
+            **options: ``fps`` (frames per second of simulated time, default
+                `contactdiff.replay.DEFAULT_FPS`; every event time is a frame too),
+                ``contact_radius`` (m), ``title`` (see `contactdiff.replay.replay_html`).
 
         Returns:
             The path written.
@@ -346,5 +347,5 @@ class Trajectory:
             except ContactDiffError as exc:
                 raise InvalidInputError(f"to_html: scene {self.scene_name!r} cannot be loaded by name ({exc}); "
                                         "pass the scene: traj.to_html(path, scene)") from None
-        return write_html(self, scene, path, fps=fps, **options)
+        return write_html(self, scene, path, **options)
 
