@@ -13,7 +13,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 import pinocchio as pin
 
-from ..errors import InconsistentStateError, InvalidInputError, check_vector, unknown_name
+from ..errors import InconsistentStateError, InvalidInputError, check_names, check_vector, unknown_name
 from .contacts import FRICTION_MODES, BoundContact, Contact
 from .efforts import Effort, bind_efforts
 from .feet import FootChoice, up_direction
@@ -271,20 +271,34 @@ class Scene:
     # -- variants ----------------------------------------------------------------------
     def with_robot(self, robot: Robot) -> Scene:
         """The same scene on another robot model (e.g. one with armature)."""
-        scene = Scene(robot, self.contact_specs, self.effort_specs, None, self.q0, self.v0, self.name)
-        scene.foot_choice = self.foot_choice
-        return scene
+        return self._rebuilt(robot, self.contact_specs)
 
     def with_armature(self, armature: float) -> Scene:
         """The same scene with rotor inertia ``armature`` on the robot's actuated joints."""
         return self.with_robot(self.robot.with_armature(armature))
 
-    def with_friction(self, friction) -> Scene:
-        """The same scene with every contact's ``friction`` replaced (a Coulomb coefficient
-        μ >= 0, ``"stick"`` or ``"none"``, as `Contact` takes it)."""
-        contacts = [dataclasses.replace(spec, friction=friction) for spec in self.contact_specs]
-        # the robot already carries the scene's gravity: None keeps it (as `with_robot`)
-        scene = Scene(self.robot, contacts, self.effort_specs, None, self.q0, self.v0, self.name)
+    def with_friction(self, friction, contacts: Sequence[str] | None = None) -> Scene:
+        """The same scene with the ``friction`` of the named ``contacts`` (default every
+        contact) replaced: a Coulomb coefficient μ >= 0, ``"stick"`` or ``"none"``, as
+        `Contact` takes it.
+
+        Raises:
+            UnknownNameError: a name that is not a contact (the contacts are listed).
+        """
+        if contacts is None:
+            chosen = set(self.contact_names)
+        else:
+            chosen = set(check_names("with_friction", "contacts", contacts))
+            for name in chosen:
+                self.contact_index(name)  # an unknown name raises, listing the contacts
+        specs = [dataclasses.replace(spec, friction=friction) if spec.name in chosen else spec
+                 for spec in self.contact_specs]
+        return self._rebuilt(self.robot, specs)
+
+    def _rebuilt(self, robot: Robot, contacts: Sequence[Contact]) -> Scene:
+        """This scene with another robot or other contacts (``robot`` already carries the
+        scene's gravity: None keeps it); efforts, state, name and feet are this scene's."""
+        scene = Scene(robot, contacts, self.effort_specs, None, self.q0, self.v0, self.name)
         scene.foot_choice = self.foot_choice
         return scene
 

@@ -18,7 +18,7 @@ from scipy.linalg import null_space
 
 import contactdiff as cd
 from contactdiff.dynamics.mode import ModeDynamics
-from contactdiff.errors import InvalidInputError
+from contactdiff.errors import InvalidInputError, UnknownNameError
 
 T0, T1 = 0.09, 0.13  # s
 TOL = dict(rtol=1e-11, atol=1e-12)
@@ -72,13 +72,19 @@ def test_flow_jacobian_through_3d_slips_matches_finite_differences(stance):
         assert np.abs(fd - analytic).max() <= FD_RTOL * np.abs(analytic).max()
 
 
-def test_with_friction_replaces_every_contact_and_checks_the_value():
+def test_with_friction_replaces_the_contacts_friction_and_checks_the_value():
     scene = cd.load_scene("solo12_trot")
     assert [c.spec.mu for c in scene.with_friction(0.5).contacts] == [0.5] * 4
     assert all(c.spec.friction == "none" for c in scene.with_friction(0.0).contacts)
     assert [c.spec.friction for c in scene.contacts] == ["stick"] * 4  # the original is unchanged
     with pytest.raises(InvalidInputError, match="-1"):
         scene.with_friction(-1.0)
+    # named contacts only: the others keep theirs
+    names = scene.contact_names
+    some = scene.with_friction(0.5, contacts=names[:2])
+    assert [c.spec.friction for c in some.contacts] == [0.5, 0.5, "stick", "stick"]
+    with pytest.raises(UnknownNameError, match=names[0]):
+        scene.with_friction(0.5, contacts=["no_such_foot"])
 
 
 def test_anymal_slip_onset_passes_trial_stages_outside_the_slip_domain():

@@ -26,7 +26,6 @@ by 0.10 m. References:
 
 from __future__ import annotations
 
-import dataclasses
 import importlib.util
 from pathlib import Path
 
@@ -74,8 +73,7 @@ def _frame(kin, q, name) -> pin.SE3:
 
 def _coulomb(scene, mu):
     """The scene with Coulomb friction μ at the pads (the supports stay frictionless)."""
-    specs = [dataclasses.replace(c, friction=mu) if c.name in FINGERS else c for c in scene.contact_specs]
-    return cd.Scene(scene.robot, specs, scene.effort_specs, None, scene.q0, scene.v0, f"{scene.name} mu={mu}")
+    return scene.with_friction(mu, contacts=FINGERS)
 
 
 def _box_forces(scene, sol, active):

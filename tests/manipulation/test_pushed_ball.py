@@ -29,8 +29,6 @@ t1 = t_s + atan((rest - x_s) Ω / ẋ_s) / Ω.
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -115,9 +113,7 @@ def test_the_ground_holds_the_weight_and_the_rolling_friction(scene):
 def test_with_little_friction_the_ball_slips_then_rolls(scene):
     mu = 0.1  # below (2/5) rest Ω² / g = 0.14: it slips from the start
     assert mu < 0.4 * REST * OMEGA ** 2 / G
-    ground = dataclasses.replace(scene.contact_specs[0], friction=mu)
-    slippery = cd.Scene(scene.robot, [ground, scene.contact_specs[1]], scene.effort_specs, None,
-                        scene.q0, scene.v0, "pushed_ball_slippery")
+    slippery = scene.with_friction(mu, contacts=["ground"])
     traj = cd.simulate(slippery, T_END, **TIGHT)
     c, omega_s = REST - mu * MASS * G / K, np.sqrt(K / (M + MASS))
     t_s = brentq(lambda t: c * omega_s * np.sin(omega_s * t) - 2.5 * mu * G * t, 1e-3, np.pi / (2 * omega_s))
