@@ -8,8 +8,11 @@ In mode ``J`` (the set of active contacts) the rows ``A`` of the active contacts
 with ``M`` the mass matrix (armature included), ``nle`` Coriolis + gravity,
 ``tau`` the scene's efforts and ``lam`` the row forces (N; normal forces push
 when positive). The Delassus matrix ``G = A M^-1 A^T`` is symmetric positive
-definite when the rows are independent; with redundant rows the minimum-norm
-forces are returned.
+definite when the rows are independent. Redundant rows (four corners of a face
+on a plane) leave the forces undetermined; they are the rigid limit of equal
+compliant supports, the forces in ``range(A)`` (`contactdiff.dynamics.redundant`:
+least-norm for a symmetric ``G``, and the load that decides a sliding face's
+friction).
 
 A mode is a sorted tuple of *contact keys*: key ``i < n`` (``n`` contacts in the
 scene) is contact ``i`` with all its rows; key ``n + i`` is sticking contact
@@ -39,6 +42,7 @@ from ..errors import InvalidInputError, PainleveError, SolverError, check_number
 from ..model.scene import Scene
 from .constraint_dynamics import RigidContactMode
 from .constraint_dynamics import eligible as rigid_eligible
+from .redundant import range_basis, solve_in_range
 from .slip import SLIP_SPEED_EPS, SlipRow, painleve_check, slip_direction
 
 
@@ -154,10 +158,19 @@ class ModeDynamics:
             for c in contacts:
                 slices.append(slice(start, start + c.n_rows))
                 start += c.n_rows
-            rigid = RigidContactMode(self.model, contacts) if rigid_eligible(contacts) else None
+            # redundant rows are a structural property of the mode (the corners of one face):
+            # decided once, at the kinematics' current state; Pinocchio's solve needs
+            # independent rows, so a redundant mode takes the compatible-load solve
+            redundant = bool(contacts) and range_basis(np.vstack([c.rows(self.kin) for c in contacts])) is not None
+            rigid = RigidContactMode(self.model, contacts) if rigid_eligible(contacts) and not redundant else None
             slipping = tuple((k, s.start) for k, c, s in zip(active, contacts, slices) if c.slips)
-            entry = self._modes[active] = (contacts, tuple(slices), rigid, slipping)
+            entry = self._modes[active] = (contacts, tuple(slices), rigid, slipping, redundant)
         return entry
+
+    def redundant(self, active: Sequence[int]) -> bool:
+        """Whether the rows of mode ``active`` are dependent (their forces chosen by the
+        compatible-load principle, `contactdiff.dynamics.redundant`)."""
+        return self._mode(tuple(active))[4]
 
     def accelerator(self, active: Sequence[int]) -> ModeAccelerator:
         """The plain (no derivatives) solve of mode ``active`` as a stepper calls it, its
@@ -229,7 +242,7 @@ class ModeDynamics:
         kin.update(q, v, derivatives=derivatives)
         if tau is None:
             tau = self.scene.tau(kin, t)
-        contacts, slices, rigid, slipping = self._mode(active)
+        contacts, slices, rigid, slipping, redundant = self._mode(active)
         if not contacts:  # free flow: ABA, O(n)
             if derivatives:
                 ddq_dq, ddq_dv, Minv = pin.computeABADerivatives(model, data, q, v, tau)
@@ -252,24 +265,49 @@ class ModeDynamics:
         drift = np.concatenate([c.drift(kin) for c in contacts])
         MinvAT = Minv @ A.T
         slips = [SlipRow.at(self, key, row, kin, v) for key, row in slipping]
+        U = range_basis(A) if redundant else None
         if slips:
             F = A.copy()
             for slip in slips:
                 F[slip.row] = slip.force_row
             MinvFT = Minv @ F.T
             G = A @ MinvFT
-            forces = _solve_general(G, -(drift + A @ a_free), slips, self.scene, A @ MinvAT, contacts)
         else:
             MinvFT = MinvAT
             G = A @ MinvAT
-            forces = _solve_spd(G, -(drift + A @ a_free))
+        solve = self._solver(slips, U, A @ MinvAT, contacts)
+        forces = solve(G, -(drift + A @ a_free))
         solution = ModeSolution(a_free + MinvFT @ forces, forces, active, slices)
         if not derivatives:
             return solution
-        return solution, self._derivatives(q, v, t, solution, contacts, A, Minv, MinvAT, MinvFT, G, slips)
+        return solution, self._derivatives(q, v, t, solution, contacts, A, Minv, MinvAT, MinvFT, G, slips,
+                                             solve, U)
 
-    def _derivatives(self, q, v, t, sol: ModeSolution, contacts, A, Minv, MinvAT, MinvFT, G,
-                     slips) -> ModeDerivatives:
+    def _solver(self, slips, U, delassus, contacts):
+        """``solve(G, b)`` of the mode's force problem: Cholesky for independent rows
+        without slip, LU with Painlevé's check for slipping ones, and the compatible
+        load (`contactdiff.dynamics.redundant`) for dependent rows."""
+        scene = self.scene
+        if U is None:
+            if slips:
+                return lambda G, b: _solve_general(G, b, slips, scene, delassus, contacts)
+            return _solve_spd
+
+        def solve(G, b):
+            if slips:
+                painleve_check(G, slips, scene.contact_names)
+            try:
+                return solve_in_range(G, b, U)
+            except SolverError as exc:
+                if not slips:
+                    raise
+                names = ", ".join(scene.contacts[s.index].name for s in slips)
+                raise PainleveError(f"the sliding problem of {names} has no unique force even among the loads "
+                                    f"of compatible support deflections ({exc}): Painlevé's paradox") from None
+        return solve
+
+    def _derivatives(self, q, v, t, sol: ModeSolution, contacts, A, Minv, MinvAT, MinvFT, G, slips,
+                     solve, U) -> ModeDerivatives:
         """Differentiate the KKT system implicitly.
 
         With ``r(q, v, ddq) = M ddq + nle`` (RNEA), both sides differentiated give
@@ -280,6 +318,8 @@ class ModeDynamics:
         contact's force row ``F = A_n - μ s^T A_T`` replaces ``A^T`` by ``F^T`` on the
         force side (``G = A M^-1 F^T``), and ``R`` gets the derivative of ``F^T lam``,
         through the rows at fixed ``s`` and through ``s(q, v)`` (`SlipRow.force_derivatives`).
+        Dependent rows (``U`` a basis of ``range(A)``) add the turn of ``range(A)``:
+        ``(I - U Uᵀ) dλ = (I - U Uᵀ) d(A w)/dq``, ``w = A⁺ λ`` (`contactdiff.dynamics.redundant`).
         """
         kin, nv = self.kin, self.model.nv
         dtau_dq, dtau_dv = self.scene.tau_derivatives(kin, t)
@@ -297,8 +337,16 @@ class ModeDynamics:
             C[s, :nv] = -drift_dq - c.rows_times_dq(kin, sol.ddq)
             C[s, nv:] = -drift_dv
         MinvR = Minv @ R
-        solve = _solve_spd if not slips else (lambda G, b: _solve_general(G, b, slips, self.scene))
-        dlam = solve(G, C - A @ MinvR)
+        rhs = C - A @ MinvR
+        if U is not None:
+            w = np.linalg.lstsq(A, sol.forces, rcond=None)[0]
+            turn = np.zeros((A.shape[0], 2 * nv))
+            for c, s in zip(contacts, sol.row_slices):
+                turn[s, :nv] = c.rows_times_dq(kin, w)
+            turn -= U @ (U.T @ turn)
+            dlam = solve(G, rhs - G @ turn) + turn
+        else:
+            dlam = solve(G, rhs)
         dddq = MinvR + MinvFT @ dlam
         # a generalised force d: lam moves by -G^-1 A M^-1 d, ddq by M^-1 (d + F^T dlam)
         dlam_dtau = -solve(G, MinvAT.T)
@@ -319,7 +367,7 @@ class ModeAccelerator:
 
     def __init__(self, dyn: ModeDynamics, active: tuple[int, ...]):
         self.dyn, self.active = dyn, active
-        contacts, _, self.rigid, _ = dyn._mode(active)
+        contacts, _, self.rigid, _, _ = dyn._mode(active)
         self._contacts = contacts
         self._kin, self._tau = dyn.kin, dyn.scene.tau
         self._raw = self._solution = None

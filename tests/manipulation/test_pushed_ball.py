@@ -35,6 +35,8 @@ import pytest
 from scipy.optimize import brentq
 
 import contactdiff as cd
+from contactdiff.dynamics.mode import ModeDynamics
+from contactdiff.dynamics.redundant import range_basis
 
 M, MASS, R, K, REST, G, MU = 0.3, 0.2, 0.03, 20.0, 0.1, 9.81, 0.5  # the scene file's numbers (SI)
 OMEGA = np.sqrt(K / (M + 1.4 * MASS))
@@ -134,9 +136,24 @@ def test_the_checker_finds_the_push_and_the_ground_orthogonal(scene):
     assert report.verdict == "orthogonal only"  # each gap moves with the ball, the body
 
 
-def test_friction_on_the_finger_too_is_refused_as_redundant_rows(scene):
-    """A sticking finger holds the ball's vertical motion, as the ground's normal does:
-    with the ground sliding, the friction force has no unique value (say so, not Painlevé)."""
+def test_friction_on_the_finger_too_shares_the_load_by_compatible_deflection(scene):
+    """A Coulomb finger holds the ball's vertical motion through its tangential row, as
+    the ground's normal does: four rows of rank 3, so the vertical load's split between
+    them is the principle's (`contactdiff.dynamics.redundant`): the forces lie in
+    ``range(A)``, the ball neither sinks nor rises, and the run goes on."""
     both = scene.with_friction(0.1)
-    with pytest.raises(cd.PainleveError, match=r"redundant rows \(rank 3 of 4"):
-        cd.simulate(both, T_END)
+    traj = cd.simulate(both, T_END)
+    assert traj.t == pytest.approx(T_END)
+    dyn = ModeDynamics(both)
+    push, ground = both.contact_names.index("push"), both.contact_names.index("ground")
+    mode = tuple(sorted((push, ground)))
+    assert dyn.redundant(mode)
+    sol = dyn.solve(both.q0, both.v0, 0.0, mode)
+    dyn.kin.update(both.q0, both.v0)
+    A = np.vstack([dyn.contact(k).rows(dyn.kin) for k in mode])
+    U = range_basis(A)
+    scale = MASS * G  # N: the forces' size; round-off ~1e-15 of it
+    np.testing.assert_allclose(sol.forces - U @ (U.T @ sol.forces), 0.0, atol=1e-12 * scale)
+    np.testing.assert_allclose(A @ sol.ddq + np.concatenate([dyn.contact(k).drift(dyn.kin) for k in mode]),
+                               0.0, atol=1e-12 * G)
+    assert sol.normal_forces()[mode.index(ground)] > 0.0
