@@ -1,0 +1,133 @@
+"""A box on one face with Coulomb friction at its four bottom corners: runs against
+closed forms (the four normal rows are redundant; their loads follow
+`contactdiff.dynamics.redundant`).
+
+Box of half edges a, b, c (x, y, z), mass m, uniform; corners at (±a, ±b, -c) in
+its frame; ground z = 0; gravity g; coefficient μ.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+import contactdiff as cd
+from contactdiff.model.objects import SceneObject, add_objects, empty_robot
+
+A_HALF, B_HALF, C_HALF = 0.15, 0.10, 0.05
+MASS, G, MU = 2.0, 9.81, 0.3
+CORNERS = [f"box/{sx}x{sy}y-z" for sx in "+-" for sy in "+-"]
+# events are located to ~(atol + rtol |x|) / |guard rate| with rates O(1) here, and the
+# states carry the integration error ~rtol over O(1) s: at rtol 1e-10 both are ~1e-10
+TIGHT = dict(rtol=1e-10, atol=1e-12)
+EVENT_ATOL = 1e-8  # s
+STATE_ATOL = 1e-8  # m, m/s, rad
+
+
+def box_scene(mu=MU, gravity=(0.0, 0.0, -G)):
+    box = SceneObject("box", shape="box", size=(2 * A_HALF, 2 * B_HALF, 2 * C_HALF), mass=MASS,
+                      position=(0.0, 0.0, C_HALF))
+    return cd.Scene(add_objects(empty_robot(), [box]), [cd.Contact(n, friction=mu) for n in CORNERS],
+                    gravity=gravity)
+
+
+def flat_state(yaw=0.0, velocity=(0.0, 0.0), omega_z=0.0):
+    """The box flat on the ground: yaw (rad), centre velocity (m/s, world, horizontal),
+    spin about the vertical (rad/s)."""
+    rotation = pin.rpy.rpyToMatrix(0.0, 0.0, yaw)
+    q = np.r_[0.0, 0.0, C_HALF, pin.Quaternion(rotation).coeffs()]
+    v = np.r_[rotation.T @ np.r_[velocity, 0.0], 0.0, 0.0, omega_z]
+    return q, v
+
+
+def yaw_of(q):
+    return pin.rpy.matrixToRpy(pin.Quaternion(q[3:7]).matrix())[2]
+
+
+@pytest.mark.parametrize("direction", [0.0, 0.7, 2.9])
+def test_box_slides_to_a_stop_on_its_face(direction):
+    """Sliding at u0 along d: friction μ m g decelerates it, so it stops at
+    t_s = u0 / (μ g) after u0² / (2 μ g), all four corners at once, and stays
+    (sticking needs a tangential force of zero at rest)."""
+    u0 = 1.0
+    d = np.array([np.cos(direction), np.sin(direction)])
+    q, v = flat_state(0.3, u0 * d)
+    traj = cd.simulate(box_scene().with_state(q, v), 0.6, **TIGHT)
+    (stop,) = traj.events
+    assert stop.kind == "stick" and set(stop.contacts) == set(CORNERS)
+    assert stop.t == pytest.approx(u0 / (MU * G), abs=EVENT_ATOL)
+    np.testing.assert_allclose(traj.q[:2], u0**2 / (2 * MU * G) * d, atol=STATE_ATOL)
+    assert traj.q[2] == pytest.approx(C_HALF, abs=STATE_ATOL)
+    assert yaw_of(traj.q) == pytest.approx(0.3, abs=STATE_ATOL)
+    np.testing.assert_allclose(traj.v, 0.0, atol=STATE_ATOL)
+
+
+def test_box_spins_down_on_its_face():
+    """Spinning at ω0 about the vertical, centre at rest: every corner is r = √(a²+b²)
+    from the centre, so the friction torque is μ m g r and I_z = m (a² + b²)/3 spins
+    down in t_s = I_z ω0 / (μ m g r), turning I_z ω0² / (2 μ m g r)."""
+    omega0 = 3.0
+    q, v = flat_state(0.0, omega_z=omega0)
+    traj = cd.simulate(box_scene().with_state(q, v), 0.5, **TIGHT)
+    r = np.hypot(A_HALF, B_HALF)
+    inertia = MASS * (A_HALF**2 + B_HALF**2) / 3
+    (stop,) = traj.events
+    assert stop.kind == "stick"
+    assert stop.t == pytest.approx(inertia * omega0 / (MU * MASS * G * r), abs=EVENT_ATOL)
+    assert yaw_of(traj.q) == pytest.approx(inertia * omega0**2 / (2 * MU * MASS * G * r), abs=STATE_ATOL)
+    np.testing.assert_allclose(traj.q[:3], [0.0, 0.0, C_HALF], atol=STATE_ATOL)
+    np.testing.assert_allclose(traj.v, 0.0, atol=STATE_ATOL)
+
+
+@pytest.mark.parametrize("tilt", [0.9, 1.1])
+def test_box_on_an_incline_sticks_or_slides(tilt):
+    """An incline of angle α (gravity tilted by α about y instead of the ground): the box
+    at rest on its face sticks when tan α <= μ and otherwise slides down with
+    a = g (sin α - μ cos α), x = a t² / 2. ``tilt`` is tan α / μ."""
+    alpha = np.arctan(tilt * MU)
+    gravity = G * np.array([np.sin(alpha), 0.0, -np.cos(alpha)])
+    q, v = flat_state()
+    T = 0.4
+    traj = cd.simulate(box_scene(gravity=gravity).with_state(q, v), T, **TIGHT)
+    accel = max(0.0, G * (np.sin(alpha) - MU * np.cos(alpha)))
+    assert traj.q[0] == pytest.approx(accel * T**2 / 2, abs=STATE_ATOL)
+    np.testing.assert_allclose(traj.q[1:3], [0.0, C_HALF], atol=STATE_ATOL)
+    assert traj.v[0] == pytest.approx(accel * T, abs=STATE_ATOL)
+    sliding = traj.segments[-1].sliding
+    assert set(sliding) == (set(CORNERS) if tilt > 1 else set())
+
+
+def test_flow_jacobian_through_the_face_stop_matches_finite_differences():
+    """The flow Jacobian through the four corners' simultaneous slip → stick, along
+    perturbations that keep the box flat and not spinning (horizontal position, yaw,
+    horizontal velocity: the stop stays simultaneous), against central differences on
+    the manifold. ε = 1e-6 with rtol 1e-12: the differences' error is ~1e-12/ε plus
+    ε² terms, so 1e-5 relative to the columns' size."""
+    scene = box_scene()
+    q, v = flat_state(0.3, (0.8, 0.3))
+    T = 0.45
+    opts = dict(rtol=1e-12, atol=1e-14)
+    traj = cd.simulate(scene.with_state(q, v), T, jacobian=True, **opts)
+    assert traj.differentiable
+    model = scene.model
+    nv = model.nv
+    directions = []
+    for k in (0, 1, 5):  # x, y, yaw
+        dq = np.zeros(nv)
+        dq[k] = 1.0
+        directions.append((dq, np.zeros(nv)))
+    rotation = pin.Quaternion(q[3:7]).matrix()
+    for w in (np.r_[1.0, 0.0, 0.0], np.r_[0.0, 1.0, 0.0]):  # world horizontal velocity
+        directions.append((np.zeros(nv), np.r_[rotation.T @ w, 0.0, 0.0, 0.0]))
+    eps = 1e-6
+
+    def final(dq, dv, sign):
+        run = cd.simulate(scene.with_state(pin.integrate(model, q, sign * eps * dq), v + sign * eps * dv), T, **opts)
+        return run.q, run.v
+    for dq, dv in directions:
+        qp, vp = final(dq, dv, 1.0)
+        qm, vm = final(dq, dv, -1.0)
+        fd = np.r_[pin.difference(model, qm, qp), vp - vm] / (2 * eps)
+        exact = traj.jacobian @ np.r_[dq, dv]
+        assert np.abs(exact - fd).max() <= 1e-5 * max(1.0, np.abs(fd).max()), (dq, dv, exact, fd)
