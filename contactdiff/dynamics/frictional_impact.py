@@ -73,6 +73,16 @@ candidate in this order is returned (the approximate solution's, if valid). With
 ``μ = inf`` or ``0`` everywhere there is no first guess, and this is exactly the
 active set that `solve_contact_lcp` enumerates first.
 
+Redundant rows
+--------------
+When rows are dependent (the four corners of a face landing flat: normal rows of
+rank 3), a candidate's equality system is singular and the law alone leaves the
+impulses undetermined. They are then the impulses of equal compliant supports in
+the rigid limit (`contactdiff.dynamics.redundant`): on the candidate's equality
+rows, in the range of those rows. The approximate solution is not tried first
+there (projected Gauss-Seidel on a singular ``G`` converges to some solution, not
+to the principle's), so the enumeration's order decides: most contacts closed first.
+
 Energy (known limit)
 --------------------
 The change of kinetic energy is ``ΔT = Λ^T u- + ½ Λ^T G Λ = ½ Λ^T (u- + u+)``
@@ -104,6 +114,7 @@ import numpy as np
 from ..errors import EnergyGainError, InvalidInputError, SolverError
 from .friction_slip import SLIP_ZERO, SlipDirections
 from .lcp_problem import DEFAULT_TOL, ContactRows, _as_real_array, _as_vector, _validate
+from .redundant import gram_range_basis
 
 __all__ = [
     "ContactState",
@@ -295,6 +306,9 @@ class _Impact(SlipDirections):
         self.best: tuple[float, str] = (np.inf, "none")
         self.newton_failed: list[str] = []
         self._fp: tuple[np.ndarray, np.ndarray] | None = None
+        # dependent rows (a face's corners landing together): impulses by the principle of
+        # `contactdiff.dynamics.redundant`, and no first guess (module doc)
+        self.redundant = gram_range_basis(G) is not None
 
     # ---- enumeration ---------------------------------------------------
     def candidates(self) -> Iterator[tuple[tuple[ContactState, ...], tuple[int, ...]]]:
@@ -341,7 +355,7 @@ class _Impact(SlipDirections):
         return tuple(states), sliding
 
     def solve(self) -> FrictionalImpact:
-        guess = self.predicted()
+        guess = None if self.redundant else self.predicted()
         if guess is not None:
             states, sliding = guess
             planar = [k for k in sliding if self.tang[k].size == 1]
@@ -416,6 +430,16 @@ class _Impact(SlipDirections):
             return _Eval(np.zeros(self.m), self.u.copy(), np.zeros(0), None)
         K = (self.G @ B)[eq]
         rhs = -self.b[eq]
+        U = gram_range_basis(self.G[np.ix_(eq, eq)]) if self.redundant else None
+        if U is not None:
+            # dependent equality rows: the impulses compatible with equal compliant supports
+            # (`contactdiff.dynamics.redundant`), z in the range of those rows
+            try:
+                z = U @ np.linalg.solve(U.T @ K @ U, U.T @ rhs)
+            except np.linalg.LinAlgError:
+                z = np.full(p, np.nan)
+            lam = B @ z
+            return _Eval(lam, self.u + self.G @ lam, z, K)
         try:
             z = np.linalg.solve(K, rhs)
             if not np.isfinite(z).all():

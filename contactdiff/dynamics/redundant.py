@@ -28,11 +28,17 @@ the state, its derivative adds the turn of ``range(A)``:
 ``(I - U Uᵀ) dλ = (I - U Uᵀ) d(A w)`` with ``w = A⁺ λ`` (zero when the rows'
 dependence is fixed, as for the corners of one rigid face).
 
+**Impulses** follow the same principle (`contactdiff.dynamics.frictional_impact`):
+the impulses on a candidate's equality rows lie in the range of those rows, the
+range of their Delassus block ``G_ee = A_e M⁻¹ A_eᵀ`` (`gram_range_basis`).
+
 **When rows are redundant** is decided from ``A``'s singular values: rank
 ``r`` counts those above `RANK_TOL` times the largest. The rows of one rigid
 face are dependent to round-off (1e-16 relative); rows that are merely close
 to dependent (two feet 1 µm apart) are a badly conditioned but determined set
-and keep the exact solve.
+and keep the exact solve. From a Delassus block (its eigenvalues are squares of
+singular values, and its round-off is 1e-16 of its largest) the threshold is
+`GRAM_RANK_TOL`.
 """
 
 from __future__ import annotations
@@ -44,6 +50,26 @@ from ..errors import SolverError
 RANK_TOL = 1e-9
 """Singular values of the rows ``A`` below this share of the largest count as zero
 (round-off of dependent rows is ~1e-16; well-posed contact sets are above ~1e-3)."""
+
+
+GRAM_RANK_TOL = 1e-10
+"""Eigenvalues of a Delassus block below this share of the largest count as zero:
+dependent rows leave ~1e-16 (round-off); 1e-10 is a singular-value ratio of 1e-5 of
+the rows, far below that of a well-posed contact set."""
+
+
+def gram_range_basis(G: np.ndarray) -> np.ndarray | None:
+    """Orthonormal basis (k × r) of the range of a symmetric positive semidefinite
+    Delassus block ``G`` when it is singular (rank ``r < k``), None otherwise."""
+    k = len(G)
+    if k == 0:
+        return None
+    values, vectors = np.linalg.eigh(0.5 * (G + G.T))
+    top = values[-1]
+    keep = values > GRAM_RANK_TOL * top if top > 0.0 else np.zeros(k, dtype=bool)
+    if keep.all():
+        return None
+    return vectors[:, keep]
 
 
 def range_basis(A: np.ndarray) -> np.ndarray | None:
