@@ -410,7 +410,8 @@ def _solve_general(G: np.ndarray, b: np.ndarray, slips, scene, delassus: np.ndar
     """Solve ``G x = b`` for the non-symmetric ``G = A M^-1 F^T`` of a mode with slipping
     contacts (LU); a slipping contact whose own block of ``G`` is not positive, or a
     singular ``G``, is Painlevé's paradox (`PainleveError`), unless the rows themselves
-    are redundant (``delassus = A M^-1 A^T`` singular), which the error says instead."""
+    became dependent at this state (``delassus = A M^-1 A^T`` singular in a mode whose
+    rows were independent), a `SolverError` that says so."""
     painleve_check(G, slips, scene.contact_names)
     try:
         x = np.linalg.solve(G, b)
@@ -421,10 +422,11 @@ def _solve_general(G: np.ndarray, b: np.ndarray, slips, scene, delassus: np.ndar
         rank = np.linalg.matrix_rank(delassus) if delassus is not None else len(G)
         if rank < len(G):
             held = ", ".join(dict.fromkeys(c.name for c in contacts))
-            raise PainleveError(
-                f"the contacts {held} hold redundant rows (rank {rank} of {len(G)}: two of them "
-                f"hold the same motion), so the friction of sliding {names} has no unique force; make "
-                "one of the contacts that hold the same motion frictionless")
+            raise SolverError(
+                f"the rows of contacts {held} are dependent at this state (rank {rank} of {len(G)}) but "
+                f"were not where the mode began, so the friction of sliding {names} has no unique force "
+                "(rows that hold the same motion everywhere, as a face's corners, are solved by the "
+                "compatible-load principle: contactdiff.dynamics.redundant)")
         raise PainleveError(f"the sliding problem of {names} is singular (G = A M^-1 F^T = {G.tolist()}): "
                             "no force makes the contacts' normal accelerations zero (Painlevé's paradox)")
     return x
