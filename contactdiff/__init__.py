@@ -14,6 +14,7 @@ The public names, by concept (each lives in the subpackage named beside it):
     analysis     check_decoupling, DecouplingReport, order_gap, stride_map,
                  find_periodic_gait, first_touchdown, period_map
     sweep        sweep (one scene over many points, on many cores or a cluster)
+    data         cube_scene, load_tosses, Toss, CubeParameters (measured cube tosses)
     errors       ContactDiffError and its subclasses
 """
 
@@ -22,6 +23,7 @@ from .analysis.gait import find_periodic_gait, first_touchdown, period_map, stri
 from .analysis.order_gap import order_gap
 from .control.joint_targets import JointTargets
 from .control.trot_scenes import trot_scene
+from .data.cube_tosses import CubeParameters, Toss, cube_scene, load_tosses
 from .dynamics.mode import ModeDynamics
 from .errors import (
     ContactDiffError,
@@ -55,7 +57,7 @@ from .sweeps import sweep
 __version__ = "0.1.0"
 
 __all__ = [
-    "add_objects", "check_decoupling", "Contact", "ContactDiffError", "DecouplingReport", "Effort", "Event",
+    "add_objects", "check_decoupling", "Contact", "CubeParameters", "cube_scene", "load_tosses", "Toss", "ContactDiffError", "DecouplingReport", "Effort", "Event",
     "find_periodic_gait", "first_touchdown", "GrazingError", "HybridLoop",
     "InconsistentStateError", "IntegrationError", "InvalidInputError", "JointSpring", "JointTargets",
     "load_robot",

@@ -59,6 +59,20 @@ def _points(owner: str, points) -> tuple[tuple[str, tuple[float, float, float]],
     return tuple(out)
 
 
+def _moments(owner: str, moments) -> tuple[float, float, float]:
+    """Three principal moments (kg m²) from one number or three, checked to be those of
+    a body: positive, each at most the sum of the other two."""
+    values = np.full(3, check_number(owner, "moments", moments)) if np.ndim(moments) == 0 \
+        else check_vector(owner, "moments", moments, 3)
+    if not np.all(values > 0.0):
+        raise InvalidInputError(f"{owner}: moments of inertia must be > 0 kg m², got {moments!r}")
+    total = values.sum()
+    if np.any(2.0 * values > total * (1.0 + 1e-12)):
+        raise InvalidInputError(f"{owner}: moments {values.tolist()} are not those of a body: each must be at "
+                                "most the sum of the other two")
+    return tuple(float(x) for x in values)
+
+
 @dataclass(frozen=True)
 class SceneObject:
     """An object of a scene: a shape of given size and mass, or a URDF model.
@@ -75,6 +89,10 @@ class SceneObject:
         rpy: its initial orientation, roll-pitch-yaw about the world x, y, z axes (rad).
         fixed: True fixes the object in the world at its pose (no joint).
         points: named points of the object (m, object frame), frames ``NAME/POINT``.
+        moments: principal moments of inertia about the centre along the object's
+            axes (kg m²): one number for all three, or three; None (default) takes
+            those of uniform density. A measured body (a hollow or weighted cube)
+            differs from uniform.
 
     Raises:
         InvalidInputError: an unknown shape (the shapes are listed), a missing or
@@ -92,6 +110,7 @@ class SceneObject:
     rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
     fixed: bool = False
     points: Mapping | tuple = field(default_factory=dict)
+    moments: float | tuple[float, float, float] | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name or "/" in self.name:
@@ -105,7 +124,7 @@ class SceneObject:
         set_(self, "rpy", tuple(float(x) for x in self.rpy))
         points = dict(self.points) if isinstance(self.points, tuple) else self.points
         set_(self, "points", _points(owner, points))
-        given = [k for k in ("size", "radius", "length") if getattr(self, k) is not None]
+        given = [k for k in ("size", "radius", "length", "moments") if getattr(self, k) is not None]
         if self.urdf is not None:
             if given:
                 raise InvalidInputError(f"{owner}: a URDF object takes its shape from its file; "
@@ -118,7 +137,7 @@ class SceneObject:
         for key in needed:
             if getattr(self, key) is None:
                 raise InvalidInputError(f"{owner}: a {self.shape} needs {' and '.join(needed)}")
-        extra = [k for k in given if k not in needed]
+        extra = [k for k in given if k not in needed and k != "moments"]
         if extra:
             raise InvalidInputError(f"{owner}: a {self.shape} has no {', '.join(extra)} "
                                     f"(it takes {' and '.join(needed)})")
@@ -130,6 +149,8 @@ class SceneObject:
             if not np.all(size > 0.0):
                 raise InvalidInputError(f"{owner}: size must be three edge lengths > 0 m, got {self.size!r}")
             set_(self, "size", tuple(float(x) for x in size))
+        if self.moments is not None:
+            set_(self, "moments", _moments(owner, self.moments))
         for key in ("radius", "length"):
             value = getattr(self, key)
             if value is not None:
@@ -144,7 +165,9 @@ class SceneObject:
         return _pose(self.name, self.position, self.rpy)
 
     def inertia(self) -> pin.Inertia:
-        """Spatial inertia of a shape about its centre (uniform density)."""
+        """Spatial inertia of a shape about its centre (uniform density, or ``moments``)."""
+        if self.moments is not None:
+            return pin.Inertia(self.mass, np.zeros(3), np.diag(self.moments))
         if self.shape == "box":
             return pin.Inertia.FromBox(self.mass, *self.size)
         if self.shape == "sphere":

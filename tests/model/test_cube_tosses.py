@@ -1,0 +1,115 @@
+"""The measured cube tosses: the shipped subset, the reader's checks, the cube scene."""
+
+from __future__ import annotations
+
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+import contactdiff as cd
+from contactdiff.data.cube_tosses import SUBSET
+
+SHARED_TOSSES = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "cube_tosses" / "tosses.npz"
+
+
+def test_the_shipped_subset_loads_with_its_license():
+    tosses = cd.load_tosses()
+    assert len(tosses) == 24 and all(name.startswith("toss_") for name in tosses)
+    folder = resources.files("contactdiff.data")
+    assert "BSD 3-Clause" in folder.joinpath("LICENSE_cube_tosses").read_text()
+    assert len(folder.joinpath(SUBSET).read_bytes()) < 1_000_000
+    for toss in tosses.values():
+        assert len(toss) >= 2 and np.all(np.diff(toss.t) > 0.0)
+        np.testing.assert_allclose(np.linalg.norm(toss.quaternion, axis=1), 1.0, rtol=1e-12)
+
+
+@pytest.mark.skipif(not SHARED_TOSSES.is_file(), reason="the full set of tosses (shared data) is not beside the "
+                                                        "repository")
+def test_the_full_set_loads():
+    tosses = cd.load_tosses(SHARED_TOSSES)
+    assert len(tosses) == 450
+    subset = cd.load_tosses()
+    for name, toss in subset.items():  # the subset is a byte-for-byte copy of those tosses
+        np.testing.assert_array_equal(toss.position, tosses[name].position)
+
+
+def test_a_sample_as_the_scene_state():
+    """``q`` is Pinocchio's ``[x y z qx qy qz qw]``; ``v`` has the linear velocity in the
+    cube's frame, so turning it back with the measured orientation gives the board-frame
+    velocity of the data; the angular velocity is the data's (already in the cube frame)."""
+    toss = cd.load_tosses()["toss_000"]
+    q, v = toss.state(3)
+    np.testing.assert_allclose(q[:3], toss.position[3])
+    w, x, y, z = toss.quaternion[3]
+    np.testing.assert_allclose(q[3:], [x, y, z, w])
+    rotation = pin.Quaternion(q[3:]).matrix()
+    np.testing.assert_allclose(rotation @ v[:3], toss.velocity[3], atol=1e-15)
+    np.testing.assert_allclose(v[3:], toss.omega[3])
+    with pytest.raises(cd.InvalidInputError, match="out of range"):
+        toss.state(len(toss))
+
+
+def _write(tmp_path, **arrays):
+    path = tmp_path / "bad.npz"
+    np.savez(path, **arrays)
+    return path
+
+
+def _good(n=5):
+    a = np.zeros((n, 14))
+    a[:, 0] = np.arange(n) / 148
+    a[:, 4] = 1.0
+    return a
+
+
+@pytest.mark.parametrize("change, message", [
+    (lambda a: a[:, :13], r"\(n, 14\) array"),
+    (lambda a: a[:1], "at least two samples"),
+    (lambda a: np.where(np.arange(14) == 2, np.nan, a), "not finite"),
+    (lambda a: a[[0, 2, 1, 3, 4]], "times must increase"),
+    (lambda a: np.where(np.arange(14) >= 4, 0.0, a), "quaternion of zero norm"),
+])
+def test_bad_tosses_are_named_with_the_file(tmp_path, change, message):
+    path = _write(tmp_path, toss_001=change(_good()))
+    with pytest.raises(cd.InvalidInputError, match=message) as info:
+        cd.load_tosses(path)
+    assert "bad.npz" in str(info.value) and "toss_001" in str(info.value)
+
+
+def test_bad_files(tmp_path):
+    with pytest.raises(cd.InvalidInputError, match="does not exist"):
+        cd.load_tosses(tmp_path / "none.npz")
+    text = tmp_path / "text.npz"
+    text.write_text("not an archive")
+    with pytest.raises(cd.InvalidInputError, match="not a readable .npz"):
+        cd.load_tosses(text)
+    with pytest.raises(cd.InvalidInputError, match="no arrays named toss_"):
+        cd.load_tosses(_write(tmp_path, other=_good()))
+
+
+def test_cube_scene_holds_the_nominal_cube():
+    """Mass 0.37 kg, moments 8.1e-4 kg m² about each axis, eight Coulomb corners at
+    ±edge/2 with μ 0.18 and e 0.125; resting on a face its centre is edge/2 above the
+    board (at ``ground``)."""
+    scene = cd.cube_scene(ground=0.001)
+    inertia = scene.model.inertias[1]
+    assert inertia.mass == pytest.approx(0.37)
+    np.testing.assert_allclose(inertia.inertia, 8.1e-4 * np.eye(3))
+    assert len(scene.contacts) == 8
+    assert {c.spec.mu for c in scene.contacts} == {0.18}
+    assert {c.restitution for c in scene.contacts} == {0.125}
+    assert scene.q0[2] == pytest.approx(0.001 + 0.1048 / 2)
+    with pytest.raises(cd.InvalidInputError, match="mass must be > 0"):
+        cd.cube_scene(mass=0.0)
+
+
+def test_object_moments_are_checked():
+    with pytest.raises(cd.InvalidInputError, match="not those of a body"):
+        cd.SceneObject("b", shape="box", size=(1, 1, 1), mass=1.0, moments=(1.0, 1.0, 3.0))
+    with pytest.raises(cd.InvalidInputError, match="must be > 0"):
+        cd.SceneObject("b", shape="box", size=(1, 1, 1), mass=1.0, moments=-1.0)
+    box = cd.SceneObject("b", shape="box", size=(1, 1, 1), mass=1.0, moments=(0.2, 0.3, 0.4))
+    np.testing.assert_allclose(box.inertia().inertia, np.diag([0.2, 0.3, 0.4]))
