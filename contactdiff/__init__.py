@@ -57,7 +57,8 @@ from .sweeps import sweep
 __version__ = "0.1.0"
 
 __all__ = [
-    "add_objects", "check_decoupling", "Contact", "CubeParameters", "cube_scene", "load_tosses", "Toss", "ContactDiffError", "DecouplingReport", "Effort", "Event",
+    "add_objects", "check_decoupling", "Contact", "CubeParameters", "cube_scene", "load_tosses", "Toss",
+    "ContactDiffError", "DecouplingReport", "Effort", "Event",
     "find_periodic_gait", "first_touchdown", "GrazingError", "HybridLoop",
     "InconsistentStateError", "IntegrationError", "InvalidInputError", "JointSpring", "JointTargets",
     "load_robot",
