@@ -65,8 +65,8 @@ class SceneObject:
 
     Args:
         name: the object's name: its joint, its centre frame, the prefix of its other frames.
-        shape: one of `SHAPES`; ignored for a URDF object.
-        mass: kg, > 0 (shapes; a URDF model has its own masses).
+        shape: one of `SHAPES`, required for a shape; a URDF object has none.
+        mass: kg, > 0, required for a shape (a URDF model has its own masses).
         size: a box's edge lengths along its x, y, z axes (m, > 0).
         radius: a sphere's or a cylinder's radius (m, > 0).
         length: a cylinder's length along its z axis (m, > 0).
@@ -77,13 +77,14 @@ class SceneObject:
         points: named points of the object (m, object frame), frames ``NAME/POINT``.
 
     Raises:
-        InvalidInputError: an unknown shape (the shapes are listed), a missing or
-            extra dimension, a non-positive size or mass, non-finite numbers.
+        InvalidInputError: a shape without ``shape`` or ``mass``, a URDF object with
+            them, an unknown shape (the shapes are listed), a missing or extra
+            dimension, a non-positive size or mass, non-finite numbers.
     """
 
     name: str
-    shape: str = "box"
-    mass: float = 1.0
+    shape: str | None = None
+    mass: float | None = None
     size: tuple[float, float, float] | None = None
     radius: float | None = None
     length: float | None = None
@@ -105,23 +106,27 @@ class SceneObject:
         set_(self, "rpy", tuple(float(x) for x in self.rpy))
         points = dict(self.points) if isinstance(self.points, tuple) else self.points
         set_(self, "points", _points(owner, points))
-        given = [k for k in ("size", "radius", "length") if getattr(self, k) is not None]
+        given = [k for k in ("shape", "mass", "size", "radius", "length") if getattr(self, k) is not None]
         if self.urdf is not None:
             if given:
-                raise InvalidInputError(f"{owner}: a URDF object takes its shape from its file; "
+                raise InvalidInputError(f"{owner}: a URDF object takes its shape and masses from its file; "
                                         f"drop {', '.join(given)}")
             set_(self, "urdf", str(self.urdf))
             return
+        if self.shape is None:
+            raise InvalidInputError(f"{owner} needs a shape ({', '.join(SHAPES)}) or a urdf file")
         if self.shape not in SHAPES:
             raise unknown_name(f"shape of {owner}", self.shape, SHAPES)
         needed = _DIMENSIONS[self.shape]
         for key in needed:
             if getattr(self, key) is None:
                 raise InvalidInputError(f"{owner}: a {self.shape} needs {' and '.join(needed)}")
-        extra = [k for k in given if k not in needed]
+        extra = [k for k in given if k not in needed + ("shape", "mass")]
         if extra:
             raise InvalidInputError(f"{owner}: a {self.shape} has no {', '.join(extra)} "
                                     f"(it takes {' and '.join(needed)})")
+        if self.mass is None:
+            raise InvalidInputError(f"{owner}: a {self.shape} needs its mass (kg, > 0; uniform density)")
         set_(self, "mass", check_number(owner, "mass", self.mass, minimum=0.0))
         if not self.mass > 0.0:
             raise InvalidInputError(f"{owner}: mass must be > 0 kg, got {self.mass!r}")

@@ -116,6 +116,9 @@ def test_a_urdf_object_keeps_its_frames_under_its_name(tmp_path):
     (dict(name="b", shape="sphere", mass=1.0, radius=float("nan")), "nan"),
     (dict(name="a/b", shape="sphere", mass=1.0, radius=1.0), "'a/b'"),
     (dict(name="b", urdf="x.urdf", radius=1.0), "drop radius"),
+    (dict(name="b", shape="box", size=(1, 1, 1)), "'b': a box needs its mass (kg"),  # was 1 kg silently
+    (dict(name="b", mass=1.0, radius=0.5), "'b' needs a shape (box, sphere, cylinder) or a urdf"),
+    (dict(name="b", urdf="x.urdf", mass=2.0), "masses from its file; drop mass"),
 ])
 def test_bad_objects_are_refused_with_the_bad_value(spec, message):
     with pytest.raises(cd.InvalidInputError, match=message.replace("(", r"\(").replace(")", r"\)")):
@@ -143,6 +146,9 @@ def test_a_scene_file_of_objects_alone(tmp_path):
         cd.load_scene(path)
     path.write_text('[[object]]\nname = "a"\nshape = "sphere"\nradius = 0.1\nmass = 1.0\ncolour = "red"\n')
     with pytest.raises(cd.UnknownNameError, match="colour"):
+        cd.load_scene(path)
+    path.write_text('[[object]]\nname = "a"\nshape = "sphere"\nradius = 0.1\n')  # no mass
+    with pytest.raises(cd.InvalidInputError, match="object 'a': a sphere needs its mass"):
         cd.load_scene(path)
     path.write_text('gravity = [0, 0, 0]\n')
     with pytest.raises(cd.InvalidInputError, match="missing the key 'robot'"):
