@@ -66,7 +66,8 @@ class SceneObject:
     Args:
         name: the object's name: its joint, its centre frame, the prefix of its other frames.
         shape: one of `SHAPES`, required for a shape; a URDF object has none.
-        mass: kg, > 0, required for a shape (a URDF model has its own masses).
+        mass: kg, > 0; a shape needs its mass or its ``density`` (a URDF model has its
+            own masses).
         size: a box's edge lengths along its x, y, z axes (m, > 0).
         radius: a sphere's or a cylinder's radius (m, > 0).
         length: a cylinder's length along its z axis (m, > 0).
@@ -75,11 +76,14 @@ class SceneObject:
         rpy: its initial orientation, roll-pitch-yaw about the world x, y, z axes (rad).
         fixed: True fixes the object in the world at its pose (no joint).
         points: named points of the object (m, object frame), frames ``NAME/POINT``.
+        density: kg/m³, > 0, instead of ``mass``: the mass is set to ``density``
+            times the shape's `volume` on construction (and ``density`` to None).
 
     Raises:
-        InvalidInputError: a shape without ``shape`` or ``mass``, a URDF object with
-            them, an unknown shape (the shapes are listed), a missing or extra
-            dimension, a non-positive size or mass, non-finite numbers.
+        InvalidInputError: a shape without ``shape``, or without ``mass`` or
+            ``density`` (or with both), a URDF object with any of them, an unknown
+            shape (the shapes are listed), a missing or extra dimension, a
+            non-positive size, mass or density, non-finite numbers.
     """
 
     name: str
@@ -93,6 +97,7 @@ class SceneObject:
     rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
     fixed: bool = False
     points: Mapping | tuple = field(default_factory=dict)
+    density: float | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name or "/" in self.name:
@@ -106,7 +111,7 @@ class SceneObject:
         set_(self, "rpy", tuple(float(x) for x in self.rpy))
         points = dict(self.points) if isinstance(self.points, tuple) else self.points
         set_(self, "points", _points(owner, points))
-        given = [k for k in ("shape", "mass", "size", "radius", "length") if getattr(self, k) is not None]
+        given = [k for k in ("shape", "mass", "density", "size", "radius", "length") if getattr(self, k) is not None]
         if self.urdf is not None:
             if given:
                 raise InvalidInputError(f"{owner}: a URDF object takes its shape and masses from its file; "
@@ -121,15 +126,10 @@ class SceneObject:
         for key in needed:
             if getattr(self, key) is None:
                 raise InvalidInputError(f"{owner}: a {self.shape} needs {' and '.join(needed)}")
-        extra = [k for k in given if k not in needed + ("shape", "mass")]
+        extra = [k for k in given if k not in needed + ("shape", "mass", "density")]
         if extra:
             raise InvalidInputError(f"{owner}: a {self.shape} has no {', '.join(extra)} "
                                     f"(it takes {' and '.join(needed)})")
-        if self.mass is None:
-            raise InvalidInputError(f"{owner}: a {self.shape} needs its mass (kg, > 0; uniform density)")
-        set_(self, "mass", check_number(owner, "mass", self.mass, minimum=0.0))
-        if not self.mass > 0.0:
-            raise InvalidInputError(f"{owner}: mass must be > 0 kg, got {self.mass!r}")
         if self.size is not None:
             size = check_vector(owner, "size", self.size, 3)
             if not np.all(size > 0.0):
@@ -142,6 +142,30 @@ class SceneObject:
                 if not value > 0.0:
                     raise InvalidInputError(f"{owner}: {key} must be > 0 m, got {value!r}")
                 set_(self, key, value)
+        self._set_mass(owner)
+
+    def _set_mass(self, owner: str) -> None:
+        """Check ``mass`` or turn ``density`` into it (a shape of checked dimensions)."""
+        if (self.mass is None) == (self.density is None):
+            raise InvalidInputError(
+                f"{owner}: a {self.shape} needs its mass (kg, > 0) or its density (kg/m³, > 0; uniform), "
+                f"one of the two; got mass = {self.mass!r}, density = {self.density!r}")
+        key, unit = ("mass", "kg") if self.density is None else ("density", "kg/m³")
+        value = check_number(owner, key, getattr(self, key), minimum=0.0)
+        if not value > 0.0:
+            raise InvalidInputError(f"{owner}: {key} must be > 0 {unit}, got {getattr(self, key)!r}")
+        object.__setattr__(self, "mass", value if key == "mass" else value * self.volume)
+        object.__setattr__(self, "density", None)
+
+    @property
+    def volume(self) -> float:
+        """A shape's volume (m³): a box's ``x y z``, a sphere's ``4/3 π r³``, a cylinder's
+        ``π r² l``."""
+        if self.shape == "box":
+            return float(np.prod(self.size))
+        if self.shape == "sphere":
+            return 4.0 / 3.0 * np.pi * self.radius ** 3
+        return np.pi * self.radius ** 2 * self.length
 
     @property
     def pose(self) -> pin.SE3:

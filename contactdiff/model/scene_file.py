@@ -31,7 +31,8 @@ _JOINT_SPRING_KEYS = ("joint", "stiffness", "damping", "rest")
 _INITIAL_KEYS = ("q", "v")
 _EFFORT_KEYS = ("trot", "spring", "joint_spring", "joint_targets")  # the tables that put efforts on a robot
 _FRAME_KEYS = ("name", "parent", "position", "rpy")
-_OBJECT_KEYS = ("name", "shape", "mass", "size", "radius", "length", "urdf", "position", "rpy", "fixed", "points")
+_OBJECT_KEYS = ("name", "shape", "mass", "size", "radius", "length", "urdf", "position", "rpy", "fixed", "points",
+                "density")
 
 
 def _check_keys(where: str, table, valid: Sequence[str], required: Sequence[str] = ()) -> None:
