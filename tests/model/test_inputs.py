@@ -177,6 +177,17 @@ def test_one_frame_may_touch_different_surfaces():
     assert scene.contact_names == ["box", "side"]
 
 
+@pytest.mark.parametrize("entry, message", [
+    ("[[contact]]\nframe = 'ball'\nrestitution = true\n", "restitution must be a number, got True"),
+    ("[[contact]]\nframe = 'ball'\noffset = false\n", "offset must be a number, got False"),
+    ("[[joint_spring]]\njoint = 'z'\nstiffness = true\n", "stiffness must be a number, got True"),
+])
+def test_a_boolean_is_not_a_number(tmp_path, entry, message):
+    """TOML's ``true`` was taken as 1 (an elastic contact) and ``false`` as 0."""
+    with pytest.raises(cd.InvalidInputError, match=message):
+        cd.load_scene(write_scene(tmp_path, entry + "[initial]\nq = { z = 0.5 }\n"))
+
+
 def test_contact_that_cannot_move_along_its_normal():
     """The ball moves along z only: a contact with a horizontal normal can never act."""
     with pytest.raises(cd.InvalidInputError, match="cannot move along the normal"):
