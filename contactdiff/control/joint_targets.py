@@ -147,7 +147,7 @@ class JointTargets:
         return JointTargetsEvaluator(self, robot)
 
 
-_LIMIT_TOL = 1e-12  # rad or m: a target written as the limit's decimal may round to a float just past it
+_LIMIT_TOL = 1e-12  # rad or m: a target computed to land on a limit (by a script, IK) may miss it by round-off
 
 
 def _check_limits(spec: JointTargets, robot: Robot, iq: list[int]) -> None:

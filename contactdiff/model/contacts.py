@@ -139,7 +139,7 @@ class Contact:
             return self
         radius = 0.0
         if self.against is None:
-            for obj in getattr(robot, "objects", ()):
+            for obj in robot.objects:
                 if obj.name == self.frame and obj.urdf is None and obj.shape == "sphere":
                     radius = obj.radius
         return dataclasses.replace(self, radius=radius)

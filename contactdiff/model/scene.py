@@ -352,10 +352,11 @@ def _check_one_contact_per_surface(contacts: Sequence[Contact]) -> None:
                 turned = "" if c.frame == frame else " (the second written the other way round)"
                 raise InvalidInputError(
                     f"contacts {first.name!r} and {c.name!r} are both frame {frame!r} against {body} along the "
-                    f"normal {first.normal}{turned}: one surface, whose two gaps differ only by their offsets "
-                    f"({first.offset:g} and {c.offset:g} m) and radii, so they would close in an order set by "
-                    "round-off; keep one contact there (with the offset, radius, restitution and friction you "
-                    "mean), or give them different normals (a floor and a wall) or different 'against' frames")
+                    f"normal {first.normal}{turned}: one surface, whose two gaps differ by a constant only "
+                    f"(offsets {first.offset:g} and {c.offset:g} m, radii {first.radius:g} and {c.radius:g} m), so "
+                    "they would close in an order set by round-off; keep one contact there (with the offset, "
+                    "radius, restitution and friction you mean), or give them different normals (a floor and a "
+                    "wall) or different 'against' frames")
         seen.append((c.frame, c.against, n, c))
 
 
