@@ -263,7 +263,13 @@ def _run_simulate(args) -> int:
         _check_html_path(args.html)
     scene = _scene_from_args(args)
     if "list" in args.param:
-        _print("\n".join(scene.parameter_names()))
+        if args.json:
+            from .jsonable import to_jsonable
+            from .model.parameters import parameter_table
+
+            _print(json.dumps(to_jsonable(parameter_table(scene)), indent=2))
+        else:
+            _print("\n".join(scene.parameter_names()))
         return 0
     parameters = scene.parameter_names() if "all" in args.param else list(args.param)
     with _ProgressBar(f"simulate {scene.name}", (0.0, args.t_final)) as bar:

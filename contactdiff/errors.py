@@ -119,7 +119,12 @@ def check_number(owner: str, name: str, value, *, minimum: float | None = None,
     ±inf), else `InvalidInputError` naming ``owner`` and ``name`` and showing the value.
 
     The project's one set of input checks: `check_number`, `check_count`,
-    `check_vector`, `check_output_file`; every module validates through them."""
+    `check_vector`, `check_output_file`; every module validates through them.
+    A boolean is not a number here (``restitution = true`` would be 1)."""
+    import numpy as np
+
+    if isinstance(value, (bool, np.bool_)):
+        raise InvalidInputError(f"{owner}: {name} must be a number, got {value!r}")
     try:
         x = float(value)
     except (TypeError, ValueError):

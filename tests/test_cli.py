@@ -183,3 +183,18 @@ def test_simulate_param_all_and_list(capsys):
     out = capsys.readouterr().out
     assert "parameter Jacobian" in out and all(n in out for n in names)
 
+
+def test_simulate_param_list_json_is_json(capsys):
+    """``--param list --json`` prints one JSON list (not the text list): per parameter its
+    name, kind, target, field and value; robots/ball.toml sets gravity (0, 0, -1) m/s²
+    and restitution 0.8, and its contact is named after the frame "ball"."""
+    assert main(["simulate", "ball", "--t-final", "0.5", "--param", "list", "--json"]) == 0
+    rows = json.loads(capsys.readouterr().out)
+    by_name = {row["name"]: row for row in rows}
+    assert by_name["contact:ball:restitution"] == {"name": "contact:ball:restitution", "kind": "contact",
+                                                   "target": "ball", "field": "restitution", "value": 0.8}
+    assert by_name["scene:gravity_z"] == {"name": "scene:gravity_z", "kind": "scene", "target": "",
+                                          "field": "gravity_z", "value": -1.0}
+    assert main(["simulate", "ball", "--t-final", "0.5", "--param", "list"]) == 0
+    assert capsys.readouterr().out.split() == [row["name"] for row in rows]  # the same names, in order
+

@@ -147,6 +147,27 @@ class JointTargets:
         return JointTargetsEvaluator(self, robot)
 
 
+_LIMIT_TOL = 1e-12  # rad or m: a target computed to land on a limit (by a script, IK) may miss it by round-off
+
+
+def _check_limits(spec: JointTargets, robot: Robot, iq: list[int]) -> None:
+    """Refuse a target outside the model's position limits of its joint: the PD law
+    would press the joint against its stop (the model does not enforce the limits,
+    so it would move past it instead). A joint without finite limits (a URDF
+    ``continuous`` joint, limits of ±1.8e308) or with an empty range takes any target."""
+    model = robot.model
+    biggest = np.finfo(float).max
+    for j, (joint, i) in enumerate(zip(spec.joints, iq)):
+        lower, upper = float(model.lowerPositionLimit[i]), float(model.upperPositionLimit[i])
+        if not (-biggest < lower < upper < biggest):
+            continue
+        for k, row in enumerate(spec.targets):
+            if not lower - _LIMIT_TOL <= row[j] <= upper + _LIMIT_TOL:
+                raise InvalidInputError(
+                    f"{spec.name}: targets[{k}][{j}] of joint {joint!r} is {row[j]!r}, outside the joint's "
+                    f"position limits [{lower:g}, {upper:g}] (the model's); targets must lie within them")
+
+
 class JointTargetsEvaluator:
     """`JointTargets` bound to a robot: index arrays of the joints, the gains per joint,
     the schedule as arrays and a ``pinocchio.Data`` of its own."""
@@ -154,6 +175,7 @@ class JointTargetsEvaluator:
     def __init__(self, spec: JointTargets, robot: Robot):
         self.spec, self.model, self.data = spec, robot.model, robot.new_data()
         idx = [robot.scalar_joint(name) for name in spec.joints]
+        _check_limits(spec, robot, [i for i, _ in idx])
         self.iq = np.array([i for i, _ in idx], dtype=int)
         self.iv = np.array([i for _, i in idx], dtype=int)
         m, self.nv = len(spec.joints), robot.nv

@@ -34,6 +34,7 @@ With ``r = 0`` none of these terms is evaluated.
 from __future__ import annotations
 
 import copy
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -98,7 +99,9 @@ class Contact:
         radius: radius (m, >= 0) of a sphere centred at the frame origin (a round
             foot, a ball): the gap is measured to its lowest point along the normal
             and a sticking contact rolls (module doc), on the ground or on the body
-            of ``against``.
+            of ``against``. ``None`` (the default) is resolved on the robot
+            (`resolved`): the sphere's radius for a ground contact on the centre
+            frame of a sphere object (`contactdiff.model.objects`), else 0.
     """
 
     frame: str
@@ -108,7 +111,7 @@ class Contact:
     friction: str | float = "none"
     against: str | None = None
     name: str | None = None
-    radius: float = 0.0
+    radius: float | None = None
 
     def __post_init__(self) -> None:
         owner = f"contact {self.name or self.frame!r}"
@@ -123,7 +126,23 @@ class Contact:
             raise InvalidInputError(f"{owner}: restitution must be in [0, 1], got {e!r}")
         set_(self, "restitution", e)
         set_(self, "friction", _friction(self.friction, owner))
-        set_(self, "radius", check_number(owner, "radius", self.radius, minimum=0.0))
+        if self.radius is not None:
+            set_(self, "radius", check_number(owner, "radius", self.radius, minimum=0.0))
+
+    def resolved(self, robot: Robot) -> Contact:
+        """This contact with its radius set: a given radius is kept; without one, a
+        ground contact (no ``against``) on the centre frame of a sphere object of
+        ``robot`` gets the sphere's radius (the ball rests on its surface, not on its
+        centre), any other contact 0 (a point contact; against a second frame the
+        offset holds the distance, as between the centres of two balls)."""
+        if self.radius is not None:
+            return self
+        radius = 0.0
+        if self.against is None:
+            for obj in robot.objects:
+                if obj.name == self.frame and obj.urdf is None and obj.shape == "sphere":
+                    radius = obj.radius
+        return dataclasses.replace(self, radius=radius)
 
     @property
     def sticking(self) -> bool:
@@ -171,6 +190,7 @@ class BoundContact:
     """
 
     def __init__(self, spec: Contact, robot: Robot):
+        spec = spec.resolved(robot)
         self.spec, self.name = spec, spec.name
         self.fid = robot.frame_id(spec.frame)
         self.against_fid = robot.frame_id(spec.against) if spec.against is not None else None

@@ -79,8 +79,9 @@ class SceneObject:
 
     Args:
         name: the object's name: its joint, its centre frame, the prefix of its other frames.
-        shape: one of `SHAPES`; ignored for a URDF object.
-        mass: kg, > 0 (shapes; a URDF model has its own masses).
+        shape: one of `SHAPES`, required for a shape; a URDF object has none.
+        mass: kg, > 0; a shape needs its mass or its ``density`` (a URDF model has its
+            own masses).
         size: a box's edge lengths along its x, y, z axes (m, > 0).
         radius: a sphere's or a cylinder's radius (m, > 0).
         length: a cylinder's length along its z axis (m, > 0).
@@ -89,19 +90,23 @@ class SceneObject:
         rpy: its initial orientation, roll-pitch-yaw about the world x, y, z axes (rad).
         fixed: True fixes the object in the world at its pose (no joint).
         points: named points of the object (m, object frame), frames ``NAME/POINT``.
+        density: kg/m³, > 0, instead of ``mass``: the mass is set to ``density``
+            times the shape's `volume` on construction (and ``density`` to None).
         moments: principal moments of inertia about the centre along the object's
             axes (kg m²): one number for all three, or three; None (default) takes
             those of uniform density. A measured body (a hollow or weighted cube)
             differs from uniform.
 
     Raises:
-        InvalidInputError: an unknown shape (the shapes are listed), a missing or
-            extra dimension, a non-positive size or mass, non-finite numbers.
+        InvalidInputError: a shape without ``shape``, or without ``mass`` or
+            ``density`` (or with both), a URDF object with any of them, an unknown
+            shape (the shapes are listed), a missing or extra dimension, a
+            non-positive size, mass or density, non-finite numbers.
     """
 
     name: str
-    shape: str = "box"
-    mass: float = 1.0
+    shape: str | None = None
+    mass: float | None = None
     size: tuple[float, float, float] | None = None
     radius: float | None = None
     length: float | None = None
@@ -110,6 +115,7 @@ class SceneObject:
     rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
     fixed: bool = False
     points: Mapping | tuple = field(default_factory=dict)
+    density: float | None = None
     moments: float | tuple[float, float, float] | None = None
 
     def __post_init__(self) -> None:
@@ -124,26 +130,26 @@ class SceneObject:
         set_(self, "rpy", tuple(float(x) for x in self.rpy))
         points = dict(self.points) if isinstance(self.points, tuple) else self.points
         set_(self, "points", _points(owner, points))
-        given = [k for k in ("size", "radius", "length", "moments") if getattr(self, k) is not None]
+        given = [k for k in ("shape", "mass", "density", "size", "radius", "length", "moments")
+                 if getattr(self, k) is not None]
         if self.urdf is not None:
             if given:
-                raise InvalidInputError(f"{owner}: a URDF object takes its shape from its file; "
+                raise InvalidInputError(f"{owner}: a URDF object takes its shape and masses from its file; "
                                         f"drop {', '.join(given)}")
             set_(self, "urdf", str(self.urdf))
             return
+        if self.shape is None:
+            raise InvalidInputError(f"{owner} needs a shape ({', '.join(SHAPES)}) or a urdf file")
         if self.shape not in SHAPES:
             raise unknown_name(f"shape of {owner}", self.shape, SHAPES)
         needed = _DIMENSIONS[self.shape]
         for key in needed:
             if getattr(self, key) is None:
                 raise InvalidInputError(f"{owner}: a {self.shape} needs {' and '.join(needed)}")
-        extra = [k for k in given if k not in needed and k != "moments"]
+        extra = [k for k in given if k not in needed + ("shape", "mass", "density", "moments")]
         if extra:
             raise InvalidInputError(f"{owner}: a {self.shape} has no {', '.join(extra)} "
                                     f"(it takes {' and '.join(needed)})")
-        set_(self, "mass", check_number(owner, "mass", self.mass, minimum=0.0))
-        if not self.mass > 0.0:
-            raise InvalidInputError(f"{owner}: mass must be > 0 kg, got {self.mass!r}")
         if self.size is not None:
             size = check_vector(owner, "size", self.size, 3)
             if not np.all(size > 0.0):
@@ -158,6 +164,30 @@ class SceneObject:
                 if not value > 0.0:
                     raise InvalidInputError(f"{owner}: {key} must be > 0 m, got {value!r}")
                 set_(self, key, value)
+        self._set_mass(owner)
+
+    def _set_mass(self, owner: str) -> None:
+        """Check ``mass`` or turn ``density`` into it (a shape of checked dimensions)."""
+        if (self.mass is None) == (self.density is None):
+            raise InvalidInputError(
+                f"{owner}: a {self.shape} needs its mass (kg, > 0) or its density (kg/m³, > 0; uniform), "
+                f"one of the two; got mass = {self.mass!r}, density = {self.density!r}")
+        key, unit = ("mass", "kg") if self.density is None else ("density", "kg/m³")
+        value = check_number(owner, key, getattr(self, key), minimum=0.0)
+        if not value > 0.0:
+            raise InvalidInputError(f"{owner}: {key} must be > 0 {unit}, got {getattr(self, key)!r}")
+        object.__setattr__(self, "mass", value if key == "mass" else value * self.volume)
+        object.__setattr__(self, "density", None)
+
+    @property
+    def volume(self) -> float:
+        """A shape's volume (m³): a box's ``x y z``, a sphere's ``4/3 π r³``, a cylinder's
+        ``π r² l``."""
+        if self.shape == "box":
+            return float(np.prod(self.size))
+        if self.shape == "sphere":
+            return 4.0 / 3.0 * np.pi * self.radius ** 3
+        return np.pi * self.radius ** 2 * self.length
 
     @property
     def pose(self) -> pin.SE3:

@@ -262,6 +262,16 @@ def parameter_values(scene: Scene, names) -> np.ndarray:
     return np.array([_value(scene, p) for p in resolve(scene, names)], dtype=float)
 
 
+def parameter_table(scene: Scene) -> list[dict]:
+    """Every parameter of ``scene`` as a dict (what ``simulate --param list --json``
+    prints): ``name``, ``kind`` (a `ParameterKind` value), ``target`` ("" for
+    ``trot`` and ``scene``), ``field`` and ``value`` (its current value, in its unit;
+    the units are in the module notes), in the order of `parameter_names`."""
+    every = all_parameters(scene)
+    return [{"name": p.name, "kind": p.kind.value, "target": p.target, "field": p.field, "value": _value(scene, p)}
+            for p in every]
+
+
 def _number(name: str, value) -> float:
     try:
         x = float(value)
@@ -468,5 +478,5 @@ def tau_parameter_derivatives(scene: Scene, kin: Kinematics, t: float, parameter
     return out
 
 
-__all__ = ["Parameter", "ParameterKind", "all_parameters", "body_names", "parameter_names", "parameter_values",
-           "resolve", "tau_parameter_derivatives", "with_parameters", "BODY_FIELDS", "MODEL_STEP"]
+__all__ = ["Parameter", "ParameterKind", "all_parameters", "body_names", "parameter_names", "parameter_table",
+           "parameter_values", "resolve", "tau_parameter_derivatives", "with_parameters", "BODY_FIELDS", "MODEL_STEP"]

@@ -55,15 +55,16 @@ class Scene:
             robot.model.gravity = pin.Motion(check_vector("scene", "gravity", gravity, 3), np.zeros(3))
         self.robot = robot
         self.name = name or robot.name
-        self.contact_specs = tuple(contacts)
-        self.effort_specs = tuple(efforts)
-        for c in self.contact_specs:
+        for c in contacts:
             if not isinstance(c, Contact):
                 raise InvalidInputError(f"contacts must be Contact objects, got {c!r}")
+        self.contact_specs = tuple(c.resolved(robot) for c in contacts)  # radii set (`Contact.resolved`)
+        self.effort_specs = tuple(efforts)
         names = [c.name for c in self.contact_specs]
         duplicates = sorted({n for n in names if names.count(n) > 1})
         if duplicates:
             raise InvalidInputError(f"contact names must be unique; repeated: {', '.join(duplicates)}")
+        _check_one_contact_per_surface(self.contact_specs)
         for e in self.effort_specs:
             if not isinstance(e, Effort):
                 raise InvalidInputError(
@@ -327,6 +328,36 @@ class Scene:
         scene = cls(robot, contacts, name=name or robot.name)
         scene.foot_choice = robot.foot_choice
         return scene
+
+
+_SAME_NORMAL_TOL = 1e-9  # unit normals closer than this are one direction (a copied entry, not a corner)
+
+
+def _check_one_contact_per_surface(contacts: Sequence[Contact]) -> None:
+    """Refuse two contacts of one frame against one body (the ground or the same frame)
+    along one normal: their gaps differ by a constant only (the offsets and radii), so
+    one surface would be two constraints whose rows are equal, closing in an order set
+    by round-off. Contacts of a frame along different normals (a floor and a wall), or
+    against different frames, are different surfaces and allowed. A contact of ``p``
+    against ``p'`` along ``n`` is the one of ``p'`` against ``p`` along ``-n``."""
+    seen: list[tuple[str, str | None, np.ndarray, Contact]] = []
+    for c in contacts:
+        n = np.array(c.normal)
+        for frame, against, normal, first in seen:
+            same = ((c.frame, c.against) == (frame, against) and np.linalg.norm(n - normal) < _SAME_NORMAL_TOL) or (
+                c.against is not None and (c.against, c.frame) == (frame, against)
+                and np.linalg.norm(n + normal) < _SAME_NORMAL_TOL)
+            if same:
+                body = "the ground" if against is None else f"frame {against!r}"
+                turned = "" if c.frame == frame else " (the second written the other way round)"
+                raise InvalidInputError(
+                    f"contacts {first.name!r} and {c.name!r} are both frame {frame!r} against {body} along the "
+                    f"normal {first.normal}{turned}: one surface, whose two gaps differ by a constant only "
+                    f"(offsets {first.offset:g} and {c.offset:g} m, radii {first.radius:g} and {c.radius:g} m), so "
+                    "they would close in an order set by round-off; keep one contact there (with the offset, "
+                    "radius, restitution and friction you mean), or give them different normals (a floor and a "
+                    "wall) or different 'against' frames")
+        seen.append((c.frame, c.against, n, c))
 
 
 def _joint_values(joint: str, value, size: int, kind: str) -> np.ndarray:

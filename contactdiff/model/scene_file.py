@@ -32,7 +32,7 @@ _INITIAL_KEYS = ("q", "v")
 _EFFORT_KEYS = ("trot", "spring", "joint_spring", "joint_targets")  # the tables that put efforts on a robot
 _FRAME_KEYS = ("name", "parent", "position", "rpy")
 _OBJECT_KEYS = ("name", "shape", "mass", "size", "radius", "length", "urdf", "position", "rpy", "fixed", "points",
-                "moments")
+                "density", "moments")
 
 
 def _check_keys(where: str, table, valid: Sequence[str], required: Sequence[str] = ()) -> None:

@@ -48,10 +48,21 @@ def panda_box(panda) -> Robot:
     return Robot(model, "panda_box", q_ref=np.concatenate([panda.q_ref, [0.5, 0.0, 0.3, 0.0, 0.0, 0.0, 1.0]]))
 
 
+OFFSETS = (0.0, 0.3, -0.1)  # rad or m: the rows of `_rows` from the start row
+
+
 def _rows(robot: Robot, joints) -> tuple[tuple[float, ...], ...]:
-    """One row per knot of TIMES: the reference pose of the joints, then offsets."""
-    q0 = np.array([robot.q_ref[robot.scalar_joint(j)[0]] for j in joints])
-    return tuple(tuple(q0 + offset) for offset in (0.0, 0.3, -0.1))
+    """One row per knot of TIMES: the reference pose of the joints, then offsets; a joint
+    whose limits are closer than the offsets (a finger, 0-0.04 m) starts at the middle of
+    its range with offsets scaled to 0.9 of its half range, so every row lies within the
+    model's limits (targets outside them are refused)."""
+    iq = [robot.scalar_joint(j)[0] for j in joints]
+    base, scale = robot.q_ref[iq].copy(), np.ones(len(iq))
+    lower, upper = robot.model.lowerPositionLimit[iq], robot.model.upperPositionLimit[iq]
+    narrow = (base + min(OFFSETS) < lower) | (base + max(OFFSETS) > upper)
+    base[narrow] = 0.5 * (lower + upper)[narrow]
+    scale[narrow] = 0.9 * 0.5 * (upper - lower)[narrow] / max(abs(x) for x in OFFSETS)
+    return tuple(tuple(base + offset * scale) for offset in OFFSETS)
 
 
 def _tau(effort, robot: Robot, q, v, t: float) -> np.ndarray:
@@ -245,3 +256,20 @@ def test_bad_joints_are_refused_at_bind(panda, panda_box):
         JointTargets(("panda_joint8",), (0.0, 1.0), rows, 1.0).bind(panda)
     with pytest.raises(InvalidInputError, match=r"'box' has nq=7, nv=6"):  # a free-flyer: not one number
         JointTargets(("box",), (0.0, 1.0), rows, 1.0).bind(panda_box)
+
+
+def test_targets_outside_the_joint_limits_are_refused_at_bind(panda):
+    """The Panda's URDF limits its fingers to [0, 0.04] m: a schedule driving them to
+    0.485 m (a value past the stop, which the model would not enforce) is refused, naming
+    the joint, the value and the limits; targets on the limits themselves are accepted."""
+    fingers = ("panda_finger_joint1", "panda_finger_joint2")
+    lower = panda.model.lowerPositionLimit[[panda.scalar_joint(j)[0] for j in fingers]]
+    upper = panda.model.upperPositionLimit[[panda.scalar_joint(j)[0] for j in fingers]]
+    np.testing.assert_array_equal(lower, 0.0)
+    np.testing.assert_array_equal(upper, 0.04)
+    JointTargets(fingers, (0.0, 1.0), ((0.04, 0.04), (0.0, 0.0)), 300.0).bind(panda)
+    message = re.escape("targets[1][1] of joint 'panda_finger_joint2' is 0.485") + r".*\[0, 0\.04\]"
+    with pytest.raises(InvalidInputError, match=message):
+        JointTargets(fingers, (0.0, 1.0), ((0.03, 0.03), (0.03, 0.485)), 300.0).bind(panda)
+    with pytest.raises(InvalidInputError, match=r"'panda_joint4' is 0\.5.*\[-3\.0718, -0\.0698\]"):
+        JointTargets(("panda_joint4",), (0.0,), ((0.5,),), 300.0).bind(panda)

@@ -19,6 +19,7 @@ from contactdiff.dynamics.mode import ModeDynamics
 from contactdiff.model.contacts import Contact
 from contactdiff.model.efforts import JointSpring, Spring
 from contactdiff.model.kinematics import Kinematics
+from contactdiff.model.objects import RobotFrame, add_objects
 from contactdiff.model.robot import Robot, load_robot
 from contactdiff.model.scene import Scene
 from contactdiff.model.scene_file import load_source
@@ -520,11 +521,12 @@ def test_accelerator_equals_solve(mode):
 
 
 def test_accelerator_falls_back_on_redundant_contacts():
-    """Two sticking contacts at the same foot make Pinocchio's factorisation fail; the
-    accelerator then gives `solve`'s least-squares answer (the same forces split)."""
-    robot = load_robot("solo12")
+    """Two sticking contacts at the same foot (its frame and a second frame at its origin:
+    one frame may not hold two contacts of one surface) make Pinocchio's factorisation
+    fail; the accelerator then gives `solve`'s least-squares answer (the same forces split)."""
+    robot = add_objects(load_robot("solo12"), frames=[RobotFrame("FL_TWIN", "FL_FOOT")])
     contacts = [Contact("FL_FOOT", offset=-1.0, friction="stick"),
-                Contact("FL_FOOT", offset=-1.0, friction="stick", name="twin")]
+                Contact("FL_TWIN", offset=-1.0, friction="stick", name="twin")]
     dyn = ModeDynamics(Scene(robot, contacts))
     q, v = _state(robot, 5)
     accel = dyn.accelerator((0, 1))

@@ -143,6 +143,51 @@ def test_duplicate_contact_names():
         cd.Scene(cd.load_robot("ball"), [cd.Contact("ball"), cd.Contact("ball")], q0={"z": 1.0})
 
 
+@pytest.mark.parametrize("second", [
+    dict(name="again"),  # a copy
+    dict(name="again", offset=0.1, restitution=0.5, friction="stick"),  # other numbers, same surface
+    dict(name="again", normal=(0.0, 0.0, 2.0)),  # the same normal, unnormalised
+])
+def test_two_contacts_of_one_frame_on_one_surface_are_refused(second):
+    """Two ground contacts of one frame along one normal have gaps that differ by a
+    constant: one surface, two rows that are equal, which closed in an order set by
+    round-off (the run reported a landing order between them). The error names both,
+    the frame, the normal and what to do instead."""
+    with pytest.raises(cd.InvalidInputError,
+                       match=r"'ball' and 'again' are both frame 'ball' against the ground along the normal "
+                             r"\(0\.0, 0\.0, 1\.0\).*different normals"):
+        cd.Scene(cd.load_robot("ball"), [cd.Contact("ball"), cd.Contact("ball", **second)], q0={"z": 1.0})
+
+
+def test_one_frame_may_touch_different_surfaces():
+    """A floor and a ceiling (opposite normals) are two surfaces of one frame, and so are
+    a box's contacts against a ball along two normals; the pair written once each way
+    (box against ball along n, ball against box along -n) is one contact twice: refused."""
+    robot = cd.load_robot("ball")
+    scene = cd.Scene(robot, [cd.Contact("ball"), cd.Contact("ball", normal=(0, 0, -1), offset=-2.0, name="ceiling")],
+                     q0={"z": 1.0})
+    np.testing.assert_allclose(scene.gaps(scene.q0), [1.0, 1.0], rtol=0, atol=1e-15)  # z - 0, 2 - z
+    box = cd.SceneObject("box", "box", 1.0, size=(0.1, 0.1, 0.1), position=(0.0, 0.0, 0.5))
+    robot = cd.add_objects(robot, [box])
+    with pytest.raises(cd.InvalidInputError, match="'box' and 'back' are both frame 'box' against frame 'ball'"):
+        cd.Scene(robot, [cd.Contact("box", against="ball", normal=(0, 0, 1)),
+                         cd.Contact("ball", against="box", normal=(0, 0, -1), name="back")], q0={"z": 1.0})
+    scene = cd.Scene(robot, [cd.Contact("box", against="ball", normal=(0, 0, 1)),
+                             cd.Contact("box", against="ball", normal=(1, 0, 0), name="side")], q0={"z": 0.0})
+    assert scene.contact_names == ["box", "side"]
+
+
+@pytest.mark.parametrize("entry, message", [
+    ("[[contact]]\nframe = 'ball'\nrestitution = true\n", "restitution must be a number, got True"),
+    ("[[contact]]\nframe = 'ball'\noffset = false\n", "offset must be a number, got False"),
+    ("[[joint_spring]]\njoint = 'z'\nstiffness = true\n", "stiffness must be a number, got True"),
+])
+def test_a_boolean_is_not_a_number(tmp_path, entry, message):
+    """TOML's ``true`` was taken as 1 (an elastic contact) and ``false`` as 0."""
+    with pytest.raises(cd.InvalidInputError, match=message):
+        cd.load_scene(write_scene(tmp_path, entry + "[initial]\nq = { z = 0.5 }\n"))
+
+
 def test_contact_that_cannot_move_along_its_normal():
     """The ball moves along z only: a contact with a horizontal normal can never act."""
     with pytest.raises(cd.InvalidInputError, match="cannot move along the normal"):

@@ -58,6 +58,21 @@ def test_shape_inertias_are_those_of_uniform_solids(spec, diagonal):
     np.testing.assert_allclose(M, np.diag([spec["mass"]] * 3 + diagonal), atol=1e-14)
 
 
+@pytest.mark.parametrize("spec, volume", [
+    (dict(shape="box", size=(0.1, 0.2, 0.3)), 0.1 * 0.2 * 0.3),  # m³: x y z
+    (dict(shape="sphere", radius=0.02), 4.0 / 3.0 * np.pi * 0.02 ** 3),  # 4/3 π r³
+    (dict(shape="cylinder", radius=0.05, length=0.4), np.pi * 0.05 ** 2 * 0.4),  # π r² l
+])
+def test_a_density_gives_the_mass_of_the_uniform_solid(spec, volume):
+    """``density`` (kg/m³) instead of ``mass``: the mass is density × volume (steel, 7850
+    kg/m³: a ball of radius 2 cm weighs 0.263 kg), and the inertia is that of the same
+    shape given that mass. Round-off of a few products: 1e-15 relative."""
+    dense = SceneObject("thing", density=7850.0, **spec)
+    assert dense.mass == pytest.approx(7850.0 * volume, rel=1e-15) and dense.density is None
+    weighed = SceneObject("thing", mass=7850.0 * volume, **spec)
+    np.testing.assert_allclose(dense.inertia().matrix(), weighed.inertia().matrix(), rtol=1e-15, atol=0)
+
+
 def test_objects_come_after_the_robot_and_a_fixed_object_has_no_joint():
     panda = cd.load_robot("panda")
     robot = add_objects(panda, [SceneObject(**BOX), SceneObject("post", "cylinder", 1.0, radius=0.1, length=1.0,
@@ -116,6 +131,12 @@ def test_a_urdf_object_keeps_its_frames_under_its_name(tmp_path):
     (dict(name="b", shape="sphere", mass=1.0, radius=float("nan")), "nan"),
     (dict(name="a/b", shape="sphere", mass=1.0, radius=1.0), "'a/b'"),
     (dict(name="b", urdf="x.urdf", radius=1.0), "drop radius"),
+    (dict(name="b", shape="box", size=(1, 1, 1)), "'b': a box needs its mass (kg"),  # was 1 kg silently
+    (dict(name="b", mass=1.0, radius=0.5), "'b' needs a shape (box, sphere, cylinder) or a urdf"),
+    (dict(name="b", urdf="x.urdf", mass=2.0), "masses from its file; drop mass"),
+    (dict(name="b", shape="sphere", radius=0.1, mass=1.0, density=1000.0), "mass = 1.0, density = 1000.0"),
+    (dict(name="b", shape="sphere", radius=0.1, density=0.0), "density must be > 0 kg/m³, got 0.0"),
+    (dict(name="b", urdf="x.urdf", density=2.0), "drop density"),
 ])
 def test_bad_objects_are_refused_with_the_bad_value(spec, message):
     with pytest.raises(cd.InvalidInputError, match=message.replace("(", r"\(").replace(")", r"\)")):
@@ -143,6 +164,9 @@ def test_a_scene_file_of_objects_alone(tmp_path):
         cd.load_scene(path)
     path.write_text('[[object]]\nname = "a"\nshape = "sphere"\nradius = 0.1\nmass = 1.0\ncolour = "red"\n')
     with pytest.raises(cd.UnknownNameError, match="colour"):
+        cd.load_scene(path)
+    path.write_text('[[object]]\nname = "a"\nshape = "sphere"\nradius = 0.1\n')  # no mass
+    with pytest.raises(cd.InvalidInputError, match="object 'a': a sphere needs its mass"):
         cd.load_scene(path)
     path.write_text('gravity = [0, 0, 0]\n')
     with pytest.raises(cd.InvalidInputError, match="missing the key 'robot'"):

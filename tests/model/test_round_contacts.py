@@ -402,6 +402,52 @@ def test_scene_file_radius(tmp_path):
             load_scene(path)
 
 
+SPHERE_SCENE = """gravity = [0.0, 0.0, -9.81]
+[[object]]
+name = "ball"
+shape = "sphere"
+radius = 0.03
+mass = 0.2
+position = [0.0, 0.0, 0.1]
+[[contact]]
+frame = "ball"
+{extra}
+"""
+
+
+def test_a_sphere_object_lands_on_its_surface_without_a_radius_key(tmp_path):
+    """A ground contact on a sphere object's centre frame, written without ``radius``, is a
+    round contact of the sphere's radius (docs/scene-files.md). Dropped at rest from centre
+    height z0 = 0.1 m (g = 9.81 m/s², r = 0.03 m), the gap is z - r = z0 - g t²/2 - r, so
+    it lands at t = sqrt(2 (z0 - r) / g) = 0.11946 s (at its centre, t = sqrt(2 z0 / g) =
+    0.14278 s, as it did), and after the plastic impact (e = 0) rests at z = r.
+    Tolerances: free fall is quadratic in t, which DOP853's dense output reproduces to
+    round-off, and the event is located to a few ulps of t (`events.locate`): 1e-12 s;
+    the resting contact holds the gap at 0 to round-off of O(0.1) m positions: 1e-12 m."""
+    g, z0, r = 9.81, 0.1, 0.03
+    path = tmp_path / "ball.toml"
+    path.write_text(SPHERE_SCENE.format(extra=""))
+    scene = load_scene(path)
+    assert scene.contact_specs[0].radius == r and scene.contacts[0].radius == r
+    traj = cd.simulate(scene, 0.5)
+    assert [e.kind for e in traj.events] == ["touchdown"]
+    assert traj.events[0].t == pytest.approx(math.sqrt(2.0 * (z0 - r) / g), abs=1e-12)
+    assert traj.q[2] == pytest.approx(r, abs=1e-12)
+    # an explicit radius wins: 0 is a point contact at the centre, which lands at sqrt(2 z0 / g)
+    path.write_text(SPHERE_SCENE.format(extra="radius = 0.0"))
+    traj = cd.simulate(load_scene(path), 0.5)
+    assert traj.events[0].t == pytest.approx(math.sqrt(2.0 * z0 / g), abs=1e-12)
+
+
+def test_a_contact_against_a_frame_keeps_a_point_by_default():
+    """Only a ground contact takes the sphere's radius by default: a contact between two
+    balls (Newton's cradle) measures its gap between the centres, its offset holding the
+    two radii (0.04 m), so the balls that touch at the start have gap 0, not -0.02 m."""
+    scene = load_scene("newtons_cradle")
+    assert [c.radius for c in scene.contact_specs] == [0.0, 0.0]
+    np.testing.assert_allclose(scene.gaps(scene.q0), [0.1, 0.0], rtol=0, atol=1e-15)
+
+
 # -- foot radii from the collision geometry ------------------------------------------------------
 def test_foot_spheres_of_the_quadrupeds():
     """The URDFs' foot collision spheres: a1 and hyq put a <sphere radius="0.02"/> and
