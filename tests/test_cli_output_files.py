@@ -91,6 +91,23 @@ def test_a_read_only_folder_is_refused_before_the_run(index, tmp_path, capsys, m
     assert list(folder.iterdir()) == []  # the check left nothing behind
 
 
+def test_a_read_only_results_file_is_refused_before_the_run(tmp_path, capsys, monkeypatch):
+    out = tmp_path / "rows.csv"
+    out.write_text("index,q:z,sweep\n")
+    out.chmod(0o444)
+    try:
+        out.open("r+b").close()
+    except PermissionError:
+        pass
+    else:
+        out.chmod(0o644)
+        pytest.skip("this process writes into read-only files (root): chmod cannot make one here")
+    _no_run(monkeypatch)
+    assert main(SWEEP + ["--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "cannot be written: Permission denied" in err, err
+
+
 def _break(folder: Path) -> None:
     """Replace ``folder`` by a regular file: nothing can be written in it any more."""
     shutil.rmtree(folder)

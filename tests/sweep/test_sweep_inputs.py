@@ -10,6 +10,9 @@ lands at t = sqrt(2 h / g); the next impact comes 2 e sqrt(2 g h) / g later
 from __future__ import annotations
 
 import json
+import signal
+import subprocess
+import sys
 import time
 import tracemalloc
 import warnings
@@ -114,6 +117,26 @@ def test_a_huge_grid_on_the_command_line_is_one_line(capsys):
     assert main(["sweep", "ball", "--grid", "q:z=1:2:100000000", "--t-final", "1"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "100,000,000 points" in err and "split it into several sweeps" in err
+
+
+def test_ctrl_c_stops_the_largest_sweep_at_once_and_keeps_its_rows(tmp_path):
+    """Ctrl-C once the rows of a sweep of MAX_POINTS points are being written: the
+    command ends with one line and status 130 within seconds, and the finished rows
+    are in the results file, ready to resume."""
+    out = tmp_path / "rows.jsonl"
+    code = ("import signal, sys; signal.signal(signal.SIGINT, signal.default_int_handler); "
+            "from contactdiff.cli import main; sys.exit(main(sys.argv[1:]))")
+    proc = subprocess.Popen([sys.executable, "-c", code, "sweep", "ball", "--grid", f"q:z=1:2:{MAX_POINTS}",
+                             "--t-final", "0.001", "--jobs", "1", "--out", str(out)],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 60.0  # s: import, scene, points; the first rows follow within a second
+    while not (out.exists() and out.stat().st_size) and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.1)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=30)
+    assert proc.returncode == 130 and err.strip() == "contactdiff sweep: interrupted", err
+    kept = len(out.read_text().splitlines())
+    assert 0 < kept < MAX_POINTS
 
 
 # -- ranges whose count is not a positive integer ----------------------------------------------
