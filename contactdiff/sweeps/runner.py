@@ -41,8 +41,8 @@ IDENTITY = re.compile(r"[0-9a-f]{16}")
 
 
 class DamagedRowsWarning(UserWarning):
-    """A results file holds damaged lines among good rows: they are left out, their
-    points run again, and the lines are removed when the new rows are appended."""
+    """A results file holds damaged lines among good rows: they are left out and removed
+    from the file, and their points run again."""
 
 
 @dataclass(frozen=True)
@@ -152,9 +152,9 @@ def sweep(scene, points, job="simulate", *, t_final: float | None = None,
     rows = {i: Row.from_dict({**done[key(values)], "index": i}, points.names)
             for i, values in enumerate(points.values) if key(values) in done}
     lost = None  # the results file's failed write: the sweep runs on, the rows are returned in the error
+    if results is not None and (todo or damaged):
+        lost = _write(lambda: results.start(d.line for d in damaged))
     if todo:
-        if results is not None:
-            lost = _write(lambda: results.start(d.line for d in damaged))
         with engine.session() as run, _progress_bar(len(todo), source.label, progress) as bar:
             for row in run(run_point, todo):
                 rows[row.index] = row

@@ -188,6 +188,19 @@ def test_a_damaged_row_is_named_and_its_point_runs_again(tmp_path, fresh, suffix
     assert again.skipped == 4 and _flat(again) == _flat(fresh)
 
 
+def test_a_damaged_line_is_removed_even_when_no_point_runs(tmp_path, fresh):
+    """The damaged line is a fifth row, of a point this sweep does not have: nothing
+    runs, and the file is cleaned all the same."""
+    out = tmp_path / "rows.jsonl"
+    sweep("ball", HEIGHTS, t_final=3.0, n_jobs=1, out=out)
+    out.write_text(out.read_text() + '{"index": 4, "q:z": 2.5, "sweep": \n')
+    out.write_text(out.read_text() + out.read_text().splitlines(keepends=True)[0])  # a good line after it
+    with pytest.warns(DamagedRowsWarning, match="line 5: not JSON"):
+        resumed = sweep("ball", HEIGHTS, t_final=3.0, n_jobs=1, out=out)
+    assert resumed.skipped == 4 and _flat(resumed) == _flat(fresh)
+    assert len(out.read_text().splitlines()) == 5 and "2.5" not in out.read_text()
+
+
 def test_a_damaged_row_is_one_warning_line_on_the_command_line(tmp_path, capsys):
     out = tmp_path / "rows.csv"
     argv = ["sweep", "ball", "--grid", "q:z=1:2:3", "--t-final", "3", "--jobs", "1", "--out", str(out)]
