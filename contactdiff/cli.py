@@ -23,7 +23,19 @@ import os
 import sys
 import time
 
-from .cli_args import COUNT, FINITE, NONNEGATIVE, POSITIVE, SEED, Number, add_plot, assignment, check_plot_path
+from .cli_args import (
+    COUNT,
+    FINITE,
+    NONNEGATIVE,
+    POSITIVE,
+    SEED,
+    Number,
+    add_plot,
+    assignment,
+    check_plot_path,
+    raise_failures,
+    write_output,
+)
 from .cli_args import print_flushed as _print
 from .errors import ContactDiffError, InvalidInputError, check_output_file
 
@@ -211,13 +223,15 @@ def _run_bench(args) -> int:
     if args.plot:
         check_plot_path(args.plot)
     result = run_bench(scenes=args.scenes, repeats=args.repeats, quick=args.quick, studies=args.studies)
+    failed = None
     if args.plot:
         from .plotting import plot_bench
 
-        plot_bench(result, args.plot)
+        failed = write_output("--plot", args.plot, lambda: plot_bench(result, args.plot))
     _print(json.dumps(result.to_dict(), indent=2) if args.json else result.format())
-    if args.plot and not args.json:
+    if args.plot and not args.json and not failed:
         _print(f"plot written to {args.plot}")
+    raise_failures([failed])
     return 0
 
 
@@ -277,21 +291,24 @@ def _run_simulate(args) -> int:
                         jacobian=args.jacobian, max_steps=args.max_steps, progress=bar,
                         dense=bool(args.plot or args.html),  # plot and replay sample states between events
                         parameters=parameters)
+    plotted = replayed = None  # a failed write, reported once the run is printed
     if args.plot:
         from .plotting import plot_gait, plot_gaps
 
         # floating base: contact timeline, base height and attitude; else contact gaps
-        (plot_gait if scene.robot.floating_base else plot_gaps)(traj, scene, args.plot)
+        plot = plot_gait if scene.robot.floating_base else plot_gaps
+        plotted = write_output("--plot", args.plot, lambda: plot(traj, scene, args.plot))
     if args.html:
-        traj.to_html(args.html, scene, fps=args.fps)
+        replayed = write_output("--html", args.html, lambda: traj.to_html(args.html, scene, fps=args.fps))
     if args.json:
         _print(json.dumps(traj.summary(), indent=2))
-        return 0
-    _print(_format_trajectory(traj, scene))
-    if args.plot:
-        _print(f"plot written to {args.plot}")
-    if args.html:
-        _print(f"replay written to {args.html}")
+    else:
+        _print(_format_trajectory(traj, scene))
+        if args.plot and not plotted:
+            _print(f"plot written to {args.plot}")
+        if args.html and not replayed:
+            _print(f"replay written to {args.html}")
+    raise_failures([plotted, replayed])
     return 0
 
 

@@ -1,12 +1,13 @@
 """Argument types and checks shared by the ``contactdiff`` subcommands (`contactdiff.cli`,
 `contactdiff.sweeps.cli`): numbers in a range with messages that name the range, the
-``--plot`` option and its early check, ``NAME=VALUE`` items, and flushed printing."""
+``--plot`` option and its early check, ``NAME=VALUE`` items, flushed printing, and
+files written after the work (`write_output`)."""
 
 from __future__ import annotations
 
 import argparse
 
-from .errors import InvalidInputError, check_output_file
+from .errors import ContactDiffError, InvalidInputError, OutputFileError, check_output_file, write_failed
 
 
 class Number:
@@ -60,6 +61,28 @@ def check_plot_path(path: str) -> None:
     suffix = target.suffix.lower().lstrip(".")
     if suffix and suffix not in formats:
         raise InvalidInputError(f"--plot {path!r}: unknown format {suffix!r}; valid: {', '.join(sorted(formats))}")
+
+
+def write_output(option: str, path, write) -> OutputFileError | None:
+    """Call ``write()``, which writes ``path`` (the file of ``option``) after the work is
+    done; its failure is returned, not raised, so that the caller prints the results
+    first and then raises it (`raise_failures`): a finished run is never lost to a
+    folder that became unwritable or a full disk."""
+    try:
+        write()
+    except OSError as exc:
+        return write_failed(option, path, exc)
+    except ContactDiffError as exc:  # the writer's own check (the folder went), or the content refused
+        return OutputFileError(f"{option} {str(path)!r} not written: {exc}")
+    return None
+
+
+def raise_failures(failures) -> None:
+    """Raise the failed writes of `write_output` (None for a write that succeeded) as one
+    `OutputFileError`, once the results are printed."""
+    failed = [f for f in failures if f is not None]
+    if failed:
+        raise OutputFileError("; ".join(map(str, failed)) + " (the results above are complete)")
 
 
 def print_flushed(text: str) -> None:

@@ -17,6 +17,16 @@ class InvalidInputError(ContactDiffError, ValueError):
     """An argument, file entry or number is malformed or out of range."""
 
 
+class OutputFileError(InvalidInputError):
+    """A file to write (``--plot``, ``--html``, ``--out``) cannot be written: its folder is
+    missing, not a folder, or refuses a new file; or the write failed after the work
+    was done. ``.result`` then holds the work (a run, a sweep's rows); else None."""
+
+    def __init__(self, message: str, result=None):
+        super().__init__(message)
+        self.result = result
+
+
 class UnknownNameError(InvalidInputError, KeyError):
     """A robot, frame, joint, contact or key name is not known.
 
@@ -173,14 +183,38 @@ def unknown_name(kind: str, name: object, valid) -> UnknownNameError:
 
 
 def check_output_file(option: str, path, example: str) -> Path:
-    """``path`` as a file to write: not a folder, in a folder that exists; else
-    `InvalidInputError` naming ``option`` (``--plot``, ``--out``, ...) and the path,
-    and suggesting ``example`` as a file name inside a folder given by mistake."""
+    """``path`` as a file to write, checked before any work: not a folder, in a folder
+    that exists, is a folder and takes a new file (a temporary file is created there
+    and removed: permission bits alone do not tell, e.g. for root or a read-only
+    mount), and, if the file exists, writable; else `OutputFileError` naming ``option``
+    (``--plot``, ``--out``, ...) and the path, suggesting ``example`` as a file name
+    inside a folder given by mistake."""
+    import os
+    import tempfile
+
     target = Path(path)
     if target.is_dir():
-        raise InvalidInputError(f"{option} {str(path)!r} is a folder; give a file name such as "
-                                f"{str(target / example)!r}")
-    if not target.parent.is_dir():
-        raise InvalidInputError(f"{option} {str(path)!r}: folder {str(target.parent)!r} does not exist")
+        raise OutputFileError(f"{option} {str(path)!r} is a folder; give a file name such as "
+                              f"{str(target / example)!r}")
+    folder = target.parent
+    if not folder.exists():
+        raise OutputFileError(f"{option} {str(path)!r}: folder {str(folder)!r} does not exist")
+    if not folder.is_dir():
+        raise OutputFileError(f"{option} {str(path)!r}: {str(folder)!r} is a file, not a folder")
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".contactdiff-", dir=folder)
+        os.close(fd)
+        os.unlink(probe)
+        if target.exists():
+            with target.open("r+b"):  # opened for writing, not truncated
+                pass
+    except OSError as exc:
+        raise OutputFileError(f"{option} {str(path)!r} cannot be written: {exc.strerror or exc}") from None
     return target
 
+
+def write_failed(option: str, path, exc: Exception, result=None) -> OutputFileError:
+    """The `OutputFileError` of a write of ``path`` (for ``option``) that failed with
+    ``exc`` after the work was done; ``result`` is the work, kept in the error."""
+    reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+    return OutputFileError(f"{option} {str(path)!r} could not be written: {reason}", result)

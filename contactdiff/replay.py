@@ -48,7 +48,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from .errors import ContactDiffError, InvalidInputError, check_output_file
+from .errors import ContactDiffError, InvalidInputError, check_output_file, write_failed
 from .replay_geometry import drawn_geometry, marker_radius, model_size
 
 DEFAULT_FPS = 30.0
@@ -242,10 +242,16 @@ def replay_html(traj, scene, *, fps: float = DEFAULT_FPS, contact_radius: float 
 def write_html(traj, scene, path: str | Path, **options) -> Path:
     """Write `replay_html` to ``path`` (UTF-8) and return the path.
 
-    ``options`` are those of `replay_html`; a missing folder raises `InvalidInputError`.
+    ``options`` are those of `replay_html`; a folder that is missing or takes no file
+    raises `OutputFileError` (an `InvalidInputError`), before the page is built, and so
+    does a write that fails.
     """
     target = check_output_file("replay: file", path, "replay.html")
-    target.write_text(replay_html(traj, scene, **options), encoding="utf-8")
+    page = replay_html(traj, scene, **options)
+    try:
+        target.write_text(page, encoding="utf-8")
+    except OSError as exc:
+        raise write_failed("replay: file", path, exc) from None
     return target
 
 

@@ -26,7 +26,7 @@ from .engines import Backend
 from .jobs import JobKind
 from .points import Normal, PointSet, Uniform, grid, point_list, random_points
 from .rows import Row, RunError, SweepResult
-from .runner import sweep
+from .runner import DamagedRowsWarning, sweep
 
 __all__ = ["sweep", "grid", "point_list", "random_points", "Uniform", "Normal", "PointSet", "Row", "RunError",
-           "SweepResult", "Backend", "JobKind"]
+           "SweepResult", "Backend", "JobKind", "DamagedRowsWarning"]

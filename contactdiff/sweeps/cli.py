@@ -13,10 +13,23 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
+import warnings
 from pathlib import Path
 
-from ..cli_args import COUNT, FINITE, SEED, Number, add_plot, assignment, check_plot_path, print_flushed
-from ..errors import InvalidInputError, ModelLoadError
+from ..cli_args import (
+    COUNT,
+    FINITE,
+    SEED,
+    Number,
+    add_plot,
+    assignment,
+    check_plot_path,
+    print_flushed,
+    raise_failures,
+    write_output,
+)
+from ..errors import InvalidInputError, ModelLoadError, OutputFileError
 
 TABLE_ROWS = 200
 """Rows printed as text (every row is in --json and --out)."""
@@ -26,7 +39,7 @@ def add_parser(sub) -> None:
     """Add ``sweep`` to the ``contactdiff`` subcommands ``sub``."""
     from .engines import Backend
     from .jobs import JobKind
-    from .points import DISTRIBUTIONS
+    from .points import DISTRIBUTIONS, MAX_POINTS
     from .quantities import OPTIONS
 
     parser = sub.add_parser(
@@ -40,7 +53,8 @@ def add_parser(sub) -> None:
                         help="scene name or TOML path, robot name, or module:function returning a Scene")
     points = parser.add_argument_group("points (one kind per sweep; names are quantities, see docs/sweep.md)")
     points.add_argument("--grid", action="append", default=[], metavar="NAME=VALUES",
-                        help="a grid axis: values a,b,c or a range lo:hi:n (repeatable: every combination)")
+                        help="a grid axis: values a,b,c or a range lo:hi:n, n a positive integer (repeatable: "
+                             f"every combination, at most {MAX_POINTS:,} points in all)")
     points.add_argument("--list", action="append", default=[], metavar="NAME=V,V,...",
                         help="explicit points: the lists of all --list are zipped (equal lengths)")
     points.add_argument("--random", action="append", default=[], metavar="NAME=DIST",
@@ -50,7 +64,8 @@ def add_parser(sub) -> None:
     points.add_argument("--seed", type=SEED, default=0, help="seed of the random samples (default 0)")
     points.add_argument("--points", metavar="FILE", help="explicit points from a JSON list of objects or JSON Lines")
     points.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
-                        help="a quantity fixed at one value for every point (repeatable)")
+                        help="a quantity fixed at one value for every point, a number where the text is one "
+                             "(repeatable)")
     job = parser.add_argument_group("job")
     job.add_argument("--job", default=JobKind.SIMULATE.value, metavar="JOB",
                      help=f"{', '.join(JobKind)}, or module:function taking (scene, point) and returning a dict "
@@ -86,7 +101,7 @@ def add_parser(sub) -> None:
 
 def run(args) -> int:
     """Run ``contactdiff sweep`` from parsed ``args``; return the exit status."""
-    from .runner import sweep
+    from .runner import DamagedRowsWarning, sweep
 
     if args.plot:
         check_plot_path(args.plot)
@@ -94,18 +109,35 @@ def run(args) -> int:
                                  ("max_steps", args.max_steps)) if v is not None}
     job_options = {k: v for k, v in (("parameters", args.param or None), ("contacts", args.contacts),
                                      ("foot", args.foot), ("iterations", args.newton)) if v is not None}
-    result = sweep(args.scene, _points(args), args.job, t_final=args.t_final, options=options,
-                   job_options=job_options, fixed=_assignments(args.set, "--set"), backend=args.backend,
-                   n_jobs=args.jobs, scheduler=args.scheduler, out=args.out, retry_failed=args.retry_failed)
+    failures = {}  # option: its file's failed write, reported once the rows are printed
+    with warnings.catch_warnings():
+        warnings.simplefilter("always", DamagedRowsWarning)
+        warnings.showwarning = _warning_line
+        try:
+            result = sweep(args.scene, _points(args), args.job, t_final=args.t_final, options=options,
+                           job_options=job_options, fixed=_fixed(args.set), backend=args.backend,
+                           n_jobs=args.jobs, scheduler=args.scheduler, out=args.out,
+                           retry_failed=args.retry_failed)
+        except OutputFileError as exc:
+            if exc.result is None:
+                raise
+            result = exc.result  # every point ran; the results file failed on the way
+            failures["--out"] = exc
     if args.plot:
-        result.plot(args.plot, args.plot_output)
+        failures["--plot"] = write_output("--plot", args.plot, lambda: result.plot(args.plot, args.plot_output))
     if args.json:
         print_flushed(json.dumps({"names": list(result.names), "points": len(result), "skipped": result.skipped,
                            "failed": len(result.failed), "wall_time": result.wall_time,
                            "rows": result.to_dicts()}, indent=2))
-        return 0
-    print_flushed(format_result(result, args))
+    else:
+        print_flushed(format_result(result, args, failed={k for k, v in failures.items() if v}))
+    raise_failures(failures.values())
     return 0
+
+
+def _warning_line(message, category, *_args, **_kwargs) -> None:
+    """Print a warning of the sweep (damaged lines of a results file) as one line on stderr."""
+    print(f"contactdiff sweep: warning: {message}", file=sys.stderr, flush=True)
 
 
 def _points(args):
@@ -138,6 +170,13 @@ def _assignments(items: list[str], flag: str) -> dict[str, str]:
     return out
 
 
+def _fixed(items: list[str]) -> dict:
+    """``--set NAME=VALUE`` items as ``{name: value}``, the text read as a number where it is one."""
+    from .points import parse_value
+
+    return {name: parse_value(name, text) for name, text in _assignments(items, "--set").items()}
+
+
 def _read_points(path: str) -> list:
     try:
         text = Path(path).read_text()
@@ -156,8 +195,9 @@ def _read_points(path: str) -> list:
     return data
 
 
-def format_result(result, args: argparse.Namespace) -> str:
-    """The rows as a text table: the point's values, the plotted (or job's) output, the error."""
+def format_result(result, args: argparse.Namespace, failed=frozenset()) -> str:
+    """The rows as a text table: the point's values, the plotted (or job's) output, the
+    error; and the files written (but those of the options in ``failed``)."""
     output = args.plot_output or result.default_output
     columns = list(result.names) + ([output] if output and any(output in r.outputs for r in result) else [])
     cells = [[_cell(r.to_dict().get(c)) for c in columns] + [r.error.kind if r.error else ""] for r in result]
@@ -172,9 +212,9 @@ def format_result(result, args: argparse.Namespace) -> str:
         lines.append(f"  ... {len(cells) - TABLE_ROWS} more rows (--json, --out)")
     for r in result.failed[:3]:
         lines.append(f"point #{r.index} failed: {r.error.kind}: {r.error.message}")
-    if args.out:
+    if args.out and "--out" not in failed:
         lines.append(f"rows written to {args.out}")
-    if args.plot:
+    if args.plot and "--plot" not in failed:
         lines.append(f"plot written to {args.plot}")
     return "\n".join(lines)
 

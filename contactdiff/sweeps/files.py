@@ -11,13 +11,19 @@ Two formats, chosen by the file's suffix (`FORMATS`):
 
 Both read back to the same values they were written from. A line cut short by
 an interrupted write is dropped. `ResultsFile.read` returns the flat rows in
-file order; a later row for the same point replaces an earlier one.
+file order; a later row for the same point replaces an earlier one. A damaged
+line elsewhere (not JSON, not an object, a CSV line whose cells do not match the
+header, a row without its index or sweep) is not a row: `ResultsFile.damaged`
+names it (`Damage`: line number, what is wrong), and `ResultsFile.start` can
+leave it out when the file is written again.
 """
 
 from __future__ import annotations
 
 import csv
 import json
+from collections.abc import Iterable
+from dataclasses import dataclass
 from enum import StrEnum
 from pathlib import Path
 
@@ -33,6 +39,22 @@ class FileFormat(StrEnum):
 
 FORMATS = tuple(FileFormat)
 """Valid suffixes of a results file."""
+
+
+@dataclass(frozen=True)
+class Damage:
+    """A line of a results file that is not a row.
+
+    Attributes:
+        line: its number in the file (1 is the first; for a CSV row over several lines, its last).
+        reason: what is wrong with it.
+    """
+
+    line: int
+    reason: str
+
+    def __str__(self) -> str:
+        return f"line {self.line}: {self.reason}"
 
 
 class ResultsFile:
@@ -55,14 +77,25 @@ class ResultsFile:
         check_output_file("--out", path, "results" + suffix)
         self.format = FileFormat(suffix)
         self._header: list[str] | None = None
+        self.damaged: list[Damage] = []
 
     def read(self) -> list[dict]:
         """The rows already in the file (flat form), in file order; [] without a file.
+        Damaged lines are left out and listed in `damaged`.
 
         Raises:
-            ModelLoadError: the file cannot be read, or a line (other than a last one
-                cut short) is not a row.
+            ModelLoadError: the file cannot be read.
         """
+        return [row for _, row in self.lines()]
+
+    def lines(self) -> list[tuple[int, dict]]:
+        """The rows already in the file with their line numbers, in file order; [] without
+        a file. Sets `damaged`: the lines that are not rows (`Damage`).
+
+        Raises:
+            ModelLoadError: the file cannot be read.
+        """
+        self.damaged = []
         if not self.path.exists():
             return []
         try:
@@ -70,24 +103,58 @@ class ResultsFile:
         except (OSError, UnicodeDecodeError) as exc:
             raise ModelLoadError(f"cannot read results file {str(self.path)!r}: {exc}") from None
         text = _complete_lines(text)
+        rows = []
+        for n, row in self._parse(text):
+            reason = row if isinstance(row, str) else _not_a_row(row)
+            if reason:
+                self.damaged.append(Damage(n, reason))
+            else:
+                rows.append((n, row))
+        return rows
+
+    def _parse(self, text: str):
+        """``(line number, flat row or what is wrong with the line)`` for each line of ``text``."""
         if self.format is FileFormat.JSONL:
-            rows = []
             for n, line in enumerate(text.splitlines(), 1):
                 if line.strip():
                     try:
-                        rows.append(json.loads(line))
+                        yield n, json.loads(line)
                     except json.JSONDecodeError as exc:
-                        raise ModelLoadError(f"results file {str(self.path)!r} line {n} is not JSON: {exc}") from None
-            return rows
-        reader = csv.DictReader(text.splitlines())
-        self._header = list(reader.fieldnames or [])
-        return [{k: _from_cell(v) for k, v in line.items()} for line in reader]
+                        yield n, f"not JSON ({exc})"
+            return
+        reader = csv.reader(text.splitlines(keepends=True))
+        self._header = None
+        while True:
+            try:
+                cells = next(reader)
+            except StopIteration:
+                return
+            except csv.Error as exc:
+                yield reader.line_num, f"not CSV ({exc})"
+                continue
+            if not cells:
+                continue  # a blank line
+            if self._header is None:
+                self._header = cells
+            elif len(cells) != len(self._header):
+                yield reader.line_num, f"{len(cells)} cells, the header has {len(self._header)}"
+            else:
+                yield reader.line_num, {k: _from_cell(v) for k, v in zip(self._header, cells)}
 
-    def start(self) -> None:
-        """Prepare to append: drop a last line cut short by an interrupted write."""
+    def start(self, drop: Iterable[int] = ()) -> None:
+        """Prepare to append: drop a last line cut short by an interrupted write, and the
+        lines numbered ``drop`` (damaged ones)."""
+        drop = set(drop)
         if self.path.exists():
             text = self.path.read_text()
             complete = _complete_lines(text)
+            if drop and self.format is FileFormat.CSV:
+                kept = [row for n, row in self.lines() if n not in drop]
+                self._write_csv(self._header or [], kept)
+                return
+            if drop:
+                complete = "".join(line for n, line in enumerate(complete.splitlines(keepends=True), 1)
+                                   if n not in drop)
             if complete != text:
                 self.path.write_text(complete)
             if self.format is FileFormat.CSV and self._header is None:
@@ -103,15 +170,32 @@ class ResultsFile:
         missing = [k for k in row if k not in header]
         if missing or not self.path.exists() or not header:
             rows = self.read() if self.path.exists() and header else []
-            self._header = header + missing
-            with self.path.open("w", newline="") as f:
-                writer = csv.DictWriter(f, self._header)
-                writer.writeheader()
-                for old in rows + [row]:
-                    writer.writerow({k: _to_cell(old.get(k)) for k in self._header})
+            self._write_csv(header + missing, rows + [row])
             return
         with self.path.open("a", newline="") as f:
             csv.DictWriter(f, self._header).writerow({k: _to_cell(row.get(k)) for k in self._header})
+
+
+    def _write_csv(self, header: list[str], rows: list[dict]) -> None:
+        """Write the file anew: ``header`` and ``rows``."""
+        self._header = header
+        with self.path.open("w", newline="") as f:
+            writer = csv.DictWriter(f, header)
+            writer.writeheader()
+            for row in rows:
+                writer.writerow({k: _to_cell(row.get(k)) for k in header})
+
+
+def _not_a_row(row) -> str:
+    """What keeps ``row`` (a line read back) from being a row; "" if nothing does."""
+    if not isinstance(row, dict):
+        return f"not an object but {type(row).__name__}"
+    index = row.get("index")
+    if isinstance(index, bool) or not isinstance(index, int) or index < 0:
+        return f"its index is {index!r}, not a count"
+    if not isinstance(row.get("sweep"), str) or not row["sweep"]:
+        return f"its sweep is {row.get('sweep')!r}, not an identity"
+    return ""
 
 
 def _complete_lines(text: str) -> str:
@@ -140,4 +224,4 @@ def _from_cell(text: str | None):
         return text
 
 
-__all__ = ["ResultsFile", "FileFormat", "FORMATS"]
+__all__ = ["ResultsFile", "FileFormat", "FORMATS", "Damage"]

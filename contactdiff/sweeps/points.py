@@ -31,6 +31,22 @@ from ..errors import InvalidInputError, check_count, check_number
 
 Value = float | int | str | bool | None
 
+MAX_POINTS = 100_000
+"""The most points a sweep takes; more are refused, with their count, before they are
+made. A sweep keeps its points and its rows in memory (the rows follow the points, and
+a results file is matched against them): 1e5 runs of the simulate job on the ball
+peaked at 0.37 GB in all (docs/sweep.md), and a 1e8-point grid would take many
+gigabytes before the first run. A larger study is several sweeps, which may share
+one results file."""
+
+
+def check_size(what: str, count: float) -> None:
+    """Refuse ``count`` points (of ``what``: a range, a grid, samples) past `MAX_POINTS`,
+    before they are made."""
+    if count > MAX_POINTS:
+        raise InvalidInputError(f"sweep: {what} has {count:,.0f} points; a sweep takes at most {MAX_POINTS:,} "
+                                "(MAX_POINTS): split it into several sweeps (they can share one results file)")
+
 
 def clean_value(name: str, value) -> Value:
     """``value`` as a plain Python scalar (numpy scalars converted), else `InvalidInputError`.
@@ -65,6 +81,7 @@ class PointSet:
     def __post_init__(self) -> None:
         if not self.values:
             raise InvalidInputError("sweep: no points to run (an empty list or a range of 0 values)")
+        check_size("the point list", len(self.values))
         if len(set(self.names)) != len(self.names):
             repeated = sorted({n for n in self.names if self.names.count(n) > 1})
             raise InvalidInputError(f"sweep: a quantity is swept twice: {', '.join(repeated)}")
@@ -102,12 +119,14 @@ def grid(axes: Mapping[str, Sequence | str]) -> PointSet:
     in `itertools.product` order: the last name varies fastest.
 
     Raises:
-        InvalidInputError: no axes, an empty list or range, a bad value.
+        InvalidInputError: no axes, an empty list or range, a bad value, more than
+            `MAX_POINTS` points (refused before they are made).
     """
     if not isinstance(axes, Mapping) or not axes:
         raise InvalidInputError(f"sweep: a grid needs at least one quantity and its values, got {axes!r}")
     names = tuple(axes)
     lists = tuple(tuple(parse_values(name, spec)) for name, spec in axes.items())
+    check_size("the grid " + " × ".join(f"{n} ({len(v)})" for n, v in zip(names, lists)), math.prod(map(len, lists)))
     return PointSet(names, tuple(itertools.product(*lists)), lists)
 
 
@@ -188,6 +207,7 @@ def random_points(distributions: Mapping[str, Uniform | Normal | str], n: int, s
         InvalidInputError: no quantity, a bad distribution, ``n`` < 1 or a bad seed.
     """
     n = check_count("sweep", "samples", n, minimum=1)
+    check_size("the random sample", n)
     seed = check_count("sweep", "seed", seed)
     if not isinstance(distributions, Mapping) or not distributions:
         raise InvalidInputError(f"sweep: random points need a distribution per quantity, got {distributions!r}")
@@ -203,14 +223,17 @@ def parse_values(name: str, spec) -> list[Value]:
     comma-separated values (numbers where they parse, else strings: ``"solo12,a1"``).
 
     Raises:
-        InvalidInputError: an empty list or a range of fewer than 1 value, a malformed range.
+        InvalidInputError: an empty list, a range whose count is not a positive integer or
+            is past `MAX_POINTS`, a malformed range.
     """
     if isinstance(spec, str):
         parts = spec.split(":")
         if len(parts) == 3 and all(_number_or_none(p) is not None for p in parts):
             lo, hi, count = (_number_or_none(p) for p in parts)
             if count != int(count) or count < 1:
-                raise InvalidInputError(f"sweep: range {name}={spec!r} is empty: lo:hi:n needs a count n >= 1")
+                raise InvalidInputError(f"sweep: range {name}={spec!r}: the count n of lo:hi:n must be a positive "
+                                        f"integer, got {parts[2]!r}")
+            check_size(f"range {name}={spec!r}", count)  # before the values are made
             values = np.linspace(lo, hi, int(count)).tolist()
         else:
             values = [_text_value(x.strip()) for x in spec.split(",")]
@@ -224,6 +247,12 @@ def parse_values(name: str, spec) -> list[Value]:
     if not values:
         raise InvalidInputError(f"sweep: {name} has no values (an empty list)")
     return [clean_value(name, v) for v in values]
+
+
+def parse_value(name: str, text: str) -> Value:
+    """One value from text (``--set NAME=VALUE``): an integer, a number, ``none``, else
+    the text itself (a name such as a method or a factory's categorical argument)."""
+    return clean_value(name, _text_value(text.strip()))
 
 
 def parse_distribution(name: str, spec) -> Uniform | Normal:
@@ -268,4 +297,5 @@ def as_points(points) -> PointSet:
 
 
 __all__ = ["PointSet", "grid", "point_list", "random_points", "Uniform", "Normal", "parse_values",
-           "parse_distribution", "as_points", "key", "DISTRIBUTIONS", "clean_value"]
+           "parse_value", "parse_distribution", "as_points", "key", "DISTRIBUTIONS", "clean_value", "MAX_POINTS",
+           "check_size"]

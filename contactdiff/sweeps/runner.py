@@ -15,17 +15,19 @@ from __future__ import annotations
 
 import hashlib
 import json
+import re
 import sys
 import time
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..errors import ContactDiffError, InvalidInputError, check_number
+from ..errors import ContactDiffError, InvalidInputError, ModelLoadError, check_number, write_failed
 from ..integration.options import SimulateOptions, field_names
 from . import quantities as Q
 from .engines import Engine
-from .files import ResultsFile
+from .files import Damage, ResultsFile
 from .jobs import Job
 from .points import PointSet, as_points, key
 from .rows import RESERVED, Row, RunError, SweepResult
@@ -33,6 +35,14 @@ from .sources import SceneSource
 
 JOB_OWNED = ("jacobian", "parameters", "dense", "progress")
 """`SimulateOptions` fields the job sets, not the sweep's options."""
+
+IDENTITY = re.compile(r"[0-9a-f]{16}")
+"""The form of a sweep's identity (`_context`): 16 hexadecimal digits."""
+
+
+class DamagedRowsWarning(UserWarning):
+    """A results file holds damaged lines among good rows: they are left out and removed
+    from the file, and their points run again."""
 
 
 @dataclass(frozen=True)
@@ -121,6 +131,11 @@ def sweep(scene, points, job="simulate", *, t_final: float | None = None,
         UnknownNameError: an unknown quantity, job, job option or backend (the valid ones listed).
         InvalidInputError: an empty range, a bad value, a missing ``t_final``, a
             results file of another sweep, an unreachable scheduler, a backend not installed.
+        OutputFileError: ``out`` cannot be written (checked before the first run); or it
+            failed during the sweep: every point still runs, and ``.result`` holds the
+            `SweepResult`.
+        ModelLoadError: ``out`` holds damaged lines and no row of this sweep (damaged
+            lines among good rows are a `DamagedRowsWarning`: their points run again).
     """
     started = time.perf_counter()
     source = SceneSource.of(scene)
@@ -132,21 +147,34 @@ def sweep(scene, points, job="simulate", *, t_final: float | None = None,
         t_final = check_number("sweep", "t_final", t_final)
     context = _context(source, points, job, t_final, settings)
     results = ResultsFile(out) if out is not None else None
-    done = _done(results, points, context, retry_failed) if results is not None else {}
+    done, damaged = _done(results, points, context, retry_failed) if results is not None else ({}, [])
     todo = [(context, i, values) for i, values in enumerate(points.values) if key(values) not in done]
     rows = {i: Row.from_dict({**done[key(values)], "index": i}, points.names)
             for i, values in enumerate(points.values) if key(values) in done}
+    lost = None  # the results file's failed write: the sweep runs on, the rows are returned in the error
+    if results is not None and (todo or damaged):
+        lost = _write(lambda: results.start(d.line for d in damaged))
     if todo:
-        if results is not None:
-            results.start()
         with engine.session() as run, _progress_bar(len(todo), source.label, progress) as bar:
             for row in run(run_point, todo):
                 rows[row.index] = row
-                if results is not None:
-                    results.append(row.to_dict())
+                if results is not None and lost is None:
+                    lost = _write(lambda: results.append(row.to_dict()))
                 bar.update(1)
-    return SweepResult([rows[i] for i in range(len(points))], points.names, skipped=len(points) - len(todo),
-                       wall_time=time.perf_counter() - started, default_output=job.default_output())
+    result = SweepResult([rows[i] for i in range(len(points))], points.names, skipped=len(points) - len(todo),
+                         wall_time=time.perf_counter() - started, default_output=job.default_output())
+    if lost is not None:
+        raise write_failed("--out", results.path, lost, result)
+    return result
+
+
+def _write(write) -> OSError | None:
+    """Call ``write()`` (of the results file); its OSError returned: the file is no longer written."""
+    try:
+        write()
+    except OSError as exc:
+        return exc
+    return None
 
 
 def _options(options) -> dict:
@@ -193,22 +221,43 @@ def _context(source: SceneSource, points: PointSet, job: Job, t_final, options: 
     return Context(source, quantities, job, t_final, options, hashlib.sha256(text.encode()).hexdigest()[:16])
 
 
-def _done(results: ResultsFile, points: PointSet, context: Context, retry_failed: bool) -> dict[str, dict]:
-    """Rows of this sweep already in the results file, by point key (the last row of a point wins).
+def _done(results: ResultsFile, points: PointSet, context: Context,
+          retry_failed: bool) -> tuple[dict[str, dict], list[Damage]]:
+    """Rows of this sweep already in the results file, by point key (the last row of a point
+    wins), and the file's damaged lines (warned about: their points run again).
 
     Raises:
         InvalidInputError: the file holds rows of another sweep.
+        ModelLoadError: the file has damaged lines and no row of this sweep.
     """
     done = {}
-    for row in results.read():
-        if row.get("sweep") != context.sweep:
+    lines = results.lines()
+    damaged = list(results.damaged)
+    for n, row in lines:
+        if row["sweep"] == context.sweep:
+            done[key([row.get(nm) for nm in points.names])] = row
+        elif IDENTITY.fullmatch(row["sweep"]):
             raise InvalidInputError(
-                f"results file {str(results.path)!r} holds rows of another sweep (scene, job, run settings or swept "
-                "names differ); give another file, or delete this one")
-        done[key([row.get(n) for n in points.names])] = row
+                f"results file {str(results.path)!r} holds rows of another sweep (line {n}: scene, job, run settings "
+                "or swept names differ); give another file, or delete this one")
+        else:
+            damaged.append(Damage(n, f"its sweep {row['sweep']!r} is not a sweep's identity"))
+    damaged.sort(key=lambda d: d.line)
+    if damaged and not done:
+        raise ModelLoadError(f"results file {str(results.path)!r} holds no row of this sweep, and {_listed(damaged)}; "
+                             "give another file, or delete this one")
+    if damaged:
+        warnings.warn(f"results file {str(results.path)!r}: {_listed(damaged)}; left out: their points run again, "
+                      "and the damaged lines are removed from the file", DamagedRowsWarning, stacklevel=3)
     if retry_failed:
         done = {k: row for k, row in done.items() if row.get("error") is None}
-    return done
+    return done, damaged
+
+
+def _listed(damaged: list[Damage]) -> str:
+    """The damaged lines as text: the first three with what is wrong, and how many more."""
+    first = "; ".join(map(str, damaged[:3])) + (f"; and {len(damaged) - 3} more" if len(damaged) > 3 else "")
+    return f"{len(damaged)} damaged line{'s' if len(damaged) > 1 else ''} ({first})"
 
 
 class _NoBar:
@@ -229,4 +278,4 @@ def _progress_bar(total: int, label: str, progress: bool | None):
                 bar_format="{desc} {n_fmt}/{total_fmt} |{bar}| [{elapsed}<{remaining}]")
 
 
-__all__ = ["sweep", "run_point", "Context"]
+__all__ = ["sweep", "run_point", "Context", "DamagedRowsWarning", "IDENTITY"]

@@ -33,3 +33,15 @@ def ball_not_in(pid):
     if os.getpid() == pid:
         raise RuntimeError("built in the process that started the sweep")
     return cd.load_scene("ball")
+
+
+def break_folder(scene, point):
+    """At the point ``q:z`` = 2, replace the folder ``job:folder`` by a regular file: the
+    results file and the plot in it can no longer be written (as root too)."""
+    import shutil
+    from pathlib import Path
+
+    if point["q:z"] == 2:
+        shutil.rmtree(point["job:folder"])
+        Path(point["job:folder"]).write_text("not a folder any more\n")
+    return {"height": point["q:z"]}

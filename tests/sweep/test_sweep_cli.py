@@ -61,7 +61,7 @@ def test_points_from_a_file_and_a_zipped_list(tmp_path, capsys):
 
 @pytest.mark.parametrize("argv, match", [
     (["sweep", "ball", "--grid", "q:zz=1,2", "--t-final", "1"], "unknown quantity 'q:zz'"),
-    (["sweep", "ball", "--grid", "q:z=1:2:0", "--t-final", "1"], "empty"),
+    (["sweep", "ball", "--grid", "q:z=1:2:0", "--t-final", "1"], "must be a positive integer, got '0'"),
     (["sweep", "ball", "--grid", "q:z=1,2", "--t-final", "1", "--backend", "mpi"], "valid: dask, loky, ray"),
     (["sweep", "ball", "--grid", "q:z=1,2", "--random", "q:z=uniform:0:1", "--samples", "2"], "one way"),
     (["sweep", "ball", "--random", "q:z=uniform:0:1", "--t-final", "1"], "--samples"),

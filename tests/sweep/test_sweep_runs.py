@@ -191,7 +191,7 @@ def test_rows_as_a_dataframe(ball_rows):
 
 @pytest.mark.parametrize("call, error, match", [
     (lambda: sweep("ball", {"q:zz": [1.0]}, t_final=1.0), UnknownNameError, "q:z"),
-    (lambda: sweep("ball", {"q:z": "0:1:0"}, t_final=1.0), InvalidInputError, "empty"),
+    (lambda: sweep("ball", {"q:z": "0:1:0"}, t_final=1.0), InvalidInputError, "positive integer"),
     (lambda: sweep("ball", {"q:z": [1.0]}, t_final=1.0, backend="threads"), UnknownNameError, "dask, loky, ray"),
     (lambda: sweep("ball", {"q:z": [1.0]}, t_final=1.0, n_jobs=0), InvalidInputError, "n_jobs"),
     (lambda: sweep("ball", {"q:z": [1.0]}, t_final=1.0, scheduler="tcp://x:1"), InvalidInputError, "loky"),
