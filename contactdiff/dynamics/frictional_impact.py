@@ -79,9 +79,12 @@ When rows are dependent (the four corners of a face landing flat: normal rows of
 rank 3), a candidate's equality system is singular and the law alone leaves the
 impulses undetermined. They are then the impulses of equal compliant supports in
 the rigid limit (`contactdiff.dynamics.redundant`): on the candidate's equality
-rows, in the range of those rows. The approximate solution is not tried first
-there (projected Gauss-Seidel on a singular ``G`` converges to some solution, not
-to the principle's), so the enumeration's order decides: most contacts closed first.
+rows, in the range of those rows. The approximate solution is not taken as it
+is there (projected Gauss-Seidel on a singular ``G`` converges to some solution, not
+to the principle's): its pattern is first completed by closing every contact it
+leaves without impulse at zero normal speed, and a guessed solution that leaves such
+a contact open is not taken; the enumeration's order (most contacts closed first)
+decides otherwise.
 
 Energy (known limit)
 --------------------
@@ -310,6 +313,17 @@ class _Impact(SlipDirections):
         # `contactdiff.dynamics.redundant`, and no first guess (module doc)
         self.redundant = gram_range_basis(G) is not None
 
+    def _principled(self, out: FrictionalImpact) -> bool:
+        """Whether no contact left open by ``out`` would close at zero normal speed: with
+        dependent rows such a contact belongs in the candidate (the enumeration then
+        finds the one with most contacts closed)."""
+        vscale = self.bmax + self.gmax * float(np.abs(out.impulses).max(initial=0.0))
+        for k, state in enumerate(out.states):
+            n = self.normal[k]
+            if state is ContactState.OPEN and abs(out.u_plus[n] + self.e[k] * self.u[n]) <= _GUESS_ZERO * vscale:
+                return False
+        return True
+
     # ---- enumeration ---------------------------------------------------
     def candidates(self) -> Iterator[tuple[tuple[ContactState, ...], tuple[int, ...]]]:
         """State tuples in the documented order, with the spatial sliders."""
@@ -327,12 +341,18 @@ class _Impact(SlipDirections):
                                 st[k] = ContactState.STICK
                         yield tuple(st), sliding
 
-    def predicted(self) -> tuple[tuple[ContactState, ...], tuple[int, ...]] | None:
+    def predicted(self, complete: bool = False) -> tuple[tuple[ContactState, ...], tuple[int, ...]] | None:
         """The candidate an approximate solution of the law points to (`fixed_point`):
         open where its normal impulse is below `_GUESS_ZERO` of the largest, sticking
         where its post-impact slip is below `_GUESS_ZERO` of the velocity scale, else
         sliding; None without a contact of finite positive ``μ`` (the enumeration is
-        then linear solves only)."""
+        then linear solves only).
+
+        With ``complete``, a contact the approximation leaves without impulse but
+        closing at zero normal speed (``w_N`` below `_GUESS_ZERO` of the velocity
+        scale) is closed too: with dependent rows the approximation puts the load on
+        some of the contacts that hold the same motion, the principle on all of them
+        (module doc, "Redundant rows")."""
         if all(self.frictionless[k] or self.sticky[k] for k in range(self.n)):
             return None
         lam, up = self.fixed_point()
@@ -342,8 +362,9 @@ class _Impact(SlipDirections):
         vscale = self.bmax + self.gmax * lam_max
         states = []
         for k in range(self.n):
-            t = self.tang[k]
-            if lam[self.normal[k]] <= _GUESS_ZERO * lam_max:
+            t, n = self.tang[k], self.normal[k]
+            w_n = up[n] + self.e[k] * self.u[n]
+            if lam[n] <= _GUESS_ZERO * lam_max and not (complete and abs(w_n) <= _GUESS_ZERO * vscale):
                 states.append(ContactState.OPEN)
             elif self.frictionless[k]:
                 states.append(ContactState.SLIDE)
@@ -355,8 +376,9 @@ class _Impact(SlipDirections):
         return tuple(states), sliding
 
     def solve(self) -> FrictionalImpact:
-        guess = None if self.redundant else self.predicted()
-        if guess is not None:
+        # with dependent rows the approximation's pattern completed first, then as it is
+        guesses = [self.predicted(complete=True), self.predicted()] if self.redundant else [self.predicted()]
+        for guess in dict.fromkeys(g for g in guesses if g is not None):
             states, sliding = guess
             planar = [k for k in sliding if self.tang[k].size == 1]
             spatial = [k for k in sliding if self.tang[k].size == 2]
@@ -364,7 +386,7 @@ class _Impact(SlipDirections):
             signs = {k: (1.0 if up[self.tang[k][0]] >= 0.0 else -1.0) for k in planar}
             self.tried += 1
             out = self.try_candidate(states, signs, spatial)
-            if out is not None:
+            if out is not None and (not self.redundant or self._principled(out)):
                 return out
         for states, sliding in self.candidates():
             planar = [k for k in sliding if self.tang[k].size == 1]

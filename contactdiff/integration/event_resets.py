@@ -255,21 +255,23 @@ class EventResets:
                                                     float(Dh @ F_minus))
             self._attach_sensitivity(event, xi, Dh, F_minus, xi_p=xi_p, h_p=h_p)
         elif len(touching) > 1 and not initial:  # the verdict must not depend on what was asked for
-            self._landing_orders(event, t, q, v_minus, mode, touching, closed, e)
+            self._landing_orders(event, t, q, v_minus, mode, touching, closed, e, verdict_only=True)
         self.events.append(event)
         return new_mode, v_plus
 
-    def _landing_orders(self, event, t, q, v_minus, mode, touching, closed, e):
+    def _landing_orders(self, event, t, q, v_minus, mode, touching, closed, e, verdict_only=False):
         """The saltation matrices of every landing order of a simultaneous touchdown
         (`simultaneous_saltation`), flagging ``event`` with `NonSmooth.ORDER` where they
-        differ."""
+        differ; ``verdict_only`` (a run without sensitivities) stops at the first two
+        orders that disagree."""
         override = {i: e[closed.index(i)] for i in closed}
-        sim = simultaneous_saltation(self.dyn, t, q, v_minus, mode, touching, override)
+        sim = simultaneous_saltation(self.dyn, t, q, v_minus, mode, touching, override, verdict_only=verdict_only)
         if not sim.differentiable:
+            by = "by" if sim.complete else "by at least"
             event.nonsmooth[NonSmooth.ORDER] = self._note(
                 f"not differentiable at t = {t:.12g}: the landing orders of "
                 f"{', '.join(self.names[i] for i in touching)} give saltation matrices "
-                f"differing by {sim.spread:.2e} (relative)")
+                f"differing {by} {sim.spread:.2e} (relative)")
         return sim
 
     def _friction_keys(self, q, impact) -> tuple[list[int], list[int]]:

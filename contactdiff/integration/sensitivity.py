@@ -250,8 +250,11 @@ class SimultaneousSaltation:
         paper: ``DR_K + Σ_k S_k`` of the paper (simultaneous reset plus one
             correction per contact).
         differentiable: all orders and the paper's matrix agree within ``tol``.
-        spread: largest relative max-norm difference between any two of them.
+        spread: largest relative max-norm difference between any two of them (with
+            ``complete`` False, between the two orders that first disagreed: a lower bound).
         tol: the tolerance used.
+        complete: every order and the paper's matrix were formed (False when a
+            verdict-only call stopped at the first two orders that disagree).
         corrections: for each landing contact k, the pieces of its term
             ``S_k = jump_k Dh_k / rate_k``: ``(jump_k, rate_k)`` with ``jump_k =
             F_{J∪k}(q, v+_k) - DR_k F_J(q, v-)`` and ``rate_k = Dh_k F_J(q, v-)`` (for a
@@ -264,6 +267,7 @@ class SimultaneousSaltation:
     spread: float = 0.0
     tol: float = ORDER_TOL
     corrections: dict = field(default_factory=dict)
+    complete: bool = True
 
     @property
     def matrix(self) -> np.ndarray:
@@ -273,7 +277,7 @@ class SimultaneousSaltation:
 
 def simultaneous_saltation(dyn: ModeDynamics, t: float, q: np.ndarray, v_minus: np.ndarray,
                            mode: Sequence[int], contacts: Sequence[int], restitution=None,
-                           tol: float = ORDER_TOL) -> SimultaneousSaltation:
+                           tol: float = ORDER_TOL, verdict_only: bool = False) -> SimultaneousSaltation:
     """Saltation matrices of every order of the simultaneous touchdown of ``contacts``.
 
     For an order ``(k1, k2, ...)``: ``k1`` lands alone on ``mode`` at ``(q, v-)``,
@@ -293,6 +297,8 @@ def simultaneous_saltation(dyn: ModeDynamics, t: float, q: np.ndarray, v_minus: 
         restitution: optional per-contact override, a mapping from contact index to e.
         tol: agreement tolerance (relative, max-norm) below which all orders count as
             equal (``differentiable``).
+        verdict_only: stop at the first order that disagrees with the first one (a
+            face of k corners has k! orders; a plain run needs only the verdict).
 
     Returns:
         A `SimultaneousSaltation`: every order's matrix, the paper's, their spread.
@@ -315,6 +321,12 @@ def simultaneous_saltation(dyn: ModeDynamics, t: float, q: np.ndarray, v_minus: 
             step = touchdown(dyn, t, q, v, current, [k], e_for(sorted(set(current) | {k})), guard=k)
             Xi, v, current = step.saltation @ Xi, step.v_plus, step.mode_after
         result.orders[order] = Xi
+        if verdict_only and len(result.orders) > 1:
+            first = next(iter(result.orders.values()))
+            gap = float(np.max(np.abs(Xi - first))) / max(1.0, float(np.max(np.abs(first))), float(np.max(np.abs(Xi))))
+            if gap > tol:
+                result.spread, result.differentiable, result.complete = gap, False, False
+                return result
     # the paper's formula around the simultaneous reset
     closed = sorted(set(mode) | set(contacts))
     whole = resolve_impact(dyn, q, v_minus, closed, e_for(closed))

@@ -131,3 +131,22 @@ def test_flow_jacobian_through_the_face_stop_matches_finite_differences():
         fd = np.r_[pin.difference(model, qm, qp), vp - vm] / (2 * eps)
         exact = traj.jacobian @ np.r_[dq, dv]
         assert np.abs(exact - fd).max() <= 1e-5 * max(1.0, np.abs(fd).max()), (dq, dv, exact, fd)
+
+
+def test_a_face_landing_is_flagged_by_its_landing_orders_with_or_without_sensitivities():
+    """A box landing flat lands on four corners of one body: the order in which they land
+    changes the outcome (each corner's impulse turns the box), so the event is not
+    differentiable, in a plain run (which stops comparing at the first two orders that
+    disagree) as in a Jacobian run (which forms all 24)."""
+    q, v = flat_state(0.3, (0.5, 0.2))
+    q[2] += 0.05
+    scene = cd.Scene(box_scene().robot, [cd.Contact(n, friction=MU, restitution=0.5) for n in CORNERS],
+                     gravity=(0.0, 0.0, -G)).with_state(q, v)
+    T = np.sqrt(2 * 0.05 / G) + 1e-3
+    plain = cd.simulate(scene, T)
+    full = cd.simulate(scene, T, jacobian=True)
+    for traj in (plain, full):
+        landing = traj.events[0]
+        assert set(landing.contacts) == set(CORNERS)
+        assert cd.NonSmooth.ORDER in landing.nonsmooth and not traj.differentiable
+    assert len(full.events[0].saltation_orders) == 24
