@@ -25,6 +25,8 @@ from collections.abc import Iterator
 
 import numpy as np
 
+from .redundant import gram_range_basis
+
 # Newton on the slip angles of the spatial sliding contacts of a candidate.
 _NEWTON_MAX_ITER = 40
 _NEWTON_ATOL = 1e-13  # rad, on wrap(atan2(u+_T) - θ)
@@ -85,6 +87,10 @@ class SlipMap:
     ``a_k(θ) = -μ_k G[:, T_k] s_k``. Then ``K(θ) z = r``,
     ``u+ = u + G B0 z + Σ_k a_k z_ck`` and, differentiating,
     ``dz/dθ_k = -K^-1 (da_k z_ck)[eq]``, ``du+/dθ_k = G B(θ) dz/dθ_k + da_k z_ck``.
+    With dependent equality rows (``prob.redundant``) every solve is the
+    compatible-impulse one, ``z = U (Uᵀ K U)⁻¹ Uᵀ r`` with ``U`` a basis of the
+    range of ``G[eq, eq]`` (`contactdiff.dynamics.redundant`), as the candidate's
+    own evaluation.
     """
 
     def __init__(self, prob, states, dirs, spatial, lay, cross: bool):
@@ -102,6 +108,15 @@ class SlipMap:
         self.closed = np.array(list(cols_n.values()), dtype=np.intp)
         self.stick = [(cols_n[k], cols_t[k], prob.mu[k]) for k in cols_t if prob.mu[k] < np.inf]
         self.open_k = np.array([k for k in range(prob.n) if k not in cols_n], dtype=np.intp)
+        self.U = gram_range_basis(prob.G[np.ix_(eq, eq)]) if getattr(prob, "redundant", False) else None
+
+    def _solve(self, K: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+        """``K[i] x[i] = rhs[i]`` for a stack, by the compatible-impulse principle when the
+        equality rows are dependent (class doc)."""
+        U = self.U
+        if U is None:
+            return _solve_stack(K, rhs)
+        return U @ _solve_stack(U.T @ K @ U, U.T @ rhs)
 
     def __call__(self, theta: np.ndarray, jac: bool = True):
         """For angles ``theta`` of shape (P, ns): the residual f (P, ns), its
@@ -115,7 +130,7 @@ class SlipMap:
         K = np.repeat(self.K0[None], P, axis=0)
         for j in range(ns):
             K[:, :, self.c[j]] += a[j][self.eq].T
-        z = _solve_stack(K, np.broadcast_to(self.r, (P, self.r.size))[..., None])[..., 0]
+        z = self._solve(K, np.broadcast_to(self.r, (P, self.r.size))[..., None])[..., 0]
         zc = z[:, self.c]
         up = self.prob.u + z @ self.GB0.T
         for j in range(ns):
@@ -144,7 +159,7 @@ class SlipMap:
         for j in range(ns):
             da.append(self.GT[j] @ np.stack([-sn[:, j], cs[:, j]]))
             rhs[:, :, j] = da[j][self.eq].T * zc[:, j, None]
-        dup = GB @ -_solve_stack(K, rhs)
+        dup = GB @ -self._solve(K, rhs)
         for j in range(ns):
             dup[:, :, j] += da[j].T * zc[:, j, None]
         J = np.zeros((P, ns, ns)) if self.cross else np.repeat(-np.eye(ns)[None], P, axis=0)
@@ -166,6 +181,8 @@ class SlipMap:
         ``det K = α + β cos θ + γ sin θ``: fitted at 0, π/2, π and solved."""
         K = np.repeat(self.K0[None], 3, axis=0)
         K[:, :, self.c[0]] += (self.GT[0] @ np.array([[1.0, 0.0, -1.0], [0.0, 1.0, 0.0]]))[self.eq].T
+        if self.U is not None:
+            K = self.U.T @ K @ self.U
         d0, d1, d2 = np.linalg.det(K)
         al, be = 0.5 * (d0 + d2), 0.5 * (d0 - d2)
         rad = float(np.hypot(be, d1 - al))
