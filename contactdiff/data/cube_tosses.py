@@ -24,7 +24,10 @@ in the cube's frame).
 
 from __future__ import annotations
 
+import functools
 import itertools
+import time
+from collections import Counter
 from dataclasses import dataclass, replace
 from importlib import resources
 from pathlib import Path
@@ -33,6 +36,8 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import InvalidInputError, check_number
+from ..integration.hybrid import simulate
+from ..integration.trajectory import EVENT_KINDS, NonSmooth
 from ..model.contacts import Contact
 from ..model.objects import SceneObject, add_objects, empty_robot
 from ..model.scene import Scene
@@ -184,4 +189,39 @@ def load_tosses(path: str | Path | None = None) -> dict[str, Toss]:
     return {name: Toss.from_array(name, arrays[name], label) for name in names}
 
 
-__all__ = ["CubeParameters", "NOMINAL", "Toss", "cube_scene", "load_tosses", "SUBSET"]
+@functools.lru_cache(maxsize=4)
+def _tosses(path: str | None) -> dict[str, Toss]:
+    """`load_tosses`, read once per process (a sweep's worker runs many tosses)."""
+    return load_tosses(path)
+
+
+def run_toss(scene: Scene, point: dict) -> dict:
+    """A sweep's job (``contactdiff.data.cube_tosses:run_toss``): the cube ``scene`` run
+    from a toss's first sample to its last.
+
+    The point names the toss (``job:toss``) and, optionally, the tosses file
+    (``job:tosses``; default the shipped subset) and ``job:sample`` to start from.
+
+    Returns:
+        The row's outputs: ``t_end`` and ``t_data`` (s), ``events`` and
+        ``events:KIND`` counts, ``not_differentiable`` (events flagged) and
+        ``nonsmooth:REASON`` counts (`NonSmooth` names), ``wall`` (s, the run alone),
+        ``position_error`` (m, final centre against the last sample).
+    """
+    toss = _tosses(point.get("job:tosses"))[point["job:toss"]]
+    start = int(point.get("job:sample", 0))
+    q0, v0 = toss.state(start)
+    started = time.perf_counter()
+    traj = simulate(scene.with_state(q0, v0), float(toss.t[-1]), t0=float(toss.t[start]))
+    wall = time.perf_counter() - started
+    kinds = Counter(e.kind for e in traj.events)
+    reasons = Counter(reason.name for e in traj.events for reason in e.nonsmooth)
+    out = {"t_end": traj.t, "t_data": float(toss.t[-1]), "events": len(traj.events)}
+    out |= {f"events:{kind}": kinds.get(kind, 0) for kind in EVENT_KINDS}
+    out |= {"not_differentiable": sum(not e.differentiable for e in traj.events)}
+    out |= {f"nonsmooth:{reason.name}": reasons.get(reason.name, 0) for reason in NonSmooth}
+    out |= {"wall": wall, "position_error": float(np.linalg.norm(traj.q[:3] - toss.position[-1]))}
+    return out
+
+
+__all__ = ["CubeParameters", "NOMINAL", "Toss", "cube_scene", "load_tosses", "run_toss", "SUBSET"]
