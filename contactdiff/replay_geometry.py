@@ -182,7 +182,7 @@ def contact_surfaces(scene, points: dict[str, np.ndarray], size: float) -> list[
         ground = np.allclose(n, [0.0, 0.0, 1.0]) and not all(on_object(c) for c in contacts)
         if not ground:
             k += 1
-        t1 = np.cross(n, np.eye(3)[int(np.argmin(np.abs(n)))])
+        t1 = np.cross([0.0, 1.0, 0.0] if abs(n[1]) < 0.9 else [1.0, 0.0, 0.0], n)  # x, y, z for an upward n
         t1 /= np.linalg.norm(t1)
         axes = np.column_stack([t1, np.cross(n, t1), n])
         flat = np.concatenate([points[c.name] for c in contacts]) @ axes[:, :2]  # in-plane coordinates
