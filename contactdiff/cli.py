@@ -117,8 +117,11 @@ def build_parser() -> argparse.ArgumentParser:
         description="Measure final-state and event-time error against run time for contactdiff "
                     "and its baselines (solve_ivp with events, impulse time stepping) on the "
                     "project's scenes, and the cost of flow Jacobians against finite differences.")
-    bench.add_argument("--scenes", nargs="+", metavar="SCENE", help="scenes to run (default all)")
-    bench.add_argument("--quick", action="store_true", help="a tiny sweep of a few seconds (tests, CI)")
+    bench.add_argument("--scenes", nargs="+", metavar="SCENE",
+                       help="scenes to run (default all; with --quick: ball and planar_trot_rigid)")
+    bench.add_argument("--quick", action="store_true",
+                       help="a tiny sweep of a few seconds (tests, CI): fewer tolerances, and the scenes "
+                            "ball and planar_trot_rigid unless --scenes names others")
     bench.add_argument("--repeats", type=Number(int, 1), default=3,
                        help="timing repeats, median kept (default 3)")
     bench.add_argument("--json", action="store_true", help="print the results as JSON")
