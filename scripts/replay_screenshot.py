@@ -7,7 +7,7 @@
 Without --html it first writes the page of the 3-s solo12 trot
 (``contactdiff simulate solo12_trot --t-final 3 --html ...``) to a temporary folder.
 
-The browser: playwright (``pip install playwright``) driving its own Chromium if
+The browser: playwright (``pip install 'contactdiff[browser]'``) driving its own Chromium if
 ``playwright install chromium`` was run, else a Chromium or Chrome found on PATH
 (``chromium``, ``chromium-browser``, ``google-chrome``, ...); without playwright,
 that binary's own ``--headless --screenshot`` (which cannot seek: it shows the
