@@ -107,6 +107,9 @@ def build_parser() -> argparse.ArgumentParser:
                      help="write a self-contained HTML page that replays the run in 3-D in a browser, "
                           "offline: the robot, its closed contacts, the events on a timeline "
                           "(needs meshcat: pip install 'contactdiff[viz]')")
+    sim.add_argument("--package-dir", action="append", default=[], metavar="DIR",
+                     help="with --html: a folder in which the URDF's package://NAME/... meshes are found as "
+                          "DIR/NAME/... (repeatable; the folders above the URDF are searched too)")
     sim.add_argument("--fps", type=POSITIVE, default=DEFAULT_FPS,
                      help=f"with --html: frames per second of simulated time (default {DEFAULT_FPS:g}; "
                           "events are frames too)")
@@ -265,6 +268,10 @@ def _run_simulate(args) -> int:
     if args.html:
         _check_html_path(args.html)
     scene = _scene_from_args(args)
+    if args.html:  # a bad package folder or a mesh found nowhere is refused before the run
+        from .replay_geometry import visual_model
+
+        visual_model(scene.robot, args.package_dir)
     if "list" in args.param:
         _print("\n".join(scene.parameter_names()))
         return 0
@@ -280,7 +287,7 @@ def _run_simulate(args) -> int:
         # floating base: contact timeline, base height and attitude; else contact gaps
         (plot_gait if scene.robot.floating_base else plot_gaps)(traj, scene, args.plot)
     if args.html:
-        traj.to_html(args.html, scene, fps=args.fps)
+        traj.to_html(args.html, scene, fps=args.fps, package_dirs=args.package_dir)
     if args.json:
         _print(json.dumps(traj.summary(), indent=2))
         return 0

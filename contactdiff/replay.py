@@ -196,7 +196,7 @@ class _Recorder:
 
 # -- the page --------------------------------------------------------------------------------
 def replay_html(traj, scene, *, fps: float = DEFAULT_FPS, contact_radius: float | None = None,
-                title: str | None = None) -> str:
+                title: str | None = None, package_dirs=()) -> str:
     """The replay page of ``traj`` as HTML text (see the module docstring).
 
     Args:
@@ -207,11 +207,14 @@ def replay_html(traj, scene, *, fps: float = DEFAULT_FPS, contact_radius: float 
             size at the first state (`model_size`), at most 30 % of its objects' smallest
             half-dimension, at least `visible_marker_radius` of the camera's distance.
         title: the page's title; default the scene's name.
+        package_dirs: folders (a path or a list) in which the URDF's ``package://NAME/...``
+            meshes are found as ``DIR/NAME/...``, before the folders above the URDF.
 
     Raises:
         MissingExtraError: meshcat is not installed.
-        InvalidInputError: no dense output, a bad ``fps`` or radius, or a scene whose
-            robot does not match the trajectory.
+        InvalidInputError: no dense output, a bad ``fps`` or radius, a scene whose
+            robot does not match the trajectory, a package folder that is not one or a
+            mesh found nowhere.
     """
     meshcat, umsgpack = require_meshcat()
     from pinocchio.visualize import MeshcatVisualizer
@@ -227,7 +230,7 @@ def replay_html(traj, scene, *, fps: float = DEFAULT_FPS, contact_radius: float 
     distance = _camera_distance(robot, frames, size)
     points = _contact_points(scene, frames)
 
-    geoms = drawn_geometry(robot, 0.6 * radius)
+    geoms = drawn_geometry(robot, 0.6 * radius, package_dirs)
     recorder = _Recorder(umsgpack)
     viewer = meshcat.Visualizer(window=recorder)
     viz = MeshcatVisualizer(robot.model, None, geoms)

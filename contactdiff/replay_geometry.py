@@ -17,30 +17,47 @@ import pinocchio as pin
 from .errors import InvalidInputError
 
 
-def drawn_geometry(robot, sphere_radius: float) -> pin.GeometryModel:
-    """Everything drawn for ``robot``: its URDF's visual geometry (`visual_model`), or a
-    sphere of ``sphere_radius`` (m) at each body frame when it has none, and each of
-    its shaped objects as its box, sphere or cylinder."""
-    geoms = visual_model(robot)
+def drawn_geometry(robot, sphere_radius: float, package_dirs=()) -> pin.GeometryModel:
+    """Everything drawn for ``robot``: its URDF's visual geometry (`visual_model`, meshes
+    also looked for in ``package_dirs``), or a sphere of ``sphere_radius`` (m) at each body
+    frame when it has none, and each of its shaped objects as its box, sphere or cylinder."""
+    geoms = visual_model(robot, package_dirs)
     if geoms.ngeoms == 0:
         geoms = _body_spheres(robot, sphere_radius)
     _add_object_shapes(geoms, robot)
     return geoms
 
 
-def visual_model(robot) -> pin.GeometryModel:
-    """The visual geometry of ``robot``'s URDF, as Pinocchio's loaders read it (meshes
-    found through ``package://`` against every folder above the URDF, which is where
-    example-robot-data's loader points too). Empty if the robot has no URDF or its
-    URDF has no ``<visual>``; the robot's own (dynamics-only) model is not changed."""
+def package_folders(package_dirs) -> list[Path]:
+    """``package_dirs`` (paths, or one path) as existing folders, else `InvalidInputError`
+    naming the one that is not a folder."""
+    dirs = [package_dirs] if isinstance(package_dirs, (str, Path)) else list(package_dirs or ())
+    out = []
+    for d in dirs:
+        path = Path(d).expanduser()
+        if not path.is_dir():
+            raise InvalidInputError(f"replay: package folder {str(d)!r} is not a folder (a package folder holds "
+                                    "the packages that package://NAME/... mesh paths name, as NAME/...)")
+        out.append(path.resolve())
+    return out
+
+
+def visual_model(robot, package_dirs=()) -> pin.GeometryModel:
+    """The visual geometry of ``robot``'s URDF, as Pinocchio's loaders read it: a mesh
+    ``package://NAME/PATH`` is looked for as ``DIR/NAME/PATH`` in each of ``package_dirs``
+    (`package_folders`), then in every folder above the URDF (where example-robot-data's
+    loader points too). Empty if the robot has no URDF or its URDF has no ``<visual>``;
+    the robot's own (dynamics-only) model is not changed."""
     if not robot.urdf:
         return pin.GeometryModel()
     urdf = Path(robot.urdf)
+    dirs = [str(p) for p in package_folders(package_dirs)] + [str(p) for p in urdf.parents]
     try:
-        return pin.buildGeomFromUrdf(robot.model, str(urdf), pin.GeometryType.VISUAL,
-                                     package_dirs=[str(p) for p in urdf.parents])
+        return pin.buildGeomFromUrdf(robot.model, str(urdf), pin.GeometryType.VISUAL, package_dirs=dirs)
     except (RuntimeError, ValueError) as exc:
-        raise InvalidInputError(f"replay: cannot read the visual geometry of {str(urdf)!r}: {exc}") from None
+        raise InvalidInputError(f"replay: cannot read the visual geometry of {str(urdf)!r}: {exc} (meshes "
+                                "package://NAME/... are looked for as DIR/NAME/... in each package folder: "
+                                "--package-dir DIR, or package_dirs=[DIR] in Python; and above the URDF)") from None
 
 
 def _shaped_objects(robot) -> set[str]:

@@ -308,3 +308,68 @@ def test_contact_markers_show_from_the_default_distance(run, page):
     for m in markers:
         assert m["geometries"][0]["radius"] >= MARKER_MIN_SCREEN * distance * (1 - 1e-12)
         assert m["materials"][0]["depthTest"] is False and m["materials"][0]["transparent"] is True
+
+
+_MESH = "v 0 0 0\nv 0.1 0 0\nv 0 0.1 0\nv 0 0 0.1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n"  # a tetrahedron
+_URDF = """<?xml version="1.0"?>
+<robot name="arm">
+  <link name="base"/>
+  <joint name="hinge" type="revolute">
+    <parent link="base"/><child link="bar"/><origin xyz="0 0 1"/><axis xyz="0 1 0"/>
+    <limit lower="-3" upper="3" effort="10" velocity="10"/>
+  </joint>
+  <link name="bar">
+    <inertial><origin xyz="0 0 -0.5"/><mass value="1"/>
+      <inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial>
+    <visual><geometry><mesh filename="package://mypkg/meshes/tetra.obj"/></geometry></visual>
+  </link>
+</robot>
+"""
+
+
+@pytest.fixture
+def package_robot(tmp_path):
+    """A one-link URDF whose mesh is ``package://mypkg/...``, with the package in a folder
+    (``pkgs/mypkg``) that is not above the URDF (``robot/arm.urdf``)."""
+    (tmp_path / "pkgs" / "mypkg" / "meshes").mkdir(parents=True)
+    (tmp_path / "pkgs" / "mypkg" / "meshes" / "tetra.obj").write_text(_MESH)
+    (tmp_path / "robot").mkdir()
+    (tmp_path / "robot" / "arm.urdf").write_text(_URDF)
+    return tmp_path / "robot" / "arm.urdf", tmp_path / "pkgs"
+
+
+def test_package_meshes_are_found_in_the_given_package_folders(package_robot, tmp_path):
+    pytest.importorskip("meshcat")
+    from contactdiff.errors import InvalidInputError
+
+    urdf, pkgs = package_robot
+    scene = load_source(str(urdf))
+    traj = simulate(scene, 0.1, dense=True)
+    with pytest.raises(InvalidInputError, match="package://mypkg/meshes/tetra.obj.*--package-dir"):
+        traj.to_html(tmp_path / "no.html", scene)
+    path = traj.to_html(tmp_path / "arm.html", scene, package_dirs=[pkgs])
+    meshes = [c["object"]["geometries"][0] for c in _commands(path.read_text())
+              if c["type"] == "set_object" and "/visuals/" in c["path"]]
+    assert len(meshes) == 1 and meshes[0]["format"] == "obj"
+    data = meshes[0]["data"]
+    assert "f 2 3 4" in (data.decode() if isinstance(data, bytes) else data)  # the package's file, inlined
+    with pytest.raises(InvalidInputError, match="not a folder"):
+        traj.to_html(tmp_path / "no.html", scene, package_dirs=[pkgs / "missing"])
+    assert not (tmp_path / "no.html").exists()
+
+
+def test_cli_package_dir(package_robot, tmp_path, capsys):
+    """--package-dir points the replay at the package; without it, or with a folder that is
+    not one, the command refuses in one line before the run (no page, no run output)."""
+    pytest.importorskip("meshcat")
+    urdf, pkgs = package_robot
+    page = tmp_path / "arm.html"
+    base = ["simulate", str(urdf), "--t-final", "0.1", "--html", str(page)]
+    assert main(base) == 2
+    out, err = capsys.readouterr()
+    assert "could not be found" in err and "--package-dir" in err and len(err.strip().splitlines()) == 1
+    assert "simulation of" not in out and not page.exists()
+    assert main(base + ["--package-dir", str(tmp_path / "missing")]) == 2
+    assert "not a folder" in capsys.readouterr().err and not page.exists()
+    assert main(base + ["--package-dir", str(tmp_path), "--package-dir", str(pkgs)]) == 0
+    assert page.exists() and "replay written to" in capsys.readouterr().out
