@@ -119,6 +119,9 @@ def build_parser() -> argparse.ArgumentParser:
                      help="write a self-contained HTML page that replays the run in 3-D in a browser, "
                           "offline: the robot, its closed contacts, the events on a timeline "
                           "(needs meshcat: pip install 'contactdiff[viz]')")
+    sim.add_argument("--package-dir", action="append", default=[], metavar="DIR",
+                     help="with --html: a folder in which the URDF's package://NAME/... meshes are found as "
+                          "DIR/NAME/... (repeatable; the folders above the URDF are searched too)")
     sim.add_argument("--fps", type=POSITIVE, default=DEFAULT_FPS,
                      help=f"with --html: frames per second of simulated time (default {DEFAULT_FPS:g}; "
                           "events are frames too)")
@@ -129,8 +132,11 @@ def build_parser() -> argparse.ArgumentParser:
         description="Measure final-state and event-time error against run time for contactdiff "
                     "and its baselines (solve_ivp with events, impulse time stepping) on the "
                     "project's scenes, and the cost of flow Jacobians against finite differences.")
-    bench.add_argument("--scenes", nargs="+", metavar="SCENE", help="scenes to run (default all)")
-    bench.add_argument("--quick", action="store_true", help="a tiny sweep of a few seconds (tests, CI)")
+    bench.add_argument("--scenes", nargs="+", metavar="SCENE",
+                       help="scenes to run (default all; with --quick: ball and planar_trot_rigid)")
+    bench.add_argument("--quick", action="store_true",
+                       help="a tiny sweep of a few seconds (tests, CI): fewer tolerances, and the scenes "
+                            "ball and planar_trot_rigid unless --scenes names others")
     bench.add_argument("--repeats", type=Number(int, 1), default=3,
                        help="timing repeats, median kept (default 3)")
     bench.add_argument("--json", action="store_true", help="print the results as JSON")
@@ -276,6 +282,10 @@ def _run_simulate(args) -> int:
     if args.html:
         _check_html_path(args.html)
     scene = _scene_from_args(args)
+    if args.html:  # a bad package folder or a mesh found nowhere is refused before the run
+        from .replay_geometry import visual_model
+
+        visual_model(scene.robot, args.package_dir)
     if "list" in args.param:
         if args.json:
             from .jsonable import to_jsonable
@@ -299,7 +309,8 @@ def _run_simulate(args) -> int:
         plot = plot_gait if scene.robot.floating_base else plot_gaps
         plotted = write_output("--plot", args.plot, lambda: plot(traj, scene, args.plot))
     if args.html:
-        replayed = write_output("--html", args.html, lambda: traj.to_html(args.html, scene, fps=args.fps))
+        replayed = write_output("--html", args.html, lambda: traj.to_html(args.html, scene, fps=args.fps,
+                                                                          package_dirs=args.package_dir))
     if args.json:
         _print(json.dumps(traj.summary(), indent=2))
     else:

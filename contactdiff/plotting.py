@@ -113,9 +113,46 @@ def gait_figure(traj: Trajectory, scene, n_samples: int = 1500):
     return fig
 
 
+def readable_log_ticks(axis) -> None:
+    """Tick labels of a log ``axis`` that do not run into each other: no labels on the
+    minor ticks (matplotlib labels them on an axis spanning under about two decades,
+    where they crowd as ``2×10⁻³3×10⁻³``), and major ticks at 1, 2 and 5 times the
+    powers of ten over spans under two decades (1 to 9 times under half a decade) so
+    that such an axis still carries at least two labels. Call after the data are drawn."""
+    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+
+    low, high = sorted(axis.get_view_interval())
+    if not (low > 0 and np.isfinite(high)):
+        return
+    decades = np.log10(high / low)
+    if decades < 2:
+        subs = (1.0, 2.0, 5.0) if decades >= 0.5 else tuple(float(k) for k in range(1, 10))
+        axis.set_major_locator(LogLocator(base=10.0, subs=subs))
+        axis.set_major_formatter(FuncFormatter(_power_label))
+    axis.set_minor_formatter(NullFormatter())
+
+
+def _power_label(value: float, _position=None) -> str:
+    """``10^e`` or ``m×10^e`` (mathtext) for a tick at ``m`` times a power of ten."""
+    if not value > 0:
+        return ""
+    exponent = int(np.floor(np.log10(value) + 1e-9))
+    mantissa = round(value / 10.0 ** exponent)
+    return f"$10^{{{exponent}}}$" if mantissa == 1 else f"${mantissa}\\times10^{{{exponent}}}$"
+
+
 def plot_bench(result, path: str | Path) -> Path:
+    """Save `bench_figure` of ``result`` to ``path``."""
+    plt = _pyplot()
+    fig = bench_figure(result)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return Path(path)
+
+
+def bench_figure(result):
     """A `BenchResult`'s error against run time: log-log, one panel per scene, one
-    line per method (colours of ``contactdiff.bench.methods.COLORS``), saved to ``path``."""
+    line per method (colours of ``contactdiff.bench.methods.COLORS``); the matplotlib ``Figure``."""
     import math
 
     from .bench.methods import COLORS, METHODS
@@ -138,9 +175,9 @@ def plot_bench(result, path: str | Path) -> Path:
         ax.set_ylabel("final-state error")
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=7)
+        readable_log_ticks(ax.xaxis)
+        readable_log_ticks(ax.yaxis)
     for ax in list(axes.flat)[len(scenes):]:
         ax.set_visible(False)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return Path(path)
+    return fig

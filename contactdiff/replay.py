@@ -14,11 +14,17 @@ What is drawn:
   every body frame instead;
 - each object of the scene (`contactdiff.model.objects`) as its shape (box,
   sphere, cylinder); a URDF object as spheres at its body frames;
+- the planes that ground contacts press against (`contact_surfaces`: the floor,
+  a table under an object) as thin light slabs whose top face is the plane
+  (instead of meshcat's grid);
 - one red sphere per contact at its contact point (the frame origin, or the
   lowest point of a round contact along its normal), shown exactly while the
-  contact is in the segment's mode (closed: sticking or sliding);
-- the events as ticks on a timeline under the view (colour by kind, a cursor at
-  the animation's time, a click seeks there) and listed as text.
+  contact is in the segment's mode (closed: sticking or sliding), drawn over
+  whatever hides it (a pad inside a grasp) and at least about 1 % of the view
+  across (`visible_marker_radius`);
+- the events as ticks on a timeline under the view (colour by kind, with a
+  legend of the kinds that occur, a cursor at the animation's time, a click
+  seeks there) and listed as text.
 
 Frames: the states on a uniform grid of ``fps`` frames per second of simulated
 time from ``traj.t0`` to ``traj.t`` (the last one at ``traj.t``), plus the
@@ -49,7 +55,7 @@ import numpy as np
 import pinocchio as pin
 
 from .errors import ContactDiffError, InvalidInputError, check_output_file, write_failed
-from .replay_geometry import drawn_geometry, marker_radius, model_size
+from .replay_geometry import contact_surfaces, drawn_geometry, marker_radius, model_size, visible_marker_radius
 
 DEFAULT_FPS = 30.0
 """Frames per second of simulated time."""
@@ -190,7 +196,7 @@ class _Recorder:
 
 # -- the page --------------------------------------------------------------------------------
 def replay_html(traj, scene, *, fps: float = DEFAULT_FPS, contact_radius: float | None = None,
-                title: str | None = None) -> str:
+                title: str | None = None, package_dirs=()) -> str:
     """The replay page of ``traj`` as HTML text (see the module docstring).
 
     Args:
@@ -199,13 +205,16 @@ def replay_html(traj, scene, *, fps: float = DEFAULT_FPS, contact_radius: float 
         fps: frames per second of simulated time (> 0).
         contact_radius: radius of the contact markers (m); default 4% of the robot's
             size at the first state (`model_size`), at most 30 % of its objects' smallest
-            half-dimension.
+            half-dimension, at least `visible_marker_radius` of the camera's distance.
         title: the page's title; default the scene's name.
+        package_dirs: folders (a path or a list) in which the URDF's ``package://NAME/...``
+            meshes are found as ``DIR/NAME/...``, before the folders above the URDF.
 
     Raises:
         MissingExtraError: meshcat is not installed.
-        InvalidInputError: no dense output, a bad ``fps`` or radius, or a scene whose
-            robot does not match the trajectory.
+        InvalidInputError: no dense output, a bad ``fps`` or radius, a scene whose
+            robot does not match the trajectory, a package folder that is not one or a
+            mesh found nowhere.
     """
     meshcat, umsgpack = require_meshcat()
     from pinocchio.visualize import MeshcatVisualizer
@@ -218,20 +227,25 @@ def replay_html(traj, scene, *, fps: float = DEFAULT_FPS, contact_radius: float 
     radius = marker_radius(robot, size) if contact_radius is None else _positive(contact_radius, "contact_radius")
     frames = sample_frames(traj, fps)
     fps = _positive(fps, "fps", "frames per second")
+    distance = _camera_distance(robot, frames, size)
+    points = _contact_points(scene, frames)
 
-    geoms = drawn_geometry(robot, 0.6 * radius)
+    geoms = drawn_geometry(robot, 0.6 * radius, package_dirs)
     recorder = _Recorder(umsgpack)
     viewer = meshcat.Visualizer(window=recorder)
     viz = MeshcatVisualizer(robot.model, None, geoms)
     viz.initViewer(viewer=viewer)
     viz.loadViewerModel(rootNodeName=ROOT)
-    contacts = _load_contact_markers(viewer, scene, radius, meshcat)
+    _load_surfaces(viewer, contact_surfaces(scene, points, size), meshcat)
+    viewer["/Grid"].set_property("visible", False)  # meshcat's faint grid reads as a band at the horizon
+    shown = visible_marker_radius(radius, distance) if contact_radius is None else radius
+    contacts = _load_contact_markers(viewer, scene, shown, meshcat)
 
     animation = meshcat.animation.Animation(default_framerate=fps)
     _record_robot(animation, viewer, viz, robot, geoms, frames, fps, meshcat)
-    _record_contacts(animation, viewer, scene, contacts, frames, fps, meshcat)
+    _record_contacts(animation, scene, contacts, points, frames, fps, meshcat)
     viewer.set_animation(animation, play=True, repetitions=1)
-    _place_camera(viewer, robot, frames, size)
+    _place_camera(viewer, distance)
 
     info = {"scene": scene.name, "t0": traj.t0, "t": traj.t, "fps": fps, "frames": len(frames.times),
             "contacts": list(contacts),
@@ -266,10 +280,22 @@ def _positive(value, name: str, unit: str = "m") -> float:
     return out
 
 
+def _load_surfaces(viewer, surfaces, meshcat) -> None:
+    """Each contact plane (`contact_surfaces`) as a box under ``ROOT/surfaces`` (static)."""
+    for surface in surfaces:
+        node = viewer[f"{ROOT}/surfaces/{surface.name}"]
+        node.set_object(meshcat.geometry.Box(list(surface.size)),
+                        meshcat.geometry.MeshLambertMaterial(color=surface.colour))
+        node.set_transform(surface.pose)
+
+
 def _load_contact_markers(viewer, scene, radius: float, meshcat) -> dict[str, tuple[str, ...]]:
-    """A red sphere per contact under ``ROOT/contacts``; returns name -> meshcat path."""
+    """A red sphere per contact under ``ROOT/contacts``; returns name -> meshcat path.
+
+    The markers are drawn over everything (no depth test; transparent, so three.js draws
+    them after the opaque robot): a pad's contact point lies inside the grasp."""
     geometry, paths = meshcat.geometry, {}
-    material = geometry.MeshPhongMaterial(color=0xD62728)
+    material = geometry.MeshPhongMaterial(color=0xD62728, opacity=0.9, depthTest=False)
     for c in scene.contacts:
         node = viewer[f"{ROOT}/contacts/{c.name}"]
         node.set_object(geometry.Sphere(radius), material)
@@ -310,32 +336,42 @@ def _record_robot(animation, viewer, viz, robot, geoms, frames: Frames, fps: flo
             _track(tracks, "scale", "vector3", keys[:1], [scale.tolist()], meshcat)
 
 
-def _record_contacts(animation, viewer, scene, paths: dict, frames: Frames, fps: float, meshcat) -> None:
+def _contact_points(scene, frames: Frames) -> dict[str, np.ndarray]:
+    """Each contact's point at every frame (n, 3), m, world frame: the frame origin, less
+    the radius along the normal for a round contact."""
+    model, data = scene.robot.model, scene.robot.model.createData()
+    points = {c.name: [] for c in scene.contacts}
+    for q in frames.q:
+        pin.framesForwardKinematics(model, data, q)
+        for c in scene.contacts:
+            points[c.name].append(data.oMf[c.fid].translation - c.radius * c.normal)
+    return {name: np.array(p).reshape(-1, 3) for name, p in points.items()}
+
+
+def _record_contacts(animation, scene, paths: dict, points: dict, frames: Frames, fps: float, meshcat) -> None:
     """Position and visibility tracks of the contact markers: visible exactly while
     the contact is in the mode (a discrete track: each key holds until the next)."""
     keys = _frame_keys(frames, fps)
-    model, data = scene.robot.model, scene.robot.model.createData()
-    points = {c.name: [] for c in scene.contacts}
-    for q in frames.q:  # the contact point: the frame origin, less the radius along the normal (round)
-        pin.framesForwardKinematics(model, data, q)
-        for c in scene.contacts:
-            points[c.name].append((data.oMf[c.fid].translation - c.radius * c.normal).tolist())
     for c in scene.contacts:
         tracks = _clip(animation, paths[c.name], fps, meshcat)
-        _track(tracks, "position", "vector3", keys, points[c.name], meshcat)
+        _track(tracks, "position", "vector3", keys, points[c.name].tolist(), meshcat)
         _track(tracks, "visible", "boolean", keys, [c.name in m for m in frames.modes], meshcat)
 
 
-def _place_camera(viewer, robot, frames: Frames, size: float) -> None:
-    """Put the viewer's camera where it sees the whole run: it looks at the world
-    origin (meshcat's orbit target) from the side and above, at a distance that
-    covers the robot's size and how far its joints travel."""
+def _camera_distance(robot, frames: Frames, size: float) -> float:
+    """The camera's distance from the world origin (m): one that covers the robot's
+    size and how far its joints travel from the origin."""
     model, data = robot.model, robot.model.createData()
     reach = 0.0
     for q in frames.q[:: max(1, len(frames.q) // 50)]:
         pin.forwardKinematics(model, data, q)
         reach = max(reach, max(np.linalg.norm(data.oMi[j].translation) for j in range(model.njoints)))
-    distance = 2.2 * max(size, reach)
+    return 2.2 * max(size, reach)
+
+
+def _place_camera(viewer, distance: float) -> None:
+    """Put the viewer's camera where it sees the whole run: it looks at the world
+    origin (meshcat's orbit target) from the side and above, at ``distance`` (m)."""
     x, y, z = distance * np.array([0.55, -0.75, 0.35])  # world frame, z up
     # meshcat's camera node is rotated to three.js's y-up axes: (x, y, z) -> (x, z, -y)
     viewer["/Cameras/default/rotated/<object>"].set_property("position", [float(x), float(z), float(-y)])
@@ -364,7 +400,18 @@ def _page(commands: list[bytes], info: dict, title: str, meshcat) -> str:
         for e in info["events"]) or "<li>none</li>"
     return _TEMPLATE.format(title=html.escape(title), viewer_js=viewer_js, drawing=drawing, info=info_json,
                             n_events=len(info["events"]), events=events, timeline_js=_TIMELINE_JS,
-                            colours=json.dumps(EVENT_COLOURS))
+                            colours=json.dumps(EVENT_COLOURS), legend=_legend(info["events"]))
+
+
+def _legend(events: list[dict]) -> str:
+    """The timeline's key: a swatch and the name of each event kind that occurs (in
+    `EVENT_COLOURS` order), and the cursor's."""
+    kinds = {e["kind"] for e in events}
+    keys = [(kind, colour) for kind, colour in EVENT_COLOURS.items() if kind in kinds]
+    keys += sorted((kind, "#555") for kind in kinds - set(EVENT_COLOURS))
+    keys.append(("animation time (click the bar to seek)", "#1f77b4"))
+    return "".join(f'<span class="key" data-kind="{html.escape(kind)}"><i style="background:{colour}"></i>'
+                   f"{html.escape(kind)}</span>" for kind, colour in keys)
 
 
 _TIMELINE_JS = """
@@ -411,11 +458,15 @@ body {{ margin: 0; font: 13px sans-serif; }}
 #timeline .tick {{ position: absolute; top: 0; width: 2px; height: 18px; }}
 #cursor {{ position: absolute; top: -3px; width: 2px; height: 24px; background: #1f77b4; }}
 #replay-panel details {{ max-height: 30vh; overflow: auto; }}
+#legend {{ margin-top: 3px; font-size: 12px; }}
+#legend .key {{ margin-right: 12px; white-space: nowrap; }}
+#legend .key i {{ display: inline-block; width: 3px; height: 12px; margin-right: 4px; vertical-align: -2px; }}
 </style></head>
 <body>
 <div id="meshcat-pane"></div>
 <div id="replay-panel"><b>{title}</b> <span id="clock"></span>
  <div id="timeline"><div id="cursor"></div></div>
+ <div id="legend">{legend}</div>
  <details><summary>{n_events} events (time, kind, contacts)</summary><ol id="events">{events}</ol></details>
 </div>
 <script type="application/json" id="contactdiff-replay">{info}</script>

@@ -11,6 +11,7 @@ between its right and left slopes shrinks linearly with h for the soft model
 (differentiable) and grows like 1/h for the rigid one.
 
     python scripts/fig1_trot.py [--out docs/fig1_trot.png] [--points 41] [--json]
+    python scripts/fig1_trot.py --quick --out /tmp/fig1.png   # 5 points, 3 tangents, 2 steps h: seconds
 """
 
 import argparse
@@ -19,6 +20,7 @@ import json
 import numpy as np
 
 import contactdiff as cd
+from contactdiff.paper import TROT_MODELS
 
 T = 1.25          # s: after the landing at t ≈ 1, during stance
 SPAN = 0.05       # rad: θ0 in [-SPAN, SPAN]
@@ -63,20 +65,23 @@ def one_sided_slopes(model: str, steps=(1e-2, 1e-3, 1e-4, 1e-5)) -> list[dict]:
     return rows
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", default="docs/fig1_trot.png")
     parser.add_argument("--points", type=int, default=41)
     parser.add_argument("--json", action="store_true")
-    args = parser.parse_args()
-    thetas = np.linspace(-SPAN, SPAN, args.points)
-    tangents_at = np.linspace(-SPAN, SPAN, 7)
+    parser.add_argument("--quick", action="store_true",
+                        help="a smoke run of seconds: 5 points, 3 tangents, steps h = 1e-2 and 1e-4")
+    args = parser.parse_args(argv)
+    points, n_tangents, steps = (5, 3, (1e-2, 1e-4)) if args.quick else (args.points, 7, (1e-2, 1e-3, 1e-4, 1e-5))
+    thetas = np.linspace(-SPAN, SPAN, points)
+    tangents_at = np.linspace(-SPAN, SPAN, n_tangents)
     data = {}
-    for model in cd.models.TROT_MODELS:
+    for model in TROT_MODELS:
         values = np.array([outcome(model, th)[0] for th in thetas])
         tangents = [(th, *outcome(model, th, jacobian=True)) for th in tangents_at if th != 0.0 or model == "soft"]
         data[model] = {"theta": thetas, "values": values, "tangents": tangents,
-                       "slopes": one_sided_slopes(model)}
+                       "slopes": one_sided_slopes(model, steps)}
     report = {m: d["slopes"] for m, d in data.items()}
     if args.json:
         print(json.dumps(report, indent=2))

@@ -15,6 +15,7 @@ A run that raises is reported with its counts up to there, traceback, time reach
     python scripts/friction_trots.py                 # μ = 0.7 and 0.8, 3 s
     python scripts/friction_trots.py --mu 0.5 --repeats 3 --json
     python scripts/friction_trots.py --profile       # and where the Coulomb runs' time goes
+    python scripts/friction_trots.py --quick         # solo12, μ = 0.7, 0.2 s, profiled: a smoke run
 """
 
 from __future__ import annotations
@@ -184,7 +185,7 @@ def table(rows: list[dict], t_final: float) -> str:
     return "\n".join(lines)
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--mu", type=float, nargs="+", default=[0.7, 0.8],
                         help="Coulomb coefficients of the feet, one run each (default 0.7 0.8)")
@@ -195,7 +196,11 @@ def main() -> None:
                         help="also time, in one more run of each Coulomb case, the steps in segments with a "
                              "slipping foot, the other steps and the impacts")
     parser.add_argument("--json", action="store_true")
-    args = parser.parse_args()
+    parser.add_argument("--quick", action="store_true",
+                        help="a smoke run of seconds: solo12_trot, μ = 0.7, 0.2 s, one repeat, --profile")
+    args = parser.parse_args(argv)
+    if args.quick:
+        args.scenes, args.mu, args.t_final, args.repeats, args.profile = ["solo12_trot"], [0.7], 0.2, 1, True
     rows = []
     for name in args.scenes:
         stick = cd.load_scene(name)

@@ -24,6 +24,7 @@ median of 9 rounds):
    and the rest of the loop (timers wrapped around those methods for this run only).
 
     python scripts/loop_floor.py [--scene solo12_trot] [--json]
+    python scripts/loop_floor.py --quick   # solo12_trot, one round of few calls, 0.2-s run: a smoke run
 """
 
 from __future__ import annotations
@@ -102,7 +103,9 @@ def breakdown(name: str, t_final: float = 3.0) -> dict[str, float]:
     return shares
 
 
-def measure(name: str) -> dict:
+def measure(name: str, quick: bool = False) -> dict:
+    """The rows of the module doc for trot scene ``name``; ``quick``: one round of few calls
+    and 0.2-s runs instead of nine rounds and 3-s runs (a smoke run, its numbers meaningless)."""
     scene = cd.load_scene(name)
     model, nv = scene.model, scene.nv
     q0, v0 = scene.q0.copy(), scene.v0.copy()
@@ -155,25 +158,29 @@ def measure(name: str) -> dict:
         ("+ the mode's accelerator (cache, checks, forces)", attempt(True, True, True), STAGES - 1),
         ("the project's stage loop (ExplicitRK._stages)", ours, STAGES),  # its FSAL stage too
     ]
-    per_call = _interleaved([pin_call] + [fn for _, fn, _ in rows], [1000] + [100] * len(rows))
+    calls, batch, rounds, t_final = (5, 2, 1, 0.2) if quick else (1000, 100, 9, 3.0)
+    per_call = _interleaved([pin_call] + [fn for _, fn, _ in rows], [calls] + [batch] * len(rows), rounds)
     reference = per_call[0]
     out = {"scene": name, "pinocchio_us": 1e6 * reference, "rows": []}
     for (label, _, evals), t in zip(rows, per_call[1:]):
         out["rows"].append({"what": label, "us_per_eval": 1e6 * t / evals, "ratio": t / evals / reference})
-    run = trot_speed(name, 3.0, 1)
+    run = trot_speed(name, t_final, 1)
     # bench --speed's own reference: the run's modes weighted by time, timed after the run
-    out["rows"].append({"what": "a whole simulate run, 3 s (bench --speed)", "us_per_eval":
+    out["rows"].append({"what": f"a whole simulate run, {t_final:g} s (bench --speed)", "us_per_eval":
                         1e6 * run.per_evaluation, "ratio": run.overhead_ratio})
-    out["whole_run_shares"] = breakdown(name)
+    out["whole_run_shares"] = breakdown(name, t_final)
     return out
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--scene", action="append", help="trot scene (repeatable; default both trots)")
     parser.add_argument("--json", action="store_true", help="print the rows as JSON")
-    args = parser.parse_args()
-    results = [measure(name) for name in (args.scene or ["solo12_trot", "anymal_trot"])]
+    parser.add_argument("--quick", action="store_true",
+                        help="a smoke run of seconds: solo12_trot unless --scene, one round, 0.2-s runs")
+    args = parser.parse_args(argv)
+    default = ["solo12_trot"] if args.quick else ["solo12_trot", "anymal_trot"]
+    results = [measure(name, args.quick) for name in (args.scene or default)]
     if args.json:
         print(json.dumps(results, indent=2))
         return

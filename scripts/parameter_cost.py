@@ -14,6 +14,7 @@ of 5 rounds; default tolerances, rtol 1e-8):
   its size, against a run with the parameters at rtol 1e-12, atol 1e-13.
 
     python scripts/parameter_cost.py [--rounds 5] [--json]
+    python scripts/parameter_cost.py --quick   # 0.1 s simulated, one round, p = 1 only: a smoke run
 """
 
 from __future__ import annotations
@@ -51,7 +52,8 @@ def _interleaved(jobs: dict, rounds: int) -> dict[str, float]:
     return {name: statistics.median(t) for name, t in times.items()}
 
 
-def measure(rounds: int) -> dict:
+def measure(rounds: int, t_final: float = T_FINAL, counts: tuple[int, ...] = (1, 2, 4, 8)) -> dict:
+    """The module doc's times and accuracies: runs of ``t_final`` s, FD against ``counts`` parameters."""
     scene = tilted_drop()
     inertial = [n for n in scene.parameter_names() if n.startswith("body:")]
     base = [n for n in inertial if n.startswith("body:base_link:")]
@@ -61,7 +63,7 @@ def measure(rounds: int) -> dict:
         return 1e-5 * (abs(values[name]) or 1.0)
 
     def central(name):
-        plus, minus = (cd.simulate(scene.with_parameters({name: values[name] + sign * step(name)}), T_FINAL)
+        plus, minus = (cd.simulate(scene.with_parameters({name: values[name] + sign * step(name)}), t_final)
                        for sign in (1, -1))
         return np.concatenate([pin.difference(scene.model, minus.q, plus.q), plus.v - minus.v]) / (2 * step(name))
 
@@ -72,24 +74,25 @@ def measure(rounds: int) -> dict:
         return run
 
     jobs = {
-        "plain": lambda: cd.simulate(scene, T_FINAL),
-        "jacobian": lambda: cd.simulate(scene, T_FINAL, jacobian=True),
-        f"{len(inertial)} inertial": lambda: cd.simulate(scene, T_FINAL, parameters=inertial),
-        f"jacobian + {len(inertial)} inertial": lambda: cd.simulate(scene, T_FINAL, jacobian=True,
+        "plain": lambda: cd.simulate(scene, t_final),
+        "jacobian": lambda: cd.simulate(scene, t_final, jacobian=True),
+        f"{len(inertial)} inertial": lambda: cd.simulate(scene, t_final, parameters=inertial),
+        f"jacobian + {len(inertial)} inertial": lambda: cd.simulate(scene, t_final, jacobian=True,
                                                                    parameters=inertial),
     }
-    for p in (1, 2, 4, 8):
+    for p in counts:
         names = base[:p]
-        jobs[f"{p} parameters"] = (lambda names=names: cd.simulate(scene, T_FINAL, parameters=names))
+        jobs[f"{p} parameters"] = (lambda names=names: cd.simulate(scene, t_final, parameters=names))
         jobs[f"FD, {2 * p} runs"] = fd(names)
     t = _interleaved(jobs, rounds)
-    rows = {"times_s": t, "events": len(cd.simulate(scene, T_FINAL).events), "parameters": len(inertial),
+    rows = {"times_s": t, "events": len(cd.simulate(scene, t_final).events), "parameters": len(inertial),
             "all_inertial_over_jacobian": t[f"{len(inertial)} inertial"] / t["jacobian"],
             "both_over_jacobian": t[f"jacobian + {len(inertial)} inertial"] / t["jacobian"],
-            "fd_over_one_run": {p: t[f"FD, {2 * p} runs"] / t[f"{p} parameters"] for p in (1, 2, 4, 8)}}
+            "fd_over_one_run": {p: t[f"FD, {2 * p} runs"] / t[f"{p} parameters"] for p in counts},
+            "t_final": t_final}
     checked = base[:2]
-    reference = cd.simulate(scene, T_FINAL, parameters=checked, rtol=1e-12, atol=1e-13).parameter_jacobian
-    exact = cd.simulate(scene, T_FINAL, parameters=checked).parameter_jacobian
+    reference = cd.simulate(scene, t_final, parameters=checked, rtol=1e-12, atol=1e-13).parameter_jacobian
+    exact = cd.simulate(scene, t_final, parameters=checked).parameter_jacobian
     rows["accuracy"] = {}
     for k, name in enumerate(checked):
         size = np.abs(reference[:, k]).max()
@@ -98,16 +101,19 @@ def measure(rounds: int) -> dict:
     return rows
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--rounds", type=int, default=5, help="rounds of interleaved runs (median kept)")
     parser.add_argument("--json", action="store_true", help="print the results as JSON")
-    args = parser.parse_args()
-    rows = measure(args.rounds)
+    parser.add_argument("--quick", action="store_true", help="0.1 s simulated, one round, p = 1: a smoke run")
+    args = parser.parse_args(argv)
+    if args.quick:
+        args.rounds = 1
+    rows = measure(args.rounds, 0.1, (1,)) if args.quick else measure(args.rounds)
     if args.json:
         print(json.dumps(rows, indent=2))
         return
-    print(f"tilted solo12 drop, {T_FINAL} s, {rows['events']} events; median of {args.rounds} rounds")
+    print(f"tilted solo12 drop, {rows['t_final']} s, {rows['events']} events; median of {args.rounds} rounds")
     for name, t in rows["times_s"].items():
         print(f"  {name:<28} {t:7.3f} s")
     print(f"parameter Jacobian of all {rows['parameters']} inertial parameters / state Jacobian alone: "

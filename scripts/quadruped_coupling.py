@@ -6,6 +6,7 @@ the standing pose and seeded random poses with both feet on the ground), for
 several armature values (kg m^2 added to every actuated joint).
 
     python scripts/quadruped_coupling.py [--samples 20] [--json]
+    python scripts/quadruped_coupling.py --quick   # one random pose per robot: a smoke run
 """
 
 import argparse
@@ -16,11 +17,14 @@ import contactdiff as cd
 ARMATURES = (0.0, 1e-3, 1e-2, 1e-1)
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--samples", type=int, default=20)
     parser.add_argument("--json", action="store_true")
-    args = parser.parse_args()
+    parser.add_argument("--quick", action="store_true", help="one random pose per robot: a smoke run")
+    args = parser.parse_args(argv)
+    if args.quick:
+        args.samples = 1
     rows = []
     for name in cd.QUADRUPEDS:
         scene = cd.load_source(name)

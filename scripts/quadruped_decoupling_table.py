@@ -36,6 +36,10 @@ The robots, and the trend's cases, run in parallel on local worker processes
 
     python scripts/quadruped_decoupling_table.py [--json] [--plot out.png] [--robots solo12 a1]
                                                  [--states trot|standing] [--no-trend] [--jobs N]
+    python scripts/quadruped_decoupling_table.py --quick [--plot out.png]   # a smoke run of seconds
+
+``--quick``: solo12 only, in this process, and the trend over two foot masses and two
+stiffnesses.
 """
 
 from __future__ import annotations
@@ -320,11 +324,11 @@ def trend_row(scene, point) -> dict:
             "later_base_saltation_gap": gap.later_saltation_on(range(6)) if gap.horizon else None}
 
 
-def trend_table(n_jobs: int | None = None) -> list[dict]:
-    """Compliant feet on solo12 over foot mass × stiffness (and rigid feet), sticking and
+def trend_table(n_jobs: int | None = None, masses=TREND_FOOT_MASSES, stiffnesses=TREND_STIFFNESSES) -> list[dict]:
+    """Compliant feet on solo12 over foot mass (kg) × stiffness (N/m) (and rigid feet), sticking and
     frictionless, at TREND_ARMATURE, at the standing-pose diagonal touchdown; the cases run
     in parallel (`contactdiff.sweep`)."""
-    cases = [(None, None)] + [(m, k) for m in TREND_FOOT_MASSES for k in TREND_STIFFNESSES]
+    cases = [(None, None)] + [(m, k) for m in masses for k in stiffnesses]
     points = [{"arg:friction": f, "arg:foot_mass": m, "arg:stiffness": k} for f in ("stick", "none") for m, k in cases]
     result = sweep(trend_scene, points, trend_row, n_jobs=n_jobs)
     return [{"friction": r.point["arg:friction"], "foot_mass": r.point["arg:foot_mass"],
@@ -390,13 +394,15 @@ def trend_figure(trend):
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(1, 2, figsize=(10, 4), constrained_layout=True)
-    masses = np.array(TREND_FOOT_MASSES) * 1e3
-    k0 = TREND_STIFFNESSES[0]
+    foot_masses = list(dict.fromkeys(r["foot_mass"] for r in trend if r["foot_mass"] is not None))
+    stiffnesses = list(dict.fromkeys(r["stiffness"] for r in trend if r["stiffness"] is not None))
+    masses = np.array(foot_masses) * 1e3
+    k0 = stiffnesses[0]
     rigid = {r["friction"]: r for r in trend if r["foot_mass"] is None}
 
     def series(friction, key, k=k0):
         return [next(r[key] for r in trend if r["friction"] == friction and r["foot_mass"] == m
-                     and r["stiffness"] == k) for m in TREND_FOOT_MASSES]
+                     and r["stiffness"] == k) for m in foot_masses]
     ax = axes[0]
     ax.loglog(masses, series("stick", "pair_coupling"), "o-", label="pair coupling")
     ax.loglog(masses, series("stick", "saltation_gap"), "s-", label="saltation gap, sticking feet")
@@ -409,7 +415,7 @@ def trend_figure(trend):
     ax.set_title("at touchdown (dotted: rigid feet)")
     ax.legend(fontsize=8)
     ax = axes[1]
-    for k in TREND_STIFFNESSES:
+    for k in stiffnesses:
         ax.loglog(masses, series("stick", "later_base_saltation_gap", k), "o-", label=f"k = {k:g} N/m")
     ax.axhline(rigid["stick"]["later_base_saltation_gap"], color="k", ls=":", lw=1, label="rigid feet")
     ax.set_xlabel("foot mass (g)")
@@ -430,9 +436,15 @@ def main(argv=None) -> int:
     parser.add_argument("--plot", metavar="PNG", help="draw the compliant-feet trend")
     parser.add_argument("--jobs", type=int, default=None, metavar="N",
                         help="worker processes (default: one per core; 1 runs in this process)")
+    parser.add_argument("--quick", action="store_true",
+                        help="a smoke run of seconds: solo12, one process, a 2 x 2 trend")
     args = parser.parse_args(argv)
+    grid = {}
+    if args.quick:
+        args.robots, args.jobs = ["solo12"], 1
+        grid = {"masses": TREND_FOOT_MASSES[::2], "stiffnesses": TREND_STIFFNESSES[:2]}
     rows = robot_table(args.robots, args.states, args.jobs)
-    trend = [] if args.no_trend else trend_table(args.jobs)
+    trend = [] if args.no_trend else trend_table(args.jobs, **grid)
     if args.json:
         clean = lambda x: None if isinstance(x, float) and not math.isfinite(x) else x  # noqa: E731
         print(json.dumps({"armatures": ARMATURES, "robots": rows, "trend": trend},

@@ -2,11 +2,12 @@
 
     python scripts/replay_screenshot.py                       # 3-s solo12 trot -> docs/replay_solo12.png
     python scripts/replay_screenshot.py --html run.html --time 0.8 --out run.png
+    python scripts/replay_screenshot.py --quick --out /tmp/x.png   # a 0.3-s trot's page at t = 0.2 s (smoke run)
 
 Without --html it first writes the page of the 3-s solo12 trot
 (``contactdiff simulate solo12_trot --t-final 3 --html ...``) to a temporary folder.
 
-The browser: playwright (``pip install playwright``) driving its own Chromium if
+The browser: playwright (``pip install 'contactdiff[browser]'``) driving its own Chromium if
 ``playwright install chromium`` was run, else a Chromium or Chrome found on PATH
 (``chromium``, ``chromium-browser``, ``google-chrome``, ...); without playwright,
 that binary's own ``--headless --screenshot`` (which cannot seek: it shows the
@@ -121,7 +122,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=ROOT / "docs" / "replay_solo12.png", help="PNG to write")
     parser.add_argument("--time", type=float, default=1.5, help="animation time of the frame, s (default 1.5)")
     parser.add_argument("--size", default="1000x650", help="viewport WIDTHxHEIGHT in pixels")
+    parser.add_argument("--quick", action="store_true",
+                        help="without --html, the page of a 0.3-s trot instead of 3 s, at t = 0.2 s: a smoke run")
     args = parser.parse_args(argv)
+    if args.quick:
+        args.time = min(args.time, 0.2)
     width, height = (int(x) for x in args.size.lower().split("x"))
     with tempfile.TemporaryDirectory() as folder:
         html = args.html
@@ -129,7 +134,8 @@ def main(argv: list[str] | None = None) -> int:
             from contactdiff.cli import main as contactdiff
 
             html = Path(folder) / "solo12.html"
-            status = contactdiff(["simulate", "solo12_trot", "--t-final", "3", "--html", str(html)])
+            t_final = "0.3" if args.quick else "3"
+            status = contactdiff(["simulate", "solo12_trot", "--t-final", t_final, "--html", str(html)])
             if status:
                 return status
         try:

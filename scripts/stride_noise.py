@@ -3,6 +3,7 @@
     python scripts/stride_noise.py [--scene solo12_trot] [--foot FL_FOOT] [--warmup 8]
                                    [--perturb 4] [--size 1e-11] [--rtol 1e-10] [--atol 1e-12]
                                    [--events] [--json]
+    python scripts/stride_noise.py --quick   # no warm-up, one moved start, rtol 1e-8, --events: a smoke run
 
 From the scene's initial state the script simulates ``--warmup`` seconds and runs
 on to the foot's next touchdown after a flight (the start of
@@ -51,7 +52,7 @@ from contactdiff.integration.hybrid import simulate
 from contactdiff.integration.trajectory import NonSmooth
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scene", default="solo12_trot")
     parser.add_argument("--foot", default="FL_FOOT")
@@ -64,7 +65,11 @@ def main() -> None:
     parser.add_argument("--method", default="DOP853")
     parser.add_argument("--events", action="store_true", help="where the runs with and without the Jacobian part")
     parser.add_argument("--json", action="store_true")
-    args = parser.parse_args()
+    parser.add_argument("--quick", action="store_true",
+                        help="a smoke run of seconds: no warm-up, one moved start, rtol 1e-8, atol 1e-10, --events")
+    args = parser.parse_args(argv)
+    if args.quick:
+        args.warmup, args.perturb, args.rtol, args.atol, args.events = 0.0, 1, 1e-8, 1e-10, True
 
     scene = cd.load_scene(args.scene)
     period = scene_period(scene)

@@ -23,6 +23,7 @@ the engine's cost per point, as a fraction of a point's run time:
 * worker start-up: cold - warm.
 
     python scripts/sweep_bench.py [--points 8] [--t-final 2] [--repeats 3] [--no-dask] [--json]
+    python scripts/sweep_bench.py --quick   # 2 trots of 0.05 s, one repeat, no Dask: a smoke run
 """
 
 from __future__ import annotations
@@ -147,7 +148,11 @@ def main(argv=None) -> int:
     parser.add_argument("--repeats", type=int, default=3, help="repeats, medians kept (default 3)")
     parser.add_argument("--no-dask", action="store_true", help="skip the Dask run")
     parser.add_argument("--json", action="store_true")
+    parser.add_argument("--quick", action="store_true",
+                        help="a smoke run of seconds: 2 trots of 0.05 s, one repeat, no Dask")
     args = parser.parse_args(argv)
+    if args.quick:
+        args.points, args.t_final, args.repeats, args.no_dask = 2, 0.05, 1, True
     result = measure(args.points, args.t_final, args.repeats, not args.no_dask)
     if args.json:
         print(json.dumps(result, indent=2))

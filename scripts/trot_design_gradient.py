@@ -3,6 +3,7 @@ trot against its PD gains and its base's mass, checked against finite difference
 and a few gradient steps that lower it.
 
     python scripts/trot_design_gradient.py [--steps 3] [--rate 0.1] [--plot docs/trot_design_gradient.png] [--json]
+    python scripts/trot_design_gradient.py --quick   # kp only, loose tolerances, one step: a smoke run
 
 1. The periodic trot as `scripts/trot_floquet.py` finds it (20 clock periods of
    warm-up, then Newton on the stride map of the first foot; rtol 1e-10).
@@ -33,11 +34,16 @@ from contactdiff.integration.hybrid import simulate
 
 PARAMETERS = ["trot:kp", "trot:kd", "body:base_link:mass"]
 OPTIONS = dict(rtol=1e-10, atol=1e-12, method="DOP853")
+GAIT_TOL = 1e-8     # residual at which a gait counts as converged
+WARMUP = 20         # clock periods simulated before the first search
+# --quick: a smoke run of the same steps, its numbers meaningless (loose tolerances, kp only, a shorter warm-up)
+QUICK = dict(parameters=PARAMETERS[:1], options=dict(rtol=1e-7, atol=1e-9, method="DOP853"), gait_tol=1e-4,
+             warmup=10)
 
 
 def _gait(scene, q, v, t, period):
-    gait = find_periodic_gait(scene, scene.contact_names[0], q, v, t, iterations=6, tol=1e-8, t_max=4 * period,
-                              **OPTIONS)
+    gait = find_periodic_gait(scene, scene.contact_names[0], q, v, t, iterations=6, tol=GAIT_TOL,
+                              t_max=4 * period, **OPTIONS)
     if not gait.converged:
         raise SystemExit(f"the gait did not converge (residual {gait.residuals[-1]:.3g})")
     return gait
@@ -47,27 +53,35 @@ def _largest(gait) -> float:
     return float(abs(gait.multipliers[0]))
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
+    global PARAMETERS, OPTIONS, GAIT_TOL, WARMUP
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--steps", type=int, default=3, help="gradient steps")
     parser.add_argument("--rate", type=float, default=0.1, help="relative change of the parameters per step")
     parser.add_argument("--plot", default=None, help="write the plot (PNG) here")
     parser.add_argument("--no-check", action="store_true", help="skip the finite-difference check")
     parser.add_argument("--json", action="store_true")
-    args = parser.parse_args()
+    parser.add_argument("--quick", action="store_true",
+                        help="a smoke run: kp only, 10 periods of warm-up, loose tolerances, no step (the check kept)")
+    args = parser.parse_args(argv)
+    if args.quick:
+        PARAMETERS, OPTIONS, GAIT_TOL, WARMUP = (QUICK[k] for k in ("parameters", "options", "gait_tol", "warmup"))
+        args.steps = 0
 
     started = time.perf_counter()
     scene = trot_scene("solo12")
     period = scene.effort_specs[0].period
     foot = scene.contact_names[0]
-    warm = simulate(scene, 20 * period, **OPTIONS)
-    t, q, v = first_touchdown(scene, foot, warm.q, warm.v, warm.t, t_max=4 * period, **OPTIONS)
+    warm = simulate(scene, WARMUP * period, **OPTIONS) if WARMUP else None
+    q, v, t = (warm.q, warm.v, warm.t) if warm else (scene.q0, scene.v0, 0.0)
+    t, q, v = first_touchdown(scene, foot, q, v, t, t_max=4 * period, **OPTIONS)
     gait = _gait(scene, q, v, t, period)
     history = []
     check = None
     for step in range(args.steps + 1):
         values = scene.parameter_values(PARAMETERS)
-        sens = gait_sensitivity(scene, gait, PARAMETERS, which=(0,), t_max=4 * period, **OPTIONS)
+        sens = gait_sensitivity(scene, gait, PARAMETERS, which=(0,), t_max=4 * period, tol=1e-2 * GAIT_TOL,
+                                **OPTIONS)
         grad = sens.modulus_gradient(0)
         history.append({"step": step, "values": values.tolist(), "largest_modulus": _largest(gait),
                         "multiplier": [float(gait.multipliers[0].real), float(gait.multipliers[0].imag)],

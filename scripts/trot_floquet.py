@@ -2,6 +2,7 @@
 
     python scripts/trot_floquet.py [--robot solo12] [--foot FL_FOOT] [--warmup 20]
                                    [--newton 4] [--rtol 1e-10] [--atol 1e-12] [--json]
+    python scripts/trot_floquet.py --quick   # no warm-up, one Newton iteration, rtol 1e-8: a smoke run
 
 The trot scene (`contactdiff.control.trot_scenes.trot_scene`: a clock-driven PD trot, sticking
 plastic feet) starts standing at phase 0. The script
@@ -35,7 +36,7 @@ from contactdiff.errors import ContactDiffError
 from contactdiff.integration.hybrid import simulate
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--robot", default="solo12")
     parser.add_argument("--foot", default=None, help="section foot (default: the scene's first contact)")
@@ -47,7 +48,11 @@ def main() -> None:
     parser.add_argument("--method", default="DOP853")
     parser.add_argument("--no-period-map", action="store_true", help="skip the stroboscopic check")
     parser.add_argument("--json", action="store_true")
-    args = parser.parse_args()
+    parser.add_argument("--quick", action="store_true",
+                        help="a smoke run of seconds: no warm-up, one Newton iteration, rtol 1e-8, atol 1e-10")
+    args = parser.parse_args(argv)
+    if args.quick:
+        args.warmup, args.newton, args.rtol, args.atol = 0, 1, 1e-8, 1e-10
 
     options = dict(rtol=args.rtol, atol=args.atol, method=args.method)
     scene = trot_scene(args.robot)

@@ -10,6 +10,7 @@ and the run time.
 
     python scripts/trot_table.py            # all six, 3 s each
     python scripts/trot_table.py --robots solo12 anymal --json
+    python scripts/trot_table.py --quick    # solo12 over 0.2 s: a smoke run
 """
 
 from __future__ import annotations
@@ -48,12 +49,15 @@ def row(name: str, t_final: float) -> dict:
             "rejected_over_accepted": traj.stats.rejected_steps / traj.stats.steps, "run_time": wall}
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--robots", nargs="+", default=list(cd.QUADRUPEDS))
     parser.add_argument("--t-final", type=float, default=3.0)
     parser.add_argument("--json", action="store_true")
-    args = parser.parse_args()
+    parser.add_argument("--quick", action="store_true", help="solo12 over 0.2 s: a smoke run")
+    args = parser.parse_args(argv)
+    if args.quick:
+        args.robots, args.t_final = ["solo12"], 0.2
     rows = [row(name, args.t_final) for name in args.robots]
     if args.json:
         print(json.dumps(rows, indent=2))

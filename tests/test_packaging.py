@@ -3,6 +3,7 @@ a non-editable install finds its scenes, and ``python -m contactdiff`` runs."""
 
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
 import zipfile
@@ -55,3 +56,31 @@ def test_scenes_load_from_a_non_editable_install(wheel, tmp_path):
     assert run.returncode == 0, run.stderr
     package, name, contacts = run.stdout.split()
     assert Path(package) == site / "contactdiff" and name == "ball" and contacts == "1"
+
+
+def _extras() -> dict[str, list[str]]:
+    import tomllib
+
+    return tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["optional-dependencies"]
+
+
+def _name(requirement: str) -> str:
+    return re.split(r"[\[<>=!~ ;]", requirement, maxsplit=1)[0].lower()
+
+
+def test_the_dev_extra_holds_what_the_development_instructions_use():
+    """docs/development.md installs ``.[dev]`` and runs pytest and ruff: the extra holds ruff and
+    every package of the test, plot, viz and pandas extras (the tests' optional parts)."""
+    extras = _extras()
+    dev = {_name(r) for r in extras["dev"]}
+    assert "ruff" in dev
+    for extra in ("test", "plot", "viz", "pandas"):
+        assert {_name(r) for r in extras[extra]} <= dev, extra
+    text = (ROOT / "docs" / "development.md").read_text()
+    assert 'pip install -e ".[dev]"' in text and "ruff check" in text
+
+
+def test_the_browser_tests_have_an_extra():
+    """The tests marked browser import playwright: an extra installs it, and the docs name it."""
+    assert "playwright" in {_name(r) for r in _extras()["browser"]}
+    assert 'pip install -e ".[browser]"' in (ROOT / "docs" / "development.md").read_text()

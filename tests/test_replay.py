@@ -220,3 +220,156 @@ def test_objects_are_drawn_as_their_shapes_where_the_run_puts_them(tmp_path):
         start = scene.robot.model.joints[scene.robot.joint_id(name)].idx_q
         assert last[f"{name}_sphere"] == pytest.approx(traj.q[start:start + 3].tolist(), abs=1e-12)
     assert last["ball1_sphere"][0] == pytest.approx(-0.04 - 0.2 / 3, abs=1e-9)
+
+
+def _surfaces(commands: list[dict]) -> dict[str, tuple[dict, np.ndarray]]:
+    """The drawn contact planes: name -> (geometry, 4 x 4 pose)."""
+    objects = {c["path"].rsplit("/", 1)[-1]: c["object"]["geometries"][0] for c in commands
+               if c["type"] == "set_object" and "/surfaces/" in c["path"]}
+    poses = {c["path"].rsplit("/", 1)[-1]: np.array(c["matrix"], dtype=float).reshape(4, 4).T for c in commands
+             if c["type"] == "set_transform" and "/surfaces/" in c["path"]}
+    return {name: (objects[name], poses[name]) for name in objects}
+
+
+def _slab_covers(geometry: dict, pose: np.ndarray, points: np.ndarray, top: float) -> None:
+    """A box geometry posed by ``pose`` whose top face is the plane z = ``top`` and whose
+    footprint holds every point's (x, y); the box is axis-aligned here (upward normal)."""
+    width, depth, thickness = geometry["width"], geometry["height"], geometry["depth"]
+    assert np.allclose(pose[:3, :3], np.eye(3), atol=1e-12)
+    assert pose[2, 3] + thickness / 2 == pytest.approx(top, abs=1e-12)
+    centre = pose[:2, 3]
+    assert np.all(np.abs(points[:, 0] - centre[0]) <= width / 2)
+    assert np.all(np.abs(points[:, 1] - centre[1]) <= depth / 2)
+
+
+def test_the_floor_is_drawn_under_the_feet(run, page):
+    """planar_trot_soft's feet close on the plane z = 0 (offset 0): a slab whose top face is
+    z = 0 lies under every place the feet go; meshcat's grid is hidden."""
+    scene, traj = run
+    _, text = page
+    commands = _commands(text)
+    surfaces = _surfaces(commands)
+    assert set(surfaces) == {"ground"}
+    frames = sample_frames(traj, FPS)
+    data = scene.robot.model.createData()
+    import pinocchio as pin
+
+    feet = []
+    for q in frames.q:
+        pin.framesForwardKinematics(scene.robot.model, data, q)
+        feet += [data.oMf[c.fid].translation.copy() for c in scene.contacts]
+    _slab_covers(*surfaces["ground"], np.array(feet), 0.0)
+    assert any(c["type"] == "set_property" and c["path"] == "/Grid" and c["property"] == "visible"
+               and c["value"] is False for c in commands)
+
+
+def test_the_panda_table_is_drawn_under_the_box(tmp_path):
+    """panda_lift's table: the plane z = offset (0.4616... m, robots/panda_lift.toml) under the
+    box's three supports, and no floor (no contact of the robot's own presses on one)."""
+    pytest.importorskip("meshcat")
+    scene = load_source("panda_lift")
+    traj = simulate(scene, 0.05, dense=True)
+    path = traj.to_html(tmp_path / "panda.html", scene, fps=FPS)
+    surfaces = _surfaces(_commands(path.read_text()))
+    assert set(surfaces) == {"plane1"}
+    offset = next(c.offset for c in scene.contacts if c.name == "table1")
+    data = scene.robot.model.createData()
+    import pinocchio as pin
+
+    pin.framesForwardKinematics(scene.robot.model, data, traj.q0)
+    supports = np.array([data.oMf[c.fid].translation for c in scene.contacts if c.name.startswith("table")])
+    assert supports[:, 2] == pytest.approx(offset, abs=1e-9)  # the box rests on the table at the start
+    _slab_covers(*surfaces["plane1"], supports, offset)
+
+
+def test_the_timeline_has_a_legend_of_its_colours(run, page):
+    from contactdiff.replay import EVENT_COLOURS
+
+    _, traj = run
+    _, text = page
+    keys = dict(re.findall(r'<span class="key" data-kind="([^"]+)"><i style="background:(#[0-9a-f]{6})"></i>', text))
+    kinds = {e.kind for e in traj.events}
+    assert kinds <= set(keys)
+    assert all(keys[k] == EVENT_COLOURS[k] for k in kinds)
+
+
+def test_contact_markers_show_from_the_default_distance(run, page):
+    """Each marker is drawn over everything (no depth test) and its radius is at least
+    MARKER_MIN_SCREEN times the camera's distance from the origin it looks at."""
+    from contactdiff.replay_geometry import MARKER_MIN_SCREEN
+
+    _, text = page
+    commands = _commands(text)
+    (camera,) = [c for c in commands if c["type"] == "set_property" and c["path"].startswith("/Cameras")
+                 and c["property"] == "position"]
+    distance = float(np.linalg.norm(camera["value"]))
+    markers = [c["object"] for c in commands if c["type"] == "set_object" and "/contacts/" in c["path"]]
+    assert len(markers) == 2
+    for m in markers:
+        assert m["geometries"][0]["radius"] >= MARKER_MIN_SCREEN * distance * (1 - 1e-12)
+        assert m["materials"][0]["depthTest"] is False and m["materials"][0]["transparent"] is True
+
+
+_MESH = "v 0 0 0\nv 0.1 0 0\nv 0 0.1 0\nv 0 0 0.1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n"  # a tetrahedron
+_URDF = """<?xml version="1.0"?>
+<robot name="arm">
+  <link name="base"/>
+  <joint name="hinge" type="revolute">
+    <parent link="base"/><child link="bar"/><origin xyz="0 0 1"/><axis xyz="0 1 0"/>
+    <limit lower="-3" upper="3" effort="10" velocity="10"/>
+  </joint>
+  <link name="bar">
+    <inertial><origin xyz="0 0 -0.5"/><mass value="1"/>
+      <inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial>
+    <visual><geometry><mesh filename="package://mypkg/meshes/tetra.obj"/></geometry></visual>
+  </link>
+</robot>
+"""
+
+
+@pytest.fixture
+def package_robot(tmp_path):
+    """A one-link URDF whose mesh is ``package://mypkg/...``, with the package in a folder
+    (``pkgs/mypkg``) that is not above the URDF (``robot/arm.urdf``)."""
+    (tmp_path / "pkgs" / "mypkg" / "meshes").mkdir(parents=True)
+    (tmp_path / "pkgs" / "mypkg" / "meshes" / "tetra.obj").write_text(_MESH)
+    (tmp_path / "robot").mkdir()
+    (tmp_path / "robot" / "arm.urdf").write_text(_URDF)
+    return tmp_path / "robot" / "arm.urdf", tmp_path / "pkgs"
+
+
+def test_package_meshes_are_found_in_the_given_package_folders(package_robot, tmp_path):
+    pytest.importorskip("meshcat")
+    from contactdiff.errors import InvalidInputError
+
+    urdf, pkgs = package_robot
+    scene = load_source(str(urdf))
+    traj = simulate(scene, 0.1, dense=True)
+    with pytest.raises(InvalidInputError, match="package://mypkg/meshes/tetra.obj.*--package-dir"):
+        traj.to_html(tmp_path / "no.html", scene)
+    path = traj.to_html(tmp_path / "arm.html", scene, package_dirs=[pkgs])
+    meshes = [c["object"]["geometries"][0] for c in _commands(path.read_text())
+              if c["type"] == "set_object" and "/visuals/" in c["path"]]
+    assert len(meshes) == 1 and meshes[0]["format"] == "obj"
+    data = meshes[0]["data"]
+    assert "f 2 3 4" in (data.decode() if isinstance(data, bytes) else data)  # the package's file, inlined
+    with pytest.raises(InvalidInputError, match="not a folder"):
+        traj.to_html(tmp_path / "no.html", scene, package_dirs=[pkgs / "missing"])
+    assert not (tmp_path / "no.html").exists()
+
+
+def test_cli_package_dir(package_robot, tmp_path, capsys):
+    """--package-dir points the replay at the package; without it, or with a folder that is
+    not one, the command refuses in one line before the run (no page, no run output)."""
+    pytest.importorskip("meshcat")
+    urdf, pkgs = package_robot
+    page = tmp_path / "arm.html"
+    base = ["simulate", str(urdf), "--t-final", "0.1", "--html", str(page)]
+    assert main(base) == 2
+    out, err = capsys.readouterr()
+    assert "could not be found" in err and "--package-dir" in err and len(err.strip().splitlines()) == 1
+    assert "simulation of" not in out and not page.exists()
+    assert main(base + ["--package-dir", str(tmp_path / "missing")]) == 2
+    assert "not a folder" in capsys.readouterr().err and not page.exists()
+    assert main(base + ["--package-dir", str(tmp_path), "--package-dir", str(pkgs)]) == 0
+    assert page.exists() and "replay written to" in capsys.readouterr().out

@@ -331,7 +331,13 @@ def _derivatives(name, scene, t_final, tol, repeats) -> dict:
 
 
 class _Progress:
-    def __init__(self, total: int, enabled: bool):
+    """A one-line bar on stderr; ``enabled=None``: only when stderr is a terminal (a log
+    file or a pipe gets no carriage-return redraws), True forces it, False hides it."""
+
+    def __init__(self, total: int, enabled: bool | None):
+        if enabled is None:
+            isatty = getattr(sys.stderr, "isatty", None)
+            enabled = bool(isatty and isatty())
         self.total, self.done, self.enabled = total, 0, enabled
 
     def step(self, label: str) -> None:
@@ -347,7 +353,7 @@ class _Progress:
 
 
 def run_bench(scenes: Sequence[str] | None = None, methods: Sequence[str] | None = None,
-              repeats: int = 3, progress: bool = True, quick: bool = False,
+              repeats: int = 3, progress: bool | None = None, quick: bool = False,
               derivatives: bool = True, studies: bool = False) -> BenchResult:
     """Measure error against run time for each scene and method (see the module doc).
 
@@ -355,7 +361,8 @@ def run_bench(scenes: Sequence[str] | None = None, methods: Sequence[str] | None
         scenes: names among `SCENES` (default all; ``quick``: ball and planar_trot_rigid).
         methods: names among `METHODS` (default all).
         repeats: timing repeats (the median is kept).
-        progress: draw a progress bar on stderr.
+        progress: draw a progress bar on stderr (default None: only when stderr is a
+            terminal; True forces it).
         quick: a tiny sweep (a few seconds), for tests and CI.
         derivatives: also measure the cost of flow Jacobians and finite differences.
         studies: also run the stiff and extreme-case studies (`contactdiff.bench.extreme_cases`) and

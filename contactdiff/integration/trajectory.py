@@ -327,7 +327,8 @@ class Trajectory:
                 (a scene or robot name, or a file path).
             **options: ``fps`` (frames per second of simulated time, default
                 `contactdiff.replay.DEFAULT_FPS`; every event time is a frame too),
-                ``contact_radius`` (m), ``title`` (see `contactdiff.replay.replay_html`).
+                ``contact_radius`` (m), ``title``, ``package_dirs`` (folders in which the URDF's
+                ``package://`` meshes are found; see `contactdiff.replay.replay_html`).
 
         Returns:
             The path written.

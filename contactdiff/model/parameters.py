@@ -39,7 +39,8 @@ joint order, contacts and efforts in scene order). The rules:
   inertia) of every one-coordinate-velocity joint (revolute, bounded or not,
   prismatic, helical, their unaligned forms). A free-flyer, spherical or planar
   joint has none here (Pinocchio keeps one value per axis).
-* **Contacts**: by contact name. (Friction is a mode, ``none`` or ``stick``, not a number.)
+* **Contacts**: by contact name. (Friction, ``none``, ``stick`` or a Coulomb coefficient μ, is
+  not a parameter: `Scene.with_friction` builds a scene with another.)
 * **Springs**: by `Spring.name` (default ``"<frame_a>-<frame_b>"``); **joint
   springs**: by joint. **User efforts**: by `UserEffort.name`, one parameter per
   entry of its ``parameters`` (the protocol is in `UserEffort`'s docstring).

@@ -3,7 +3,9 @@
 The quantities drawn are those whose value changes between the rows (fixed
 ones are left out). Over two quantities whose points form a full grid, a
 heatmap; over two that do not (random samples), a scatter coloured by the
-output. Failed runs and missing values are gaps. Text values (a factory's
+output. Failed runs and missing values are gaps: a line breaks there, every point
+with a value has its marker, each point without one is marked on the x axis, and
+the title says how many there are. Text values (a factory's
 ``arg:robot``) are placed in their order of appearance. matplotlib is imported
 only here, only when drawing.
 """
@@ -31,12 +33,24 @@ def numeric_outputs(result: SweepResult) -> list[str]:
 
 def plot_sweep(result: SweepResult, path: str | Path, output: str | None = None) -> Path:
     """Draw ``output`` (default: the job's, e.g. ``events`` for a plain simulation, else
-    the first numeric output) over the swept quantities and save it to ``path``.
+    the first numeric output) over the swept quantities and save it to ``path``
+    (`sweep_figure`).
 
     Raises:
         UnknownNameError: ``output`` is not a numeric output of the rows (they are listed).
         InvalidInputError: not 1 or 2 varying quantities, or no row has a value.
     """
+    from ..plotting import _pyplot
+
+    plt = _pyplot()
+    fig = sweep_figure(result, output)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return Path(path)
+
+
+def sweep_figure(result: SweepResult, output: str | None = None):
+    """The matplotlib ``Figure`` of `plot_sweep` (same arguments and errors)."""
     from ..plotting import _pyplot
 
     valid = numeric_outputs(result)
@@ -56,7 +70,13 @@ def plot_sweep(result: SweepResult, path: str | Path, output: str | None = None)
     if len(varying) == 1:
         x, labels = _axis(result.column(varying[0]))
         order = np.argsort(x, kind="stable")
-        ax.plot(x[order], z[order], "o-", ms=4)
+        x, zs = x[order], z[order]
+        ax.plot(x, zs, "o-", ms=4, color="C0", label=output)  # a NaN breaks the line: a gap
+        gaps = ~np.isfinite(zs)
+        if gaps.any():  # on the x axis (axes coordinates in y), where the line has no value
+            ax.plot(x[gaps], np.full(gaps.sum(), 0.02), "x", ms=8, mew=2, color="tab:red", clip_on=False,
+                    transform=ax.get_xaxis_transform(), label=f"no value ({gaps.sum()})")
+            ax.legend(fontsize=8, loc="best")
         _label(ax.set_xticks, ax.set_xticklabels, labels)
         ax.set_xlabel(varying[0])
         ax.set_ylabel(output)
@@ -74,11 +94,16 @@ def plot_sweep(result: SweepResult, path: str | Path, output: str | None = None)
         _label(ax.set_yticks, ax.set_yticklabels, ylabels)
         ax.set_xlabel(varying[0])
         ax.set_ylabel(varying[1])
-    failed = len(result.failed)
-    ax.set_title(f"{output} over {len(result)} points" + (f" ({failed} failed)" if failed else ""))
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return Path(path)
+    ax.set_title(f"{output} over {len(result)} points" + _gaps_note(len(result.failed), int((~np.isfinite(z)).sum())))
+    return fig
+
+
+def _gaps_note(failed: int, without: int) -> str:
+    """`` (k without a value: f failed, m missing)`` for a title, or nothing."""
+    if not without:
+        return ""
+    parts = [f"{failed} failed"] * bool(failed) + [f"{without - failed} missing"] * bool(without - failed)
+    return f" ({without} without a value: {', '.join(parts)})"
 
 
 def _axis(values: list) -> tuple[np.ndarray, list[str] | None]:
@@ -103,4 +128,4 @@ def _edges(centres: np.ndarray) -> np.ndarray:
     return np.concatenate([[2 * centres[0] - mid[0]], mid, [2 * centres[-1] - mid[-1]]])
 
 
-__all__ = ["plot_sweep", "numeric_outputs"]
+__all__ = ["plot_sweep", "sweep_figure", "numeric_outputs"]
