@@ -6,6 +6,7 @@ Positions are in metres, in the model's frames; colours are RGBA in [0, 1].
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -29,10 +30,18 @@ def visual_model(robot) -> pin.GeometryModel:
     """The visual geometry of ``robot``'s URDF, as Pinocchio's loaders read it (meshes
     found through ``package://`` against every folder above the URDF, which is where
     example-robot-data's loader points too). Empty if the robot has no URDF or its
-    URDF has no ``<visual>``; the robot's own (dynamics-only) model is not changed."""
+    URDF has no ``<visual>`` (an MJCF model, whose meshes are not read: a warning
+    says so); the robot's own (dynamics-only) model is not changed."""
     if not robot.urdf:
         return pin.GeometryModel()
     urdf = Path(robot.urdf)
+    from .model.mjcf_xml import looks_like_mjcf
+
+    if looks_like_mjcf(urdf):  # MJCF visuals are not read: stand-in spheres, said in a warning
+        from .model.mjcf import replay_note
+
+        warnings.warn(replay_note(robot), stacklevel=3)
+        return pin.GeometryModel()
     try:
         return pin.buildGeomFromUrdf(robot.model, str(urdf), pin.GeometryType.VISUAL,
                                      package_dirs=[str(p) for p in urdf.parents])

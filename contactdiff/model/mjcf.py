@@ -357,3 +357,17 @@ def load_mjcf(path: str | Path, floating_base: bool | None = None, feet=None, na
         choice, q_ref = choose_feet(model, q_ref, floating, feet)
     return Robot(model, name or path.stem, str(path), floating, q_ref, choice.feet,
                  actuated_joints(model, root, floating), choice)
+
+
+def replay_note(robot) -> MJCFWarning:
+    """The replay's note for an MJCF robot: drawn as spheres at its bodies, with how many of
+    its mesh files are missing (a Menagerie model copied without its ``assets/``)."""
+    path = Path(robot.urdf)
+    try:
+        root = mjcf_xml.read_document(path, allow_outside=True).root
+        meshes = [p for tag, p in mjcf_xml.asset_files(root, path.resolve().parent) if tag == "mesh"]
+    except ModelLoadError:
+        meshes = []
+    missing = sum(not p.is_file() for p in meshes)
+    detail = f"{missing} of its {len(meshes)} mesh files are missing" if missing else "its meshes are not read"
+    return MJCFWarning(f"replay: robot {robot.name!r} (MJCF) is drawn as spheres at its bodies ({detail})")

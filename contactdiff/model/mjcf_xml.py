@@ -187,10 +187,21 @@ def _expand_includes(doc: MJCFDocument, element: Element, folder: Path, allow_ou
 def _check_asset_paths(doc: MJCFDocument, folder: Path, allow_outside: bool) -> None:
     """Refuse asset files (meshes, textures, height fields) that lie outside the model's
     folder. They are never opened here; the check keeps a later reader (a viewer) in it."""
+    asset_files(doc.root, folder, allow_outside)
+
+
+def asset_files(root: Element, folder: Path, allow_outside: bool = True) -> list[tuple[str, Path]]:
+    """``(tag, path)`` of every asset file the model names (``<mesh file=...>``, ...), resolved
+    as MuJoCo resolves them (``compiler`` ``meshdir``/``texturedir``, else ``assetdir``).
+
+    Raises:
+        UnsafeModelFileError: a path leaves ``folder`` and ``allow_outside`` is False.
+    """
     compiler = {}
-    for element in doc.root.iter("compiler"):
+    for element in root.iter("compiler"):
         compiler.update(element.attrib)
-    for asset in doc.root.iter("asset"):
+    files = []
+    for asset in root.iter("asset"):
         for element in asset:
             name = element.get("file")
             if element.tag not in _ASSET_FILE_TAGS or not name:
@@ -198,7 +209,8 @@ def _check_asset_paths(doc: MJCFDocument, folder: Path, allow_outside: bool) -> 
             kind = "mesh" if element.tag in ("mesh", "skin") else "texture" if element.tag == "texture" else ""
             sub = compiler.get(f"{kind}dir") if kind else None
             sub = sub if sub is not None else compiler.get("assetdir", "")
-            named_file(folder / sub, name, folder, allow_outside, f"<{element.tag}> file")
+            files.append((element.tag, named_file(folder / sub, name, folder, allow_outside, f"<{element.tag}> file")))
+    return files
 
 
 def _default_classes(root: Element) -> dict[str, dict[str, dict[str, str]]]:

@@ -113,3 +113,23 @@ def test_mjcf_is_recognised_by_extension_and_root(tmp_path):
     assert looks_like_mjcf(write(tmp_path, "a.xml", '<?xml version="1.0"?>\n<!-- c --><mujoco model="a"/>'))
     assert not looks_like_mjcf(write(tmp_path, "b.xml", '<robot name="b"/>'))
     assert not looks_like_mjcf(write(tmp_path, "c.mjcf", "<mujoco/>"))
+
+
+def test_missing_meshes_load_and_the_replay_draws_spheres_and_says_so(tmp_path):
+    """A body with an explicit <inertial> and a mesh geom whose file is absent: the dynamics
+    needs no mesh (M = the inertial's mass, 3 kg, on the translations); the replay's geometry
+    is one stand-in sphere per body, with a warning counting the missing mesh files."""
+    import numpy as np
+    import pinocchio as pin
+
+    from contactdiff.model.mjcf import MJCFWarning
+    from contactdiff.replay_geometry import drawn_geometry
+
+    text = FREE_XML.replace("<worldbody>", '<compiler meshdir="assets"/><asset><mesh file="hull.stl"/></asset>'
+                            "<worldbody>").replace("<freejoint/>", '<freejoint/><geom type="mesh" mesh="hull"/>')
+    robot = load_robot(write(tmp_path, "hull.xml", text))
+    M = pin.crba(robot.model, robot.new_data(), robot.q_ref)
+    np.testing.assert_allclose(np.diag(M)[:3], 3.0, rtol=1e-14)  # FREE_XML's mass, kg
+    with pytest.warns(MJCFWarning, match=r"drawn as spheres at its bodies \(1 of its 1 mesh files are missing\)"):
+        geoms = drawn_geometry(robot, 0.01)
+    assert geoms.ngeoms >= 1 and all(type(g.geometry).__name__ == "Sphere" for g in geoms.geometryObjects)
