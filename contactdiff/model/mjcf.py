@@ -259,7 +259,25 @@ def build_model(path: str | Path, floating_base: bool | None = None,
             model = pin.buildModelFromMJCF(str(resolved))
         except (RuntimeError, ValueError, IndexError) as exc:
             raise ModelLoadError(f"cannot read MJCF {str(path)!r}: {exc}") from None
+    _rename_shared_frame_names(model)
     return model, root, found
+
+
+def _rename_shared_frame_names(model: pin.Model) -> None:
+    """MJCF keeps joints, bodies and sites in separate name spaces (Cassie has a joint and a
+    body ``left-foot``); Pinocchio's frames share one. A name held by several frames stays
+    the body's; the others get ``_joint`` or ``_site`` appended (their joints keep their names)."""
+    names = [f.name for f in model.frames]
+    for i, frame in enumerate(model.frames):
+        if names.count(frame.name) < 2 or frame.type == pin.FrameType.BODY:
+            continue
+        suffix = {pin.FrameType.JOINT: "_joint", pin.FrameType.OP_FRAME: "_site"}.get(frame.type, "_frame")
+        renamed = pin.Frame(frame)
+        renamed.name = frame.name + suffix
+        while renamed.name in names:
+            renamed.name += suffix
+        model.frames[i] = renamed
+        names[i] = renamed.name
 
 
 def reference_configuration(model: pin.Model, root: Element) -> tuple[np.ndarray, str]:

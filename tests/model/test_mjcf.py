@@ -287,3 +287,18 @@ def test_scene_file_names_an_mjcf_robot(tmp_path):
 def test_load_mjcf_floating_false_removes_the_free_joint(tmp_path):
     robot = load_mjcf(write(tmp_path, "free.xml", FREE_XML), floating_base=False)
     assert robot.nv == 0 and not robot.floating_base
+
+
+def test_a_joint_and_a_body_of_one_name_get_distinct_frames(tmp_path):
+    """MJCF names joints and bodies apart; the body keeps the name, the joint's frame gets
+    ``_joint`` (the joint itself keeps its name)."""
+    robot = load_robot(write(tmp_path, "leg.xml", LEG_XML.replace('<joint name="knee"', '<joint name="shank"')))
+    assert robot.model.frames[robot.frame_id("shank")].type == pin.FrameType.BODY
+    assert robot.model.frames[robot.frame_id("shank_joint")].type == pin.FrameType.JOINT
+    assert "shank" in robot.joint_names
+
+
+def test_cassie_loads_with_its_loops_left_out_and_two_feet():
+    with pytest.warns(MJCFWarning, match=r"equality constraint\(s\) connect \(unnamed\) ×4"):
+        robot = load_robot(menagerie_file("agility_cassie/cassie.xml"))
+    assert robot.feet == ("left-foot", "right-foot") and robot.nv == 32
