@@ -19,6 +19,7 @@ fixed-base chain (an arm) has one end, and nothing to couple.
 from __future__ import annotations
 
 import argparse
+import re
 import time
 import warnings
 from pathlib import Path
@@ -59,13 +60,13 @@ def leaf_end_bodies(robot) -> list[str]:
     return ends
 
 
-def atlas_scene(source: str):
-    """The model's scene: a robot on its feet (a hand on its fingertips), with the load's
-    warnings and the way the feet were chosen kept on it."""
+def atlas_scene(source: str, hand: bool = False):
+    """The model's scene: a robot on its feet (a ``hand`` on its fingertips), with the load's
+    warnings kept on it."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         robot = cd.load_robot(source)
-        if not robot.floating_base and not robot.feet:
+        if hand and not robot.floating_base and not robot.feet:
             ends = leaf_end_bodies(robot)
             if len(ends) >= 2:
                 robot = cd.load_robot(source, feet=ends)
@@ -78,11 +79,13 @@ def atlas_row(scene, point, samples: int = 8) -> dict:
     """The checker's numbers for one model (a sweep job)."""
     report = cd.check_decoupling(scene, samples=samples)
     worst = max(report.terms, key=lambda t: t.value, default=None)
+    mass = max((t for t in report.terms if t.condition == "mass matrix"), key=lambda t: t.value, default=None)
     choice = scene.foot_choice
     return {"floating": scene.robot.floating_base, "nv": scene.robot.nv,
             "feet": ", ".join(scene.robot.feet) or "-", "rule": choice.rule.name.lower() if choice else "-",
             "coupling": report.max_coupling if report.pairs else None,
             "worst_term": f"{worst.condition} ({worst.where}): {worst.value:.2e}" if worst else "-",
+            "worst_mass_term": f"{mass.where}: {mass.value:.2e}" if mass else "-",
             "verdict": report.verdict or f"none: {report.reason}", "notes": "; ".join(scene.atlas_notes)}
 
 
@@ -97,34 +100,38 @@ def main() -> None:
     models = [("menagerie", label, path) for label, path in menagerie_models(args.menagerie)]
     models += [("example-robot-data", name, name) for name in example_robot_data_names()]
     started = time.perf_counter()
-    result = sweep(atlas_scene, [{"arg:source": path} for _, _, path in models],
+    points = [{"arg:source": path, "arg:hand": KINDS.get(label.split("/")[0]) == "hand"} for _, label, path in models]
+    result = sweep(atlas_scene, points,
                    lambda scene, point: atlas_row(scene, point, args.samples), n_jobs=args.jobs)
     wall = time.perf_counter() - started
     lines = [_header(args, wall), "",
-             "| source | model | kind | loads | feet (rule) | max coupling | worst decoupling term | verdict "
-             "| time [s] |", "|---|---|---|---|---|---|---|---|---|"]
-    skipped = []
-    for (origin, label, _), row in zip(models, result.rows):
+             "| source | model | kind | loads | feet (rule) | max coupling | worst decoupling term "
+             "| worst mass-matrix term | verdict | time [s] |", "|---|---|---|---|---|---|---|---|---|---|"]
+    skipped, failed = [], []
+    for (origin, label, _), row in zip(models, result):
         kind = KINDS.get(label.split("/")[0], "quadruped" if label in QUADRUPEDS else "")
         if row.error is not None:
+            message = _cell(row.error.message.replace(str(args.menagerie.resolve()), "menagerie"))
             if origin == "menagerie":
-                lines.append(f"| {origin} | {label} | {kind} | no: {_cell(row.error.message)} | | | | | "
-                             f"{row.run_time:.2f} |")
+                lines.append(f"| {origin} | {label} | {kind} | no: {message} | | | | | | {row.run_time:.2f} |")
             else:
-                skipped.append(label)
+                failed.append(f"{label} ({message})")
             continue
         out = row.outputs
-        if origin == "example-robot-data" and out["rule"] in ("fixed_base",) or (
-                origin == "example-robot-data" and out["feet"] == "-"):
+        feet = [] if out["feet"] == "-" else out["feet"].split(", ")
+        if origin == "example-robot-data" and len(feet) < 2:
             skipped.append(label)
             continue
-        kind = kind or ("legged" if out["floating"] else "fixed base")
+        kind = kind or (f"legged, {len(feet)} feet" if out["floating"] else "fixed base")
         coupling = "-" if out["coupling"] is None else f"{out['coupling']:.2e}"
         loads = "yes" + (f" ({_cell(out['notes'])})" if out["notes"] else "")
         lines.append(f"| {origin} | {label} | {kind} | {loads} | {out['feet']} ({out['rule']}) | {coupling} | "
-                     f"{_cell(out['worst_term'])} | {_cell(out['verdict'])} | {row.run_time:.2f} |")
-    lines += ["", f"Not in the table: {len(skipped)} example-robot-data robots without feet (fixed bases, "
-              "arms, or models that do not load): " + ", ".join(sorted(skipped)) + "."]
+                     f"{_cell(out['worst_term'])} | {_cell(out['worst_mass_term'])} | "
+                     f"{_cell(out['verdict'].split(';')[0])} | {row.run_time:.2f} |")
+    lines += ["", f"Not in the table: {len(skipped)} example-robot-data robots with fewer than two feet (fixed "
+              "bases, arms, flying arms): " + ", ".join(sorted(skipped)) + "."]
+    if failed:
+        lines += ["", f"example-robot-data robots that do not load ({len(failed)}): " + "; ".join(failed) + "."]
     args.out.write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
 
@@ -148,7 +155,9 @@ the end body of each leaf limb), `fixed_base` (an arm: no feet)."""
 
 
 def _cell(text: str) -> str:
-    return str(text).replace("|", "/").replace("\n", " ")
+    """Table-safe text; a file's full path shortened to its name (the table names no machine's folders)."""
+    text = re.sub(r"'/[^']*/([^/']+)'", r"'\1'", str(text))
+    return text.replace("|", "/").replace("\n", " ")
 
 
 if __name__ == "__main__":

@@ -211,8 +211,10 @@ def load_robot(source: str | Path, floating_base: bool | None = None,
     Args:
         source: a URDF path, an MJCF path (``.xml`` with a ``<mujoco>`` root, read by
             `contactdiff.model.mjcf.load_mjcf`), a name of a model in ``robots/`` (see
-            `own_robot_names`) or an example-robot-data name (see
-            `example_robot_data_names`).
+            `own_robot_names`), an example-robot-data name (see
+            `example_robot_data_names`) or, with the optional robot_descriptions
+            package, one of its names (``go2_mj_description``,
+            `contactdiff.model.descriptions`).
         floating_base: add a free-flyer root joint. ``None`` takes the model's
             own choice: True for example-robot-data legged robots and MJCF files
             with a free joint, False for the project's planar models and for URDF paths.
@@ -249,6 +251,11 @@ def load_robot(source: str | Path, floating_base: bool | None = None,
 
     loader = ROBOTS.get(source)
     if loader is None:
+        from .descriptions import description_file
+
+        described = description_file(source)  # the optional robot_descriptions package
+        if described is not None:
+            return load_robot(described, floating_base, feet)
         known = own_robot_names() + example_robot_data_names()
         raise UnknownRobotError(str(unknown_name("robot", source, known)))
     if not loader.urdf_filename:
