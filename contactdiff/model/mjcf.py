@@ -47,6 +47,7 @@ class MJCFWarning(UserWarning):
 
 _DYNAMIC_ACTUATORS = ("cylinder", "muscle", "adhesion")  # shortcuts with activation dynamics
 _FLEX_TAGS = ("flex", "flexcomp", "composite", "skin")
+_PLACEMENT = {"pos", "quat", "euler", "axisangle", "xyaxes", "zaxis"}
 
 
 @dataclass
@@ -90,8 +91,9 @@ def _named(element: Element, fallback: str = "") -> str:
 def audit(root: Element, floating_base: bool | None = None) -> Audit:
     """Find (and repair in ``root``, in place) what Pinocchio's MJCF parser would drop.
 
-    Repairs: several top-level bodies without a free joint are put into one body
-    fixed to the world (Pinocchio reads only the first top-level body); mesh geoms
+    Repairs: several top-level bodies without a free joint, or one placed away from the
+    world's origin, are put into one body fixed to the world (Pinocchio reads only the
+    first top-level body, and drops its placement); mesh geoms
     that carry no mass in MuJoCo (``mass="0"`` or ``density="0"``) are removed
     from bodies without ``<inertial>`` (Pinocchio gives each 1 kg); the free
     joint is added or removed as ``floating_base`` asks.
@@ -105,8 +107,8 @@ def audit(root: Element, floating_base: bool | None = None) -> Audit:
     tendons, actuator activation dynamics.
     """
     found = Audit()
-    _top_bodies(root, found)
     _base_joint(root, floating_base, found)
+    _top_bodies(root, found)
     _mesh_masses(root, found)
     for tag in _FLEX_TAGS:
         for element in root.iter(tag):
@@ -143,6 +145,11 @@ def _top_bodies(root: Element, found: Audit) -> None:
     if world is None:
         return
     top = world.findall("body")
+    placed = [b for b in top if set(b.attrib) & _PLACEMENT]
+    if len(top) == 1 and not any(_is_free(j) for j in _joints(top[0])) and placed:
+        _hold(root, world, top)  # Pinocchio drops the placement of the top body
+        found.repaired.append(f"body {_named(top[0])} put into a body fixed to the world (its placement kept)")
+        return
     if len(top) < 2:
         return
     jointed = [b for b in top if _has_joint(b)]
@@ -161,12 +168,19 @@ def _top_bodies(root: Element, found: Audit) -> None:
                               f"{', '.join(_named(b) for b in dropped)} (no joints: fixed to the world, "
                               "not part of the floating robot)")
         return
-    holder = Element("body", {"name": _free_name(root, "worldbody_bodies")})
+    _hold(root, world, top)
+    found.repaired.append(f"the {len(top)} top-level bodies put into one body fixed to the world")
+
+
+def _hold(root: Element, world: Element, top: list[Element]) -> None:
+    """Put the top-level bodies ``top`` into one new body at the world's origin: Pinocchio
+    reads only the first top-level body and ignores its placement (a fixed hand's palm
+    turned upside down by its ``quat`` would hang upright), while it keeps a child's."""
+    holder = Element("body", {"name": _free_name(root, "world_fixed")})
     for b in top:
         world.remove(b)
         holder.append(b)
     world.insert(0, holder)
-    found.repaired.append(f"the {len(top)} top-level bodies put into one body fixed to the world")
 
 
 def _free_name(root: Element, name: str) -> str:

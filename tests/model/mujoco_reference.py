@@ -15,15 +15,16 @@ import numpy as np
 import pinocchio as pin
 
 from contactdiff.model.mjcf import mujoco_velocity_map
-from contactdiff.model.mjcf_xml import parse_xml_file
+from contactdiff.model.mjcf_xml import read_document, resolve
 
 
 def stripped_copy(path: Path, folder: Path) -> Path:
-    """``path`` without mesh assets, mesh geoms, skins, height-field files and texture files,
-    written into ``folder`` (same file name)."""
+    """``path`` with its classes written inline (`contactdiff.model.mjcf_xml.resolve`, which
+    MuJoCo reads as the original: tested) and without mesh assets, mesh geoms, skins,
+    height-field files and texture files, written into ``folder`` (same file name)."""
     from xml.etree.ElementTree import tostring
 
-    root = parse_xml_file(Path(path))
+    root = resolve(read_document(Path(path)))  # classes inline: a class's mesh geoms are seen as such
     for parent in list(root.iter()):
         for child in list(parent):
             drop = (child.tag in ("mesh", "skin") and parent.tag == "asset") or (
@@ -33,9 +34,11 @@ def stripped_copy(path: Path, folder: Path) -> Path:
                 parent.remove(child)
             elif child.tag == "material":
                 child.attrib.pop("texture", None)
-    for default_geom in root.iter("geom"):  # a class that makes geoms meshes would need a mesh
-        if default_geom.get("type") == "mesh":
-            default_geom.attrib.pop("type")
+    for default in root.iter("default"):  # a class that makes geoms meshes would need a mesh
+        for geom in default.findall("geom"):
+            if geom.get("type") == "mesh" or geom.get("mesh"):
+                geom.attrib.pop("type", None)
+                geom.attrib.pop("mesh", None)
     out = Path(folder) / Path(path).name
     out.write_bytes(tostring(root))
     return out

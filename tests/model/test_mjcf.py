@@ -302,3 +302,16 @@ def test_cassie_loads_with_its_loops_left_out_and_two_feet():
     with pytest.warns(MJCFWarning, match=r"equality constraint\(s\) connect \(unnamed\) ×4"):
         robot = load_robot(menagerie_file("agility_cassie/cassie.xml"))
     assert robot.feet == ("left-foot", "right-foot") and robot.nv == 32
+
+
+def test_a_fixed_top_body_keeps_its_placement(tmp_path):
+    """The leg hung from a thigh turned upside down (``quat="0 1 0 0"``: 180 deg about x, links
+    along +z, hip axis along -y): a rotation ``q`` takes ``(0, 0, L)`` to ``(-L sin q, 0, L cos q)``,
+    so the potential and the gravity torques change sign, M is unchanged (Pinocchio alone
+    drops a top body's placement: the torques would keep their sign)."""
+    text = LEG_XML.replace('<body name="thigh" pos="0 0 1">', '<body name="thigh" pos="0 0 1" quat="0 1 0 0">')
+    robot = load_robot(write(tmp_path, "leg.xml", text))
+    q = np.array([0.4, -0.9])
+    np.testing.assert_allclose(pin.nle(robot.model, robot.new_data(), q, np.zeros(2)), -leg_bias(q, np.zeros(2)),
+                               rtol=RTOL)
+    np.testing.assert_allclose(_mass_matrix(robot, q), leg_mass_matrix(q), rtol=RTOL)

@@ -99,9 +99,11 @@ def test_classes_written_inline_do_not_change_mujocos_model(tmp_path):
             _close(b, a, "rewritten vs original")
 
 
-@pytest.mark.parametrize("relative", ["unitree_go2/go2.xml", "berkeley_humanoid/berkeley_humanoid.xml"])
+@pytest.mark.parametrize("relative", ["unitree_go2/go2.xml", "berkeley_humanoid/berkeley_humanoid.xml",
+                                      "leap_hand/right_hand.xml"])
 def test_menagerie_model_matches_mujoco(tmp_path, relative):
-    """Go2 and Berkeley Humanoid (their meshes stripped for MuJoCo) at four random states;
+    """Go2, Berkeley Humanoid and the LEAP hand (a fixed palm turned upside down by its ``quat``;
+    meshes stripped for MuJoCo) at four random states;
     and the reference pose (keyframe ``home``) puts every body where MuJoCo does."""
     import pinocchio as pin
 
