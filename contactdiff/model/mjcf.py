@@ -213,6 +213,9 @@ def _base_joint(root: Element, floating_base: bool | None, found: Audit) -> None
     elif floating_base is False and free:
         for j in free:
             base.remove(j)
+        for key in root.iter("key"):  # the free joint's seven coordinates come first: drop them
+            if key.get("qpos") is not None:
+                key.set("qpos", " ".join(key.get("qpos").split()[7 * len(free):]))
         found.repaired.append(f"the free joint of body {_named(base)} removed (floating_base=False)")
 
 

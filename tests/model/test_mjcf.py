@@ -287,6 +287,11 @@ def test_scene_file_names_an_mjcf_robot(tmp_path):
 def test_load_mjcf_floating_false_removes_the_free_joint(tmp_path):
     robot = load_mjcf(write(tmp_path, "free.xml", FREE_XML), floating_base=False)
     assert robot.nv == 0 and not robot.floating_base
+    pelvis = '<body name="pelvis" pos="0 0 1"><freejoint/><inertial pos="0 0 0" mass="4" diaginertia="0.1 0.1 0.1"/>'
+    text = LEG_XML.replace('<body name="thigh" pos="0 0 1">', pelvis + '<body name="thigh">').replace(
+        "</worldbody>", "</body></worldbody>").replace('qpos="0.3 -0.6"', 'qpos="0 0 1 1 0 0 0 0.3 -0.6"')
+    robot = load_mjcf(write(tmp_path, "leg.xml", text), floating_base=False)
+    np.testing.assert_array_equal(robot.q_ref, [0.3, -0.6])  # the key without the free joint's part
 
 
 def test_a_joint_and_a_body_of_one_name_get_distinct_frames(tmp_path):
