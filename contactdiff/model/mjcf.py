@@ -12,6 +12,8 @@ what it leaves out, then builds the model with ``pinocchio.buildModelFromMJCF``.
 * **Reference pose.** The keyframe ``home``, else the first keyframe, else
   ``qpos0`` (joint ``ref`` values and the bodies' placements), as Pinocchio
   reads them into ``model.referenceConfigurations``.
+* **Joint limits** as MuJoCo reads them (`_joint_limits`; Pinocchio converts a slide's
+  range as an angle and ignores ``limited="false"``), ``±inf`` where unlimited.
 * **Armature.** Pinocchio reads each joint's ``armature`` (classes included)
   into ``model.armature``, which its ``crba``, ``aba`` and ``computeMinverse``
   add to the mass matrix's diagonal, as MuJoCo does.
@@ -277,7 +279,35 @@ def build_model(path: str | Path, floating_base: bool | None = None,
         except (RuntimeError, ValueError, IndexError) as exc:
             raise ModelLoadError(f"cannot read MJCF {str(path)!r}: {exc}") from None
     _rename_shared_frame_names(model)
+    _joint_limits(model, root)
     return model, root, found
+
+
+def _joint_limits(model: pin.Model, root: Element) -> None:
+    """Set hinge and slide limits as MuJoCo reads them. Pinocchio 4.1 converts a slide's
+    ``range`` from degrees as if it were an angle, and keeps the range of a joint with
+    ``limited="false"``. MuJoCo: a joint is limited when ``limited="true"``, or with
+    ``limited="auto"`` (the default) when it has a ``range`` and ``autolimits`` is on (the
+    default); a hinge's range is in degrees unless ``<compiler angle="radian">``. Unlimited
+    coordinates get ``±inf``."""
+    degrees = compiler_option(root, "angle", "degree") == "degree"
+    autolimits = compiler_option(root, "autolimits", "true") == "true"
+    lower, upper = model.lowerPositionLimit.copy(), model.upperPositionLimit.copy()
+    for joint in root.iter("joint"):
+        kind = joint.get("type", "hinge")
+        name = joint.get("name")
+        if kind not in ("hinge", "slide") or not name or not model.existJointName(name):
+            continue
+        index = model.joints[model.getJointId(name)].idx_q
+        given = numbers(joint.get("range"))
+        limited = joint.get("limited", "auto")
+        if limited == "true" or (limited == "auto" and autolimits and len(given) == 2):
+            low, high = given if len(given) == 2 else (0.0, 0.0)
+            scale = np.pi / 180 if kind == "hinge" and degrees else 1.0
+            lower[index], upper[index] = low * scale, high * scale
+        else:
+            lower[index], upper[index] = -np.inf, np.inf
+    model.lowerPositionLimit, model.upperPositionLimit = lower, upper
 
 
 def _rename_shared_frame_names(model: pin.Model) -> None:

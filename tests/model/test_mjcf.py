@@ -320,3 +320,17 @@ def test_a_fixed_top_body_keeps_its_placement(tmp_path):
     np.testing.assert_allclose(pin.nle(robot.model, robot.new_data(), q, np.zeros(2)), -leg_bias(q, np.zeros(2)),
                                rtol=RTOL)
     np.testing.assert_allclose(_mass_matrix(robot, q), leg_mass_matrix(q), rtol=RTOL)
+
+
+def test_joint_limits_are_read_as_mujoco_reads_them(tmp_path):
+    """Default ``angle="degree"``: the hinge's -90..45 deg is -pi/2..pi/4 rad; a slide's range is
+    a length (0.5 m, not 0.5 deg); no range, or ``limited="false"``, is unlimited."""
+    inertial = '<inertial pos="0 0 0" mass="1" diaginertia="1 1 1"/>'
+    text = f"""<mujoco><worldbody><body name="a"><joint name="h" axis="0 1 0" range="-90 45"/>{inertial}
+      <body name="b"><joint name="s" type="slide" range="-0.5 0.25"/>{inertial}
+      <body name="c"><joint name="u" axis="1 0 0"/>{inertial}
+      <body name="d"><joint name="l" axis="1 0 0" range="-1 1" limited="false"/>{inertial}
+      </body></body></body></body></worldbody></mujoco>"""
+    model = load_robot(write(tmp_path, "limits.xml", text)).model
+    np.testing.assert_allclose(model.lowerPositionLimit, [-np.pi / 2, -0.5, -np.inf, -np.inf], rtol=1e-15)
+    np.testing.assert_allclose(model.upperPositionLimit, [np.pi / 4, 0.25, np.inf, np.inf], rtol=1e-15)

@@ -104,12 +104,21 @@ def test_classes_written_inline_do_not_change_mujocos_model(tmp_path):
 def test_menagerie_model_matches_mujoco(tmp_path, relative):
     """Go2, Berkeley Humanoid and the LEAP hand (a fixed palm turned upside down by its ``quat``;
     meshes stripped for MuJoCo) at four random states;
-    and the reference pose (keyframe ``home``) puts every body where MuJoCo does."""
+    their joint limits are MuJoCo's; and the reference pose (keyframe ``home``) puts every body
+    where MuJoCo does."""
     import pinocchio as pin
 
     path = menagerie_file(relative)
     robot = load_robot(path)
     reference = _compare(robot, stripped_copy(path, tmp_path))
+    for j in range(reference.mj.njnt):  # hinge and slide limits: MuJoCo's range, else unlimited
+        if reference.mj.jnt_type[j] not in (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE):
+            continue
+        name = mujoco.mj_id2name(reference.mj, mujoco.mjtObj.mjOBJ_JOINT, j)
+        i = robot.model.joints[robot.joint_id(name)].idx_q
+        expected = reference.mj.jnt_range[j] if reference.mj.jnt_limited[j] else [-np.inf, np.inf]
+        np.testing.assert_allclose([robot.model.lowerPositionLimit[i], robot.model.upperPositionLimit[i]],
+                                   expected, rtol=1e-15, err_msg=name)  # one degree conversion: round-off
     key = mujoco.mj_name2id(reference.mj, mujoco.mjtObj.mjOBJ_KEY, "home")
     if key >= 0:
         mujoco.mj_resetDataKeyframe(reference.mj, reference.data, key)
