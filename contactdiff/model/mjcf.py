@@ -29,6 +29,7 @@ coordinates (``R`` the body's orientation) and the identity elsewhere, and
 
 from __future__ import annotations
 
+import copy
 import tempfile
 import warnings
 from dataclasses import dataclass, field
@@ -95,10 +96,9 @@ def audit(root: Element, floating_base: bool | None = None) -> Audit:
 
     Repairs: several top-level bodies without a free joint, or one placed away from the
     world's origin, are put into one body fixed to the world (Pinocchio reads only the
-    first top-level body, and drops its placement); mesh geoms
-    that carry no mass in MuJoCo (``mass="0"`` or ``density="0"``) are removed
-    from bodies without ``<inertial>`` (Pinocchio gives each 1 kg); the free
-    joint is added or removed as ``floating_base`` asks.
+    first top-level body, and drops its placement); the free joint is added or
+    removed as ``floating_base`` asks. (The geoms Pinocchio weighs are set in a
+    copy, `pinocchio_tree`.)
 
     Refused: a mesh geom that gives mass to a body without ``<inertial>`` (no
     mesh is integrated here), several top-level trees with a free joint, flex
@@ -221,32 +221,52 @@ def _base_joint(root: Element, floating_base: bool | None, found: Audit) -> None
         found.repaired.append(f"the free joint of body {_named(base)} removed (floating_base=False)")
 
 
-def _mesh_masses(root: Element, found: Audit) -> None:
+def _bodies_weighed_by_geoms(root: Element):
+    """``(body, [(geom, weighs)])`` of each body whose inertia MuJoCo takes from its geoms (no
+    ``<inertial>``, or ``<compiler inertiafromgeom="true">``); a geom weighs nothing with
+    ``mass="0"``, ``density="0"`` or a ``group`` outside ``inertiagrouprange``."""
     from_geoms = compiler_option(root, "inertiafromgeom", "auto")
     low, high = numbers(compiler_option(root, "inertiagrouprange", "0 5"))[:2]
-    meshes = {e.get("name") or Path(e.get("file", "")).stem for e in root.iter("mesh")}
-    heavy_bodies = []
     for body, _ in bodies(root):
         if body.find("inertial") is not None and from_geoms != "true":
             continue
-        heavy = []
+        geoms = []
         for geom in body.findall("geom"):
-            is_mesh = geom.get("type") == "mesh" or (geom.get("type") is None and geom.get("mesh") in meshes)
-            if not is_mesh:
-                continue
             group = numbers(geom.get("group"), (0.0,))[0]
-            massless = (numbers(geom.get("mass"), (1.0,))[0] == 0 or numbers(geom.get("density"), (1.0,))[0] == 0
-                        or not low <= group <= high)
-            if massless:
-                body.remove(geom)
-            else:
-                heavy.append(geom)
-        if heavy:
-            heavy_bodies.append(_named(body))
+            weighs = not (numbers(geom.get("mass"), (1.0,))[0] == 0 or numbers(geom.get("density"), (1.0,))[0] == 0
+                          or not low <= group <= high)
+            geoms.append((geom, weighs))
+        yield body, geoms
+
+
+def _is_mesh(geom: Element) -> bool:
+    return geom.get("type") == "mesh" or (geom.get("type") is None and geom.get("mesh") is not None)
+
+
+def _mesh_masses(root: Element, found: Audit) -> None:
+    heavy_bodies = [_named(body) for body, geoms in _bodies_weighed_by_geoms(root)
+                    if any(weighs and _is_mesh(geom) for geom, weighs in geoms)]
     if heavy_bodies:
         shown = ", ".join(heavy_bodies[:8]) + (f" and {len(heavy_bodies) - 8} more" if len(heavy_bodies) > 8 else "")
         found.refused.append(f"{len(heavy_bodies)} bodies without <inertial> take mass from mesh geoms ({shown}); "
                              "meshes are not integrated here: give each such body an <inertial>")
+
+
+def pinocchio_tree(root: Element) -> Element:
+    """A copy of ``root`` whose geoms Pinocchio weighs as MuJoCo does: in bodies that take
+    their inertia from geoms, a geom that weighs nothing in MuJoCo is removed (Pinocchio
+    gives a mesh 1 kg and weighs geoms of any group), and a visual geom
+    (``contype = conaffinity = 0``) that weighs is marked colliding (Pinocchio weighs only
+    colliding geoms). Contacts are not read from Pinocchio's model, so this changes nothing else."""
+    tree = copy.deepcopy(root)
+    for body, geoms in _bodies_weighed_by_geoms(tree):
+        for geom, weighs in geoms:
+            if not weighs:
+                body.remove(geom)
+            elif geom.get("contype", "1") == "0" and geom.get("conaffinity", "1") == "0":
+                geom.set("contype", "1")
+                geom.set("conaffinity", "1")
+    return tree
 
 
 def build_model(path: str | Path, floating_base: bool | None = None,
@@ -273,7 +293,7 @@ def build_model(path: str | Path, floating_base: bool | None = None,
                       stacklevel=3)
     with tempfile.TemporaryDirectory() as folder:
         resolved = Path(folder) / path.name
-        resolved.write_bytes(tostring(root))
+        resolved.write_bytes(tostring(pinocchio_tree(root)))
         try:
             model = pin.buildModelFromMJCF(str(resolved))
         except (RuntimeError, ValueError, IndexError) as exc:

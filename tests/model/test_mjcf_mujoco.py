@@ -43,6 +43,7 @@ def _close(actual, expected, what):
 
 
 def _compare(robot, path, count=4):
+    """M and b of ``robot`` against MuJoCo's model of ``path`` at ``count`` random states."""
     reference = MujocoReference(robot.model, path)
     import pinocchio as pin
 
@@ -129,3 +130,34 @@ def test_menagerie_model_matches_mujoco(tmp_path, relative):
             name = mujoco.mj_id2name(reference.mj, mujoco.mjtObj.mjOBJ_BODY, b)
             np.testing.assert_allclose(data.oMf[robot.frame_id(name)].translation, reference.data.xpos[b],
                                        rtol=0, atol=1e-12, err_msg=name)  # m; lengths O(1), round-off 1e-15
+
+
+GEOM_CASES = {
+    "visual box (contype = conaffinity = 0)": '<geom type="box" size="0.1 0.2 0.05" pos="0 0 -0.3" '
+                                              'contype="0" conaffinity="0"/>',
+    "group outside inertiagrouprange": '<geom type="box" size="0.1 0.2 0.05" pos="0 0 -0.3"/>'
+                                       '<geom type="sphere" size="0.1" group="7"/>',
+    "capsule by fromto": '<geom type="capsule" fromto="0 0 0 0.1 0 -0.4" size="0.03"/>',
+    "turned cylinder with density": '<geom type="cylinder" size="0.05 0.2" quat="0.9 0.3 0.1 0" pos="0.1 0 -0.2" '
+                                    'density="500"/>',
+    "ellipsoid": '<geom type="ellipsoid" size="0.05 0.1 0.2" pos="0 0 -0.2"/>',
+    "two geoms with masses": '<geom type="box" size="0.1 0.05 0.05" pos="0.1 0 -0.3" mass="2"/>'
+                             '<geom type="sphere" size="0.05" pos="-0.1 0 0" mass="1"/>',
+    "massless mesh beside a box": '<geom type="mesh" mesh="hull" mass="0"/><geom type="box" size="0.1 0.1 0.1"/>',
+}
+
+
+@pytest.mark.parametrize("case", list(GEOM_CASES))
+def test_inertia_from_geoms_matches_mujoco(tmp_path, case):
+    """A body without <inertial> below a free root: MuJoCo weighs every geom in
+    ``inertiagrouprange`` (visual ones too) and none of mass 0; Pinocchio alone weighs only
+    colliding geoms, of any group, and a mesh as 1 kg (the loader's copy for it fixes that).
+    MuJoCo compiles the file without the mesh (stripped)."""
+    geoms = GEOM_CASES[case]
+    xml = f"""<mujoco><asset><mesh name="hull" file="hull.stl"/></asset><worldbody><body name="root"><freejoint/>
+      <inertial pos="0 0 0" mass="1" diaginertia="0.1 0.1 0.1"/>
+      <body name="b" pos="0 0 -0.1" euler="10 20 30"><joint name="h" axis="0 1 0"/>{geoms}</body>
+      </body></worldbody></mujoco>"""
+    path = write(tmp_path, "geoms.xml", xml)
+    (tmp_path / "stripped").mkdir()
+    _compare(load_robot(path), stripped_copy(path, tmp_path / "stripped"), count=3)
