@@ -40,7 +40,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import ModelLoadError, UnsupportedModelError
-from . import mjcf_xml
+from . import mjcf_tree, mjcf_xml
 from .mjcf_xml import bodies, compiler_option, numbers
 
 
@@ -94,7 +94,9 @@ def _named(element: Element, fallback: str = "") -> str:
 def audit(root: Element, floating_base: bool | None = None) -> Audit:
     """Find (and repair in ``root``, in place) what Pinocchio's MJCF parser would drop.
 
-    Repairs: several top-level bodies without a free joint, or one placed away from the
+    Repairs: orientations become quaternions, ``<frame>`` elements are replaced by
+    their children and bodies with several joints are split (`contactdiff.model.mjcf_tree`);
+    several top-level bodies without a free joint, or one placed away from the
     world's origin, are put into one body fixed to the world (Pinocchio reads only the
     first top-level body, and drops its placement); the free joint is added or
     removed as ``floating_base`` asks. (The geoms Pinocchio weighs are set in a
@@ -109,6 +111,13 @@ def audit(root: Element, floating_base: bool | None = None) -> Audit:
     tendons, actuator activation dynamics.
     """
     found = Audit()
+    mjcf_tree.orientations_as_quaternions(root)
+    frames = mjcf_tree.flatten_frames(root)
+    if frames:
+        found.repaired.append(f"{frames} <frame> element(s) replaced by their children, placed")
+    split = mjcf_tree.split_joints(root, {e.get("name") for e in root.iter() if e.get("name")})
+    if split:
+        found.repaired.append(f"bodies with several joints ({', '.join(split)}) split into one body per joint")
     _base_joint(root, floating_base, found)
     _top_bodies(root, found)
     _mesh_masses(root, found)

@@ -247,7 +247,7 @@ def resolve(doc: MJCFDocument) -> Element:
 
 def _inline(doc: MJCFDocument, body: Element, childclass: str) -> None:
     for element in body:
-        if element.tag == "body":
+        if element.tag in ("body", "frame"):
             _inline(doc, element, element.get("childclass", childclass))
             continue
         if element.tag not in BODY_TREE_TAGS:

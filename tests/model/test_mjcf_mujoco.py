@@ -161,3 +161,49 @@ def test_inertia_from_geoms_matches_mujoco(tmp_path, case):
     path = write(tmp_path, "geoms.xml", xml)
     (tmp_path / "stripped").mkdir()
     _compare(load_robot(path), stripped_copy(path, tmp_path / "stripped"), count=3)
+
+
+_INERTIAL = '<inertial pos="0.01 0.02 -0.1" quat="0.9 0.1 0.3 0.2" mass="1" diaginertia="0.01 0.02 0.03"/>'
+TREE_CASES = {
+    "joint ref in degrees": f'<body name="b" pos="0 0 -0.1"><joint name="h" axis="0 1 0" ref="30"/>{_INERTIAL}</body>',
+    "axisangle in degrees, unnormalised axis": f'<body name="b" pos="0 0 -0.1" axisangle="1 1 0 40">'
+                                               f'<joint name="h" axis="1 2 3"/>{_INERTIAL}</body>',
+    "euler with eulerseq ZyX": f'<body name="b" pos="0 0 -0.1" euler="10 -50 80"><joint name="h" axis="0 1 0"/>'
+                               f'{_INERTIAL}<body name="c" pos="0.1 0 0" euler="30 0 20"><joint name="k"/>'
+                               f'{_INERTIAL}</body></body>',
+    "xyaxes and zaxis": f'<body name="b" pos="0 0 -0.1" xyaxes="1 1 0 -1 2 0.5"><joint name="h" axis="0 1 0"/>'
+                        f'{_INERTIAL}<body name="c" zaxis="0 1 1"><joint name="k" pos="0.1 0 0"/>{_INERTIAL}'
+                        '</body></body>',
+    "ball joint": f'<body name="b" pos="0 0 -0.1"><joint name="h" type="ball"/>{_INERTIAL}</body>',
+    "frame": f'<frame pos="0.1 0 -0.2" euler="0 30 0"><frame quat="0.8 0.6 0 0"><body name="b" pos="0 0.1 0">'
+             f'<joint name="h" axis="0 1 0"/>{_INERTIAL}<geom type="box" size="0.1 0.1 0.1"/></body></frame></frame>',
+    "two joints in one body": f'<body name="b" pos="0 0 -0.1" euler="0 20 0"><joint name="h" axis="0 1 0"/>'
+                              f'<joint name="h2" axis="1 0 0" pos="0 0 -0.05"/><joint name="h3" type="slide"/>'
+                              f'{_INERTIAL}</body>',
+    "childclass joint pos and armature": f'<body name="b" pos="0 0 -0.1" childclass="c"><joint name="h"/>'
+                                         f'{_INERTIAL}</body>',
+}
+
+
+@pytest.mark.parametrize("case", list(TREE_CASES))
+def test_kinematic_tree_matches_mujoco(tmp_path, case):
+    """Placements and joints Pinocchio 4.1 alone reads differently from MuJoCo (an axisangle,
+    a <frame>, several joints in one body) or the same (the rest), under a free root: M and b
+    at random states, and every body's position at qpos0 (m, round-off on O(1) lengths)."""
+    import pinocchio as pin
+
+    xml = f"""<mujoco><compiler eulerseq="ZyX"/>
+      <default><default class="c"><joint axis="1 0 0" pos="0 0.05 0" armature="0.2"/></default></default>
+      <worldbody><body name="root" pos="0 0 1"><freejoint/><inertial pos="0 0 0" mass="1" diaginertia="0.1 0.1 0.1"/>
+      {TREE_CASES[case]}</body></worldbody></mujoco>"""
+    path = write(tmp_path, "tree.xml", xml)
+    robot = load_robot(path)
+    reference = _compare(robot, path, count=3)
+    mujoco.mj_resetData(reference.mj, reference.data)
+    mujoco.mj_kinematics(reference.mj, reference.data)
+    data = robot.new_data()
+    pin.framesForwardKinematics(robot.model, data, robot.q_ref)
+    for b in range(1, reference.mj.nbody):
+        name = mujoco.mj_id2name(reference.mj, mujoco.mjtObj.mjOBJ_BODY, b)
+        np.testing.assert_allclose(data.oMf[robot.frame_id(name)].translation, reference.data.xpos[b],
+                                   rtol=0, atol=1e-12, err_msg=name)
