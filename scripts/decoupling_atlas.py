@@ -1,7 +1,9 @@
 """The decoupling atlas: every MuJoCo Menagerie model beside the repository and every
 example-robot-data robot with feet, loaded and checked for limb decoupling.
 
-For each model (one point of a sweep, `contactdiff.sweeps.sweep`, on local worker
+For each Menagerie model, its ``scene.xml`` where it has one (the model's file
+included, a floor added, and Cassie's ``home`` keyframe), else its own file. For
+each model (one point of a sweep, `contactdiff.sweeps.sweep`, on local worker
 processes): load it (`contactdiff.load_robot`; an MJCF file through
 `contactdiff.model.mjcf`), record why not when it does not load, its feet and the
 rule that chose them, then run the checker (`contactdiff.check_decoupling`,
@@ -36,13 +38,17 @@ KINDS = {"unitree_go2": "quadruped", "agility_cassie": "biped", "berkeley_humano
          "wonik_allegro": "hand", "leap_hand": "hand", "kuka_iiwa_14": "arm", "universal_robots_ur5e": "arm"}
 
 
-def menagerie_models(folder: Path) -> list[tuple[str, str]]:
-    """``(label, path)`` of each model folder's main file (the ``.xml`` that is not a scene)."""
+def menagerie_models(folder: Path, scenes: bool = False) -> list[tuple[str, str]]:
+    """``(label, path)`` of each model folder's main file (the ``.xml`` that is not a scene);
+    with ``scenes``, its ``scene.xml`` where there is one (it includes the main file and
+    may hold the ``home`` keyframe, as Cassie's does)."""
     found = []
     for sub in sorted(p for p in folder.iterdir() if p.is_dir()):
         for path in sorted(sub.glob("*.xml")):
             if not path.name.startswith("scene"):
-                found.append((f"{sub.name}/{path.name}", str(path)))
+                scene = sub / "scene.xml"
+                chosen = scene if scenes and scene.is_file() else path
+                found.append((f"{sub.name}/{chosen.name}", str(chosen)))
     return found
 
 
@@ -97,7 +103,7 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=ROOT / "docs" / "results" / "atlas.md")
     args = parser.parse_args()
 
-    models = [("menagerie", label, path) for label, path in menagerie_models(args.menagerie)]
+    models = [("menagerie", label, path) for label, path in menagerie_models(args.menagerie, scenes=True)]
     models += [("example-robot-data", name, name) for name in example_robot_data_names()]
     started = time.perf_counter()
     points = [{"arg:source": path, "arg:hand": KINDS.get(label.split("/")[0]) == "hand"} for _, label, path in models]

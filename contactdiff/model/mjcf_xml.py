@@ -152,6 +152,7 @@ def read_document(path: str | Path, allow_outside: bool = False) -> MJCFDocument
     folder = path.resolve().parent
     doc = MJCFDocument(path, root, [path])
     _expand_includes(doc, root, folder, allow_outside, [path.resolve()])
+    _merge_sections(root)
     _check_asset_paths(doc, folder, allow_outside)
     doc.classes = _default_classes(root)
     return doc
@@ -182,6 +183,21 @@ def _expand_includes(doc: MJCFDocument, element: Element, folder: Path, allow_ou
         _expand_includes(doc, included, folder, allow_outside, stack + [target.resolve()])
         children.extend(included)
     element[:] = children
+
+
+MERGED_SECTIONS = ("worldbody", "asset", "actuator", "keyframe", "contact", "equality", "tendon", "sensor")
+"""Top-level sections MuJoCo reads as one when a model has several (a ``scene.xml`` that
+includes the robot's file and adds its own ``<worldbody>`` with a floor)."""
+
+
+def _merge_sections(root: Element) -> None:
+    """Move the children of repeated `MERGED_SECTIONS` into the first of each (Pinocchio
+    reads only one ``<worldbody>``: a scene file's floor would hide the robot)."""
+    for tag in MERGED_SECTIONS:
+        sections = root.findall(tag)
+        for extra in sections[1:]:
+            sections[0].extend(list(extra))
+            root.remove(extra)
 
 
 def _check_asset_paths(doc: MJCFDocument, folder: Path, allow_outside: bool) -> None:

@@ -133,3 +133,24 @@ def test_missing_meshes_load_and_the_replay_draws_spheres_and_says_so(tmp_path):
     with pytest.warns(MJCFWarning, match=r"drawn as spheres at its bodies \(1 of its 1 mesh files are missing\)"):
         geoms = drawn_geometry(robot, 0.01)
     assert geoms.ngeoms >= 1 and all(type(g.geometry).__name__ == "Sphere" for g in geoms.geometryObjects)
+
+
+def test_a_scene_file_including_the_robot_is_the_robot(tmp_path):
+    """Menagerie's ``scene.xml`` pattern: include the robot, add a <worldbody> with a floor
+    and a light. MuJoCo reads the two worldbody sections as one; so does the loader."""
+    write(tmp_path, "free.xml", FREE_XML.replace("</mujoco>", '<keyframe><key name="home" '
+                                                 'qpos="0 0 0.5 1 0 0 0"/></keyframe></mujoco>'))
+    scene = write(tmp_path, "scene.xml", '<mujoco model="scene"><include file="free.xml"/><worldbody>'
+                  '<light pos="0 0 1.5"/><geom name="floor" size="0 0 0.05" type="plane"/></worldbody></mujoco>')
+    robot = load_robot(scene)
+    assert robot.floating_base and robot.nv == 6
+    assert list(robot.q_ref) == [0, 0, 0.5, 0, 0, 0, 1]  # the included file's keyframe home
+
+
+def test_menagerie_go2_scene_is_go2():
+    from helpers import menagerie_file
+
+    robot = load_robot(menagerie_file("unitree_go2/go2.xml"))
+    scene = load_robot(menagerie_file("unitree_go2/scene.xml"))
+    assert scene.nv == robot.nv and scene.feet == robot.feet
+    assert list(scene.q_ref) == list(robot.q_ref)
