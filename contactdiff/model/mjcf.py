@@ -49,7 +49,8 @@ class MJCFWarning(UserWarning):
 
 
 _DYNAMIC_ACTUATORS = ("cylinder", "muscle", "adhesion")  # shortcuts with activation dynamics
-_FLEX_TAGS = ("flex", "flexcomp", "composite", "skin")
+_FLEX_TAGS = ("flex", "flexcomp", "composite")
+_GENERATED = ("replicate", "attach")  # MuJoCo 3's generated bodies: unknown to Pinocchio 4.1
 _PLACEMENT = {"pos", "quat", "euler", "axisangle", "xyaxes", "zaxis"}
 
 
@@ -104,7 +105,8 @@ def audit(root: Element, floating_base: bool | None = None) -> Audit:
 
     Refused: a mesh geom that gives mass to a body without ``<inertial>`` (no
     mesh is integrated here), several top-level trees with a free joint, flex
-    and composite bodies (degrees of freedom Pinocchio cannot represent).
+    and composite bodies (degrees of freedom Pinocchio cannot represent),
+    ``<replicate>`` and ``<attach>`` (bodies Pinocchio would not create).
 
     Left out (warned): other top-level bodies without joints (fixed to the world,
     no effect on the robot's dynamics), height fields, equality constraints,
@@ -125,6 +127,10 @@ def audit(root: Element, floating_base: bool | None = None) -> Audit:
         for element in root.iter(tag):
             found.refused.append(f"<{tag}> {_named(element, '(unnamed)')} (deformable bodies add degrees of "
                                  "freedom the rigid-body model does not have)")
+    for tag in _GENERATED:
+        for element in root.iter(tag):
+            found.refused.append(f"<{tag}> (its bodies would be lost: save the model expanded by MuJoCo, "
+                                 "mujoco.mj_saveLastXML, and load that)")
     hfields = [_named(e, "(unnamed)") for e in root.iter("hfield")]
     _remove(root, lambda e: e.tag == "hfield" or (e.tag == "geom" and (e.get("type") == "hfield" or e.get("hfield"))))
     if hfields:

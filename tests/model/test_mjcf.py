@@ -193,6 +193,13 @@ def test_flex_is_refused(tmp_path):
         load_robot(_with(tmp_path, flex))
 
 
+def test_replicate_is_refused(tmp_path):
+    body = '<replicate count="3" offset="0.1 0 0"><body name="r"><joint name="rj"/>' \
+           '<inertial pos="0 0 0" mass="1" diaginertia="1 1 1"/></body></replicate>'
+    with pytest.raises(UnsupportedModelError, match="<replicate>.*mj_saveLastXML"):
+        load_robot(_with(tmp_path, "", body))
+
+
 def test_mesh_mass_without_inertial_is_refused(tmp_path):
     text = """<mujoco><asset><mesh name="m" file="m.stl"/></asset><worldbody><body name="b">
       <joint name="j"/><geom type="mesh" mesh="m"/></body></worldbody></mujoco>"""
@@ -334,3 +341,29 @@ def test_joint_limits_are_read_as_mujoco_reads_them(tmp_path):
     model = load_robot(write(tmp_path, "limits.xml", text)).model
     np.testing.assert_allclose(model.lowerPositionLimit, [-np.pi / 2, -0.5, -np.inf, -np.inf], rtol=1e-15)
     np.testing.assert_allclose(model.upperPositionLimit, [np.pi / 4, 0.25, np.inf, np.inf], rtol=1e-15)
+
+
+def test_orientations_as_mujoco_defines_them():
+    """Closed forms, (w, x, y, z): 90 deg about z is (cos 45°, 0, 0, sin 45°) whatever the axis's
+    length; intrinsic ``xyz`` Euler angles compose as ``q_x q_y q_z``, extrinsic ``XYZ`` as
+    ``q_z q_y q_x``; ``xyaxes`` (0,1,0), (-1,0,0) is 90 deg about z; ``zaxis`` (0,1,0) takes z to y
+    by the shortest turn, -90 deg about x; ``zaxis`` (0,0,-1) is a half turn about x."""
+    from xml.etree.ElementTree import Element
+
+    from contactdiff.model.mjcf_tree import orientation, quat_multiply, quat_rotate
+
+    c = np.sqrt(0.5)
+    expected = np.array([c, 0, 0, c])
+    np.testing.assert_allclose(orientation(Element("b", axisangle="0 0 3 90"), True, "xyz"), expected, atol=1e-15)
+    np.testing.assert_allclose(orientation(Element("b", xyaxes="0 1 0 -1 0 0"), True, "xyz"), expected, atol=1e-15)
+    np.testing.assert_allclose(orientation(Element("b", zaxis="0 1 0"), True, "xyz"), [c, -c, 0, 0], atol=1e-15)
+    np.testing.assert_allclose(orientation(Element("b", zaxis="0 0 -1"), True, "xyz"), [0, 1, 0, 0], atol=1e-15)
+
+    def turn(axis, angle):
+        return np.concatenate([[np.cos(angle / 2)], np.sin(angle / 2) * np.eye(3)[axis]])
+    a, b, g = 0.3, -0.7, 1.1
+    intrinsic = quat_multiply(quat_multiply(turn(0, a), turn(1, b)), turn(2, g))
+    extrinsic = quat_multiply(quat_multiply(turn(2, g), turn(1, b)), turn(0, a))
+    np.testing.assert_allclose(orientation(Element("b", euler=f"{a} {b} {g}"), False, "xyz"), intrinsic, atol=1e-15)
+    np.testing.assert_allclose(orientation(Element("b", euler=f"{a} {b} {g}"), False, "XYZ"), extrinsic, atol=1e-15)
+    np.testing.assert_allclose(quat_rotate(expected, np.array([1.0, 0, 0])), [0, 1, 0], atol=1e-15)
