@@ -103,9 +103,10 @@ def audit(root: Element, floating_base: bool | None = None) -> Audit:
     removed as ``floating_base`` asks. (The geoms Pinocchio weighs are set in a
     copy, `pinocchio_tree`.)
 
-    Refused: a mesh geom that gives mass to a body without ``<inertial>`` (no
-    mesh is integrated here), several top-level trees with a free joint, flex
-    and composite bodies (degrees of freedom Pinocchio cannot represent),
+    Refused: a mesh geom that gives mass to a moving body without ``<inertial>``
+    (no mesh is integrated here; a body welded to the world may weigh anything),
+    several top-level trees with a free joint, flex and composite bodies (degrees
+    of freedom Pinocchio cannot represent),
     ``<replicate>`` and ``<attach>`` (bodies Pinocchio would not create).
 
     Left out (warned): other top-level bodies without joints (fixed to the world,
@@ -258,9 +259,20 @@ def _is_mesh(geom: Element) -> bool:
     return geom.get("type") == "mesh" or (geom.get("type") is None and geom.get("mesh") is not None)
 
 
+def _moving_bodies(root: Element) -> set[int]:
+    """``id()`` of every body with a joint on its path from the world (the others are
+    welded to the world: their mass moves nothing)."""
+    moving = set()
+    for body, parent in bodies(root):
+        if (parent is not None and id(parent) in moving) or _joints(body):
+            moving.add(id(body))
+    return moving
+
+
 def _mesh_masses(root: Element, found: Audit) -> None:
+    moving = _moving_bodies(root)
     heavy_bodies = [_named(body) for body, geoms in _bodies_weighed_by_geoms(root)
-                    if any(weighs and _is_mesh(geom) for geom, weighs in geoms)]
+                    if id(body) in moving and any(weighs and _is_mesh(geom) for geom, weighs in geoms)]
     if heavy_bodies:
         shown = ", ".join(heavy_bodies[:8]) + (f" and {len(heavy_bodies) - 8} more" if len(heavy_bodies) > 8 else "")
         found.refused.append(f"{len(heavy_bodies)} bodies without <inertial> take mass from mesh geoms ({shown}); "

@@ -207,6 +207,15 @@ def test_mesh_mass_without_inertial_is_refused(tmp_path):
         load_robot(write(tmp_path, "mesh.xml", text))
 
 
+def test_mesh_mass_of_a_body_welded_to_the_world_is_not_needed(tmp_path):
+    """A fixed mount weighed by a mesh moves nothing: the pendulum below it keeps ``M = 0.502``."""
+    text = """<mujoco><asset><mesh name="m" file="m.stl"/></asset><worldbody><body name="mount">
+      <geom type="mesh" mesh="m"/><body name="b"><joint name="j" axis="0 1 0"/>
+      <geom type="sphere" mass="2" size="0.05" pos="0 0 -0.5"/></body></body></worldbody></mujoco>"""
+    robot = load_robot(write(tmp_path, "mount.xml", text))
+    assert _mass_matrix(robot, np.zeros(1))[0, 0] == pytest.approx(0.4 * 2 * 0.05**2 + 2 * 0.25, rel=RTOL)
+
+
 def test_massless_mesh_geoms_are_removed_not_weighed(tmp_path):
     """A ``density="0"`` mesh weighs nothing in MuJoCo (Pinocchio would give it 1 kg): the
     pendulum of `test_geom_mass_and_pos_from_a_class` keeps ``M = 0.502``."""
