@@ -30,6 +30,7 @@ coordinates (``R`` the body's orientation) and the identity elsewhere, and
 from __future__ import annotations
 
 import copy
+import dataclasses
 import tempfile
 import warnings
 from dataclasses import dataclass, field
@@ -440,7 +441,8 @@ def load_mjcf(path: str | Path, floating_base: bool | None = None, feet=None, na
         path: the MJCF file.
         floating_base: None keeps the model's own base (a free joint is a floating
             base); True adds a free joint to the top body, False removes it.
-        feet: foot frames chosen by hand, or None: the model's collision spheres on
+        feet: foot frames chosen by hand (a leaf body's collision sphere, by its
+            geom's name, is a round foot), or None: the model's collision spheres on
             leaf bodies (`contactdiff.model.mjcf_feet`), else the rule of
             `contactdiff.model.feet`.
         name: the robot's name (default: the file's stem).
@@ -455,7 +457,7 @@ def load_mjcf(path: str | Path, floating_base: bool | None = None, feet=None, na
         UnsafeModelFileError, UnsupportedModelError, ModelLoadError: see `build_model`.
     """
     from .feet import choose_feet
-    from .mjcf_feet import sphere_feet
+    from .mjcf_feet import add_sphere_frames, collision_spheres, sphere_feet
     from .robot import Robot, _check_inertias, _check_mass_matrix
 
     path = Path(path)
@@ -465,8 +467,14 @@ def load_mjcf(path: str | Path, floating_base: bool | None = None, feet=None, na
     q_ref, _ = reference_configuration(model, root)
     _check_mass_matrix(model, q_ref, path, "MJCF")
     choice = sphere_feet(model, root, q_ref) if feet is None and floating else None
+    spheres = {}
+    if feet is not None:  # the leaf spheres' frames can be named by hand, and are round then
+        spheres = add_sphere_frames(model, collision_spheres(root))
     if choice is None:
         choice, q_ref = choose_feet(model, q_ref, floating, feet)
+        radii = {f: spheres[f].radius for f in choice.feet if f in spheres}
+        if radii:
+            choice = dataclasses.replace(choice, radii=radii)
     return Robot(model, name or path.stem, str(path), floating, q_ref, choice.feet,
                  actuated_joints(model, root, floating), choice)
 

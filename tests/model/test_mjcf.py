@@ -376,3 +376,9 @@ def test_orientations_as_mujoco_defines_them():
     np.testing.assert_allclose(orientation(Element("b", euler=f"{a} {b} {g}"), False, "xyz"), intrinsic, atol=1e-15)
     np.testing.assert_allclose(orientation(Element("b", euler=f"{a} {b} {g}"), False, "XYZ"), extrinsic, atol=1e-15)
     np.testing.assert_allclose(quat_rotate(expected, np.array([1.0, 0, 0])), [0, 1, 0], atol=1e-15)
+
+
+def test_sphere_feet_chosen_by_hand_stay_round(tmp_path):
+    """``feet=["foot"]`` on the fixed leg: the geom's frame exists and its contact is round."""
+    robot = load_robot(write(tmp_path, "leg.xml", LEG_XML), feet=["foot"])
+    assert robot.foot_choice.rule is FootRule.GIVEN and robot.foot_choice.radii == {"foot": FOOT_R}
