@@ -382,3 +382,8 @@ def test_sphere_feet_chosen_by_hand_stay_round(tmp_path):
     """``feet=["foot"]`` on the fixed leg: the geom's frame exists and its contact is round."""
     robot = load_robot(write(tmp_path, "leg.xml", LEG_XML), feet=["foot"])
     assert robot.foot_choice.rule is FootRule.GIVEN and robot.foot_choice.radii == {"foot": FOOT_R}
+
+
+def test_keyframe_of_the_wrong_size_is_named(tmp_path):
+    with pytest.raises(ModelLoadError, match=r"keyframe 'bent' has 3 qpos values; the model has nq = 2"):
+        load_robot(write(tmp_path, "leg.xml", LEG_XML.replace('qpos="0.3 -0.6"', 'qpos="0.3 -0.6 1"')))
