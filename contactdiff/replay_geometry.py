@@ -6,7 +6,6 @@ Positions are in metres, in the model's frames; colours are RGBA in [0, 1].
 
 from __future__ import annotations
 
-import warnings
 from pathlib import Path
 
 import numpy as np
@@ -38,9 +37,9 @@ def visual_model(robot) -> pin.GeometryModel:
     from .model.mjcf_xml import looks_like_mjcf
 
     if looks_like_mjcf(urdf):  # MJCF visuals are not read: stand-in spheres, said in a warning
-        from .model.mjcf import replay_note
+        from .model.mjcf import replay_note, warn
 
-        warnings.warn(replay_note(robot), stacklevel=3)
+        warn(str(replay_note(robot)))
         return pin.GeometryModel()
     try:
         return pin.buildGeomFromUrdf(robot.model, str(urdf), pin.GeometryType.VISUAL,

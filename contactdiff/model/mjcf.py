@@ -48,6 +48,11 @@ class MJCFWarning(UserWarning):
     """An MJCF feature was left out of the dynamics (the message names it)."""
 
 
+def warn(message: str) -> None:
+    """Issue an `MJCFWarning` printed on one line (no source line: the model is not Python)."""
+    warnings.warn_explicit(MJCFWarning(message), MJCFWarning, "<mjcf>", 0)
+
+
 def build_model(path: str | Path, floating_base: bool | None = None,
                 allow_outside: bool = False) -> tuple[pin.Model, Element, Audit]:
     """Pinocchio's model of an MJCF file, after `audit`.
@@ -68,8 +73,7 @@ def build_model(path: str | Path, floating_base: bool | None = None,
     if found.refused:
         raise UnsupportedModelError(f"MJCF {str(path)!r} cannot be loaded as given: " + "; ".join(found.refused))
     if found.left_out:
-        warnings.warn(MJCFWarning(f"MJCF {path.name}: left out of the dynamics: " + "; ".join(found.left_out)),
-                      stacklevel=3)
+        warn(f"MJCF {path.name}: left out of the dynamics: " + "; ".join(found.left_out))
     _check_keyframes(root, path)
     with tempfile.TemporaryDirectory() as folder:
         resolved = Path(folder) / path.name

@@ -154,3 +154,26 @@ def test_menagerie_go2_scene_is_go2():
     scene = load_robot(menagerie_file("unitree_go2/scene.xml"))
     assert scene.nv == robot.nv and scene.feet == robot.feet
     assert list(scene.q_ref) == list(robot.q_ref)
+
+
+def test_cli_refuses_an_unsafe_file_on_one_line(tmp_path, capsys):
+    from contactdiff.cli import main
+
+    assert main(["check", str(write(tmp_path, "laughs.xml", BILLION_LAUGHS))]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "laughs.xml" in err and "refused" in err
+
+
+def test_left_out_warning_is_one_line(tmp_path):
+    """The warning names no Python source line: printed, it is one line."""
+    import warnings
+
+    from contactdiff.model.mjcf import MJCFWarning
+
+    text = FREE_XML.replace("</mujoco>", "<tendon><fixed name='t'/></tendon></mujoco>")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        load_robot(write(tmp_path, "free.xml", text))
+    (w,) = [w for w in caught if issubclass(w.category, MJCFWarning)]
+    printed = warnings.formatwarning(w.message, w.category, w.filename, w.lineno, w.line)
+    assert printed.count("\n") == 1 and "tendon(s) fixed 't'" in printed
