@@ -5,7 +5,9 @@ The package keeps clones of the models' repositories in its cache, the folder
 ``ROBOT_DESCRIPTIONS_CACHE`` (default ``~/.cache/robot_descriptions``), and clones a
 repository there the first time one of its models is asked for (that needs the
 network). `description_file` returns the model file (MJCF if the description has
-one, else URDF) for `contactdiff.model.robot.load_robot`.
+one, else URDF) for `contactdiff.model.robot.load_robot`, and `legged` says whether
+the package tags the robot quadruped, biped or humanoid (a URDF of one then gets a
+floating base by default; an MJCF says so itself with its free joint).
 """
 
 from __future__ import annotations
@@ -50,3 +52,17 @@ def description_file(name: str) -> Path | None:
         if path:
             return Path(path)
     raise ModelLoadError(f"robot_descriptions' {name!r} has neither an MJCF nor a URDF file")
+
+
+LEGGED_TAGS = frozenset({"quadruped", "biped", "humanoid"})
+"""robot_descriptions' tags of robots that stand on feet (a floating base)."""
+
+
+def legged(name: str) -> bool:
+    """Whether robot_descriptions tags ``name`` as a legged robot (`LEGGED_TAGS`)."""
+    if not installed():
+        return False
+    from robot_descriptions import DESCRIPTIONS
+
+    description = DESCRIPTIONS.get(name)
+    return description is not None and bool(set(description.tags) & LEGGED_TAGS)

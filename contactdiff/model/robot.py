@@ -251,10 +251,12 @@ def load_robot(source: str | Path, floating_base: bool | None = None,
 
     loader = ROBOTS.get(source)
     if loader is None:
-        from .descriptions import description_file
+        from .descriptions import description_file, legged
 
         described = description_file(source)  # the optional robot_descriptions package
         if described is not None:
+            if floating_base is None and described.suffix == ".urdf":
+                floating_base = legged(source)
             return load_robot(described, floating_base, feet)
         known = own_robot_names() + example_robot_data_names()
         raise UnknownRobotError(str(unknown_name("robot", source, known)))

@@ -30,24 +30,25 @@ def fresh_module(monkeypatch):
     sys.modules.pop(MODULE, None)
 
 
-def _cache_with_go2(tmp_path, monkeypatch):
+def _cache_with_go2(tmp_path, monkeypatch, repository="mujoco_menagerie", relative="unitree_go2/go2.xml",
+                    text=FREE_XML):
     """The package looks for ``mujoco_menagerie-<commit>/mujoco_menagerie`` in its cache when
     ``ROBOT_DESCRIPTION_COMMIT`` names a commit; a repository there with that commit checked out
     is used as it is. Its ``unitree_go2/go2.xml`` here is the free body of the MJCF tests.
     Returns the file's path."""
     source = tmp_path / "work"
-    (source / "unitree_go2").mkdir(parents=True)
-    (source / "unitree_go2" / "go2.xml").write_text(FREE_XML)
+    (source / relative).parent.mkdir(parents=True)
+    (source / relative).write_text(text)
     _git(source, "init", "-q")
     _git(source, "add", ".")
     _git(source, "commit", "-q", "-m", "model")
     commit = _git(source, "rev-parse", "HEAD")
     cache = tmp_path / "cache"
-    (cache / f"mujoco_menagerie-{commit}").mkdir(parents=True)
-    source.rename(cache / f"mujoco_menagerie-{commit}" / "mujoco_menagerie")
+    (cache / f"{repository}-{commit}").mkdir(parents=True)
+    source.rename(cache / f"{repository}-{commit}" / repository)
     monkeypatch.setenv("ROBOT_DESCRIPTIONS_CACHE", str(cache))
     monkeypatch.setenv("ROBOT_DESCRIPTION_COMMIT", commit)
-    return cache / f"mujoco_menagerie-{commit}" / "mujoco_menagerie" / "unitree_go2" / "go2.xml"
+    return cache / f"{repository}-{commit}" / repository / relative
 
 
 def test_go2_mj_description_resolves_through_the_cache(tmp_path, monkeypatch, fresh_module):
@@ -77,3 +78,18 @@ def test_an_empty_cache_without_network_is_a_load_error(tmp_path, monkeypatch, f
     with pytest.raises(ModelLoadError, match="robot_descriptions cannot provide 'go2_mj_description'.*"
                                              "ROBOT_DESCRIPTIONS_CACHE"):
         load_robot("go2_mj_description")
+
+
+def test_a_legged_urdf_description_gets_a_floating_base(tmp_path, monkeypatch):
+    """``go2_description`` is a URDF the package tags ``quadruped``: loaded with a free-flyer
+    (a URDF path alone is fixed). Its file here is the planar leg of the tests' helpers."""
+    from helpers import LEG_URDF
+
+    monkeypatch.delitem(sys.modules, "robot_descriptions.go2_description", raising=False)
+    _cache_with_go2(tmp_path, monkeypatch, "unitree_ros", "robots/go2_description/urdf/go2_description.urdf",
+                    LEG_URDF)
+    try:
+        robot = load_robot("go2_description")
+    finally:
+        sys.modules.pop("robot_descriptions.go2_description", None)
+    assert robot.floating_base and robot.nv == 6 + 3
