@@ -387,3 +387,23 @@ def test_sphere_feet_chosen_by_hand_stay_round(tmp_path):
 def test_keyframe_of_the_wrong_size_is_named(tmp_path):
     with pytest.raises(ModelLoadError, match=r"keyframe 'bent' has 3 qpos values; the model has nq = 2"):
         load_robot(write(tmp_path, "leg.xml", LEG_XML.replace('qpos="0.3 -0.6"', 'qpos="0.3 -0.6 1"')))
+
+
+def test_sphere_hands_high_above_the_ground_are_not_feet(tmp_path):
+    """Menagerie's H1 pattern: capsule feet on the legs' leaf bodies, collision spheres on the
+    arms' leaf bodies (the hands) 0.9 m up. No sphere lies in the foot band (5 % of the 1.3 m
+    height): the lowest end frames rule takes the two ankles, and the hands are left out."""
+    inertial = '<inertial pos="0 0 0" mass="1" diaginertia="0.01 0.01 0.01"/>'
+
+    def limb(name, y, z, end):
+        return (f'<body name="{name}_upper" pos="0 {y} {z}"><joint name="{name}_1" axis="0 1 0"/>{inertial}'
+                f'<body name="{name}_end" pos="0 0 -0.4"><joint name="{name}_2" axis="0 1 0"/>{inertial}{end}'
+                "</body></body>")
+    foot = '<geom type="capsule" fromto="-0.05 0 -0.05 0.1 0 -0.05" size="0.02"/>'
+    hand = '<geom type="sphere" size="0.03" pos="0 0 -0.3"/>'
+    text = f"""<mujoco><worldbody><body name="pelvis" pos="0 0 0.87"><freejoint/>{inertial}
+      {limb("left_leg", 0.1, 0, foot)}{limb("right_leg", -0.1, 0, foot)}
+      {limb("left_arm", 0.2, 0.4, hand)}{limb("right_arm", -0.2, 0.4, hand)}</body></worldbody></mujoco>"""
+    robot = load_robot(write(tmp_path, "humanoid.xml", text))
+    assert robot.foot_choice.rule is FootRule.LOWEST_END_FRAMES
+    assert robot.feet == ("left_leg_end", "right_leg_end")
