@@ -300,6 +300,9 @@ class FootSphere:
 def _collision_model(robot) -> pin.GeometryModel:
     if not robot.urdf:
         raise InvalidInputError(f"robot {robot.name!r} was built in code: no URDF to read collision geometry from")
+    if Path(robot.urdf).suffix == ".xml":
+        raise InvalidInputError(f"robot {robot.name!r} is an MJCF model: its round feet are the collision spheres "
+                                "of its leaf bodies (load it with feet=None or name them), and none is at these feet")
     # package://NAME/... resolves under any folder holding NAME: try the URDF's ancestors
     dirs = [str(p) for p in Path(robot.urdf).resolve().parents]
     try:

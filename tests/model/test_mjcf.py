@@ -407,3 +407,14 @@ def test_sphere_hands_high_above_the_ground_are_not_feet(tmp_path):
     robot = load_robot(write(tmp_path, "humanoid.xml", text))
     assert robot.foot_choice.rule is FootRule.LOWEST_END_FRAMES
     assert robot.feet == ("left_leg_end", "right_leg_end")
+
+
+def test_round_feet_of_an_mjcf_robot_without_sphere_feet_is_a_named_error(tmp_path):
+    """The two-link leg on a floating pelvis, its foot chosen by hand as the shank's body: no
+    sphere there, and no URDF to look in."""
+    from contactdiff.errors import InvalidInputError
+    from contactdiff.model.feet import foot_spheres
+
+    robot = load_robot(write(tmp_path, "leg.xml", LEG_XML), feet=["shank"])
+    with pytest.raises(InvalidInputError, match="is an MJCF model: its round feet are the collision spheres"):
+        foot_spheres(robot)
