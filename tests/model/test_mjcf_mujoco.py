@@ -100,11 +100,13 @@ def test_classes_written_inline_do_not_change_mujocos_model(tmp_path):
             _close(b, a, "rewritten vs original")
 
 
+@pytest.mark.filterwarnings("ignore::contactdiff.model.mjcf.MJCFWarning")  # Cassie's loops, tested elsewhere
 @pytest.mark.parametrize("relative", ["unitree_go2/go2.xml", "berkeley_humanoid/berkeley_humanoid.xml",
-                                      "leap_hand/right_hand.xml"])
+                                      "leap_hand/right_hand.xml", "agility_cassie/scene.xml"])
 def test_menagerie_model_matches_mujoco(tmp_path, relative):
-    """Go2, Berkeley Humanoid and the LEAP hand (a fixed palm turned upside down by its ``quat``;
-    meshes stripped for MuJoCo) at four random states;
+    """Go2, Berkeley Humanoid, the LEAP hand (a fixed palm turned upside down by its ``quat``)
+    and Cassie's scene (an include, two ball joints, its loops left out: MuJoCo's M and bias
+    hold no constraint either; meshes stripped for MuJoCo) at four random states;
     their joint limits are MuJoCo's; and the reference pose (keyframe ``home``) puts every body
     where MuJoCo does."""
     import pinocchio as pin
@@ -121,7 +123,7 @@ def test_menagerie_model_matches_mujoco(tmp_path, relative):
         np.testing.assert_allclose([robot.model.lowerPositionLimit[i], robot.model.upperPositionLimit[i]],
                                    expected, rtol=1e-15, err_msg=name)  # one degree conversion: round-off
     key = mujoco.mj_name2id(reference.mj, mujoco.mjtObj.mjOBJ_KEY, "home")
-    if key >= 0:
+    if key >= 0:  # else the first keyframe or qpos0, compared in test_kinematic_tree_matches_mujoco
         mujoco.mj_resetDataKeyframe(reference.mj, reference.data, key)
         mujoco.mj_kinematics(reference.mj, reference.data)
         data = robot.new_data()
