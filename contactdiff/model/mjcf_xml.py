@@ -65,11 +65,15 @@ class MJCFDocument:
     classes: dict[str, dict[str, dict[str, str]]] = field(default_factory=dict)
 
 
+MJCF_SUFFIXES = (".xml", ".mjcf")
+"""File name endings of MJCF files (MuJoCo's own are ``.xml``)."""
+
+
 def looks_like_mjcf(path: str | Path) -> bool:
-    """Whether ``path`` is an existing ``.xml`` file whose root element is ``<mujoco>``
-    (its first 64 kB are looked at; nothing is parsed)."""
+    """Whether ``path`` is an existing file ending in one of `MJCF_SUFFIXES` whose root
+    element is ``<mujoco>`` (its first 64 kB are looked at; nothing is parsed)."""
     path = Path(path)
-    if path.suffix.lower() != ".xml" or not path.is_file():
+    if path.suffix.lower() not in MJCF_SUFFIXES or not path.is_file():
         return False
     with open(path, "rb") as f:
         head = f.read(65536).decode("utf-8", errors="replace")

@@ -188,7 +188,7 @@ class Robot:
 
 def _is_path(source) -> bool:
     return isinstance(source, Path) or (
-        isinstance(source, str) and (os.sep in source or source.endswith((".urdf", ".xml")))
+        isinstance(source, str) and (os.sep in source or source.endswith((".urdf", ".xml", ".mjcf")))
     )
 
 

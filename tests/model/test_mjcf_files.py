@@ -112,7 +112,16 @@ def test_malformed_xml_is_a_load_error(tmp_path):
 def test_mjcf_is_recognised_by_extension_and_root(tmp_path):
     assert looks_like_mjcf(write(tmp_path, "a.xml", '<?xml version="1.0"?>\n<!-- c --><mujoco model="a"/>'))
     assert not looks_like_mjcf(write(tmp_path, "b.xml", '<robot name="b"/>'))
-    assert not looks_like_mjcf(write(tmp_path, "c.mjcf", "<mujoco/>"))
+    assert looks_like_mjcf(write(tmp_path, "c.mjcf", "<mujoco/>"))
+    assert not looks_like_mjcf(write(tmp_path, "d.txt", "<mujoco/>"))
+
+
+def test_a_file_larger_than_the_cap_is_refused(tmp_path, monkeypatch):
+    from contactdiff.model import mjcf_xml
+
+    monkeypatch.setattr(mjcf_xml, "MAX_FILE_BYTES", 100)
+    with pytest.raises(UnsafeModelFileError, match=r"has \d+ bytes, more than the 100 read"):
+        load_robot(write(tmp_path, "big.xml", FREE_XML))
 
 
 def test_missing_meshes_load_and_the_replay_draws_spheres_and_says_so(tmp_path):
