@@ -14,7 +14,8 @@ be told explicitly (`resolve`):
   ``<mujoco>`` root (MuJoCo's rule);
 * every ``joint``, ``geom`` and ``site`` of ``<worldbody>`` gets the attributes
   its default class (``class=``, else the nearest ``childclass``, else
-  ``main``) would give it, written on the element itself. Pinocchio 4.1 ignores
+  ``main``) would give it, written on the element itself (and so does each
+  ``<general>`` actuator, whose class may give it activation dynamics). Pinocchio 4.1 ignores
   a joint ``pos`` and a geom ``mass``/``pos``/``quat`` that come from a class;
   written inline they are read. MuJoCo's own reading of the file is unchanged
   (an inline attribute equals the class's value).
@@ -262,6 +263,10 @@ def resolve(doc: MJCFDocument) -> Element:
     root = copy.deepcopy(doc.root)
     for world in root.findall("worldbody"):
         _inline(doc, world, "main")
+    for section in root.findall("actuator"):  # a class's dyntype on <general> (actuator dynamics)
+        for element in section:
+            if element.tag == "general":
+                _inline_one(doc, element, "main")
     return root
 
 
@@ -270,21 +275,25 @@ def _inline(doc: MJCFDocument, body: Element, childclass: str) -> None:
         if element.tag in ("body", "frame"):
             _inline(doc, element, element.get("childclass", childclass))
             continue
-        if element.tag not in BODY_TREE_TAGS:
+        if element.tag in BODY_TREE_TAGS:
+            _inline_one(doc, element, childclass)
+
+
+def _inline_one(doc: MJCFDocument, element: Element, childclass: str) -> None:
+    """Write the attributes ``element``'s class gives it (``class=``, else ``childclass``) inline."""
+    name = element.get("class", childclass)
+    if name not in doc.classes:
+        raise ModelLoadError(f"MJCF {str(doc.path)!r}: <{element.tag} name={element.get('name')!r}> uses "
+                             f"class {name!r}, which is not defined; classes: {', '.join(sorted(doc.classes))}")
+    given = set(element.attrib)
+    for key, value in doc.classes[name].get(element.tag, {}).items():
+        if key in given or key == "class":
             continue
-        name = element.get("class", childclass)
-        if name not in doc.classes:
-            raise ModelLoadError(f"MJCF {str(doc.path)!r}: <{element.tag} name={element.get('name')!r}> uses "
-                                 f"class {name!r}, which is not defined; classes: {', '.join(sorted(doc.classes))}")
-        given = set(element.attrib)
-        for key, value in doc.classes[name].get(element.tag, {}).items():
-            if key in given or key == "class":
-                continue
-            if "fromto" in given and key in _FROMTO_REPLACES:
-                continue
-            if key in _ORIENTATION and given & set(_ORIENTATION):
-                continue
-            element.set(key, value)
+        if "fromto" in given and key in _FROMTO_REPLACES:
+            continue
+        if key in _ORIENTATION and given & set(_ORIENTATION):
+            continue
+        element.set(key, value)
 
 
 def bodies(root: Element):

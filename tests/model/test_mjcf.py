@@ -418,3 +418,10 @@ def test_round_feet_of_an_mjcf_robot_without_sphere_feet_is_a_named_error(tmp_pa
     robot = load_robot(write(tmp_path, "leg.xml", LEG_XML), feet=["shank"])
     with pytest.raises(InvalidInputError, match="is an MJCF model: its round feet are the collision spheres"):
         foot_spheres(robot)
+
+
+def test_actuator_dynamics_from_a_class_are_named(tmp_path):
+    extra = ('<default><default class="slow"><general dyntype="filter" dynprm="0.1"/></default></default>'
+             '<actuator><general name="m" class="slow" joint="hip"/></actuator>')
+    with pytest.warns(MJCFWarning, match="activation dynamics of actuator\\(s\\) general 'm'"):
+        load_robot(_with(tmp_path, extra))
