@@ -45,6 +45,17 @@ class ModelLoadError(ContactDiffError):
     """A URDF or scene file is missing, unreadable or malformed."""
 
 
+class UnsafeModelFileError(ModelLoadError):
+    """A model file is refused as unsafe to read: it declares XML entities or a DTD
+    (entity expansion, "billion laughs"), is too large, or names a file outside
+    the model's folder without the caller allowing it."""
+
+
+class UnsupportedModelError(ModelLoadError):
+    """A model uses a feature the dynamics cannot represent (Pinocchio would drop it
+    and give a different robot); the message names the feature and where it is."""
+
+
 class InconsistentStateError(ContactDiffError):
     """An initial state violates a unilateral constraint (penetration)."""
 

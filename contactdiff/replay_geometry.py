@@ -15,6 +15,8 @@ import numpy as np
 import pinocchio as pin
 
 from .errors import InvalidInputError
+from .model.mjcf import replay_note, warn
+from .model.mjcf_xml import looks_like_mjcf
 
 
 def drawn_geometry(robot, sphere_radius: float, package_dirs=()) -> pin.GeometryModel:
@@ -46,11 +48,15 @@ def visual_model(robot, package_dirs=()) -> pin.GeometryModel:
     """The visual geometry of ``robot``'s URDF, as Pinocchio's loaders read it: a mesh
     ``package://NAME/PATH`` is looked for as ``DIR/NAME/PATH`` in each of ``package_dirs``
     (`package_folders`), then in every folder above the URDF (where example-robot-data's
-    loader points too). Empty if the robot has no URDF or its URDF has no ``<visual>``;
-    the robot's own (dynamics-only) model is not changed."""
+    loader points too). Empty if the robot has no URDF or its URDF has no ``<visual>``,
+    or for an MJCF model, whose meshes are not read (a warning says so: stand-in
+    spheres); the robot's own (dynamics-only) model is not changed."""
     if not robot.urdf:
         return pin.GeometryModel()
     urdf = Path(robot.urdf)
+    if looks_like_mjcf(urdf):  # MJCF visuals are not read: stand-in spheres, said in a warning
+        warn(str(replay_note(robot)))
+        return pin.GeometryModel()
     dirs = [str(p) for p in package_folders(package_dirs)] + [str(p) for p in urdf.parents]
     try:
         return pin.buildGeomFromUrdf(robot.model, str(urdf), pin.GeometryType.VISUAL, package_dirs=dirs)

@@ -21,6 +21,7 @@ from __future__ import annotations
 import atexit
 import os
 from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
@@ -205,3 +206,17 @@ def sphere_urdf(mass: float, inertia: float) -> str:
   </link>
 </robot>
 """
+
+
+MENAGERIE = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "menagerie"
+"""MuJoCo Menagerie models (XML only) kept beside the repository, in ``../shared/data/menagerie``."""
+
+
+def menagerie_file(relative: str) -> Path:
+    """``MENAGERIE / relative``, or skip the test (with the path) when it is absent."""
+    import pytest
+
+    path = MENAGERIE / relative
+    if not path.is_file():
+        pytest.skip(f"Menagerie model {relative} is not in {MENAGERIE} (../shared/data/menagerie)")
+    return path

@@ -73,6 +73,7 @@ class FootRule(Enum):
     """How the feet of a robot were chosen."""
 
     LOWEST_END_FRAMES = "the lowest end frames at the reference pose"
+    MJCF_SPHERES = "the model's collision spheres on leaf bodies (MJCF), round contacts"
     GIVEN = "given by hand"
     FIXED_BASE = "none: the robot has a fixed base"
 
@@ -97,6 +98,8 @@ class FootChoice:
         heights: height of each foot above the robot's lowest frame (m).
         left_out: end frames that were not taken, with the reason.
         upright_turn: angle (rad) by which the reference pose was turned upright (rule 5).
+        radii: ``{foot: radius}`` (m) of feet that are spheres centred on their frame
+            (`FootRule.MJCF_SPHERES`); their contacts are round.
     """
 
     feet: tuple[str, ...]
@@ -105,12 +108,15 @@ class FootChoice:
     heights: dict[str, float] = field(default_factory=dict)
     left_out: tuple[LeftOut, ...] = ()
     upright_turn: float = 0.0
+    radii: dict[str, float] = field(default_factory=dict)
 
     def describe(self) -> str:
         """One line: which feet, by which rule, and what was left out."""
         feet = ", ".join(self.feet) or "(none)"
         text = f"feet {feet}: {self.rule.value}"
-        if self.rule is FootRule.LOWEST_END_FRAMES:
+        if self.radii:
+            text += " (radius " + ", ".join(sorted({f"{r * 1000:.3g} mm" for r in self.radii.values()})) + ")"
+        if self.rule in (FootRule.LOWEST_END_FRAMES, FootRule.MJCF_SPHERES):
             text += f" (within {self.band * 100:.3g} cm of the lowest frame)"
             if self.upright_turn:
                 text += (f"; the reference pose was turned {np.degrees(self.upright_turn):.0f} deg "
@@ -126,6 +132,7 @@ class FootChoice:
         with the `describe` line."""
         return {"feet": list(self.feet), "rule": self.rule.name.lower(), "band_m": self.band,
                 "heights_m": dict(self.heights), "upright_turn_rad": self.upright_turn,
+                "radii_m": dict(self.radii),
                 "left_out": [{"frame": x.frame, "height_m": x.height, "reason": x.reason}
                              for x in self.left_out],
                 "description": self.describe()}
@@ -293,6 +300,9 @@ class FootSphere:
 def _collision_model(robot) -> pin.GeometryModel:
     if not robot.urdf:
         raise InvalidInputError(f"robot {robot.name!r} was built in code: no URDF to read collision geometry from")
+    if Path(robot.urdf).suffix == ".xml":
+        raise InvalidInputError(f"robot {robot.name!r} is an MJCF model: its round feet are the collision spheres "
+                                "of its leaf bodies (load it with feet=None or name them), and none is at these feet")
     # package://NAME/... resolves under any folder holding NAME: try the URDF's ancestors
     dirs = [str(p) for p in Path(robot.urdf).resolve().parents]
     try:
@@ -307,7 +317,8 @@ def _geometry_kind(geometry) -> str:
 
 
 def foot_spheres(robot, feet=None) -> dict[str, FootSphere | None]:
-    """Each foot's collision sphere, from the robot's URDF (``pin.buildGeomFromUrdf``).
+    """Each foot's collision sphere, from the robot's URDF (``pin.buildGeomFromUrdf``), or
+    the MJCF sphere a foot was chosen by (``robot.foot_choice.radii``).
 
     A foot's sphere is a ``Sphere`` collision geometry of the foot frame's own
     link; failing that, the sphere on the foot frame's joint nearest to it.
@@ -324,6 +335,10 @@ def foot_spheres(robot, feet=None) -> dict[str, FootSphere | None]:
         ModelLoadError: the collision geometry cannot be loaded (a mesh not found).
     """
     model = robot.model
+    radii = robot.foot_choice.radii if robot.foot_choice is not None else {}
+    if radii:  # an MJCF's sphere feet: frames at the spheres' centres
+        return {foot: FootSphere(foot, radii[foot], (0.0, 0.0, 0.0), foot) if foot in radii else None
+                for foot in (robot.feet if feet is None else feet)}
     geometry = _collision_model(robot)
     found = {}
     for foot in (robot.feet if feet is None else feet):

@@ -1,9 +1,9 @@
-"""Robot models: loading URDF files into Pinocchio, frames, joints, Lie-group helpers.
+"""Robot models: loading URDF and MJCF files into Pinocchio, frames, joints, Lie-group helpers.
 
 Only dynamics is loaded: no meshes or collision geometry (they cost up to
 seconds to parse and are never used here). Sources, in the order tried:
 
-1. a path to a URDF file;
+1. a path to a URDF file, or to an MJCF file (`contactdiff.model.mjcf`);
 2. a model of the project's own ``robots/`` folder, by name (``"ball"``);
 3. an example-robot-data name (``"solo12"``, ``"anymal"``, ...).
 
@@ -188,7 +188,7 @@ class Robot:
 
 def _is_path(source) -> bool:
     return isinstance(source, Path) or (
-        isinstance(source, str) and (os.sep in source or source.endswith(".urdf"))
+        isinstance(source, str) and (os.sep in source or source.endswith((".urdf", ".xml", ".mjcf")))
     )
 
 
@@ -209,12 +209,15 @@ def load_robot(source: str | Path, floating_base: bool | None = None,
     """Load a robot for dynamics only (no meshes).
 
     Args:
-        source: a URDF path, a name of a model in ``robots/`` (see
-            `own_robot_names`) or an example-robot-data name (see
-            `example_robot_data_names`).
+        source: a URDF path, an MJCF path (``.xml`` with a ``<mujoco>`` root, read by
+            `contactdiff.model.mjcf.load_mjcf`), a name of a model in ``robots/`` (see
+            `own_robot_names`), an example-robot-data name (see
+            `example_robot_data_names`) or, with the optional robot_descriptions
+            package, one of its names (``go2_mj_description``,
+            `contactdiff.model.descriptions`).
         floating_base: add a free-flyer root joint. ``None`` takes the model's
-            own choice: True for example-robot-data legged robots, False for
-            the project's planar models and for URDF paths.
+            own choice: True for example-robot-data legged robots and MJCF files
+            with a free joint, False for the project's planar models and for URDF paths.
         feet: foot frames chosen by hand; ``None`` chooses them automatically
             for a floating base (the lowest end frames at the reference pose,
             see `contactdiff.model.feet`) and gives a fixed base none.
@@ -233,6 +236,11 @@ def load_robot(source: str | Path, floating_base: bool | None = None,
     if feet is not None:
         feet = _frame_list(feet)
     if _is_path(source):
+        from .mjcf import load_mjcf
+        from .mjcf_xml import looks_like_mjcf
+
+        if looks_like_mjcf(source):
+            return load_mjcf(source, floating_base, feet)
         return _from_urdf(Path(source), bool(floating_base), Path(source).stem, feet=feet)
     if not isinstance(source, str):
         raise InvalidInputError(f"robot source must be a URDF path or a name, got {source!r}")
@@ -243,6 +251,13 @@ def load_robot(source: str | Path, floating_base: bool | None = None,
 
     loader = ROBOTS.get(source)
     if loader is None:
+        from .descriptions import description_file, legged
+
+        described = description_file(source)  # the optional robot_descriptions package
+        if described is not None:
+            if floating_base is None and described.suffix == ".urdf":
+                floating_base = legged(source)
+            return load_robot(described, floating_base, feet)
         known = own_robot_names() + example_robot_data_names()
         raise UnknownRobotError(str(unknown_name("robot", source, known)))
     if not loader.urdf_filename:
@@ -376,22 +391,22 @@ def _owner(element, parents) -> str:
     return "the robot"
 
 
-def _check_inertias(model: pin.Model, path: Path) -> None:
+def _check_inertias(model: pin.Model, path: Path, kind: str = "URDF") -> None:
     """Refuse negative or non-finite masses and inertias: they make M indefinite."""
     for jid in range(1, model.njoints):
         inertia = model.inertias[jid]
         values = np.concatenate([[inertia.mass], inertia.lever, inertia.inertia.ravel()])
         if not np.all(np.isfinite(values)) or inertia.mass < 0:
             raise ModelLoadError(
-                f"URDF {str(path)!r}: body of joint {model.names[jid]!r} has mass {inertia.mass!r} "
+                f"{kind} {str(path)!r}: body of joint {model.names[jid]!r} has mass {inertia.mass!r} "
                 "and inertia entries that must be finite with mass >= 0")
         if np.min(np.linalg.eigvalsh(inertia.inertia)) < -1e-12 * max(1.0, np.abs(inertia.inertia).max()):
             raise ModelLoadError(
-                f"URDF {str(path)!r}: rotational inertia of joint {model.names[jid]!r} is not "
+                f"{kind} {str(path)!r}: rotational inertia of joint {model.names[jid]!r} is not "
                 f"positive semidefinite: {inertia.inertia.tolist()}")
 
 
-def _check_mass_matrix(model: pin.Model, q: np.ndarray, path: Path) -> None:
+def _check_mass_matrix(model: pin.Model, q: np.ndarray, path: Path, kind: str = "URDF") -> None:
     """Refuse a model whose mass matrix is singular (a coordinate moves no mass)."""
     M = pin.crba(model, model.createData(), q)
     try:
@@ -399,9 +414,10 @@ def _check_mass_matrix(model: pin.Model, q: np.ndarray, path: Path) -> None:
     except np.linalg.LinAlgError:
         massless = [n for n, m in zip(_tangent_names(model), np.diag(M)) if not m > 0]
         raise ModelLoadError(
-            f"URDF {str(path)!r}: the mass matrix is singular at the reference pose"
+            f"{kind} {str(path)!r}: the mass matrix is singular at the reference pose"
             + (f"; coordinates moving no mass: {', '.join(massless)}" if massless else "")
-            + " (check the <inertial> elements; a mass that failed to parse is dropped)") from None
+            + " (check the <inertial> elements" + ("; a mass that failed to parse is dropped)" if kind == "URDF"
+                                                    else ")")) from None
 
 
 def _tangent_names(model: pin.Model) -> list[str]:

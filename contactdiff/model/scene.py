@@ -319,11 +319,14 @@ class Scene:
                    name: str | None = None) -> Scene:
         """A robot standing on the ground: one contact per foot (``robot.feet``, see
         `contactdiff.model.feet`), normal along the vertical ``-g / |g|`` and offset so the
-        reference pose touches the ground. A robot without feet gets no contacts."""
+        reference pose touches the ground. A robot without feet gets no contacts; feet the
+        model gives as spheres (``robot.foot_choice.radii``, an MJCF's) are round contacts."""
         up = up_direction(robot.model)
         kin = Kinematics(robot.model)
         kin.update(robot.q_ref, np.zeros(robot.nv))
-        contacts = [Contact(foot, normal=tuple(up), offset=float(up @ kin.position(robot.frame_id(foot))),
+        radii = robot.foot_choice.radii if robot.foot_choice is not None else {}
+        contacts = [Contact(foot, normal=tuple(up), radius=radii.get(foot, 0.0),
+                            offset=float(up @ kin.position(robot.frame_id(foot))) - radii.get(foot, 0.0),
                             restitution=restitution, friction=friction) for foot in robot.feet]
         scene = cls(robot, contacts, name=name or robot.name)
         scene.foot_choice = robot.foot_choice

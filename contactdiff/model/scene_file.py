@@ -169,7 +169,7 @@ def _scene_robot(where: str, doc: Mapping, folder: Path):
         if floating is not None and not isinstance(floating, bool):
             raise InvalidInputError(f"{where}: floating_base must be true or false, got {floating!r}")
         relative = folder / robot_source
-        robot = load_robot(relative if robot_source.endswith(".urdf") else robot_source, floating)
+        robot = load_robot(relative if robot_source.endswith((".urdf", ".xml", ".mjcf")) else robot_source, floating)
     frames = []
     for i, entry in enumerate(_entries(doc, "frame")):
         _check_keys(f"{where} [[frame]] #{i + 1}", entry, _FRAME_KEYS, required=("name", "parent"))

@@ -1,0 +1,170 @@
+"""The decoupling atlas: every MuJoCo Menagerie model beside the repository and every
+example-robot-data robot with feet, loaded and checked for limb decoupling.
+
+For each Menagerie model, its ``scene.xml`` where it has one (the model's file
+included, a floor added, and Cassie's ``home`` keyframe), else its own file. For
+each model (one point of a sweep, `contactdiff.sweeps.sweep`, on local worker
+processes): load it (`contactdiff.load_robot`; an MJCF file through
+`contactdiff.model.mjcf`), record why not when it does not load, its feet and the
+rule that chose them, then run the checker (`contactdiff.check_decoupling`,
+``--samples`` random poses): the largest normalised inverse-mass coupling between
+two feet, the worst term of the limb-decoupling assumption, the verdict, and the
+run time of load and check together (one worker process per model).
+
+A fixed-base model with two or more leaf limbs (a hand) is checked with a contact at
+the end body of each leaf limb (its fingertips, "given by hand" in the table); a
+fixed-base chain (an arm) has one end, and nothing to couple.
+
+    python scripts/decoupling_atlas.py [--menagerie DIR] [--samples N] [--jobs N] [--out docs/results/atlas.md]
+"""
+
+from __future__ import annotations
+
+import argparse
+import re
+import time
+import warnings
+from pathlib import Path
+
+import pinocchio as pin
+
+import contactdiff as cd
+from contactdiff.model.robot import QUADRUPEDS, example_robot_data_names
+from contactdiff.sweeps import sweep
+
+ROOT = Path(__file__).resolve().parents[1]
+MENAGERIE = ROOT.parent / "shared" / "data" / "menagerie"
+KINDS = {"unitree_go2": "quadruped", "agility_cassie": "biped", "berkeley_humanoid": "humanoid (legs)",
+         "wonik_allegro": "hand", "leap_hand": "hand", "kuka_iiwa_14": "arm", "universal_robots_ur5e": "arm"}
+
+
+def menagerie_models(folder: Path, scenes: bool = False) -> list[tuple[str, str]]:
+    """``(label, path)`` of each model folder's main file (the ``.xml`` that is not a scene);
+    with ``scenes``, its ``scene.xml`` where there is one (it includes the main file and
+    may hold the ``home`` keyframe, as Cassie's does)."""
+    found = []
+    for sub in sorted(p for p in folder.iterdir() if p.is_dir()):
+        for path in sorted(sub.glob("*.xml")):
+            if not path.name.startswith("scene"):
+                scene = sub / "scene.xml"
+                chosen = scene if scenes and scene.is_file() else path
+                found.append((f"{sub.name}/{chosen.name}", str(chosen)))
+    return found
+
+
+def leaf_end_bodies(robot) -> list[str]:
+    """The last body frame of each leaf joint (a hand's fingertips)."""
+    model = robot.model
+    parents = set(model.parents[1:])
+    ends = []
+    for j in range(1, model.njoints):
+        if j in parents:
+            continue
+        bodies = [f.name for f in model.frames if f.parentJoint == j and f.type == pin.FrameType.BODY]
+        if bodies:
+            ends.append(bodies[-1])
+    return ends
+
+
+def atlas_scene(source: str, hand: bool = False):
+    """The model's scene: a robot on its feet (a ``hand`` on its fingertips), with the load's
+    warnings kept on it."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        robot = cd.load_robot(source)
+        if hand and not robot.floating_base and not robot.feet:
+            ends = leaf_end_bodies(robot)
+            if len(ends) >= 2:
+                robot = cd.load_robot(source, feet=ends)
+    scene = cd.Scene.from_robot(robot)
+    scene.atlas_notes = [str(w.message) for w in caught if "left out" in str(w.message)]
+    return scene
+
+
+def atlas_row(scene, point, samples: int = 8) -> dict:
+    """The checker's numbers for one model (a sweep job)."""
+    report = cd.check_decoupling(scene, samples=samples)
+    worst = max(report.terms, key=lambda t: t.value, default=None)
+    mass = max((t for t in report.terms if t.condition == "mass matrix"), key=lambda t: t.value, default=None)
+    choice = scene.foot_choice
+    return {"floating": scene.robot.floating_base, "nv": scene.robot.nv,
+            "feet": ", ".join(scene.robot.feet) or "-", "rule": choice.rule.name.lower() if choice else "-",
+            "coupling": report.max_coupling if report.pairs else None,
+            "worst_term": f"{worst.condition} ({worst.where}): {worst.value:.2e}" if worst else "-",
+            "worst_mass_term": f"{mass.where}: {mass.value:.2e}" if mass else "-",
+            "verdict": report.verdict or f"none: {report.reason}", "notes": "; ".join(scene.atlas_notes)}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--menagerie", type=Path, default=MENAGERIE)
+    parser.add_argument("--samples", type=int, default=8, help="random poses of each check (default 8)")
+    parser.add_argument("--jobs", type=int, default=1, help="worker processes (default 1: run times on one core)")
+    parser.add_argument("--out", type=Path, default=ROOT / "docs" / "results" / "atlas.md")
+    args = parser.parse_args()
+
+    models = [("menagerie", label, path) for label, path in menagerie_models(args.menagerie, scenes=True)]
+    models += [("example-robot-data", name, name) for name in example_robot_data_names()]
+    started = time.perf_counter()
+    points = [{"arg:source": path, "arg:hand": KINDS.get(label.split("/")[0]) == "hand"} for _, label, path in models]
+    result = sweep(atlas_scene, points,
+                   lambda scene, point: atlas_row(scene, point, args.samples), n_jobs=args.jobs)
+    wall = time.perf_counter() - started
+    lines = [_header(args, wall), "",
+             "| source | model | kind | loads | feet (rule) | max coupling | worst decoupling term "
+             "| worst mass-matrix term | verdict | time [s] |", "|---|---|---|---|---|---|---|---|---|---|"]
+    skipped, failed = [], []
+    for (origin, label, _), row in zip(models, result):
+        kind = KINDS.get(label.split("/")[0], "quadruped" if label in QUADRUPEDS else "")
+        if row.error is not None:
+            message = _cell(row.error.message.replace(str(args.menagerie.resolve()), "menagerie"))
+            if origin == "menagerie":
+                lines.append(f"| {origin} | {label} | {kind} | no: {message} | | | | | | {row.run_time:.2f} |")
+            else:
+                failed.append(f"{label} ({message})")
+            continue
+        out = row.outputs
+        feet = [] if out["feet"] == "-" else out["feet"].split(", ")
+        if origin == "example-robot-data" and len(feet) < 2:
+            skipped.append(label)
+            continue
+        kind = kind or (f"legged, {len(feet)} feet" if out["floating"] else "fixed base")
+        coupling = "-" if out["coupling"] is None else f"{out['coupling']:.2e}"
+        loads = "yes" + (f" ({_cell(out['notes'])})" if out["notes"] else "")
+        lines.append(f"| {origin} | {label} | {kind} | {loads} | {out['feet']} ({out['rule']}) | {coupling} | "
+                     f"{_cell(out['worst_term'])} | {_cell(out['worst_mass_term'])} | "
+                     f"{_cell(out['verdict'].split(';')[0])} | {row.run_time:.2f} |")
+    lines += ["", f"Not in the table: {len(skipped)} example-robot-data robots with fewer than two feet (fixed "
+              "bases, arms, flying arms): " + ", ".join(sorted(skipped)) + "."]
+    if failed:
+        lines += ["", f"example-robot-data robots that do not load ({len(failed)}): " + "; ".join(failed) + "."]
+    args.out.write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+
+
+def _header(args, wall: float) -> str:
+    return f"""# Decoupling atlas
+
+Every MuJoCo Menagerie model beside the repository (`../shared/data/menagerie`, XML only) and every
+example-robot-data robot with feet, loaded and checked for limb decoupling
+(`contactdiff.check_decoupling`, {args.samples} random poses besides the reference). Written by
+
+    python scripts/decoupling_atlas.py --samples {args.samples} --jobs {args.jobs}
+
+(whole run {wall:.0f} s wall time, {args.jobs} worker process(es); the machine was shared with other
+jobs, so the times are upper bounds). Columns: *max coupling* is the largest normalised inverse-mass
+coupling |G_ij| / sqrt(G_ii G_jj) between two feet over the sampled poses; *worst decoupling term* the
+largest term of the limb-decoupling assumption (docs/python-api.md, `check_decoupling`); *time* the
+load and the check of the model in its worker process. Feet rules: `mjcf_spheres` (the model's
+collision spheres on leaf bodies), `lowest_end_frames` (docs/models.md), `given` (a hand's fingertips:
+the end body of each leaf limb), `fixed_base` (an arm: no feet)."""
+
+
+def _cell(text: str) -> str:
+    """Table-safe text; a file's full path shortened to its name (the table names no machine's folders)."""
+    text = re.sub(r"'/[^']*/([^/']+)'", r"'\1'", str(text))
+    return text.replace("|", "/").replace("\n", " ")
+
+
+if __name__ == "__main__":
+    main()
