@@ -152,7 +152,9 @@ class GuardFinder:
                     # or rising by less than the search resolves) and is sinking: it
                     # touches down where it passes below the integration error band
                     # (a shallower dip of the dense output may be its error alone)
-                    shift = max(self.gap_tol, self.grazing_band(stepper.q)) - min(g_lo, 0.0)
+                    # (the band at the step's start, where the contact is: the end of a long
+                    # step may lie far below the ground, and rtol there would widen it)
+                    shift = max(self.gap_tol, self.grazing_band(stepper.q_old)) - min(g_lo, 0.0)
                     if g_hi + shift < 0.0:
                         found.append((locate_crossing(lambda t: gap(t) + shift, t_a, t_hi, g_lo + shift,
                                                       g_hi + shift), Guard(GuardKind.GAP, i)))
@@ -221,4 +223,19 @@ class GuardFinder:
         Zeno rule ends such sequences instead.
         """
         t_peak, low = self._lowest(lambda t: -gap(t), t_a, t_b, stop_below=0.0)
-        return (t_peak, -low) if -low > 0.0 else (None, None)
+        if -low > 0.0:
+            return t_peak, -low
+        # The search's resolution is a share of the step (`_lowest`); a step grown long in
+        # an exact flight (constant gravity: no error, the step growing tenfold each time up
+        # to t_final) can hold a whole short flight (a bounce at 1e-6 m/s under g = 1 lasts
+        # 2e-6 s) within that resolution of its start. Probe the step's start on a
+        # geometric sequence of times, down to the time resolution, for a point where the
+        # contact is open; the flight's peak then lies before twice that time.
+        resolution = 4 * np.finfo(float).eps * max(1.0, abs(t_a))
+        tau = 0.5 * (t_b - t_a)
+        while tau > resolution:
+            if gap(t_a + tau) > 0.0:
+                t_peak, low = self._lowest(lambda t: -gap(t), t_a, min(t_b, t_a + 2.0 * tau), stop_below=0.0)
+                return (t_peak, -low) if -low > 0.0 else (t_a + tau, gap(t_a + tau))
+            tau *= 0.5
+        return None, None
