@@ -33,6 +33,7 @@ from .errors import (
     OutsideDomainError,
     PainleveError,
     SolverError,
+    StepCollapseError,
     StoppedRunError,
     StrideError,
     TooManyEventsError,
@@ -63,7 +64,8 @@ __all__ = [
     "OutsideDomainError", "PainleveError",
     "period_map", "QUADRUPEDS", "Robot", "RobotFrame", "RunStats", "Scene", "SceneObject", "Segment",
     "simulate", "SimulateOptions",
-    "SolverError", "Spring", "StoppedRunError", "stride_map", "StrideError", "sweep", "Termination",
+    "SolverError", "Spring", "StepCollapseError", "StoppedRunError", "stride_map", "StrideError", "sweep",
+    "Termination",
     "TooManyEventsError", "TooManyStepsError", "Trajectory", "trot_scene", "trot_touchdown",
     "UnknownNameError", "UnknownRobotError", "UserEffort",
 ]

@@ -57,6 +57,19 @@ class TooManyStepsError(StoppedRunError):
     the horizon, e.g. a body spinning at 1e6 rad/s)."""
 
 
+class StepCollapseError(StoppedRunError):
+    """The step size collapsed with no event in sight: many accepted steps in a row, each
+    far shorter than the mode's own steps (`contactdiff.integration.step_collapse`), as
+    where the vector field is singular (a mechanism reaching a singular pose, e.g. a leg
+    folded flat with its foot held). ``.trajectory`` holds the run so far; ``.t`` (s),
+    ``.mode`` (the names of the active contacts) and ``.step`` (s, the last step) say
+    where."""
+
+    def __init__(self, message: str, trajectory, t: float, mode: tuple[str, ...], step: float):
+        super().__init__(message, trajectory)
+        self.t, self.mode, self.step = t, mode, step
+
+
 class TooManyEventsError(StoppedRunError):
     """More than ``max_events`` events; ``.trajectory`` holds the run up to there."""
 

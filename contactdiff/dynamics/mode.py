@@ -9,7 +9,16 @@ with ``M`` the mass matrix (armature included), ``nle`` Coriolis + gravity,
 ``tau`` the scene's efforts and ``lam`` the row forces (N; normal forces push
 when positive). The Delassus matrix ``G = A M^-1 A^T`` is symmetric positive
 definite when the rows are independent; with redundant rows the minimum-norm
-forces are returned.
+forces are returned. Redundancy is decided once per mode, from the rank of ``A``
+where the mode is first used (`REDUNDANT_TOL`): rows that hold the same motions
+twice (the lateral rows of four sticking feet on planar legs, solo8) make ``G``
+singular up to round-off, and a Cholesky factorisation of it (Pinocchio's, or
+LAPACK's) does not always fail there: it can return finite forces made of
+round-off over a pivot of 1e-16 (internal forces of 1e7 N on solo8 folding, and
+accelerations wrong by 1e-2), a vector field that no step size resolves. Such a
+mode solves on the eigenvalues of ``G`` above `REDUNDANT_EIGEN_TOL` of its largest
+instead (the minimum-norm forces; the rank can change with the pose: solo8's rows
+have rank 10 of 12 in its symmetric stance, 11 in a lopsided one).
 
 A mode is a sorted tuple of *contact keys*: key ``i < n`` (``n`` contacts in the
 scene) is contact ``i`` with all its rows; key ``n + i`` is sticking contact
@@ -40,6 +49,18 @@ from ..model.scene import Scene
 from .constraint_dynamics import RigidContactMode
 from .constraint_dynamics import eligible as rigid_eligible
 from .slip import SLIP_SPEED_EPS, SlipRow, painleve_check, slip_direction
+
+REDUNDANT_TOL = 1e-9
+"""A mode's rows whose singular values (of the stacked rows ``A``, unit rows) are below this
+share of the largest, where the mode is first used, are redundant. Rows that repeat a
+constraint give round-off there (1e-16); independent rows of a robot in a generic pose
+give 1e-3 and more, and pass through small values only at isolated instants (a leg's
+singular pose), which a mode's first state does not sit on."""
+REDUNDANT_EIGEN_TOL = 1e-12
+"""In a mode of redundant rows, eigenvalues of ``G`` below this share of its largest are
+those of repeated constraints (their round-off is ~1e-15 of it): their directions carry
+no force. A pose where independent rows lose rank passes through this value only at an
+instant where the forces already grow without bound."""
 
 
 @dataclass
@@ -154,10 +175,26 @@ class ModeDynamics:
             for c in contacts:
                 slices.append(slice(start, start + c.n_rows))
                 start += c.n_rows
-            rigid = RigidContactMode(self.model, contacts) if rigid_eligible(contacts) else None
+            rank = self._redundant_rank(contacts, start)
+            # Pinocchio's factorisation of a redundant set can succeed on round-off (module doc)
+            rigid = RigidContactMode(self.model, contacts) if rigid_eligible(contacts) and rank is None else None
             slipping = tuple((k, s.start) for k, c, s in zip(active, contacts, slices) if c.slips)
-            entry = self._modes[active] = (contacts, tuple(slices), rigid, slipping)
+            entry = self._modes[active] = (contacts, tuple(slices), rigid, slipping, rank)
         return entry
+
+    def _redundant_rank(self, contacts, n_rows: int) -> int | None:
+        """The rank of a mode's rows if they are redundant (`REDUNDANT_TOL`), else None; at
+        the kinematics cache's configuration (the scene's initial one before any update).
+        A mode found redundant solves with `REDUNDANT_EIGEN_TOL` at every state."""
+        if n_rows < 2:
+            return None
+        from ..model.kinematics import Kinematics
+
+        kin = Kinematics(self.model)
+        kin.update(self.scene.q0 if self.kin.q is None else self.kin.q, np.zeros(self.model.nv))
+        singular = np.linalg.svd(np.vstack([c.rows(kin) for c in contacts]), compute_uv=False)
+        rank = int(np.sum(singular > REDUNDANT_TOL * singular[0]))
+        return rank if rank < n_rows else None
 
     def accelerator(self, active: Sequence[int]) -> ModeAccelerator:
         """The plain (no derivatives) solve of mode ``active`` as a stepper calls it, its
@@ -229,7 +266,7 @@ class ModeDynamics:
         kin.update(q, v, derivatives=derivatives)
         if tau is None:
             tau = self.scene.tau(kin, t)
-        contacts, slices, rigid, slipping = self._mode(active)
+        contacts, slices, rigid, slipping, rank = self._mode(active)
         if not contacts:  # free flow: ABA, O(n)
             if derivatives:
                 ddq_dq, ddq_dv, Minv = pin.computeABADerivatives(model, data, q, v, tau)
@@ -262,14 +299,14 @@ class ModeDynamics:
         else:
             MinvFT = MinvAT
             G = A @ MinvAT
-            forces = _solve_spd(G, -(drift + A @ a_free))
+            forces = _solve_spd(G, -(drift + A @ a_free), rank)
         solution = ModeSolution(a_free + MinvFT @ forces, forces, active, slices)
         if not derivatives:
             return solution
-        return solution, self._derivatives(q, v, t, solution, contacts, A, Minv, MinvAT, MinvFT, G, slips)
+        return solution, self._derivatives(q, v, t, solution, contacts, A, Minv, MinvAT, MinvFT, G, slips, rank)
 
     def _derivatives(self, q, v, t, sol: ModeSolution, contacts, A, Minv, MinvAT, MinvFT, G,
-                     slips) -> ModeDerivatives:
+                     slips, rank: int | None = None) -> ModeDerivatives:
         """Differentiate the KKT system implicitly.
 
         With ``r(q, v, ddq) = M ddq + nle`` (RNEA), both sides differentiated give
@@ -297,7 +334,8 @@ class ModeDynamics:
             C[s, :nv] = -drift_dq - c.rows_times_dq(kin, sol.ddq)
             C[s, nv:] = -drift_dv
         MinvR = Minv @ R
-        solve = _solve_spd if not slips else (lambda G, b: _solve_general(G, b, slips, self.scene))
+        solve = (lambda G, b: _solve_spd(G, b, rank)) if not slips else (
+            lambda G, b: _solve_general(G, b, slips, self.scene))
         dlam = solve(G, C - A @ MinvR)
         dddq = MinvR + MinvFT @ dlam
         # a generalised force d: lam moves by -G^-1 A M^-1 d, ddq by M^-1 (d + F^T dlam)
@@ -319,7 +357,7 @@ class ModeAccelerator:
 
     def __init__(self, dyn: ModeDynamics, active: tuple[int, ...]):
         self.dyn, self.active = dyn, active
-        contacts, _, self.rigid, _ = dyn._mode(active)
+        contacts, _, self.rigid, _, _ = dyn._mode(active)
         self._contacts = contacts
         self._kin, self._tau = dyn.kin, dyn.scene.tau
         self._raw = self._solution = None
@@ -382,14 +420,22 @@ def _solve_general(G: np.ndarray, b: np.ndarray, slips, scene, delassus: np.ndar
     return x
 
 
-def _solve_spd(G: np.ndarray, b: np.ndarray) -> np.ndarray:
+def _solve_spd(G: np.ndarray, b: np.ndarray, rank: int | None = None) -> np.ndarray:
     """Solve ``G x = b`` for a symmetric positive (semi)definite Delassus matrix.
 
     Cholesky (LAPACK ``dposv``, called directly: numpy's and scipy's wrappers
     cost ten times the factorisation of these small G) when ``G`` is definite;
     otherwise (redundant rows) the minimum-norm least-squares solution, which
     is the physically chosen force distribution of a redundant rigid contact set.
+    With ``rank`` (redundant rows: `ModeDynamics._redundant_rank`), the minimum-norm
+    solution on the eigenvalues of ``G`` above `REDUNDANT_EIGEN_TOL` of the largest
+    directly, as a Cholesky factorisation may succeed on the round-off of the others.
     """
+    if rank is not None:
+        w, V = np.linalg.eigh(G)
+        keep = w > REDUNDANT_EIGEN_TOL * w[-1]
+        w, V = w[keep], V[:, keep]
+        return V @ ((V.T @ b) / (w[:, None] if b.ndim == 2 else w))
     _, x, info = _dposv(G, b, lower=1)
     if info == 0:
         return x
