@@ -9,6 +9,7 @@ import time
 import numpy as np
 import pinocchio as pin
 import pytest
+from helpers import assert_fd, fd_dv
 
 import contactdiff as cd
 from contactdiff.dynamics.mode import ModeDynamics
@@ -24,8 +25,9 @@ def _min_norm_reference(scene, q, v, mode):
     """Row forces and accelerations of a sticking mode, built here from Pinocchio directly:
     ``M ddq = tau - nle + A^T lam``, ``A ddq + drift = 0``, so ``G lam = b`` with
     ``G = A M^-1 A^T`` and ``b = -(drift + A M^-1 (tau - nle))``. With redundant rows ``G``
-    is singular and every solution gives the same ``ddq``; the physical choice is the
-    minimum-norm ``lam`` (`np.linalg.pinv`, an SVD with its own cut-off)."""
+    is singular and, for a velocity that keeps the rows (``A v = 0``), every solution gives
+    the same ``ddq``; the physical choice is the minimum-norm ``lam`` (`np.linalg.pinv`, an
+    SVD with its own cut-off)."""
     dyn = ModeDynamics(scene)
     dyn.kin.update(q, v)
     contacts = [dyn.contact(k) for k in mode]
@@ -62,7 +64,11 @@ def test_redundant_rows_give_the_minimum_norm_forces(solo8):
     for _ in range(3):
         q = solo8.q0.copy()
         q[7:] += rng.uniform(-0.3, 0.3, 8)
-        v = rng.uniform(-1.0, 1.0, solo8.nv)
+        dyn.kin.update(q, np.zeros(solo8.nv))
+        rows = np.vstack([dyn.contact(k).rows(dyn.kin) for k in mode])
+        _, singular, vt = np.linalg.svd(rows)
+        null = vt[int(np.sum(singular > 1e-9 * singular[0])):].T
+        v = null @ rng.uniform(-1.0, 1.0, null.shape[1])  # A v = 0
         sol = dyn.solve(q, v, 0.0, mode)
         lam, ddq, A = _min_norm_reference(solo8, q, v, mode)
         assert np.linalg.matrix_rank(A, tol=1e-9 * np.linalg.norm(A, 2)) == 11
@@ -135,3 +141,30 @@ def test_step_budget_error_at_every_count(max_steps):
 def test_max_steps_must_be_a_positive_count(bad):
     with pytest.raises(cd.InvalidInputError, match=r"max_steps must be an integer >= 1, got"):
         cd.simulate(cd.load_scene("ball"), 1.0, max_steps=bad)
+
+
+def test_redundant_mode_velocity_derivatives_match_finite_differences(solo8):
+    """Redundant rows hold the velocities to a subspace smaller than their count: ``A v = 0``
+    has solutions, but ``A ddq + drift = 0`` only while ``v`` keeps it (an arbitrary ``v``
+    makes the drift inconsistent, and the forces are then a least-squares compromise).
+    Along velocities that keep the constraints (``w`` in the null space of ``A``) the
+    accelerations are unique and smooth: the analytic ``d ddq / d v`` (KKT differentiated,
+    solved on G's independent eigen-directions) applied to such ``w`` against central
+    differences (step 1e-6: truncation ~1e-12 and round-off ~1e-10 relative, asserted
+    below 1e-6)."""
+    mode = tuple(range(4))
+    dyn = ModeDynamics(solo8)
+    rng = np.random.default_rng(5)
+    q = solo8.q0.copy()
+    q[7:] += rng.uniform(-0.3, 0.3, 8)
+    dyn.kin.update(q, np.zeros(solo8.nv))
+    A = np.vstack([dyn.contact(k).rows(dyn.kin) for k in mode])
+    _, singular, vt = np.linalg.svd(A)
+    null = vt[int(np.sum(singular > 1e-9 * singular[0])):].T  # (nv, nv - rank)
+    v = null @ rng.uniform(-1.0, 1.0, null.shape[1])
+    sol, der = dyn.solve(q, v, 0.0, mode, derivatives=True)
+    dyn.kin.update(q, v)
+    drift = np.concatenate([dyn.contact(k).drift(dyn.kin) for k in mode])
+    assert np.max(np.abs(A @ sol.ddq + drift)) <= 1e-9 * np.max(np.abs(sol.ddq))  # consistent
+    reference = fd_dv(lambda x: dyn.solve(q, v + null @ x, 0.0, mode).ddq, np.zeros(null.shape[1]))
+    assert_fd("redundant ddq/dv along the constraints", der.ddq_dv @ null, reference, sol.ddq)
