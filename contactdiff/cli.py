@@ -81,7 +81,7 @@ def build_parser() -> argparse.ArgumentParser:
     check.add_argument("--json", action="store_true", help="print the report as JSON")
     check.set_defaults(run=_run_check)
 
-    from .integration.options import ATOL_MAX, MAX_STEPS, RTOL_MAX, RTOL_MIN
+    from .integration.options import ATOL_MAX, MAX_STEPS, RTOL_MAX, RTOL_MIN, OnGrazing, SimulateOptions
     from .integration.steppers import METHODS
     from .replay import DEFAULT_FPS
 
@@ -104,7 +104,21 @@ def build_parser() -> argparse.ArgumentParser:
                      help=f"absolute tolerance in (0, {ATOL_MAX:g}] (m, rad, m/s; default 1e-10)")
     sim.add_argument("--max-steps", type=COUNT, default=MAX_STEPS,
                      help="step budget: a run needing more accepted steps stops with an error "
-                          f"(default {MAX_STEPS})")
+                          f"(default {MAX_STEPS}, at least 1)")
+    defaults = SimulateOptions()
+    sim.add_argument("--max-events", type=COUNT, default=defaults.max_events,
+                     help=f"event budget: a run with more events stops with an error (default {defaults.max_events})")
+    sim.add_argument("--zeno-speed", type=FINITE, default=defaults.zeno_speed,
+                     help="a contact closing slower than this (m/s, >= 0) does not bounce: a bounce "
+                          f"sequence ends there and the contact stays closed (default {defaults.zeno_speed:g})")
+    sim.add_argument("--grazing-speed", type=FINITE, default=defaults.grazing_speed,
+                     help=f"a touchdown slower than this (m/s, >= 0) is grazing (default {defaults.grazing_speed:g})")
+    sim.add_argument("--grazing-gap", type=FINITE, default=None,
+                     help="a gap that comes down to within this distance (m, >= 0) of the ground and turns back "
+                          "up is a near-grazing miss (default 10 (atol + rtol |q|))")
+    sim.add_argument("--on-grazing", choices=tuple(OnGrazing), default=defaults.on_grazing.value,
+                     help="event: a grazing touchdown is an event, a near-grazing miss a note (the default); "
+                          "raise: both stop the run with an error")
     sim.add_argument("--jacobian", action="store_true",
                      help="also compute the flow Jacobian d x(T)/d x0 and every saltation matrix")
     sim.add_argument("--param", action="append", default=[], metavar="NAME",
@@ -298,7 +312,9 @@ def _run_simulate(args) -> int:
     parameters = scene.parameter_names() if "all" in args.param else list(args.param)
     with _ProgressBar(f"simulate {scene.name}", (0.0, args.t_final)) as bar:
         traj = simulate(scene, args.t_final, method=args.method, rtol=args.rtol, atol=args.atol,
-                        jacobian=args.jacobian, max_steps=args.max_steps, progress=bar,
+                        jacobian=args.jacobian, max_steps=args.max_steps, max_events=args.max_events,
+                        zeno_speed=args.zeno_speed, grazing_speed=args.grazing_speed,
+                        grazing_gap=args.grazing_gap, on_grazing=args.on_grazing, progress=bar,
                         dense=bool(args.plot or args.html),  # plot and replay sample states between events
                         parameters=parameters)
     plotted = replayed = None  # a failed write, reported once the run is printed

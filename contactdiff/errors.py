@@ -64,6 +64,16 @@ class IntegrationError(ContactDiffError):
     """The integrator cannot continue (step size underflow, no convergence)."""
 
 
+class StepSizeUnderflowError(IntegrationError):
+    """A stepper's step shrank below the resolution of time at ``.t`` (s): its last
+    try was ``.h`` (s). The hybrid loop reports it as a `StepCollapseError` with the run
+    so far."""
+
+    def __init__(self, message: str, t: float, h: float):
+        super().__init__(message)
+        self.t, self.h = t, h
+
+
 class StoppedRunError(IntegrationError):
     """A run stopped before its final time by a budget of the user's; ``.trajectory``
     holds the run up to there (events, segments, statistics)."""
@@ -76,6 +86,19 @@ class StoppedRunError(IntegrationError):
 class TooManyStepsError(StoppedRunError):
     """More than ``max_steps`` accepted steps: a runaway run (steps far shorter than
     the horizon, e.g. a body spinning at 1e6 rad/s)."""
+
+
+class StepCollapseError(StoppedRunError):
+    """The step size collapsed with no event in sight: many accepted steps in a row, each
+    far shorter than the mode's own steps (`contactdiff.integration.step_collapse`), as
+    where the vector field is singular (a mechanism reaching a singular pose, e.g. a leg
+    folded flat with its foot held). ``.trajectory`` holds the run so far; ``.t`` (s),
+    ``.mode`` (the names of the active contacts) and ``.step`` (s, the last step) say
+    where."""
+
+    def __init__(self, message: str, trajectory, t: float, mode: tuple[str, ...], step: float):
+        super().__init__(message, trajectory)
+        self.t, self.mode, self.step = t, mode, step
 
 
 class TooManyEventsError(StoppedRunError):

@@ -9,10 +9,16 @@ with ``M`` the mass matrix (armature included), ``nle`` Coriolis + gravity,
 ``tau`` the scene's efforts and ``lam`` the row forces (N; normal forces push
 when positive). The Delassus matrix ``G = A M^-1 A^T`` is symmetric positive
 definite when the rows are independent. Redundant rows (four corners of a face
-on a plane) leave the forces undetermined; they are the rigid limit of equal
-compliant supports, the forces in ``range(A)`` (`contactdiff.dynamics.redundant`:
-least-norm for a symmetric ``G``, and the load that decides a sliding face's
-friction).
+on a plane, the lateral rows of four sticking feet on planar legs) leave the
+forces undetermined; they are the rigid limit of equal compliant supports, the
+forces in ``range(A)`` (`contactdiff.dynamics.redundant`: least-norm for a
+symmetric ``G``, and the load that decides a sliding face's friction).
+Redundancy is decided once per mode, from the singular values of ``A`` at a
+configuration of the model where the mode is first used: a Cholesky
+factorisation of a singular ``G`` (Pinocchio's, or LAPACK's) does not always
+fail, it can return finite forces made of round-off over a pivot of 1e-16
+(internal forces of 1e7 N on solo8 folding, and accelerations wrong by 1e-2), a
+vector field that no step size resolves.
 
 A mode is a sorted tuple of *contact keys*: key ``i < n`` (``n`` contacts in the
 scene) is contact ``i`` with all its rows; key ``n + i`` is sticking contact
@@ -39,10 +45,11 @@ import pinocchio as pin
 from scipy.linalg.lapack import dposv as _dposv
 
 from ..errors import InvalidInputError, PainleveError, SolverError, check_number
+from ..model.kinematics import Kinematics
 from ..model.scene import Scene
 from .constraint_dynamics import RigidContactMode
 from .constraint_dynamics import eligible as rigid_eligible
-from .redundant import range_basis, solve_in_range
+from .redundant import gram_range_basis, range_basis, solve_in_range
 from .slip import SLIP_SPEED_EPS, SlipRow, painleve_check, slip_direction
 
 
@@ -159,13 +166,22 @@ class ModeDynamics:
                 slices.append(slice(start, start + c.n_rows))
                 start += c.n_rows
             # redundant rows are a structural property of the mode (the corners of one face):
-            # decided once, at the kinematics' current state; Pinocchio's solve needs
-            # independent rows, so a redundant mode takes the compatible-load solve
-            redundant = bool(contacts) and range_basis(np.vstack([c.rows(self.kin) for c in contacts])) is not None
+            # decided once (module doc); Pinocchio's factorisation of a redundant set can succeed
+            # on round-off, so a redundant mode takes the compatible-load solve
+            redundant = self._redundant(contacts, start)
             rigid = RigidContactMode(self.model, contacts) if rigid_eligible(contacts) and not redundant else None
             slipping = tuple((k, s.start) for k, c, s in zip(active, contacts, slices) if c.slips)
             entry = self._modes[active] = (contacts, tuple(slices), rigid, slipping, redundant)
         return entry
+
+    def _redundant(self, contacts, n_rows: int) -> bool:
+        """Whether a mode's rows are dependent (`contactdiff.dynamics.redundant.RANK_TOL`),
+        at the kinematics cache's configuration (the scene's initial one before any update)."""
+        if n_rows < 2:
+            return False
+        kin = Kinematics(self.model)
+        kin.update(self.scene.q0 if self.kin.q is None else self.kin.q, np.zeros(self.model.nv))
+        return range_basis(np.vstack([c.rows(kin) for c in contacts])) is not None
 
     def redundant(self, active: Sequence[int]) -> bool:
         """Whether the rows of mode ``active`` are dependent (their forces chosen by the
@@ -265,7 +281,7 @@ class ModeDynamics:
         drift = np.concatenate([c.drift(kin) for c in contacts])
         MinvAT = Minv @ A.T
         slips = [SlipRow.at(self, key, row, kin, v) for key, row in slipping]
-        U = range_basis(A) if redundant else None
+        U = gram_range_basis(A @ MinvAT) if redundant else None
         if slips:
             F = A.copy()
             for slip in slips:
@@ -437,8 +453,9 @@ def _solve_spd(G: np.ndarray, b: np.ndarray) -> np.ndarray:
 
     Cholesky (LAPACK ``dposv``, called directly: numpy's and scipy's wrappers
     cost ten times the factorisation of these small G) when ``G`` is definite;
-    otherwise (redundant rows) the minimum-norm least-squares solution, which
-    is the physically chosen force distribution of a redundant rigid contact set.
+    otherwise (rows that became dependent at this state, not where the mode began)
+    the minimum-norm least-squares solution. Modes of dependent rows solve by
+    `contactdiff.dynamics.redundant` instead.
     """
     _, x, info = _dposv(G, b, lower=1)
     if info == 0:

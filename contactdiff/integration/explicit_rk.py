@@ -132,6 +132,12 @@ class ExplicitRK(Stepper):
                 continue
             scale = self.atol + self.rtol * np.maximum(mag_n, self._mag(y_new, q_new))
             err = self._error_norm(h, K, scale)
+            roundoff = self._roundoff_error(y, y_new, mag_n)
+            if roundoff > 1.0:  # a step too long for its own round-off (`Stepper._roundoff_error`)
+                h_abs = h * max(_MIN_FACTOR, _SAFETY / roundoff)
+                rejected = True
+                self.n_rejected += 1
+                continue
             if not math.isfinite(err):
                 for s in range(1, ns + 1):  # name the culprit if accel itself returned inf/nan
                     self._nonfinite_stage(t + self.C[s] * h if s < ns else t_new,
@@ -142,6 +148,8 @@ class ExplicitRK(Stepper):
                 err = max(err, err_phi)
             if err < 1.0:
                 factor = _MAX_FACTOR if err == 0 else min(_MAX_FACTOR, _SAFETY * err**exponent)
+                if roundoff > 0.0:  # the next step's round-off stays within the tolerance
+                    factor = min(factor, 1.0 / roundoff)
                 if rejected:
                     factor = min(1.0, factor)
                 h_abs = h * factor
@@ -257,7 +265,7 @@ class DOP853(ExplicitRK):
         err3 = (self.E3 @ Ks) / scale
         e5 = float(err5 @ err5)
         e3 = float(err3 @ err3)
-        if e5 == 0.0 and e3 == 0.0:
+        if e5 == 0.0:  # (also where 0.01 e3 underflows: 0 / 0)
             return 0.0
         return abs(h) * e5 / math.sqrt((e5 + 0.01 * e3) * self.n)
 

@@ -146,13 +146,15 @@ class GuardFinder:
             if g_lo <= self.gap_tol:
                 # the contact has just opened (bounce or lift-off): its gap starts at 0
                 # going up; a new touchdown needs the gap to rise above 0 and come back
-                t_peak, g_peak = self._peak(gap, t_a, t_hi)
+                t_peak, g_peak = self._peak(gap, t_a, t_hi, rates0[i] > self.options.grazing_speed)
                 if t_peak is None:
                     # it never opened (released at an impact with no separating speed,
                     # or rising by less than the search resolves) and is sinking: it
                     # touches down where it passes below the integration error band
                     # (a shallower dip of the dense output may be its error alone)
-                    shift = max(self.gap_tol, self.grazing_band(stepper.q)) - min(g_lo, 0.0)
+                    # (the band at the step's start, where the contact is: the end of a long
+                    # step may lie far below the ground, and rtol there would widen it)
+                    shift = max(self.gap_tol, self.grazing_band(stepper.q_old)) - min(g_lo, 0.0)
                     if g_hi + shift < 0.0:
                         found.append((locate_crossing(lambda t: gap(t) + shift, t_a, t_hi, g_lo + shift,
                                                       g_hi + shift), Guard(GuardKind.GAP, i)))
@@ -211,8 +213,9 @@ class GuardFinder:
             return t_a + float(s), float(value)
         return t_a + float(low.x), float(low.fun)
 
-    def _peak(self, gap, t_a, t_b):
-        """Highest point of a gap that starts closed at ``t_a`` and is negative at ``t_b``.
+    def _peak(self, gap, t_a, t_b, leaving: bool = False):
+        """Highest point of a gap that starts closed at ``t_a`` and is negative at ``t_b``;
+        ``leaving``: its rate at ``t_a`` is above ``grazing_speed`` (a bounce).
 
         Returns ``(t, gap)`` there, or ``(None, None)`` if the gap never opens (rises
         above 0). A peak in (0, gap_tol] is still a real bounce that comes back: skipping
@@ -221,4 +224,21 @@ class GuardFinder:
         Zeno rule ends such sequences instead.
         """
         t_peak, low = self._lowest(lambda t: -gap(t), t_a, t_b, stop_below=0.0)
-        return (t_peak, -low) if -low > 0.0 else (None, None)
+        if -low > 0.0 or not leaving:
+            return (t_peak, -low) if -low > 0.0 else (None, None)
+        # The search's resolution is a share of the step (`_lowest`); a step grown long in
+        # an exact flight (constant gravity: no error, the step growing tenfold each time up
+        # to t_final) can hold a whole short flight (a bounce at 1e-6 m/s under g = 1 lasts
+        # 2e-6 s) within that resolution of its start. For a contact that left with a
+        # speed (not one released with none: its dense output near t_a is round-off),
+        # probe the step's start on a geometric sequence of times, down to the time
+        # resolution, for a point where the contact is open; the flight's peak then
+        # lies before twice that time.
+        resolution = 4 * np.finfo(float).eps * max(1.0, abs(t_a))
+        tau = 0.5 * (t_b - t_a)
+        while tau > resolution:
+            if gap(t_a + tau) > 0.0:
+                t_peak, low = self._lowest(lambda t: -gap(t), t_a, min(t_b, t_a + 2.0 * tau), stop_below=0.0)
+                return (t_peak, -low) if -low > 0.0 else (t_a + tau, gap(t_a + tau))
+            tau *= 0.5
+        return None, None

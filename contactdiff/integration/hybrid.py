@@ -35,7 +35,8 @@ near-grazing misses (a gap turning back up within ``grazing_gap`` of 0, where
 the integration error cannot tell a touch from a miss); a bounce slower than
 ``zeno_speed`` ends the bounce sequence (the contact stays closed, event kind
 ``zeno``); more than ``max_events`` events raise `TooManyEventsError`, more
-than ``max_steps`` steps `TooManyStepsError`.
+than ``max_steps`` steps `TooManyStepsError`, and steps that collapse by orders of
+magnitude with no event `StepCollapseError` (`contactdiff.integration.step_collapse`).
 
 `HybridLoop` is the loop itself, public and meant to be extended: a subclass
 may override `HybridLoop.initial_mode` (the consistent start) and
@@ -57,6 +58,8 @@ from ..errors import (
     GrazingError,
     InvalidInputError,
     OutsideDomainError,
+    StepCollapseError,
+    StepSizeUnderflowError,
     TooManyEventsError,
     TooManyStepsError,
     check_number,
@@ -72,6 +75,7 @@ from .mode_field import ModeField
 from .options import AUTO, OnGrazing, SimulateOptions
 from .parameter_jumps import ParameterJumps
 from .projection import held_velocity, project_state
+from .step_collapse import COLLAPSE_RATIO, COLLAPSE_STEPS, CollapseWatch
 from .steppers import PinocchioGroup, make_stepper
 from .trajectory import Event, RunStats, Segment, Termination, Trajectory
 
@@ -109,6 +113,8 @@ def simulate(scene: Scene, t_final: float, q0=None, v0=None, *, t0: float = 0.0,
             or lists the valid option names).
         TooManyEventsError, TooManyStepsError: a budget ran out (the run so far
             is on the error's ``.trajectory``).
+        StepCollapseError: the steps collapsed with no event in sight (a singular
+            vector field); the run so far is on its ``.trajectory``.
         IntegrationError: the stepper cannot go on (step size underflow).
     """
     options = SimulateOptions() if options is None else options
@@ -292,18 +298,23 @@ class HybridLoop(EventResets, FrictionEvents):
         gaps, rates = self._gaps_and_rates(stepper.q, stepper.v)
         forces = field.guard_values(stepper.t, stepper.q, stepper.v)
         steps = 0
+        h = 0.0  # the last accepted step (s)
+        watch = CollapseWatch()
         next_break = -np.inf  # the efforts' next breakpoint: a time a step must end on
         while stepper.t < self.t_final:
             if steps == options.max_steps:
                 raise TooManyStepsError(
                     f"max_steps = {options.max_steps} steps taken by t = {stepper.t:.6g} s of "
-                    f"t_final = {self.t_final:g} s (last step {stepper.t - stepper.t_old:.3g} s); "
+                    f"t_final = {self.t_final:g} s (last step {h:.3g} s); "
                     "raise max_steps, or look for a runaway state",
                     self._trajectory(stepper, Termination.MAX_STEPS))
             if stepper.t >= next_break:
                 next_break = scene.next_breakpoint(stepper.t)
             stepper.t_bound = min(self.t_final, next_break)  # also for a stepper new since the last step
-            stepper.step()
+            try:
+                stepper.step()
+            except StepSizeUnderflowError as exc:  # the extreme of a collapse: said as one, with the run so far
+                self._collapse(stepper, mode, exc.h, watch.typical, underflow=str(exc))
             steps += 1
             if options.progress is not None:
                 options.progress(stepper.t, len(self.events), steps)
@@ -326,11 +337,14 @@ class HybridLoop(EventResets, FrictionEvents):
                 if projected or field.slipping:
                     forces = field.guard_values(stepper.t, stepper.q, stepper.v)
                 segment.t1 = stepper.t
+                if watch.after_step(h, clipped=stepper.t == stepper.t_bound):
+                    self._collapse(stepper, mode, h, watch.typical)
                 if self.chooser is not None and stepper.t < self.t_final:
                     switch = self.chooser.after_step(h, stepper.q, stepper.v, stepper.t)
                     if switch:
                         stepper = self._switch(stepper, switch, field)
                 continue
+            watch.new_mode()
             t_event, fired = simultaneous_group(crossings, options.simultaneous_tol)
             self._near_misses(misses, t_event)
             stepper.truncate(t_event)
@@ -364,6 +378,21 @@ class HybridLoop(EventResets, FrictionEvents):
             if stop:
                 return self._trajectory(stepper, Termination.STOPPED)
         return self._trajectory(stepper, Termination.T_FINAL)
+
+    def _collapse(self, stepper, mode, h: float, typical: float, underflow: str | None = None):
+        """Raise `StepCollapseError` (`contactdiff.integration.step_collapse`) at the stepper's
+        point; ``underflow``: the stepper's own underflow message, where the steps shrank to
+        the resolution of time before the count of short steps was reached."""
+        names = self._mode_names(mode)
+        how = (f"the step shrank to the resolution of time ({underflow})" if underflow else
+               f"{COLLAPSE_STEPS} steps in a row shorter than {COLLAPSE_RATIO:g} of the run's typical step "
+               f"(~{typical:.3g} s), the last {h:.3g} s")
+        raise StepCollapseError(
+            f"step size collapsed at t = {stepper.t:.12g} s in mode ({', '.join(names) or 'free flight'}): "
+            f"{how}, with no event; the vector field is singular or nearly "
+            "so here (a mechanism reaching a singular pose with its contacts held, e.g. a leg folded flat, "
+            "or a force that blows up in finite time)",
+            self._trajectory(stepper, Termination.STEP_COLLAPSE), stepper.t, names, h)
 
     # -- method="auto" ----------------------------------------------------------------
     def _probe(self, mode):

@@ -59,7 +59,7 @@ class SimulateOptions:
             d p) and each event's parameter blocks. Without ``jacobian`` only those
             columns are propagated (cheaper than the state's 2nv); with it, both.
         max_events: largest number of events before `TooManyEventsError`.
-        max_steps: largest number of accepted steps before `TooManyStepsError`
+        max_steps: largest number of accepted steps (>= 1) before `TooManyStepsError`
             (its ``.trajectory`` holds the run so far); the default `MAX_STEPS`
             lets a quadruped trot run for two minutes of simulated time (about
             1,500 steps per second) and stops a runaway run (steps far shorter
@@ -130,7 +130,7 @@ class SimulateOptions:
         set_(self, "parameters", names)
         set_(self, "dense", bool(self.dense))
         set_(self, "max_events", check_count("simulate", "max_events", self.max_events))
-        set_(self, "max_steps", check_count("simulate", "max_steps", self.max_steps))
+        set_(self, "max_steps", check_count("simulate", "max_steps", self.max_steps, minimum=1))
         for name in ("simultaneous_tol", "zeno_speed", "grazing_speed"):
             set_(self, name, check_number("simulate", name, getattr(self, name), minimum=0.0))
         if self.grazing_gap is not None:

@@ -41,6 +41,15 @@ _RP = np.array([
     [1 / 3, -8 / 3, 10 / 3],
 ])
 _NEWTON_MAXITER = 6
+NEWTON_STALL_TOL = 0.03
+"""Newton increments (in units of the step's tolerance) below which an iteration that stops
+contracting counts as converged: it has reached the round-off of the vector field. Along a
+contact's constrained directions the field is a double integrator (no restoring force),
+so the noise of the contact forces (~1e-13 m/s² on a standing quadruped) gives Newton
+increments of ``h`` times it, which stop contracting: at rest on four feet, a 10-s step
+stalls at 1e-3 of the tolerance, far below ``newton_tol`` = 1e-4 at rtol = 1e-8. 0.03 is
+the largest Newton error RADAU5 accepts (its ``FNEWT`` at loose tolerances; Hairer &
+Wanner, Solving ODEs II, IV.8, take 0.01 to 0.1 of the tolerance)."""
 _RETAKE_SPLITS = 6  # halvings of a re-taken step whose Newton fails (64 pieces at most)
 
 
@@ -176,6 +185,8 @@ class Radau(Stepper):
             if rate is not None and (
                 rate >= 1 or rate ** (_NEWTON_MAXITER - k) / (1 - rate) * dW_norm > self.newton_tol
             ):
+                # stalled at the field's round-off, far below the tolerance: the last iterate
+                converged = dW_norm <= NEWTON_STALL_TOL and dW_norm_old <= NEWTON_STALL_TOL
                 break
             W += dW
             Z = _RT @ W
@@ -259,6 +270,12 @@ class Radau(Stepper):
                     fe[:] = np.nan
                 if np.isfinite(fe).all():
                     err = _rms(self._solve(fe + ZE, True) / scale)
+            roundoff = self._roundoff_error(y, y_new, mag_n)
+            if roundoff > 1.0:  # a step too long for its own round-off (`Stepper._roundoff_error`)
+                h_abs *= max(_MIN_FACTOR, 0.9 / roundoff)
+                rejected = True
+                self.n_rejected += 1
+                continue
             if not math.isfinite(err):
                 err = math.inf
             if control and err <= 1:
@@ -275,6 +292,8 @@ class Radau(Stepper):
 
         recompute_jac = n_iter > 2 and rate is not None and rate > 1e-3
         factor = min(_MAX_FACTOR, safety * _predict_factor(h_abs, h_abs_old, err, err_old))
+        if roundoff > 0.0:  # the next step's round-off stays within the tolerance
+            factor = min(factor, 1.0 / roundoff)
         if not recompute_jac and factor < 1.2:
             factor = 1.0  # keep h so that the LU factors stay valid
 

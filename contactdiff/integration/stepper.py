@@ -45,6 +45,7 @@ from ..errors import (
     IntegrationError,
     InvalidInputError,
     OutsideDomainError,
+    StepSizeUnderflowError,
     check_number,
     check_vector,
 )
@@ -63,6 +64,11 @@ _EPS = np.finfo(float).eps
 _SAFETY = 0.9
 _MIN_FACTOR = 0.2  # largest allowed step decrease after a rejection
 _MAX_FACTOR = 10.0  # largest allowed step increase
+ROUNDOFF_MARGIN = 10.0
+"""A step's round-off, ``eps |y_new - y|`` (the dense output and the stages add terms the
+size of the step's change), times this margin must stay within the tolerance at the
+step's start, ``atol + rtol |y|`` (RMS over the components, as the error): see
+`Stepper._roundoff_error`."""
 
 
 
@@ -482,6 +488,25 @@ class Stepper(VariationalAlgebra, abc.ABC):
             h1 = (0.01 / max(d1, d2)) ** (1.0 / (self.error_order + 1))
         return min(100 * h0, h1, interval, self.max_step)
 
+    def _roundoff_error(self, y: np.ndarray, y_new: np.ndarray, mag: np.ndarray) -> float:
+        """Round-off of a step from ``y`` to ``y_new`` (same chart) relative to the tolerance
+        at its start (``mag``: `_mag` there), times `ROUNDOFF_MARGIN`. A step where this
+        exceeds 1 is rejected; below, it caps the growth of the next step (the error
+        control's choice is kept wherever it is smaller, so ordinary runs never see it).
+
+        The error estimate of an exact step is zero (free flight under constant gravity
+        is a polynomial), so without this bound such steps grow tenfold each time until
+        ``t_bound``: their length, and the state's change over them, then scale with the
+        final time asked for (a ball bouncing at t = 12 s in a step to t = 1e9 s). Every
+        point of a step's dense output carries round-off of order eps times that change,
+        which for long enough steps exceeds the tolerance where the step starts (a ball's
+        bounce of 1e-6 m/s, just after a step's start, resolved in a step whose end lies
+        5e17 m below the ground). The bound keeps every step's round-off below its
+        tolerance, whatever the final time; it never binds on steps of ordinary length
+        (with atol = 1e-10 a step would have to change a state component by ~1e4)."""
+        scale = self.atol + self.rtol * mag
+        return ROUNDOFF_MARGIN * _EPS * _rms((y_new - y) / scale)
+
     def _begin_step(self) -> tuple[float, float]:
         """Check that a step is possible; return (min_step, first h to try)."""
         t = self.t
@@ -505,10 +530,9 @@ class Stepper(VariationalAlgebra, abc.ABC):
             exc = self._outside
             return type(exc)(f"{exc} (at t = {float(self.t)!r} s every step down to h = {h_abs:.3g} s "
                              "reaches such states: the trajectory itself does)")
-        return IntegrationError(
+        return StepSizeUnderflowError(
             f"{self.method}: step size underflow at t={float(self.t)!r}: h={h_abs:.3g} < {min_step:.3g} "
-            f"(rtol={self.rtol:g}); the vector field may be singular or non-smooth here"
-        )
+            f"(rtol={self.rtol:g}); the vector field may be singular or non-smooth here", float(self.t), h_abs)
 
     def _accept_state(self, t_new: float, y_new: np.ndarray, q_new: np.ndarray, a_new: np.ndarray) -> None:
         """Move the current point to the end of the accepted step."""

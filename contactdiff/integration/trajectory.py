@@ -52,6 +52,8 @@ class Termination(StrEnum):
     """the event budget ran out (`TooManyEventsError`)"""
     MAX_STEPS = "max_steps"
     """the step budget ran out (`TooManyStepsError`)"""
+    STEP_COLLAPSE = "step_collapse"
+    """the steps collapsed with no event (`StepCollapseError`)"""
     STOPPED = "stopped"
     """a terminal event stopped it (`HybridLoop.on_event`)"""
 

@@ -214,8 +214,9 @@ def test_user_effort_of_wrong_shape_is_refused():
     (dict(rtol=1e-16), r"rtol must be in \[2.22e-14, 0.1\]"),
     (dict(atol=0.0), r"atol must be in \(0, 0.1\], got 0.0"),
     (dict(atol=1.0), r"atol must be in \(0, 0.1\]"),
-    (dict(max_steps=-1), "max_steps must be an integer >= 0"),
-    (dict(max_steps=2.5), "max_steps must be an integer >= 0"),
+    (dict(max_steps=-1), "max_steps must be an integer >= 1"),
+    (dict(max_steps=2.5), "max_steps must be an integer >= 1"),
+    (dict(max_steps=0), "max_steps must be an integer >= 1, got 0"),
     (dict(progress="yes"), "progress must be a callable or None"),
 ])
 def test_simulate_refuses_options_that_cannot_be_meant(options, message):
