@@ -41,6 +41,7 @@ def summarise(rows) -> dict:
     return {"tosses": len(rows), "finished": len(done), "events": dict(events), "nonsmooth": dict(reasons),
             "tosses_not_differentiable": sum(r.outputs["not_differentiable"] > 0 for r in done),
             "wall_median": statistics.median(walls) if walls else None, "wall_max": max(walls, default=None),
+            "slowest": sorted(((r.outputs["wall"], r.point["job:toss"]) for r in done), reverse=True)[:3],
             "errors": [f"{r.point['job:toss']}: {r.error.kind}: {r.error.message}" for r in rows if r.error]}
 
 
@@ -78,6 +79,7 @@ def main(argv=None) -> int:
         print(f"{s['friction']:>5g} {s['restitution']:>5g} {s['finished']:>4}/{s['tosses']:<4} {kinds:<60} "
               f"{s['tosses_not_differentiable']:>18} {median:>22}")
         reasons = ", ".join(f"{k} {n}" for k, n in s["nonsmooth"].items() if n)
+        print(f"{'':>11} slowest: " + ", ".join(f"{name} {wall:.2f} s" for wall, name in s["slowest"]))
         print(f"{'':>11} non-differentiable events: {reasons or 'none'}")
         for line in s["errors"]:
             print(f"{'':>11} {line}")

@@ -95,16 +95,22 @@ def atlas_row(scene, point, samples: int = 8) -> dict:
             "verdict": report.verdict or f"none: {report.reason}", "notes": "; ".join(scene.atlas_notes)}
 
 
-def main() -> None:
+def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--menagerie", type=Path, default=MENAGERIE)
+    parser.add_argument("--quick", action="store_true",
+                        help="one Menagerie model and solo12, two poses each (a smoke run; give --out)")
     parser.add_argument("--samples", type=int, default=8, help="random poses of each check (default 8)")
     parser.add_argument("--jobs", type=int, default=1, help="worker processes (default 1: run times on one core)")
     parser.add_argument("--out", type=Path, default=ROOT / "docs" / "results" / "atlas.md")
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
+    if args.quick:
+        args.samples = 2
 
     models = [("menagerie", label, path) for label, path in menagerie_models(args.menagerie, scenes=True)]
     models += [("example-robot-data", name, name) for name in example_robot_data_names()]
+    if args.quick:
+        models = [m for m in models if m[0] == "menagerie"][:1] + [m for m in models if m[1] == "solo12"]
     started = time.perf_counter()
     points = [{"arg:source": path, "arg:hand": KINDS.get(label.split("/")[0]) == "hand"} for _, label, path in models]
     result = sweep(atlas_scene, points,
@@ -140,6 +146,7 @@ def main() -> None:
         lines += ["", f"example-robot-data robots that do not load ({len(failed)}): " + "; ".join(failed) + "."]
     args.out.write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
+    print(f"atlas written to {args.out}")
 
 
 def _header(args, wall: float) -> str:

@@ -266,7 +266,12 @@ class EventResets:
         orders that disagree."""
         override = {i: e[closed.index(i)] for i in closed}
         sim = simultaneous_saltation(self.dyn, t, q, v_minus, mode, touching, override, verdict_only=verdict_only)
-        if not sim.differentiable:
+        if sim.unresolved:
+            event.nonsmooth[NonSmooth.ORDER] = self._note(
+                f"not differentiable at t = {t:.12g}: {len(sim.unresolved)} of the landing orders of "
+                f"{', '.join(self.names[i] for i in touching)} have no impact solution the impact law's "
+                f"search finds, so the orders cannot be compared ({next(iter(sim.unresolved.values()))})")
+        elif not sim.differentiable:
             by = "by" if sim.complete else "by at least"
             event.nonsmooth[NonSmooth.ORDER] = self._note(
                 f"not differentiable at t = {t:.12g}: the landing orders of "

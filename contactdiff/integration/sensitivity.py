@@ -31,6 +31,7 @@ from ..dynamics.frictional_impact import ContactState
 from ..dynamics.impacts import ImpactResult, choose_mode, resolve_impact
 from ..dynamics.mode import ModeDynamics
 from ..dynamics.parameter_forces import ParameterForces
+from ..errors import SolverError
 from ..model.scene import Scene
 
 ORDER_TOL = 1e-8
@@ -255,6 +256,9 @@ class SimultaneousSaltation:
         tol: the tolerance used.
         complete: every order and the paper's matrix were formed (False when a
             verdict-only call stopped at the first two orders that disagree).
+        unresolved: the orders whose sequence of single-contact impacts has no solution
+            the impact law's search finds (`SolverError` message by order): such an
+            event is not called differentiable, since its orders cannot be compared.
         corrections: for each landing contact k, the pieces of its term
             ``S_k = jump_k Dh_k / rate_k``: ``(jump_k, rate_k)`` with ``jump_k =
             F_{J∪k}(q, v+_k) - DR_k F_J(q, v-)`` and ``rate_k = Dh_k F_J(q, v-)`` (for a
@@ -268,11 +272,18 @@ class SimultaneousSaltation:
     tol: float = ORDER_TOL
     corrections: dict = field(default_factory=dict)
     complete: bool = True
+    unresolved: dict = field(default_factory=dict)
 
     @property
     def matrix(self) -> np.ndarray:
-        """The matrix used for the flow Jacobian: the paper's (equal to every order's when differentiable)."""
-        return self.paper
+        """The matrix used for the flow Jacobian: the paper's (equal to every order's when
+        differentiable), else, where it could not be formed, the first order's."""
+        if self.paper is not None:
+            return self.paper
+        if self.orders:
+            return next(iter(self.orders.values()))
+        raise SolverError("no landing order of the simultaneous touchdown could be resolved: "
+                          + "; ".join(self.unresolved.values()))
 
 
 def simultaneous_saltation(dyn: ModeDynamics, t: float, q: np.ndarray, v_minus: np.ndarray,
@@ -314,12 +325,20 @@ def simultaneous_saltation(dyn: ModeDynamics, t: float, q: np.ndarray, v_minus: 
     result = SimultaneousSaltation(tol=tol)
     for order in itertools.permutations(contacts):
         Xi, v, current = np.eye(2 * dyn.model.nv), v_minus, mode
-        for k in order:
-            dyn.kin.update(q, v)
-            if dyn.contact(k).rows(dyn.kin)[0] @ v >= 0.0:
-                continue  # already separating after the earlier impacts: it does not land
-            step = touchdown(dyn, t, q, v, current, [k], e_for(sorted(set(current) | {k})), guard=k)
-            Xi, v, current = step.saltation @ Xi, step.v_plus, step.mode_after
+        try:
+            for k in order:
+                dyn.kin.update(q, v)
+                if dyn.contact(k).rows(dyn.kin)[0] @ v >= 0.0:
+                    continue  # already separating after the earlier impacts: it does not land
+                step = touchdown(dyn, t, q, v, current, [k], e_for(sorted(set(current) | {k})), guard=k)
+                Xi, v, current = step.saltation @ Xi, step.v_plus, step.mode_after
+        except SolverError as exc:  # this order's hypothetical impacts: noted, not fatal to the run
+            result.unresolved[order] = str(exc)
+            result.differentiable = False
+            if verdict_only:
+                result.complete = False
+                return result
+            continue
         result.orders[order] = Xi
         if verdict_only and len(result.orders) > 1:
             first = next(iter(result.orders.values()))
@@ -329,21 +348,26 @@ def simultaneous_saltation(dyn: ModeDynamics, t: float, q: np.ndarray, v_minus: 
                 return result
     # the paper's formula around the simultaneous reset
     closed = sorted(set(mode) | set(contacts))
-    whole = resolve_impact(dyn, q, v_minus, closed, e_for(closed))
-    paper = impact_reset_jacobian(dyn, q, v_minus, whole)
-    F_minus = vector_field(dyn, q, v_minus, t, mode)
-    for k in contacts:
-        single = touchdown(dyn, t, q, v_minus, mode, [k], e_for(sorted(set(mode) | {k})), guard=k)
-        DR_k = impact_reset_jacobian(dyn, q, v_minus, single.impact)
-        Dh = gap_gradient(dyn, q, k)
-        F_plus = vector_field(dyn, q, single.v_plus, t, single.mode_after)
-        jump, rate = result.corrections[k] = (F_plus - DR_k @ F_minus, float(Dh @ F_minus))
-        paper = paper + np.outer(jump, Dh) / rate
-    result.paper = paper
-    mats = list(result.orders.values()) + [paper]
-    scale = max(1.0, max(float(np.max(np.abs(m))) for m in mats))
-    result.spread = max(float(np.max(np.abs(a - b))) for a, b in itertools.combinations(mats, 2)) / scale
-    result.differentiable = result.spread <= tol
+    try:
+        whole = resolve_impact(dyn, q, v_minus, closed, e_for(closed))
+        paper = impact_reset_jacobian(dyn, q, v_minus, whole)
+        F_minus = vector_field(dyn, q, v_minus, t, mode)
+        for k in contacts:
+            single = touchdown(dyn, t, q, v_minus, mode, [k], e_for(sorted(set(mode) | {k})), guard=k)
+            DR_k = impact_reset_jacobian(dyn, q, v_minus, single.impact)
+            Dh = gap_gradient(dyn, q, k)
+            F_plus = vector_field(dyn, q, single.v_plus, t, single.mode_after)
+            jump, rate = result.corrections[k] = (F_plus - DR_k @ F_minus, float(Dh @ F_minus))
+            paper = paper + np.outer(jump, Dh) / rate
+        result.paper = paper
+    except SolverError as exc:  # a contact's single landing has no solution found: no paper matrix
+        result.unresolved[("paper",)] = str(exc)
+        result.differentiable, result.corrections = False, {}
+    mats = list(result.orders.values()) + ([result.paper] if result.paper is not None else [])
+    if len(mats) > 1:
+        scale = max(1.0, max(float(np.max(np.abs(m))) for m in mats))
+        result.spread = max(float(np.max(np.abs(a - b))) for a, b in itertools.combinations(mats, 2)) / scale
+    result.differentiable = result.spread <= tol and not result.unresolved
     return result
 
 

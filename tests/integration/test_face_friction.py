@@ -150,3 +150,85 @@ def test_a_face_landing_is_flagged_by_its_landing_orders_with_or_without_sensiti
         assert set(landing.contacts) == set(CORNERS)
         assert cd.NonSmooth.ORDER in landing.nonsmooth and not traj.differentiable
     assert len(full.events[0].saltation_orders) == 24
+
+
+def cube_on_edge(moment=None, mu=1.0, restitution=0.0, tilt=0.05, omega=0.0, b=0.05, mass=0.4):
+    """A cube of half edge ``b`` on its bottom edge x = -b (corners ``-x±y-z`` on the
+    ground), tilted by ``tilt`` (rad) about that edge (its +x side up), turning about it
+    at ``omega`` (rad/s, + tips it further up); moments ``moment`` (kg m², default uniform)."""
+    cube = SceneObject("cube", shape="box", size=(2 * b,) * 3, mass=mass, moments=moment, position=(0.0, 0.0, b))
+    corners = [f"cube/{sx}x{sy}y-z" for sx in "+-" for sy in "+-"]
+    scene = cd.Scene(add_objects(empty_robot(), [cube]),
+                     [cd.Contact(n, friction=mu, restitution=restitution) for n in corners], gravity=(0.0, 0.0, -G))
+    rotation = pin.rpy.rpyToMatrix(0.0, -tilt, 0.0)  # about y: -tilt raises the +x side
+    edge = np.array([-b, 0.0, 0.0])
+    centre = edge + rotation @ np.array([b, 0.0, b])  # the corner (-b, y, -b) of the cube frame on the edge
+    q = np.r_[centre, pin.Quaternion(rotation).coeffs()]
+    w_world = np.array([0.0, -omega, 0.0])
+    v_world = np.cross(w_world, centre - edge)
+    v = np.r_[rotation.T @ v_world, rotation.T @ w_world]
+    return scene.with_state(q, v), corners
+
+
+@pytest.mark.parametrize("moment", [None, 8.1e-4])
+def test_housner_rocking_cube_lands_on_its_other_edge(moment):
+    """A cube rocking on one bottom edge falls flat onto the opposite edge (plastic, that
+    edge sticking): the impulse acts at the new edge only, so angular momentum about it is
+    kept. With half edge b, centre at (0, b) from the face's middle, the old edge O1 at
+    x = -b and the new one O2 at x = +b, the centre moves at ω1 (b, -b) (turning about
+    O1); about O2, H = I_c ω1 + m ((c - O2) × v)_y = (I_c + m (b² - b²)) ω1 = I_c ω1 before
+    and (I_c + 2 m b²) ω2 after: ω2/ω1 = I_c / (I_c + 2 m b²), 1/4 for a uniform cube
+    (I_c = 2 m b² / 3; Housner's 1 - 3/2 sin² α with α = 45°). The old edge then lifts.
+    Tolerance: the event's velocities carry the run's error, ~1e-10 relative at rtol 1e-10."""
+    b, mass = 0.05, 0.4
+    scene, corners = cube_on_edge(moment, b=b, mass=mass)
+    traj = cd.simulate(scene, 0.5, **TIGHT)
+    landing = next(e for e in traj.events if "cube/+x+y-z" in e.contacts)
+    assert set(landing.contacts) == {"cube/+x+y-z", "cube/+x-y-z"}
+    i_c = mass * (2 * b) ** 2 / 6 if moment is None else moment
+    ratio = landing.v_plus[4] / landing.v_minus[4]  # ω_y, cube frame = world at the flat pose
+    assert ratio == pytest.approx(i_c / (i_c + 2 * mass * b * b), rel=1e-8)
+    assert set(landing.mode_after) == {"cube/+x+y-z", "cube/+x-y-z"}  # the old edge lifted
+
+
+def test_a_face_tilted_by_a_nanoradian_lands_without_a_cascade():
+    """A box dropped flat but for a 1e-9 rad tilt: its corners land 1e-10 s apart
+    (2.5e-11 m of height over a 0.5 m/s landing), one simultaneous event by the
+    simultaneity tolerance or a short cascade: the run must end promptly, at rest on its
+    face, with its energy not above the drop's."""
+    box = SceneObject("box", shape="box", size=(2 * A_HALF, 2 * B_HALF, 2 * C_HALF), mass=MASS,
+                      position=(0.0, 0.0, C_HALF))
+    scene = cd.Scene(add_objects(empty_robot(), [box]), [cd.Contact(n, friction=MU, restitution=0.3) for n in CORNERS],
+                     gravity=(0.0, 0.0, -G))
+    rotation = pin.rpy.rpyToMatrix(1e-9, 0.0, 0.0)
+    q = np.r_[0.0, 0.0, C_HALF + 0.0125 + 2e-9, pin.Quaternion(rotation).coeffs()]
+    traj = cd.simulate(scene.with_state(q, np.zeros(6)), 1.0)
+    assert traj.t == 1.0 and len(traj.events) < 200
+    assert traj.q[2] == pytest.approx(C_HALF, abs=1e-6)
+    np.testing.assert_allclose(traj.v, 0.0, atol=1e-6)
+
+
+def test_flow_jacobian_through_an_edge_release_matches_finite_differences():
+    """A cube falling back from its bottom edge (Coulomb, μ = 1) fast enough that the
+    edge's normal force reaches zero (the centre's circular motion asks more than gravity
+    gives): the edge's two corners release together, and slide rather than lift since the
+    friction they carried pressed them down (a ``slip`` event of both; the two rows of the
+    edge are redundant with its four sticking rows). The flow Jacobian through that event,
+    along random directions of the state space, against central differences on the
+    manifold (ε = 1e-6, rtol 1e-12: error ~1e-12/ε + ε²: 1e-5 relative)."""
+    scene, corners = cube_on_edge(tilt=0.6, omega=-11.0)
+    opts = dict(rtol=1e-12, atol=1e-14)
+    T = 0.04  # after the release (~0.011 s), before the face lands (~0.051 s)
+    traj = cd.simulate(scene, T, jacobian=True, **opts)
+    assert [e.kind for e in traj.events] == ["slip"] and traj.differentiable
+    model, q, v = scene.model, scene.q0, scene.v0
+    eps = 1e-6
+    rng = np.random.default_rng(0)
+    for _ in range(3):
+        dq, dv = rng.standard_normal(6), rng.standard_normal(6)
+        runs = [cd.simulate(scene.with_state(pin.integrate(model, q, s * eps * dq), v + s * eps * dv), T, **opts)
+                for s in (1.0, -1.0)]
+        assert [e.kind for e in runs[0].events] == [e.kind for e in runs[1].events] == [e.kind for e in traj.events]
+        fd = np.r_[pin.difference(model, runs[1].q, runs[0].q), runs[0].v - runs[1].v] / (2 * eps)
+        exact = traj.jacobian @ np.r_[dq, dv]
+        assert np.abs(exact - fd).max() <= 1e-5 * max(1.0, np.abs(fd).max())
