@@ -215,20 +215,31 @@ def test_flow_jacobian_through_an_edge_release_matches_finite_differences():
     friction they carried pressed them down (a ``slip`` event of both; the two rows of the
     edge are redundant with its four sticking rows). The flow Jacobian through that event,
     along random directions of the state space, against central differences on the
-    manifold (ε = 1e-6, rtol 1e-12: error ~1e-12/ε + ε²: 1e-5 relative)."""
+    manifold. rtol 1e-10 (tighter, the slip's start from zero speed takes thousands of
+    steps: the slow approach of slips), ε = 1e-5: the differences' error is ~1e-10/ε
+    plus ε² terms, so 1e-4 relative to the columns' size allows a factor 10 for the
+    event time's error, which enters through the release's rate."""
     scene, corners = cube_on_edge(tilt=0.6, omega=-11.0)
-    opts = dict(rtol=1e-12, atol=1e-14)
+    opts = dict(rtol=1e-10, atol=1e-12)
     T = 0.04  # after the release (~0.011 s), before the face lands (~0.051 s)
     traj = cd.simulate(scene, T, jacobian=True, **opts)
     assert [e.kind for e in traj.events] == ["slip"] and traj.differentiable
     model, q, v = scene.model, scene.q0, scene.v0
-    eps = 1e-6
-    rng = np.random.default_rng(0)
-    for _ in range(3):
-        dq, dv = rng.standard_normal(6), rng.standard_normal(6)
+    eps = 1e-5
+    # perturbations that keep the edge on the ground and sticking: horizontal moves and
+    # turns of the cube (rigid motions of the plane) and the turn about the edge
+    rotation = pin.Quaternion(q[3:7]).matrix()
+    directions = [(np.r_[rotation.T @ e, 0.0, 0.0, 0.0], np.zeros(6)) for e in np.eye(3)[:2]]
+    directions.append((np.r_[0.0, 0.0, 0.0, rotation.T @ np.array([0.0, 0.0, 1.0])], np.zeros(6)))
+    dyn = cd.ModeDynamics(scene)
+    dyn.kin.update(q, v)
+    rows = np.vstack([dyn.contact(scene.contact_names.index(n)).rows(dyn.kin) for n in corners if "-x" in n])
+    turn = np.linalg.svd(rows)[2][-1]  # six rows of rank 5: the one velocity they leave free
+    directions.append((np.zeros(6), turn))
+    for dq, dv in directions:
         runs = [cd.simulate(scene.with_state(pin.integrate(model, q, s * eps * dq), v + s * eps * dv), T, **opts)
                 for s in (1.0, -1.0)]
         assert [e.kind for e in runs[0].events] == [e.kind for e in runs[1].events] == [e.kind for e in traj.events]
         fd = np.r_[pin.difference(model, runs[1].q, runs[0].q), runs[0].v - runs[1].v] / (2 * eps)
         exact = traj.jacobian @ np.r_[dq, dv]
-        assert np.abs(exact - fd).max() <= 1e-5 * max(1.0, np.abs(fd).max())
+        assert np.abs(exact - fd).max() <= 1e-4 * max(1.0, np.abs(fd).max()), np.abs(exact - fd).max()
