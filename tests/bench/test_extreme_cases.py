@@ -19,6 +19,7 @@ import pytest
 import contactdiff as cd
 from contactdiff.bench import extreme_cases as studies
 from contactdiff.errors import GrazingError
+from contactdiff.integration import method_choice
 from contactdiff.integration.hybrid import simulate
 from contactdiff.integration.method_choice import spectral_radius
 from contactdiff.integration.steppers import PinocchioGroup
@@ -154,6 +155,56 @@ def test_auto_with_jacobian_through_a_switch():
     runs = [simulate(scene, 0.9, q0=pin.integrate(model, scene.q0, s * e), **opts) for s in (1, -1)]
     fd = np.concatenate([pin.difference(model, runs[1].q, runs[0].q), runs[0].v - runs[1].v]) / (2 * h)
     np.testing.assert_allclose(traj.jacobian[:, k], fd, rtol=0, atol=1e-6 * np.max(np.abs(fd)))
+
+
+def _chooser_steps(chooser, steps):
+    """Feed ``chooser`` accepted steps (s) with a constant ρ; return the switches it asks."""
+    return [chooser.after_step(h, None, None, 0.0) for h in steps]
+
+
+def test_auto_trial_returns_to_explicit_when_radau_steps_are_clearly_shorter():
+    """The method chooser's trial (method_choice module doc), on a probe that always
+    measures ρ = 1000 /s. Explicit steps of 4e-3 s (h ρ = 4 >= STIFF_RATIO) switch to
+    Radau after SWITCH_COUNT of them; Radau steps of 1e-4 s (40 times shorter, below the
+    1/TRIAL_MARGIN of the explicit steps) switch back after TRIAL_STEPS, and Radau is
+    refused for the rest of the mode however many stiff-looking explicit steps follow; a
+    new mode may switch again; Radau steps of 2e-3 s (half the explicit: within the margin)
+    keep Radau."""
+    rho = 1000.0
+    chooser = method_choice.MethodChooser(lambda q, v, t: rho)
+    n = method_choice.SWITCH_COUNT
+    assert _chooser_steps(chooser, [4e-3] * n) == [None] * (n - 1) + ["Radau"]
+    trial = _chooser_steps(chooser, [1e-4] * method_choice.TRIAL_STEPS)
+    assert trial == [None] * (method_choice.TRIAL_STEPS - 1) + ["DOP853"]
+    assert _chooser_steps(chooser, [4e-3] * 3 * method_choice.WINDOW) == [None] * 3 * method_choice.WINDOW
+    chooser.new_mode(lambda q, v, t: rho)
+    assert _chooser_steps(chooser, [4e-3] * n)[-1] == "Radau"
+    assert _chooser_steps(chooser, [2e-3] * 3 * method_choice.WINDOW) == [None] * 3 * method_choice.WINDOW
+    assert chooser.method == "Radau"
+
+
+def test_auto_with_jacobian_does_not_stay_in_radau_with_shorter_steps():
+    """solo12_drop rolled 0.03 and pitched 0.05 rad, raised 1 cm (the feet land one at a
+    time; scripts/parameter_cost.py), with the flow Jacobian: in the flight the Jacobian's
+    columns hold DOP853's steps at h ρ ≈ 4.5 (ρ ≈ 770 /s), limited by their accuracy, and
+    Radau's own error control then takes steps 14 times shorter. Whether the explicit steps'
+    count reaches a switch before the first touchdown is close (it did on every BLAS kernel
+    tried, and the run then took 24 Radau steps); the trial ends such a switch after at most
+    TRIAL_STEPS Radau steps. The events and the final state agree with method="DOP853"
+    to the run's tolerance (rtol 1e-8: 1e-6 on the state, a 100x margin for the 33 events'
+    sensitivity)."""
+    from scipy.spatial.transform import Rotation
+
+    scene = cd.load_scene("solo12_drop")
+    q = scene.q0.copy()
+    q[3:7] = Rotation.from_euler("xyz", [0.03, 0.05, 0.0]).as_quat()
+    q[2] += 0.01
+    scene = scene.with_state(q)
+    auto = simulate(scene, 0.3, jacobian=True)
+    explicit = simulate(scene, 0.3, jacobian=True, method="DOP853")
+    assert auto.stats.steps_by_method.get("Radau", 0) <= method_choice.TRIAL_STEPS
+    assert [(e.kind, e.contacts) for e in auto.events] == [(e.kind, e.contacts) for e in explicit.events]
+    assert studies.state_error(scene, auto, explicit.q, explicit.v) < 1e-6
 
 
 def test_stiffness_sweep_rows():
