@@ -22,8 +22,10 @@ from ..model.scene_file import load_scene
 from ..paper import trot_touchdown
 from .study_rows import DEFAULT_TOL, SQ2, TIGHT_TOL, StudyRow, _counts, _error_name, _failed, _run
 
-# -- grazing ---------------------------------------------------------------------------
 GRAZING_SPEED = SimulateOptions().grazing_speed  # m/s, the default the studies run with
+
+
+# -- grazing ---------------------------------------------------------------------------
 def slow_drop(speed: float, height: float = 1e-6) -> Scene:
     """A plastic ball dropped from ``height`` (m) under the gravity that makes it land at
     ``speed`` (m/s): g = speed² / (2 height); it lands at t = 2 height / speed."""
