@@ -207,6 +207,34 @@ def test_auto_with_jacobian_does_not_stay_in_radau_with_shorter_steps():
     assert studies.state_error(scene, auto, explicit.q, explicit.v) < 1e-6
 
 
+def test_stiffness_sweep_compares_modes_within_the_event_time_resolution():
+    """The sweep's event comparison (`stiff_cases._event_time_error`) on runs made of
+    segments (t0, t1, mode): the undamped legs at k x 1e7 land at t = 1 in the reference
+    (one touchdown), and under some BLAS kernels at the default tolerances the feet land
+    2e-9 s early, bounce off at 6.5e-10 m/s and touch again 4e-9 s later (a bounce and
+    a grazing event). Within a resolution of 1e-5 s (1e3 rtol) the two are the same mode
+    sequence, with the mode change 2e-9 s apart; with a resolution finer than the 4e-9 s
+    flight they differ; a run that never lands differs at any resolution."""
+    from types import SimpleNamespace
+
+    from contactdiff.bench.stiff_cases import _event_time_error
+
+    def run(*segments):
+        return SimpleNamespace(segments=[SimpleNamespace(t0=a, t1=b, mode=m, sliding=()) for a, b, m in segments])
+
+    feet = ("rear_foot", "front_foot")
+    ref = run((0.0, 1.0, ()), (1.0, 1.0001352, feet), (1.0001352, 1.2, ()))
+    bounced = run((0.0, 0.999999998, ()), (0.999999998, 1.000000002, ()), (1.000000002, 1.0001352, feet),
+                  (1.0001352, 1.2, ()))
+    assert _event_time_error(bounced, ref, 1e-5) == pytest.approx(2e-9, rel=1e-6)
+    assert _event_time_error(bounced, ref, 1e-9) == pytest.approx(2e-9, rel=1e-6)  # same modes, merged
+    split = run((0.0, 0.999999998, ()), (0.999999998, 0.999999999, feet), (0.999999999, 1.000000002, ()),
+                (1.000000002, 1.0001352, feet), (1.0001352, 1.2, ()))
+    assert _event_time_error(split, ref, 1e-5) == pytest.approx(2e-9, rel=1e-6)
+    assert _event_time_error(split, ref, 1e-10) == math.inf
+    assert _event_time_error(run((0.0, 1.2, ())), ref, 1e-5) == math.inf
+
+
 def test_stiffness_sweep_rows():
     """The study's own verdicts at two stiffnesses (its bounds are in its docstring)."""
     rows = studies.stiffness_sweep(scales=(1, 1e3), methods=("auto", "Radau"))
