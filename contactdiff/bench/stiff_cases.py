@@ -120,7 +120,14 @@ def stiffness_sweep(scales=(1, 10, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7), damping_ratio:
 
     A run is ok when its mode sequence is the reference's and its error is at
     most ``1e3 rtol`` (the global error of these hybrid runs: ~1e-6 relative
-    event-time sensitivity through the bounces) plus ten times the spread.
+    event-time sensitivity through the bounces) plus ten times the spread; with
+    undamped legs plus ``ω p``, ``p = atol + rtol |q|_inf`` the position
+    tolerance: the touchdown is located within ``p`` (in time within ``p / u``
+    at touch speed ``u``), so the feet stop up to ``p`` off and the legs ring
+    about a rest point moved by that much, an error of up to ``ω p`` in
+    velocity, which no decay removes (k x 1e7: ``ω p`` = 1.2e-4; a touchdown
+    2e-9 s early, within ``p / u`` = 5e-9 s, gave 6.2e-5 under one BLAS kernel
+    and 5.1e-6 under another).
     """
     tol = dict(DEFAULT_TOL if tol is None else tol)
     reference_tol = dict(rtol=1e-11, atol=1e-11) if reference_tol is None else dict(reference_tol)
@@ -138,6 +145,10 @@ def stiffness_sweep(scales=(1, 10, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7), damping_ratio:
         spread = max(state_error(scene, chk, ref.q, ref.v), _event_time_error(chk, ref, 1e3 * check_tol["rtol"]))
         k = scene.effort_specs[0].stiffness
         omega = math.sqrt(2.0 * k)
+        # undamped legs: a touchdown located within the position tolerance p (its time within
+        # p / u at touch speed u) stops the foot up to p off, and the leg then rings about a
+        # rest point moved by up to p: a final-state error up to omega p (docstring)
+        ringing = 0.0 if damping_ratio > 0 else omega * (tol["atol"] + tol["rtol"] * float(np.max(np.abs(ref.q))))
         rest = None
         if damping_ratio > 0:
             # slowest stance motion: body on two legs, omega_b = sqrt(2k), damping 2c
@@ -168,7 +179,7 @@ def stiffness_sweep(scales=(1, 10, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7), damping_ratio:
                        "events": [e.kind for e in traj.events], "rejected_steps": traj.stats.rejected_steps}
             if rest is not None:
                 details["error_vs_rest"] = state_error(scene, traj, *rest)
-            ok = err <= 1e3 * tol["rtol"] + 10 * spread
+            ok = err <= 1e3 * tol["rtol"] + ringing + 10 * spread
             outcome = "ok" if ok else ("mode sequence differs" if math.isinf(events_err) else "error above bound")
             rows.append(StudyRow(**base, error=err, time=elapsed, steps=steps, evaluations=evals,
                                  outcome=outcome, ok=ok, details=details))
