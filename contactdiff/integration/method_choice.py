@@ -181,6 +181,8 @@ class MethodChooser:
                 self._trial, self._refused = None, True
                 self.method = EXPLICIT
                 self._steps.clear()
+                if self.rho is None:  # a mode that began during the trial: its ρ, for the switch's note
+                    self.rho = self._measure(q, v, t)
                 return self.method
         if self._mode_steps < PROBE_AFTER or (self._refused and self.method == EXPLICIT):
             return None

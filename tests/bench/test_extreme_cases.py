@@ -181,6 +181,12 @@ def test_auto_trial_returns_to_explicit_when_radau_steps_are_clearly_shorter():
     assert _chooser_steps(chooser, [4e-3] * n)[-1] == "Radau"
     assert _chooser_steps(chooser, [2e-3] * 3 * method_choice.WINDOW) == [None] * 3 * method_choice.WINDOW
     assert chooser.method == "Radau"
+    # a trial that spans a new mode is judged on: the switch back then measures the new mode's ρ
+    chooser = method_choice.MethodChooser(lambda q, v, t: rho)
+    assert _chooser_steps(chooser, [4e-3] * n)[-1] == "Radau"
+    chooser.new_mode(lambda q, v, t: 2 * rho)
+    assert _chooser_steps(chooser, [1e-4] * method_choice.TRIAL_STEPS)[-1] == "DOP853"
+    assert chooser.rho == 2 * rho
 
 
 def test_auto_with_jacobian_does_not_stay_in_radau_with_shorter_steps():
