@@ -125,6 +125,27 @@ def test_stiff_runs_are_correct(stiff_runs):
     assert [e.kind for e in ref.events] == ["touchdown", "lift-off", "touchdown"]
 
 
+@pytest.mark.parametrize("dz,dv", [(0.0, 3.5e-13), (1e-11, 0.0), (5e-12, -3e-13)])
+def test_radau_at_rest_on_stiff_legs_does_not_collapse(dz, dv):
+    """Radau at rtol = atol = 1e-11 from the closed-form rest stance of the damped legs
+    at k x 1e7 (`settled_stance`), its body nudged by dz (m) and dv (m/s), to 0.1 s: the
+    spring forces carry a rounding noise of k ulp(q), so near rest Newton's increments
+    stop contracting (rate ~ 1) at a few 1e-6 of newton_tol's scale. Taken for
+    divergence, each halved the step until the run stopped at max_steps (the stiffness
+    sweep's own reference, under one BLAS kernel, after its last touchdown). Now a few
+    dozen steps, and the state ends at the rest state (the slowest stance mode decays at
+    ~9.6e3 /s: exp(-960) over 0.1 s) to the 1e-9 of test_stiff_runs_are_correct."""
+    scene = studies.stiff_trot(1e7, 1.0)
+    q, v = studies.settled_stance(scene)
+    z, vz = scene.robot.scalar_joint("body_z")
+    q0, v0 = q.copy(), v.copy()
+    q0[z] += dz
+    v0[vz] += dv
+    traj = simulate(scene.with_state(q0, v0), 0.1, method="Radau", rtol=1e-11, atol=1e-11, max_steps=3000)
+    assert traj.stats.steps < 100
+    assert studies.state_error(scene, traj, q, v) < 1e-9
+
+
 def test_auto_keeps_explicit_while_a_stiff_spring_rings():
     """Undamped legs 1e4 times stiffer: the flight is stiff (springs at rest length, never
     excited), so auto switches to Radau; the touchdown rings the legs at
