@@ -14,12 +14,15 @@ import pinocchio as pin
 
 from ..errors import ContactDiffError
 from ..integration.hybrid import simulate
+from ..integration.options import SimulateOptions
 from ..model.contacts import Contact
 from ..model.efforts import JointSpring, Spring
 from ..model.scene import Scene
 from ..model.scene_file import load_scene
 from ..paper import trot_touchdown
 from .study_rows import DEFAULT_TOL, SQ2, TIGHT_TOL, StudyRow, _counts, _error_name, _failed, _run
+
+GRAZING_SPEED = SimulateOptions().grazing_speed  # m/s, the default the studies run with
 
 
 # -- grazing ---------------------------------------------------------------------------
@@ -59,8 +62,12 @@ def grazing_study(speeds=(1e-3, 1e-5, 1e-7, 1e-9, 1e-10, 1e-12),
 
     Slow drop (transversal, `slow_drop`): the event time against 2h/u (relative
     error), kind ``touchdown`` above ``grazing_speed`` (1e-9 m/s) and
-    ``grazing`` at or below, and with ``on_grazing="raise"`` a `GrazingError`
-    for those.
+    ``grazing`` below, and with ``on_grazing="raise"`` a `GrazingError`
+    for those. At ``u = grazing_speed`` itself the touch speed is the threshold up
+    to round-off (the fall, a quadratic, is integrated exactly; its speed carries a
+    few ulps, which fall on either side of the threshold with the CPU's BLAS
+    kernel): either kind is right there, provided the run with
+    ``on_grazing="raise"`` agrees (`GrazingError` exactly when ``grazing``).
 
     Tangent approach (`tangent_approach`, O(1) swing): the final state (t = 4)
     against the closed form with the touch. The touch speed is u ≈ sqrt(2 dip);
@@ -77,7 +84,11 @@ def grazing_study(speeds=(1e-3, 1e-5, 1e-7, 1e-9, 1e-10, 1e-12),
         t_c = 2e-6 / u
         traj, elapsed = _run(scene, 1.5 * t_c, **tol)
         raised, _ = _run(scene, 1.5 * t_c, on_grazing="raise", **tol)
-        grazing = u <= 1e-9
+        outcomes = {False: ("touchdown", "no error"), True: ("grazing", "GrazingError")}
+        if math.isclose(u, GRAZING_SPEED, rel_tol=1e-12):  # at the threshold: either (docstring)
+            expected = set(outcomes.values())
+        else:
+            expected = {outcomes[u < GRAZING_SPEED]}
         base = dict(study="grazing", case="slow drop from 1e-6 m", parameter=f"u = {u:g} m/s",
                     method="auto", reference="event time 2h/u (relative)")
         if isinstance(traj, ContactDiffError):
@@ -87,8 +98,7 @@ def grazing_study(speeds=(1e-3, 1e-5, 1e-7, 1e-9, 1e-10, 1e-12),
         err = abs(ev.t - t_c) / t_c if ev else None
         kind = ev.kind if ev else "no event"
         raise_outcome = _error_name(raised)
-        ok = (ev is not None and err <= 1e-9 and kind == ("grazing" if grazing else "touchdown")
-              and raise_outcome == ("GrazingError" if grazing else "no error"))
+        ok = ev is not None and err <= 1e-9 and (kind, raise_outcome) in expected
         steps, evals = _counts(traj)
         rows.append(StudyRow(**base, error=err, time=elapsed, steps=steps, evaluations=evals,
                              outcome=f"{kind}; on_grazing=raise: {raise_outcome}", ok=ok))

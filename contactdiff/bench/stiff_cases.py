@@ -46,12 +46,37 @@ def settled_stance(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
     return q, np.zeros(scene.nv)
 
 
-def _event_time_error(traj, ref) -> float:
-    """Largest difference of event times matched by order; inf if the kinds differ."""
-    kinds, ref_kinds = [e.kind for e in traj.events], [e.kind for e in ref.events]
-    if kinds != ref_kinds:
+def _mode_sequence(traj, resolution: float) -> list[tuple[tuple, float]]:
+    """The run's contact modes (active and sliding contacts) with their start times (s),
+    leaving out segments no longer than ``resolution`` (s) and merging neighbours of the
+    same mode."""
+    modes: list[tuple[tuple, float]] = []
+    for segment in traj.segments:
+        if segment.t1 - segment.t0 <= resolution:
+            continue
+        key = (segment.mode, segment.sliding)
+        if not modes or modes[-1][0] != key:
+            modes.append((key, segment.t0))
+    return modes
+
+
+def _event_time_error(traj, ref, resolution: float) -> float:
+    """Largest difference between the times at which the two runs change contact mode,
+    matched by order, within the resolution of event times ``resolution`` (s); inf if
+    the modes differ.
+
+    Modes, not event kinds: a run whose touchdown comes out as an impact that lifts
+    the feet by a hair (``bounce``) and a grazing re-touch nanoseconds later has the
+    same outcome, within the tolerance, as one touchdown, and which of the two a run
+    gives turns on the last bits of its arithmetic (the undamped legs at k x 1e7:
+    feet that land at 1 m/s bounce off at 6.5e-10 m/s under one BLAS kernel).
+    Segments no longer than ``resolution`` are left out (a time interval the event
+    times cannot resolve), so such a pair compares as the single event it resolves to.
+    """
+    modes, ref_modes = _mode_sequence(traj, resolution), _mode_sequence(ref, resolution)
+    if [m for m, _ in modes] != [m for m, _ in ref_modes]:
         return math.inf
-    return max((abs(a.t - b.t) for a, b in zip(traj.events, ref.events)), default=0.0)
+    return max((abs(a - b) for (_, a), (_, b) in zip(modes[1:], ref_modes[1:])), default=0.0)
 
 
 def stiffness_sweep(scales=(1, 10, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7), damping_ratio: float = 1.0,
@@ -60,8 +85,10 @@ def stiffness_sweep(scales=(1, 10, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7), damping_ratio:
                     reference_tol: dict | None = None, skip=None) -> list[StudyRow]:
     """planar_trot_soft with stiffer legs: the cost of each method and its error.
 
-    Error: the larger of the final-state error and the largest event-time error
-    (events matched by order; a different event sequence is an error of inf)
+    Error: the larger of the final-state error and the largest error in the times the
+    contact mode changes (modes matched by order, segments shorter than the event-time
+    bound ``1e3 rtol`` left out: `_event_time_error`; a different mode sequence is an
+    error of inf)
     against a reference run with ``reference_method`` at ``reference_tol``
     (default rtol = atol = 1e-11: with very stiff springs the accelerations carry
     a rounding noise of k ulp(q), up to ~1e-9 m/s² at k x 1e7, which a smaller
@@ -91,9 +118,16 @@ def stiffness_sweep(scales=(1, 10, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7), damping_ratio:
         reference_tol: ``rtol``/``atol`` of the reference run (default 1e-11 both).
         skip: ``skip(scale, method) -> reason or None``: runs not made (too slow).
 
-    A run is ok when its event sequence is the reference's and its error is at
+    A run is ok when its mode sequence is the reference's and its error is at
     most ``1e3 rtol`` (the global error of these hybrid runs: ~1e-6 relative
-    event-time sensitivity through the bounces) plus ten times the spread.
+    event-time sensitivity through the bounces) plus ten times the spread; with
+    undamped legs plus ``ω p``, ``p = atol + rtol |q|_inf`` the position
+    tolerance: the touchdown is located within ``p`` (in time within ``p / u``
+    at touch speed ``u``), so the feet stop up to ``p`` off and the legs ring
+    about a rest point moved by that much, an error of up to ``ω p`` in
+    velocity, which no decay removes (k x 1e7: ``ω p`` = 1.2e-4; a touchdown
+    2e-9 s early, within ``p / u`` = 5e-9 s, gave 6.2e-5 under one BLAS kernel
+    and 5.1e-6 under another).
     """
     tol = dict(DEFAULT_TOL if tol is None else tol)
     reference_tol = dict(rtol=1e-11, atol=1e-11) if reference_tol is None else dict(reference_tol)
@@ -108,9 +142,13 @@ def stiffness_sweep(scales=(1, 10, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7), damping_ratio:
         chk, _ = _run(scene, t_final, method=reference_method, max_events=1000, **check_tol)
         if isinstance(ref, ContactDiffError) or isinstance(chk, ContactDiffError):
             raise IntegrationError(f"reference of {scene.name} failed: {ref if isinstance(ref, Exception) else chk}")
-        spread = max(state_error(scene, chk, ref.q, ref.v), _event_time_error(chk, ref))
+        spread = max(state_error(scene, chk, ref.q, ref.v), _event_time_error(chk, ref, 1e3 * check_tol["rtol"]))
         k = scene.effort_specs[0].stiffness
         omega = math.sqrt(2.0 * k)
+        # undamped legs: a touchdown located within the position tolerance p (its time within
+        # p / u at touch speed u) stops the foot up to p off, and the leg then rings about a
+        # rest point moved by up to p: a final-state error up to omega p (docstring)
+        ringing = 0.0 if damping_ratio > 0 else omega * (tol["atol"] + tol["rtol"] * float(np.max(np.abs(ref.q))))
         rest = None
         if damping_ratio > 0:
             # slowest stance motion: body on two legs, omega_b = sqrt(2k), damping 2c
@@ -133,7 +171,7 @@ def stiffness_sweep(scales=(1, 10, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7), damping_ratio:
                 continue
             steps, evals = _counts(traj)
             state_err = state_error(scene, traj, ref.q, ref.v)
-            events_err = _event_time_error(traj, ref)
+            events_err = _event_time_error(traj, ref, 1e3 * tol["rtol"])
             err = max(state_err, events_err)
             details = {"omega": omega, "reference_spread": spread, "state_error": state_err,
                        "event_time_error": events_err,
@@ -141,8 +179,8 @@ def stiffness_sweep(scales=(1, 10, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7), damping_ratio:
                        "events": [e.kind for e in traj.events], "rejected_steps": traj.stats.rejected_steps}
             if rest is not None:
                 details["error_vs_rest"] = state_error(scene, traj, *rest)
-            ok = err <= 1e3 * tol["rtol"] + 10 * spread
-            outcome = "ok" if ok else ("event sequence differs" if math.isinf(events_err) else "error above bound")
+            ok = err <= 1e3 * tol["rtol"] + ringing + 10 * spread
+            outcome = "ok" if ok else ("mode sequence differs" if math.isinf(events_err) else "error above bound")
             rows.append(StudyRow(**base, error=err, time=elapsed, steps=steps, evaluations=evals,
                                  outcome=outcome, ok=ok, details=details))
     return rows

@@ -14,11 +14,17 @@ in tangent coordinates (`slip_direction`).
 **Slip direction.** In 3-D, ``s = u_T / ||u_T||`` with ``u_T = A_T v`` the
 slip velocity; on a planar contact ``s = ±1`` is fixed for the whole slip.
 The 3-D direction is continued through the stop: where ``u_T`` points against
-the contact's *reference* (its direction at the last accepted step), ``s`` is
-``-u_T / ||u_T||``. A slip that stops has ``u_T(t) = (t_s - t) c(t)`` with
-``c`` smooth, so the continued field is smooth through ``t_s`` and the stop
-is the zero of ``reference · u_T``, a sign change the guards locate like any
-other. Below a floor ``ε`` (`SLIP_SPEED_EPS`; the hybrid loop raises it to its
+the contact's *reference* ``r`` (its direction at the last accepted step), past
+the stop, ``s`` is ``r`` itself, as on a planar contact, so the stop is the zero
+of ``r · u_T``, a sign change the guards locate like any other. Not
+``-u_T / ||u_T||``, the continuation along the slip's own direction: past the
+stop that field pushes ``u_T`` away from its line (a transverse slip ``w``
+grows as ``ẇ = μ λ_N w / (m ||u_T||)``, the mirror of the damping that turns a
+slip onto its final direction before the stop), so the stages of a step that
+crosses the stop amplify their round-off there, and the step's interpolant
+carried that error back to before the stop: stop times 100 times the
+integration tolerance off, which differed with the last bits of the
+arithmetic (the BLAS kernel). Below a floor ``ε`` (`SLIP_SPEED_EPS`; the hybrid loop raises it to its
 ``zeno_speed``, above the integration error of ``u_T``) ``s`` is the reference
 ``r`` itself: at the onset of a slip from sticking ``u_T`` grows from 0 and its
 direction there is noise. Between ``ε`` and ``2ε`` it turns from ``r`` to the
@@ -56,8 +62,9 @@ def slip_direction(slip_velocity: np.ndarray, reference: np.ndarray | None, floo
         floor: slip speed (m/s) below which the reference is the direction.
 
     Returns:
-        ``(s, D)``: ``D = ±(I - s s^T) / ||u_T||`` in 3-D above ``floor``,
-        None where ``s`` does not depend on ``u_T`` (planar, or a slip too slow).
+        ``(s, D)``: ``D = (I - s s^T) / ||u_T||`` in 3-D above ``2 floor`` (the
+        band's blend below it), None where ``s`` does not depend on ``u_T``
+        (planar, a slip too slow, or one past its stop: against the reference).
         With no reference and no slip, ``s`` is zero (no friction direction).
     """
     u = np.asarray(slip_velocity, dtype=float)
@@ -69,11 +76,10 @@ def slip_direction(slip_velocity: np.ndarray, reference: np.ndarray | None, floo
     if speed <= floor or (reference is None and speed <= SLIP_SPEED_EPS):
         return (np.zeros(2) if reference is None else np.asarray(reference, dtype=float)), None
     s = u / speed
-    sign = 1.0
-    if reference is not None and s @ reference < 0.0:
-        s, sign = -s, -1.0
+    if reference is not None and s @ reference < 0.0:  # past a stop: the reference (module doc)
+        return np.asarray(reference, dtype=float), None
     if reference is None or speed >= 2.0 * floor:
-        return s, sign * (np.eye(2) - np.outer(s, s)) / speed
+        return s, (np.eye(2) - np.outer(s, s)) / speed
     # the band [floor, 2 floor]: from the reference to the slip's own direction (module doc)
     r = np.asarray(reference, dtype=float)
     x = speed / floor - 1.0
@@ -81,9 +87,9 @@ def slip_direction(slip_velocity: np.ndarray, reference: np.ndarray | None, floo
     b = a * s + (1.0 - a) * r
     norm = float(np.linalg.norm(b))
     blended = b / norm
-    # db/dw = da ŵ-derivative terms: (ŵ - r) ŵᵀ da + a (I - ŵ ŵᵀ) / ||w||, w = sign u
+    # db/du = da ŵ-derivative terms: (ŵ - r) ŵᵀ da + a (I - ŵ ŵᵀ) / ||u||
     db_dw = np.outer(s - r, s) * da + a * (np.eye(2) - np.outer(s, s)) / speed
-    return blended, sign * (np.eye(2) - np.outer(blended, blended)) / norm @ db_dw
+    return blended, (np.eye(2) - np.outer(blended, blended)) / norm @ db_dw
 
 
 @dataclass

@@ -27,10 +27,36 @@ The rule (after Hairer's stiffness detection in DOP853 and LSODA's switching):
   ``h ρ >= STIFF_RATIO`` (two thirds of the stability boundary);
 * stiff to explicit: `SWITCH_COUNT` of the last `WINDOW` Radau steps had
   ``h ρ <= EXPLICIT_RATIO`` (steps an explicit method takes stably and, being
-  of higher order, at least as long for the same accuracy).
+  of higher order, at least as long for the same accuracy);
+* a trial: one of the first `TRIAL_STEPS` Radau steps after a switch from
+  explicit must reach ``1 / TRIAL_MARGIN`` of the median explicit step of the
+  window that asked for it (Radau's first steps after a switch are about the
+  explicit ones and grow slowly: its controller keeps a step, and its LU, while
+  the factor is near 1). If none does, Radau is clearly not cheaper here (explicit steps with ``h ρ >= 3`` can be
+  limited by accuracy, not stability: a flow Jacobian's columns, resolved by
+  the error control, hold DOP853's steps at ``h ρ ≈ 4.5`` on a solo12 drop,
+  where Radau's own error control then takes steps 14 times shorter): the
+  chooser returns to explicit at once and refuses Radau for the rest of the
+  mode.
 
 The choice carries over from mode to mode: a run starts explicit, and a mode
 that follows a stiff one starts stiff.
+
+**Round-off.** Step sizes carry the last bits of the arithmetic (a BLAS
+kernel's order of summation moves an error norm, and a step accepted on one
+CPU can be rejected on another), so any rule on step sizes decides a little
+differently on different CPUs; the rule is made so that such a difference
+cannot change much. The two thresholds are a factor of three apart
+(hysteresis), each on a count of 12 steps out of 15 rather than on one step,
+and the steps of each regime sit far from them: stability-limited DOP853
+steps at ``h ρ ≈ 5-7``, Radau steps of a stiff mode at ``h ρ`` in the tens
+to thousands, those resolving a fast motion below 1. Where a run's steps do
+sit near ``STIFF_RATIO`` (accuracy-limited explicit steps growing through
+it), the trial bounds what a switch made on one CPU and not on another costs:
+at most `TRIAL_STEPS` Radau steps, not a stiff stretch of Radau steps
+shorter than the explicit ones it replaced. Results agree to the tolerance
+whichever method takes a step; counts of steps and evaluations can differ
+by the trial's few steps.
 """
 
 from __future__ import annotations
@@ -44,6 +70,8 @@ STIFF_RATIO = 3.0  # h ρ of a stability-limited DOP853 step (boundary ≈ 6; ~3
 EXPLICIT_RATIO = 1.0  # h ρ of a Radau step that resolves the fastest motion
 WINDOW = 15  # steps looked at (Hairer's DOP853 declares stiffness after 15)
 SWITCH_COUNT = 12  # of which this many must agree
+TRIAL_STEPS = 3  # Radau steps after a switch from explicit, of which one must reach
+TRIAL_MARGIN = 4.0  # 1 / TRIAL_MARGIN of the explicit steps' median (module doc)
 PROBE_AFTER = 8  # steps in a mode before ρ is measured
 KRYLOV = 12  # Arnoldi products (accel calls) of one measurement of ρ
 
@@ -123,12 +151,17 @@ class MethodChooser:
         self.n_probes = 0
         self._steps: deque[float] = deque(maxlen=WINDOW)
         self._mode_steps = 0
+        self._trial: list[float] | None = None  # Radau's steps since a switch, while on trial
+        self._explicit_step = 0.0  # median explicit step (s) of the window that switched
+        self._refused = False  # a trial failed in this mode: no Radau until the next
 
     def new_mode(self, probe) -> None:
-        """A mode starts: forget ``ρ`` and the steps of the last one."""
+        """A mode starts: forget ``ρ`` and the steps of the last one (a trial under way
+        goes on: it judges the method, whose steps restart short after an event)."""
         self.probe, self.rho = probe, None
         self._steps.clear()
         self._mode_steps = 0
+        self._refused = False
 
     def _count(self, rho: float) -> int:
         if self.method == EXPLICIT:
@@ -140,7 +173,18 @@ class MethodChooser:
         method to switch to, or None to go on."""
         self._steps.append(h)
         self._mode_steps += 1
-        if self._mode_steps < PROBE_AFTER:
+        if self._trial is not None:
+            self._trial.append(h)
+            if max(self._trial) * TRIAL_MARGIN >= self._explicit_step:
+                self._trial = None  # Radau's steps are not clearly shorter: the switch stands
+            elif len(self._trial) >= TRIAL_STEPS:
+                self._trial, self._refused = None, True
+                self.method = EXPLICIT
+                self._steps.clear()
+                if self.rho is None:  # a mode that began during the trial: its ρ, for the switch's note
+                    self.rho = self._measure(q, v, t)
+                return self.method
+        if self._mode_steps < PROBE_AFTER or (self._refused and self.method == EXPLICIT):
             return None
         if self.rho is None:
             self.rho = self._measure(q, v, t)
@@ -149,6 +193,11 @@ class MethodChooser:
         self.rho = self._measure(q, v, t)  # confirm at the current state
         if self._count(self.rho) < SWITCH_COUNT:
             return None
+        if self.method == EXPLICIT:
+            self._explicit_step = float(np.median(self._steps))
+            self._trial = []
+        else:
+            self._trial = None
         self.method = STIFF if self.method == EXPLICIT else EXPLICIT
         self._steps.clear()
         return self.method

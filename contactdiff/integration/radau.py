@@ -50,6 +50,10 @@ increments of ``h`` times it, which stop contracting: at rest on four feet, a 10
 stalls at 1e-3 of the tolerance, far below ``newton_tol`` = 1e-4 at rtol = 1e-8. 0.03 is
 the largest Newton error RADAU5 accepts (its ``FNEWT`` at loose tolerances; Hairer &
 Wanner, Solving ODEs II, IV.8, take 0.01 to 0.1 of the tolerance)."""
+_NOISE_FLOOR = 0.1
+"""Newton increments at most this share of ``newton_tol`` that stop contracting (rate >= 1)
+are round-off, and the iterate is taken as converged: as if the rate were 0.9, whose
+predicted error ``rate / (1 - rate) |dW|`` is then within ``newton_tol``."""
 _RETAKE_SPLITS = 6  # halvings of a re-taken step whose Newton fails (64 pieces at most)
 
 
@@ -181,6 +185,12 @@ class Radau(Stepper):
             dW_norm = _rms(dW / scale)
             if dW_norm_old is not None:
                 rate = dW_norm / dW_norm_old
+            if rate is not None and rate >= 1 and dW_norm <= _NOISE_FLOOR * self.newton_tol:
+                # the iterates already agree to well within newton_tol and only swap round-off
+                # (rate ~ 1: a stiff field at rest, whose forces carry k ulp(q)): as converged as
+                # the arithmetic allows, not diverging (halving h for it collapsed the steps)
+                converged = True
+                break
             # stop when diverging or when the predicted final error cannot reach newton_tol
             if rate is not None and (
                 rate >= 1 or rate ** (_NEWTON_MAXITER - k) / (1 - rate) * dW_norm > self.newton_tol

@@ -19,6 +19,7 @@ import pytest
 import contactdiff as cd
 from contactdiff.bench import extreme_cases as studies
 from contactdiff.errors import GrazingError
+from contactdiff.integration import method_choice
 from contactdiff.integration.hybrid import simulate
 from contactdiff.integration.method_choice import spectral_radius
 from contactdiff.integration.steppers import PinocchioGroup
@@ -124,6 +125,27 @@ def test_stiff_runs_are_correct(stiff_runs):
     assert [e.kind for e in ref.events] == ["touchdown", "lift-off", "touchdown"]
 
 
+@pytest.mark.parametrize("dz,dv", [(0.0, 3.5e-13), (1e-11, 0.0), (5e-12, -3e-13)])
+def test_radau_at_rest_on_stiff_legs_does_not_collapse(dz, dv):
+    """Radau at rtol = atol = 1e-11 from the closed-form rest stance of the damped legs
+    at k x 1e7 (`settled_stance`), its body nudged by dz (m) and dv (m/s), to 0.1 s: the
+    spring forces carry a rounding noise of k ulp(q), so near rest Newton's increments
+    stop contracting (rate ~ 1) at a few 1e-6 of newton_tol's scale. Taken for
+    divergence, each halved the step until the run stopped at max_steps (the stiffness
+    sweep's own reference, under one BLAS kernel, after its last touchdown). Now a few
+    dozen steps, and the state ends at the rest state (the slowest stance mode decays at
+    ~9.6e3 /s: exp(-960) over 0.1 s) to the 1e-9 of test_stiff_runs_are_correct."""
+    scene = studies.stiff_trot(1e7, 1.0)
+    q, v = studies.settled_stance(scene)
+    z, vz = scene.robot.scalar_joint("body_z")
+    q0, v0 = q.copy(), v.copy()
+    q0[z] += dz
+    v0[vz] += dv
+    traj = simulate(scene.with_state(q0, v0), 0.1, method="Radau", rtol=1e-11, atol=1e-11, max_steps=3000)
+    assert traj.stats.steps < 100
+    assert studies.state_error(scene, traj, q, v) < 1e-9
+
+
 def test_auto_keeps_explicit_while_a_stiff_spring_rings():
     """Undamped legs 1e4 times stiffer: the flight is stiff (springs at rest length, never
     excited), so auto switches to Radau; the touchdown rings the legs at
@@ -154,6 +176,90 @@ def test_auto_with_jacobian_through_a_switch():
     runs = [simulate(scene, 0.9, q0=pin.integrate(model, scene.q0, s * e), **opts) for s in (1, -1)]
     fd = np.concatenate([pin.difference(model, runs[1].q, runs[0].q), runs[0].v - runs[1].v]) / (2 * h)
     np.testing.assert_allclose(traj.jacobian[:, k], fd, rtol=0, atol=1e-6 * np.max(np.abs(fd)))
+
+
+def _chooser_steps(chooser, steps):
+    """Feed ``chooser`` accepted steps (s) with a constant ρ; return the switches it asks."""
+    return [chooser.after_step(h, None, None, 0.0) for h in steps]
+
+
+def test_auto_trial_returns_to_explicit_when_radau_steps_are_clearly_shorter():
+    """The method chooser's trial (method_choice module doc), on a probe that always
+    measures ρ = 1000 /s. Explicit steps of 4e-3 s (h ρ = 4 >= STIFF_RATIO) switch to
+    Radau after SWITCH_COUNT of them; Radau steps of 1e-4 s (40 times shorter, below the
+    1/TRIAL_MARGIN of the explicit steps) switch back after TRIAL_STEPS, and Radau is
+    refused for the rest of the mode however many stiff-looking explicit steps follow; a
+    new mode may switch again; Radau steps of 2e-3 s (half the explicit: within the margin)
+    keep Radau."""
+    rho = 1000.0
+    chooser = method_choice.MethodChooser(lambda q, v, t: rho)
+    n = method_choice.SWITCH_COUNT
+    assert _chooser_steps(chooser, [4e-3] * n) == [None] * (n - 1) + ["Radau"]
+    trial = _chooser_steps(chooser, [1e-4] * method_choice.TRIAL_STEPS)
+    assert trial == [None] * (method_choice.TRIAL_STEPS - 1) + ["DOP853"]
+    assert _chooser_steps(chooser, [4e-3] * 3 * method_choice.WINDOW) == [None] * 3 * method_choice.WINDOW
+    chooser.new_mode(lambda q, v, t: rho)
+    assert _chooser_steps(chooser, [4e-3] * n)[-1] == "Radau"
+    assert _chooser_steps(chooser, [2e-3] * 3 * method_choice.WINDOW) == [None] * 3 * method_choice.WINDOW
+    assert chooser.method == "Radau"
+    # a trial that spans a new mode is judged on: the switch back then measures the new mode's ρ
+    chooser = method_choice.MethodChooser(lambda q, v, t: rho)
+    assert _chooser_steps(chooser, [4e-3] * n)[-1] == "Radau"
+    chooser.new_mode(lambda q, v, t: 2 * rho)
+    assert _chooser_steps(chooser, [1e-4] * method_choice.TRIAL_STEPS)[-1] == "DOP853"
+    assert chooser.rho == 2 * rho
+
+
+def test_auto_with_jacobian_does_not_stay_in_radau_with_shorter_steps():
+    """solo12_drop rolled 0.03 and pitched 0.05 rad, raised 1 cm (the feet land one at a
+    time; scripts/parameter_cost.py), with the flow Jacobian: in the flight the Jacobian's
+    columns hold DOP853's steps at h ρ ≈ 4.5 (ρ ≈ 770 /s), limited by their accuracy, and
+    Radau's own error control then takes steps 14 times shorter. Whether the explicit steps'
+    count reaches a switch before the first touchdown is close (it did on every BLAS kernel
+    tried, and the run then took 24 Radau steps); the trial ends such a switch after at most
+    TRIAL_STEPS Radau steps. The events and the final state agree with method="DOP853"
+    to the run's tolerance (rtol 1e-8: 1e-6 on the state, a 100x margin for the 33 events'
+    sensitivity)."""
+    from scipy.spatial.transform import Rotation
+
+    scene = cd.load_scene("solo12_drop")
+    q = scene.q0.copy()
+    q[3:7] = Rotation.from_euler("xyz", [0.03, 0.05, 0.0]).as_quat()
+    q[2] += 0.01
+    scene = scene.with_state(q)
+    auto = simulate(scene, 0.3, jacobian=True)
+    explicit = simulate(scene, 0.3, jacobian=True, method="DOP853")
+    assert auto.stats.steps_by_method.get("Radau", 0) <= method_choice.TRIAL_STEPS
+    assert [(e.kind, e.contacts) for e in auto.events] == [(e.kind, e.contacts) for e in explicit.events]
+    assert studies.state_error(scene, auto, explicit.q, explicit.v) < 1e-6
+
+
+def test_stiffness_sweep_compares_modes_within_the_event_time_resolution():
+    """The sweep's event comparison (`stiff_cases._event_time_error`) on runs made of
+    segments (t0, t1, mode): the undamped legs at k x 1e7 land at t = 1 in the reference
+    (one touchdown), and under some BLAS kernels at the default tolerances the feet land
+    2e-9 s early, bounce off at 6.5e-10 m/s and touch again 4e-9 s later (a bounce and
+    a grazing event). Within a resolution of 1e-5 s (1e3 rtol) the two are the same mode
+    sequence, with the mode change 2e-9 s apart; with a resolution finer than the 4e-9 s
+    flight they differ; a run that never lands differs at any resolution."""
+    from types import SimpleNamespace
+
+    from contactdiff.bench.stiff_cases import _event_time_error
+
+    def run(*segments):
+        return SimpleNamespace(segments=[SimpleNamespace(t0=a, t1=b, mode=m, sliding=()) for a, b, m in segments])
+
+    feet = ("rear_foot", "front_foot")
+    ref = run((0.0, 1.0, ()), (1.0, 1.0001352, feet), (1.0001352, 1.2, ()))
+    bounced = run((0.0, 0.999999998, ()), (0.999999998, 1.000000002, ()), (1.000000002, 1.0001352, feet),
+                  (1.0001352, 1.2, ()))
+    assert _event_time_error(bounced, ref, 1e-5) == pytest.approx(2e-9, rel=1e-6)
+    assert _event_time_error(bounced, ref, 1e-9) == pytest.approx(2e-9, rel=1e-6)  # same modes, merged
+    split = run((0.0, 0.999999998, ()), (0.999999998, 0.999999999, feet), (0.999999999, 1.000000002, ()),
+                (1.000000002, 1.0001352, feet), (1.0001352, 1.2, ()))
+    assert _event_time_error(split, ref, 1e-5) == pytest.approx(2e-9, rel=1e-6)
+    assert _event_time_error(split, ref, 1e-10) == math.inf
+    assert _event_time_error(run((0.0, 1.2, ())), ref, 1e-5) == math.inf
 
 
 def test_stiffness_sweep_rows():
@@ -204,12 +310,18 @@ def test_tiny_limb_mass():
 # ----------------------------------------------------------------------------------
 # near-grazing
 # ----------------------------------------------------------------------------------
-@pytest.mark.parametrize("u", [1e-3, 1e-8, 1e-9, 1e-10, 1e-12])
+@pytest.mark.parametrize("u", [1e-3, 1e-8, 1e-9 * (1 + 1e-6), 1e-9, 1e-9 * (1 - 1e-6), 1e-10, 1e-12])
 def test_slow_drop(u):
     """A plastic ball dropped from 1e-6 m under g = u^2 / 2e-6 lands at t = 2e-6/u with
     speed u: the event time is exact (a quadratic, to 1e-12 relative); a touchdown above
-    grazing_speed = 1e-9 m/s, a grazing event at or below it, and GrazingError with
-    on_grazing="raise". Either way the ball then rests on the ground."""
+    grazing_speed = 1e-9 m/s, a grazing event below it, and GrazingError with
+    on_grazing="raise". Either way the ball then rests on the ground.
+
+    The fall is a quadratic, which the steppers integrate exactly: the touch speed carries
+    round-off only, a few ulps (1e-15 relative), so 1e-6 relative either side of the
+    threshold decides it; at u = grazing_speed itself the last bits decide (they differ
+    between BLAS kernels), and the outcome must only be consistent: a grazing event
+    exactly when on_grazing="raise" raises."""
     scene = studies.slow_drop(u)
     t_c = 2e-6 / u
     traj = simulate(scene, 1.5 * t_c, **TIGHT)
@@ -217,12 +329,27 @@ def test_slow_drop(u):
     assert ev.t == pytest.approx(t_c, rel=1e-12)
     assert ev.normal_speeds["ball"] == pytest.approx(-u, rel=1e-9)
     assert abs(traj.q[0]) < 1e-15 and traj.v[0] == 0.0
+    if u == 1e-9:
+        assert ev.kind in ("grazing", "touchdown")
+        if ev.kind == "touchdown":
+            simulate(scene, 1.5 * t_c, on_grazing="raise", **TIGHT)  # no GrazingError
+            return
     if u <= 1e-9:
         assert ev.kind == "grazing" and not ev.differentiable
         with pytest.raises(GrazingError, match="grazing touchdown of ball"):
             simulate(scene, 1.5 * t_c, on_grazing="raise", **TIGHT)
     else:
         assert ev.kind == "touchdown"
+
+
+def test_grazing_study_verdict_at_the_threshold():
+    """The study's slow drop at u = grazing_speed (its docstring): ok whichever side of
+    the threshold the touch speed's last bits fall (under OPENBLAS_CORETYPE=Haswell the
+    default tolerances give a touchdown at 1.000000000000001e-9 m/s, which the study
+    called NOT OK), and the run with on_grazing="raise" agrees with the event's kind."""
+    (row,) = studies.grazing_study(speeds=(1e-9,), dips=())
+    assert row.ok, row.outcome
+    assert row.outcome in ("touchdown; on_grazing=raise: no error", "grazing; on_grazing=raise: GrazingError")
 
 
 @pytest.mark.parametrize("dip", [1e-2, 1e-8, 1e-10, 1e-14, 0.0])

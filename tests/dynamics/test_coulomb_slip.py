@@ -59,10 +59,11 @@ def test_slip_direction_rules():
     s, D = slip_direction(np.array([3.0, 4.0]), None)
     np.testing.assert_allclose(s, [0.6, 0.8], rtol=1e-15)
     np.testing.assert_allclose(D, (np.eye(2) - np.outer(s, s)) / 5.0, rtol=1e-15)
-    # continued through the stop: against the reference the direction keeps the reference's side
-    s, D = slip_direction(np.array([-3.0, -4.0]), np.array([0.6, 0.8]))
-    np.testing.assert_allclose(s, [0.6, 0.8], rtol=1e-15)
-    np.testing.assert_allclose(D, -(np.eye(2) - np.outer(s, s)) / 5.0, rtol=1e-15)
+    # continued through the stop: against the reference the direction is the reference itself, so a
+    # slip velocity past the stop does not turn it (D = 0: no transverse feedback, slip.py)
+    for u in ([-3.0, -4.0], [-4.0, -3.0], [0.8, -0.6 - 1e-9]):
+        s, D = slip_direction(np.array(u), np.array([0.6, 0.8]))
+        assert D is None and s.tolist() == [0.6, 0.8]
     # at rest: the reference; a planar contact: its reference sign, else its own sign
     s, D = slip_direction(np.array([0.1 * SLIP_SPEED_EPS, 0.0]), np.array([0.0, -1.0]))
     assert D is None and s.tolist() == [0.0, -1.0]
@@ -250,8 +251,12 @@ def test_slip_direction_turns_smoothly_through_the_noise_floor():
     np.testing.assert_allclose(leaving, own, atol=1e-11)
     np.testing.assert_allclose(above, own, rtol=1e-15)
     h = 1e-6 * eps
-    for speed in (1.1 * eps, 1.5 * eps, 1.9 * eps):
-        for u in (own * speed, -own * speed):  # the second against r: continued through a stop
+    for speed in (1.1 * eps, 1.5 * eps, 1.9 * eps, 2.5 * eps):
+        # against r (past a stop) the direction is r, in the band and above it
+        s, D = slip_direction(-own * speed, r, eps)
+        assert D is None and s.tolist() == r.tolist()
+        if speed < 2 * eps:
+            u = own * speed
             s, D = slip_direction(u, r, eps)
             assert s @ r > 0.0  # it keeps the reference's side
             assert abs(np.linalg.norm(s) - 1.0) < 1e-15

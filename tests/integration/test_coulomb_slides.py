@@ -224,6 +224,35 @@ def test_block_with_oblique_force_curves_and_sticks(block3, force):
               rtol=FD_RTOL)
 
 
+def test_curved_slide_stops_on_time_wherever_it_starts(block3):
+    """Translation invariance: the block's dynamics does not depend on where it starts on the
+    ground, so the backward-oblique slide (test above) stops at the closed-form t_s
+    (`_curved_slide`) from every start, to the module's REL (1e-10 relative, a 100x margin over
+    the ~1e-12 per step of rtol = atol = 1e-12).
+
+    The starts (50 shifts from 1e-4 to 2.5 m) only change the round-off of the run, hence its
+    sequence of steps and where the step that crosses the stop ends. That step samples the field
+    past the stop; when the slip direction there followed the slip velocity (-u_T / |u_T|), it
+    amplified the stages' transverse round-off (a slip slowing under a force at 135° to it turns
+    onto the force: damping before the stop, the mirror growth after it) and the step's
+    interpolant put up to 2e-9 s of error into the stop time from some starts, which starts
+    depended on the BLAS kernel. Past the stop the direction is now the reference (slip.py)."""
+    angle, fraction = OBLIQUE_FORCES["backward-oblique"]
+    v0 = np.array(V0_CASES["oblique"])
+    c, s = math.cos(math.radians(angle)), math.sin(math.radians(angle))
+    F = fraction * MU * MASS * G * np.array([[c, -s], [s, c]]) @ (v0 / np.linalg.norm(v0))
+    t_s = _curved_slide(v0, F / MASS, MU * G)[0]
+    scene = _block_on_ground(block3, v0, F)
+    times = []
+    for scale in (1e-4, 1e-2):
+        for k in range(1, 26):
+            run = cd.simulate(scene.with_state(np.array([k * scale, -0.7 * k * scale, 0.0]), scene.v0),
+                              t_s + 0.01, **TOL)
+            assert event_kinds(run) == [("stick", ("block",))]
+            times.append(run.events[0].t)
+    np.testing.assert_allclose(times, t_s, rtol=REL, atol=0)
+
+
 # ==============================================================================================
 # 2. the planar block (x, z): one tangent row
 # ==============================================================================================
