@@ -50,6 +50,7 @@ def main(argv=None) -> int:
     parser.add_argument("--tosses", help="a tosses .npz file (default: the 24 shipped with the package)")
     parser.add_argument("--nominal-only", action="store_true", help="only the nominal friction and restitution")
     parser.add_argument("--quick", action="store_true", help="three shipped tosses at the nominal setting")
+    parser.add_argument("--limit", type=int, default=None, help="only the first N tosses of the file")
     parser.add_argument("--jobs", type=int, default=None, help="worker processes (default: one per core)")
     parser.add_argument("--json", action="store_true", help="print the summary as JSON")
     args = parser.parse_args(argv)
@@ -57,6 +58,8 @@ def main(argv=None) -> int:
     settings = SETTINGS[:1] if (args.nominal_only or args.quick) else SETTINGS
     if args.quick:
         names = names[:3]
+    if args.limit is not None:
+        names = names[:args.limit]
     fixed = {"job:tosses": args.tosses} if args.tosses else {}
     points = [{"arg:friction": mu, "arg:restitution": e, "job:toss": name} for mu, e in settings for name in names]
     started = time.perf_counter()

@@ -231,7 +231,7 @@ class SlipDirections:
             roots = self.roots_nd(fmap, states, dirs, spatial, lay, pre)
         found: list[np.ndarray] = []
         for theta in roots:  # the converged ones first: a duplicate keeps the more accurate
-            if not any(np.abs(_wrap(theta - f)).max() < _DUPLICATE for f in found):
+            if not found or np.abs(_wrap(theta - np.asarray(found))).max(axis=1).min() >= _DUPLICATE:
                 found.append(theta)
         yield from sorted(found, key=lambda t: float(np.linalg.norm(_wrap(t - pre))))
 
@@ -279,7 +279,13 @@ class SlipDirections:
             gm = fmap(mid[:, None], jac=False)[0][:, 0]
             left = np.sign(gm) == np.sign(glo)  # the sign change is in [mid, hi]
             lo, glo, hi = np.where(left, mid, lo), np.where(left, gm, glo), np.where(left, hi, mid)
-        roots = list(th[:-1][on]) + list(0.5 * (lo + hi))
+        # a run of grid points all on a root is a plateau (the slip is zero whatever its
+        # direction: the other contacts hold it), one root of the candidate: its first point
+        first = on & ~np.r_[on[-1], on[:-1]]
+        if on.all():  # the whole circle: no first point of a run
+            first = np.zeros_like(on)
+            first[0] = True
+        roots = list(th[:-1][first]) + list(0.5 * (lo + hi))
         if not roots:
             return []
         # a pole or a jump is not a root: Newton rejects it
