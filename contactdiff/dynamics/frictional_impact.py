@@ -313,17 +313,6 @@ class _Impact(SlipDirections):
         # `contactdiff.dynamics.redundant`, and no first guess (module doc)
         self.redundant = gram_range_basis(G) is not None
 
-    def _principled(self, out: FrictionalImpact) -> bool:
-        """Whether no contact left open by ``out`` would close at zero normal speed: with
-        dependent rows such a contact belongs in the candidate (the enumeration then
-        finds the one with most contacts closed)."""
-        vscale = self.bmax + self.gmax * float(np.abs(out.impulses).max(initial=0.0))
-        for k, state in enumerate(out.states):
-            n = self.normal[k]
-            if state is ContactState.OPEN and abs(out.u_plus[n] + self.e[k] * self.u[n]) <= _GUESS_ZERO * vscale:
-                return False
-        return True
-
     # ---- enumeration ---------------------------------------------------
     def candidates(self) -> Iterator[tuple[tuple[ContactState, ...], tuple[int, ...]]]:
         """State tuples in the documented order, with the spatial sliders."""
@@ -386,7 +375,7 @@ class _Impact(SlipDirections):
             signs = {k: (1.0 if up[self.tang[k][0]] >= 0.0 else -1.0) for k in planar}
             self.tried += 1
             out = self.try_candidate(states, signs, spatial)
-            if out is not None and (not self.redundant or self._principled(out)):
+            if out is not None:
                 return out
         for states, sliding in self.candidates():
             planar = [k for k in sliding if self.tang[k].size == 1]
