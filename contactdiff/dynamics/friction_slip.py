@@ -70,6 +70,15 @@ def _wrap(a: np.ndarray) -> np.ndarray:
     return (a + np.pi) % (2.0 * np.pi) - np.pi
 
 
+def _run_starts(mask: np.ndarray) -> np.ndarray:
+    """The first element of each run of True in a cyclic boolean array (element 0 if all)."""
+    starts = mask & ~np.roll(mask, 1)
+    if mask.all():
+        starts = np.zeros_like(mask)
+        starts[0] = True
+    return starts
+
+
 def _solve_stack(K: np.ndarray, rhs: np.ndarray) -> np.ndarray:
     """``K[i] x[i] = rhs[i]`` for a stack; least squares (pseudo-inverse) if one is singular."""
     try:
@@ -227,6 +236,10 @@ class SlipDirections:
         pre = np.array([np.arctan2(self.u[self.tang[k][1]], self.u[self.tang[k][0]]) for k in spatial])
         if len(spatial) == 1:
             roots = self.roots_1d(fmap, float(pre[0]))
+            # a slip that vanishes at one direction (the impulse on the cone's edge, the
+            # contact at rest after it) is no root of the angle form, whose angle is
+            # undefined there, but one of the cross form s × u+_T (`zero_slip_roots`)
+            roots += self.zero_slip_roots(SlipMap(self, states, dirs, spatial, lay, cross=True), float(pre[0]))
         else:
             roots = self.roots_nd(fmap, states, dirs, spatial, lay, pre)
         found: list[np.ndarray] = []
@@ -259,6 +272,31 @@ class SlipDirections:
         starts.extend(grid[idx])
         return self.newton(fmap, np.array(starts))
 
+    def zero_slip_roots(self, fmap, pre: float) -> list[np.ndarray]:
+        """One spatial slider: the sign changes of the cross form ``s × u+_T`` over the
+        scan that are zeros of the slip itself (``||u+_T||`` within `SLIP_ZERO` of the
+        velocity scale after Newton), where the angle form has no root."""
+        th = pre + 2.0 * np.pi * np.arange(_SCAN_POINTS + 1) / _SCAN_POINTS
+        f = fmap(th[:, None], jac=False)[0][:, 0]
+        fin = np.isfinite(f[:-1]) & np.isfinite(f[1:])
+        ch = np.flatnonzero(fin & (f[:-1] * f[1:] < 0.0))
+        if not ch.size:
+            return []
+        starts = 0.5 * (th[ch] + th[ch + 1])
+        return [theta for theta in self.newton(fmap, starts[:, None], max_iter=_NEWTON_MAX_ITER)
+                if self._slip_vanishes(fmap, theta)]
+
+    def _slip_vanishes(self, fmap, theta: np.ndarray) -> bool:
+        """Whether the one slider's post-impact slip at ``theta`` is zero (below `SLIP_ZERO`
+        of the velocity scale)."""
+        vscale = float(fmap(np.atleast_2d(theta), jac=False)[4][0])
+        a = fmap.GT[0] @ np.array([np.cos(theta[0]), np.sin(theta[0])])
+        K = fmap.K0.copy()
+        K[:, fmap.c[0]] += a[fmap.eq]
+        z = fmap._solve(K[None], fmap.r[None, :, None])[0, :, 0]
+        up = self.u + fmap.GB0 @ z + a * z[fmap.c[0]]
+        return bool(np.linalg.norm(up[fmap.T[0]]) <= SLIP_ZERO * vscale)
+
     def roots_1d(self, fmap, pre: float) -> list[np.ndarray]:
         """The slip angles of one spatial slider: the circle scanned, each sign change
         bisected (_BISECT halvings, all at once) and polished by Newton."""
@@ -268,7 +306,8 @@ class SlipDirections:
         poles = pre + np.mod(fmap.poles() - pre, 2.0 * np.pi)
         th = np.unique(np.concatenate([th, np.clip(np.concatenate([poles - _POLE_GAP, poles + _POLE_GAP]),
                                                    th[0], th[-1])]))
-        gs = fmap(th[:, None], jac=False)[0][:, 0]
+        scan = fmap(th[:, None], jac=False)
+        gs, feasible = scan[0][:, 0], scan[2][:-1]
         g0, g1 = gs[:-1], gs[1:]
         fin = np.isfinite(g0) & np.isfinite(g1)
         on = fin & (np.abs(g0) <= _NEWTON_LOOSE)  # on a grid point (e.g. the pre-impact slip kept)
@@ -280,12 +319,11 @@ class SlipDirections:
             left = np.sign(gm) == np.sign(glo)  # the sign change is in [mid, hi]
             lo, glo, hi = np.where(left, mid, lo), np.where(left, gm, glo), np.where(left, hi, mid)
         # a run of grid points all on a root is a plateau (the slip is zero whatever its
-        # direction: the other contacts hold it), one root of the candidate: its first point
-        first = on & ~np.r_[on[-1], on[:-1]]
-        if on.all():  # the whole circle: no first point of a run
-            first = np.zeros_like(on)
-            first[0] = True
-        roots = list(th[:-1][first]) + list(0.5 * (lo + hi))
+        # direction: the other contacts hold it): the direction then only sets the friction
+        # impulse, so one point per run of those where the law's other conditions hold
+        # (else per run of the plateau) stands for it
+        roots = list(th[:-1][_run_starts(on & feasible) if (on & feasible).any() else _run_starts(on)])
+        roots += list(0.5 * (lo + hi))
         if not roots:
             return []
         # a pole or a jump is not a root: Newton rejects it

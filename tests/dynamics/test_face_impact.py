@@ -96,3 +96,67 @@ def test_face_impact_properties(yaw, mu, e, vx, vy, vz, wx, wy, wz):
     if U is not None:
         z = lam[eq]
         np.testing.assert_allclose(z - U @ (U.T @ z), 0.0, atol=1e-10 * scale)
+
+
+@settings(max_examples=30, deadline=None)
+@given(mu=st.floats(0.05, 0.5), e=st.sampled_from([0.0, 0.125, 0.5]), slip=st.floats(-1e-3, 1e-3),
+       twist_x=st.floats(-0.05, 0.05), approach=st.floats(1e-10, 1e-2), spin=st.floats(-0.05, 0.05))
+def test_edge_landings_with_small_slips_always_resolve(mu, e, slip, twist_x, approach, spin):
+    """Two corners of one edge (six rows of rank 5) landing with unequal approach speeds
+    and a small slip: where the compatible split of the sticking impulses would leave one
+    corner's cone, that corner ends on its cone's edge with zero slip (a sliding state
+    whose slip vanishes); the law must always have its solution found, with impulses in
+    the cones, pushing, and no energy gained for e = 0 (a measured toss stopped on such
+    an edge). Tolerances: the solver's scaled residual, ~1e-15 of O(1e-3) impulses."""
+    half, mass = (0.0524, 0.0524, 0.0524), 0.37
+    twist = np.r_[0.0, slip, -approach, twist_x, 0.0, spin]
+    G6, u6, _ = face_problem(half, mass, 0.0, twist)
+    rows = list(range(6))  # corners (+a, +b) and (+a, -b): the +x edge
+    G, u = G6[np.ix_(rows, rows)], u6[rows]
+    edge = ContactRows.from_sizes([3, 3])
+    out = solve_frictional_impact(G, u, edge, e, mu)
+    lam = out.impulses
+    scale = max(1e-300, np.abs(lam).max(initial=0.0))
+    for k in range(2):
+        n, t = edge.normal[k], list(edge.tangential[k])
+        assert lam[n] >= -1e-12 * scale
+        assert np.linalg.norm(lam[t]) <= mu * lam[n] + 1e-12 * scale
+    if e == 0.0:
+        assert out.energy_change <= 1e-12 * scale * (np.abs(u).max() + np.abs(G).max() * scale)
+
+
+# An edge of the measured cube (edge 0.1048 m, 0.37 kg, 8.1e-4 kg m²; μ 0.18, e 0.125) at
+# an impact of a simulated toss: Delassus matrix and pre-impact row velocities (normal,
+# two tangents per corner), one corner resting (-3e-10 m/s), the other landing at
+# 1.6 mm/s, both slipping at 0.5 mm/s.
+TOSS_EDGE_G = np.array([
+    [9.482357023690358, -3.7871698741600905, 2.939251724554659, -4.076951618284953, -3.7871698741600914,
+     2.9392517245546586],
+    [-3.7871698741600905, 8.64109658688724, 3.283779690462117, 3.787169874160091, 3.5439631395058218,
+     -3.2837796904621146],
+    [2.939251724554659, 3.283779690462117, 10.323617460493479, -2.9392517245546586, -3.2837796904621177,
+     1.8614422658995842],
+    [-4.076951618284953, 3.787169874160091, -2.9392517245546586, 9.48235702369036, 3.7871698741600923,
+     -2.939251724554658],
+    [-3.7871698741600914, 3.5439631395058218, -3.2837796904621177, 3.7871698741600923, 8.641096586887242,
+     3.2837796904621173],
+    [2.9392517245546586, -3.2837796904621146, 1.8614422658995842, -2.939251724554658, 3.2837796904621173,
+     10.323617460493477]])
+TOSS_EDGE_U = np.array([-3.0357459173411053e-10, -0.0003824994508052044, 0.00029686076704244543,
+                        -0.0015824350380069575, -0.0003537351918833055, 0.0003339229668981115])
+
+
+def test_an_edge_stopped_with_one_corner_on_its_cone_resolves():
+    """The compatible split of the two corners' sticking impulses would leave the resting
+    corner's cone, so that corner slides with its impulse on the cone's edge and a slip
+    that vanishes (the direction search's angle form has no root there, its cross form
+    has): both corners end with zero slip, the landing one bouncing at e times its speed.
+    Tolerances: the solver's residual, ~1e-15 of the velocity scale (1e-3 m/s here)."""
+    edge = ContactRows.from_sizes([3, 3])
+    out = solve_frictional_impact(TOSS_EDGE_G, TOSS_EDGE_U, edge, 0.125, 0.18)
+    lam, up = out.impulses, out.u_plus
+    assert out.states[1] is ContactState.STICK
+    np.testing.assert_allclose(up[[1, 2, 4, 5]], 0.0, atol=1e-14)  # no slip at either corner
+    assert up[3] == pytest.approx(-0.125 * TOSS_EDGE_U[3], rel=1e-9)
+    assert np.linalg.norm(lam[1:3]) == pytest.approx(0.18 * lam[0], rel=1e-9)  # on the cone
+    assert np.linalg.norm(lam[4:6]) <= 0.18 * lam[3]
