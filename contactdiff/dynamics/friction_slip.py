@@ -117,7 +117,7 @@ class SlipMap:
         self.closed = np.array(list(cols_n.values()), dtype=np.intp)
         self.stick = [(cols_n[k], cols_t[k], prob.mu[k]) for k in cols_t if prob.mu[k] < np.inf]
         self.open_k = np.array([k for k in range(prob.n) if k not in cols_n], dtype=np.intp)
-        self.U = gram_range_basis(prob.G[np.ix_(eq, eq)]) if getattr(prob, "redundant", False) else None
+        self.U = gram_range_basis(prob.G[np.ix_(eq, eq)]) if prob.redundant else None
 
     def _solve(self, K: np.ndarray, rhs: np.ndarray) -> np.ndarray:
         """``K[i] x[i] = rhs[i]`` for a stack, by the compatible-impulse principle when the
