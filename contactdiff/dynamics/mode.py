@@ -44,7 +44,7 @@ import numpy as np
 import pinocchio as pin
 from scipy.linalg.lapack import dposv as _dposv
 
-from ..errors import InvalidInputError, PainleveError, SolverError, check_number
+from ..errors import InvalidInputError, OutsideDomainError, PainleveError, SolverError, check_number
 from ..model.kinematics import Kinematics
 from ..model.scene import Scene
 from .constraint_dynamics import RigidContactMode
@@ -180,7 +180,10 @@ class ModeDynamics:
         if n_rows < 2:
             return False
         kin = Kinematics(self.model)
-        kin.update(self.scene.q0 if self.kin.q is None else self.kin.q, np.zeros(self.model.nv))
+        # the cache's configuration, unless a trial stage left it non-finite (redundancy is
+        # structural: any valid configuration decides it)
+        q = self.kin.q
+        kin.update(self.scene.q0 if q is None or not np.all(np.isfinite(q)) else q, np.zeros(self.model.nv))
         return range_basis(np.vstack([c.rows(kin) for c in contacts])) is not None
 
     def redundant(self, active: Sequence[int]) -> bool:
@@ -427,7 +430,7 @@ def _solve_general(G: np.ndarray, b: np.ndarray, slips, scene, delassus: np.ndar
     contacts (LU); a slipping contact whose own block of ``G`` is not positive, or a
     singular ``G``, is Painlevé's paradox (`PainleveError`), unless the rows themselves
     became dependent at this state (``delassus = A M^-1 A^T`` singular in a mode whose
-    rows were independent), a `SolverError` that says so."""
+    rows were independent), an `OutsideDomainError` that says so."""
     painleve_check(G, slips, scene.contact_names)
     try:
         x = np.linalg.solve(G, b)
@@ -435,10 +438,17 @@ def _solve_general(G: np.ndarray, b: np.ndarray, slips, scene, delassus: np.ndar
         x = None
     if x is None or not np.all(np.isfinite(x)):
         names = ", ".join(scene.contacts[s.index].name for s in slips)
-        rank = np.linalg.matrix_rank(delassus) if delassus is not None else len(G)
+        try:
+            rank = np.linalg.matrix_rank(delassus) if delassus is not None else len(G)
+        except np.linalg.LinAlgError:  # not finite: a trial stage far outside the mode's domain
+            raise OutsideDomainError(f"the sliding problem of {names} has no finite solution at this state "
+                                     "(its Delassus matrix is not finite)") from None
         if rank < len(G):
             held = ", ".join(dict.fromkeys(c.name for c in contacts))
-            raise SolverError(
+            # rows of distinct contacts that were independent where the mode began become dependent
+            # only at states far from it (two corners of an edge, the edge along the normal): a
+            # trial stage's, outside the mode's domain, which the stepper answers with a shorter step
+            raise OutsideDomainError(
                 f"the rows of contacts {held} are dependent at this state (rank {rank} of {len(G)}) but "
                 f"were not where the mode began, so the friction of sliding {names} has no unique force "
                 "(rows that hold the same motion everywhere, as a face's corners, are solved by the "

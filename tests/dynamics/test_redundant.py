@@ -180,3 +180,4 @@ def test_sticking_face_takes_the_python_path_with_least_norm_loads():
     np.testing.assert_allclose(sol.ddq, 0.0, atol=1e-12 * G)
     tangential = np.concatenate([f[1:] for f in sol.row_forces()])
     np.testing.assert_allclose(tangential, 0.0, atol=1e-12 * MASS * G)
+
