@@ -283,8 +283,9 @@ class ModeDynamics:
         A = np.vstack([c.rows(kin) for c in contacts])
         drift = np.concatenate([c.drift(kin) for c in contacts])
         MinvAT = Minv @ A.T
+        delassus = A @ MinvAT  # the constraint rows' G: the problem's own without slip
         slips = [SlipRow.at(self, key, row, kin, v) for key, row in slipping]
-        U = gram_range_basis(A @ MinvAT) if redundant else None
+        U = gram_range_basis(delassus) if redundant else None
         if slips:
             F = A.copy()
             for slip in slips:
@@ -292,9 +293,8 @@ class ModeDynamics:
             MinvFT = Minv @ F.T
             G = A @ MinvFT
         else:
-            MinvFT = MinvAT
-            G = A @ MinvAT
-        solve = self._solver(slips, U, A @ MinvAT, contacts)
+            MinvFT, G = MinvAT, delassus
+        solve = self._solver(slips, U, delassus, contacts)
         forces = solve(G, -(drift + A @ a_free))
         solution = ModeSolution(a_free + MinvFT @ forces, forces, active, slices)
         if not derivatives:
