@@ -25,8 +25,6 @@ from collections.abc import Iterator
 
 import numpy as np
 
-from .redundant import gram_range_basis
-
 # Newton on the slip angles of the spatial sliding contacts of a candidate.
 _NEWTON_MAX_ITER = 40
 _NEWTON_ATOL = 1e-13  # rad, on wrap(atan2(u+_T) - θ)
@@ -117,7 +115,7 @@ class SlipMap:
         self.closed = np.array(list(cols_n.values()), dtype=np.intp)
         self.stick = [(cols_n[k], cols_t[k], prob.mu[k]) for k in cols_t if prob.mu[k] < np.inf]
         self.open_k = np.array([k for k in range(prob.n) if k not in cols_n], dtype=np.intp)
-        self.U = gram_range_basis(prob.G[np.ix_(eq, eq)]) if prob.redundant else None
+        self.U = prob.equality_basis(eq)
 
     def _solve(self, K: np.ndarray, rhs: np.ndarray) -> np.ndarray:
         """``K[i] x[i] = rhs[i]`` for a stack, by the compatible-impulse principle when the

@@ -312,6 +312,18 @@ class _Impact(SlipDirections):
         # dependent rows (a face's corners landing together): impulses by the principle of
         # `contactdiff.dynamics.redundant`, and no first guess (module doc)
         self.redundant = gram_range_basis(G) is not None
+        self._bases: dict[tuple[int, ...], np.ndarray | None] = {}
+
+    def equality_basis(self, eq) -> np.ndarray | None:
+        """With dependent rows, a basis of the range of the equality rows ``eq`` of a
+        candidate (`contactdiff.dynamics.redundant`; None where they are independent),
+        formed once per set of rows: a candidate's evaluation and its slip search share it."""
+        if not self.redundant:
+            return None
+        key = tuple(int(i) for i in eq)
+        if key not in self._bases:
+            self._bases[key] = gram_range_basis(self.G[np.ix_(eq, eq)])
+        return self._bases[key]
 
     # ---- enumeration ---------------------------------------------------
     def candidates(self) -> Iterator[tuple[tuple[ContactState, ...], tuple[int, ...]]]:
@@ -441,7 +453,7 @@ class _Impact(SlipDirections):
             return _Eval(np.zeros(self.m), self.u.copy(), np.zeros(0), None)
         K = (self.G @ B)[eq]
         rhs = -self.b[eq]
-        U = gram_range_basis(self.G[np.ix_(eq, eq)]) if self.redundant else None
+        U = self.equality_basis(eq)
         if U is not None:
             # dependent equality rows: the impulses compatible with equal compliant supports
             # (`contactdiff.dynamics.redundant`), z in the range of those rows
