@@ -115,6 +115,10 @@ class StrideError(IntegrationError):
     Zeno sequence."""
 
 
+class FitError(ContactDiffError):
+    """A recording's run failed during a fit (the message names the recording, the values and the run's error)."""
+
+
 class SolverError(ContactDiffError):
     """A complementarity or linear-algebra subproblem has no valid solution."""
 
