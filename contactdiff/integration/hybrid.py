@@ -75,6 +75,7 @@ from .mode_field import ModeField
 from .options import AUTO, OnGrazing, SimulateOptions
 from .parameter_jumps import ParameterJumps
 from .projection import held_velocity, project_state
+from .samples import SampleRecorder, check_sample_times
 from .step_collapse import COLLAPSE_RATIO, COLLAPSE_STEPS, CollapseWatch
 from .steppers import PinocchioGroup, make_stepper
 from .trajectory import Event, RunStats, Segment, Termination, Trajectory
@@ -103,7 +104,7 @@ def simulate(scene: Scene, t_final: float, q0=None, v0=None, *, t0: float = 0.0,
             ``options`` (``rtol``, ``atol``, ``method``, ``jacobian``,
             ``max_events``, ``max_steps``, ``simultaneous_tol``, ``zeno_speed``,
             ``grazing_speed``, ``on_grazing``, ``grazing_gap``, ``project_tol``,
-            ``max_step``, ``progress``); see there for units and defaults.
+            ``max_step``, ``sample_times``, ``progress``); see there for units and defaults.
 
     Returns:
         The `Trajectory`.
@@ -181,6 +182,8 @@ class HybridLoop(EventResets, FrictionEvents):
         if self.options.parameters:
             from ..model.parameters import resolve  # the model's names import the dynamics' scene
             self.jumps = ParameterJumps(self.dyn, resolve(self.scene, self.options.parameters))
+        check_sample_times(self.options.sample_times, self.t0, self.t_final)
+        self.recorder = SampleRecorder(self.options.sample_times, self.n_state, self.options.parameters)
 
     def _identity_phi(self) -> np.ndarray:
         """The flow Jacobian at the start: ``[I, 0]`` (2nv × (2nv + p)); without the state's
@@ -293,6 +296,7 @@ class HybridLoop(EventResets, FrictionEvents):
         if self.sensitive and self.initial_saltation is not None:
             stepper.restart(self.t0, q, v, phi=self.initial_saltation)
         self.fields.append(field)
+        self.recorder.take(stepper)
         segment = Segment(t0=self.t0, t1=self.t0, mode=self._mode_names(mode), sliding=self._sliding_names(mode))
         self.segments.append(segment)
         gaps, rates = self._gaps_and_rates(stepper.q, stepper.v)
@@ -310,7 +314,8 @@ class HybridLoop(EventResets, FrictionEvents):
                     self._trajectory(stepper, Termination.MAX_STEPS))
             if stepper.t >= next_break:
                 next_break = scene.next_breakpoint(stepper.t)
-            stepper.t_bound = min(self.t_final, next_break)  # also for a stepper new since the last step
+            # steps end on breakpoints and sample times; also for a stepper new since the last step
+            stepper.t_bound = min(self.t_final, next_break, self.recorder.next_time)
             try:
                 stepper.step()
             except StepSizeUnderflowError as exc:  # the extreme of a collapse: said as one, with the run so far
@@ -337,6 +342,7 @@ class HybridLoop(EventResets, FrictionEvents):
                 if projected or field.slipping:
                     forces = field.guard_values(stepper.t, stepper.q, stepper.v)
                 segment.t1 = stepper.t
+                self.recorder.take(stepper)
                 if watch.after_step(h, clipped=stepper.t == stepper.t_bound):
                     self._collapse(stepper, mode, h, watch.typical)
                 if self.chooser is not None and stepper.t < self.t_final:
@@ -373,6 +379,7 @@ class HybridLoop(EventResets, FrictionEvents):
             segment = Segment(t0=t_event, t1=t_event, mode=self._mode_names(mode),
                               sliding=self._sliding_names(mode))
             self.segments.append(segment)
+            self.recorder.take(stepper)  # a sample at the event's time: after it
             gaps, rates = self._gaps_and_rates(stepper.q, stepper.v)
             forces = field.guard_values(stepper.t, stepper.q, stepper.v)
             if stop:
@@ -450,7 +457,8 @@ class HybridLoop(EventResets, FrictionEvents):
                           termination=termination, notes=self.notes, dense=self.options.dense,
                           jacobian=stepper.phi[:, :self.n_state].copy() if self.options.jacobian else None,
                           parameter_jacobian=stepper.phi[:, self.n_state:].copy() if self.jumps else None,
-                          parameter_names=tuple(self.options.parameters))
+                          parameter_names=tuple(self.options.parameters),
+                          samples=self.recorder.samples(self.scene.model.nq, self.scene.nv))
 
     # -- detection ------------------------------------------------------------------
     def _near_misses(self, misses: list[NearMiss], t_event: float) -> None:

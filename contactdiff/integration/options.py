@@ -83,6 +83,11 @@ class SimulateOptions:
             give the state at any time (kB a step, tens of thousands of steps a
             minute on a quadruped trot); without it a run keeps its events,
             segments and final state only, nothing per step.
+        sample_times: times (s) at which to record the state, and with ``jacobian`` or
+            ``parameters`` the flow Jacobian, on ``traj.samples`` (a `Samples`), from
+            the same run; finite, non-decreasing, within ``[t0, t_final]`` (checked by
+            `simulate`). Steps end on them (`contactdiff.integration.samples`). A sample
+            at an event's time takes the state after the event.
         progress: called after every accepted step as ``progress(t, events, steps)``
             (time in s, events and accepted steps so far), e.g. to draw a progress
             bar; ``None`` for none.
@@ -106,6 +111,7 @@ class SimulateOptions:
     project_tol: float | None = None
     max_step: float = np.inf
     dense: bool = False
+    sample_times: tuple[float, ...] = ()
     progress: Callable[[float, int, int], None] | None = None
 
     def __post_init__(self) -> None:
@@ -129,6 +135,7 @@ class SimulateOptions:
             raise InvalidInputError(f"simulate: parameters name one twice: {self.parameters!r}")
         set_(self, "parameters", names)
         set_(self, "dense", bool(self.dense))
+        set_(self, "sample_times", _sample_times(self.sample_times))
         set_(self, "max_events", check_count("simulate", "max_events", self.max_events))
         set_(self, "max_steps", check_count("simulate", "max_steps", self.max_steps, minimum=1))
         for name in ("simultaneous_tol", "zeno_speed", "grazing_speed"):
@@ -160,6 +167,27 @@ class SimulateOptions:
 def field_names() -> list[str]:
     """Names of the fields of `SimulateOptions`."""
     return [f.name for f in dataclasses.fields(SimulateOptions)]
+
+
+def _sample_times(times) -> tuple[float, ...]:
+    """``sample_times`` as a tuple of finite, non-decreasing floats (s)."""
+    try:
+        values = np.asarray(times, dtype=float)
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"simulate: sample_times must be a sequence of times (s), got {times!r}") from None
+    if values.ndim != 1:
+        raise InvalidInputError(f"simulate: sample_times must be a 1-D sequence of times (s), got shape {values.shape}")
+    bad = np.flatnonzero(~np.isfinite(values))
+    if bad.size:
+        k = bad[0]
+        raise InvalidInputError(f"simulate: sample_times[{k}] = {float(values[k])!r} is not a finite time (s)")
+    back = np.flatnonzero(np.diff(values) < 0.0)
+    if back.size:
+        k = back[0] + 1
+        raise InvalidInputError(f"simulate: sample_times must be non-decreasing; sample_times[{k}] = "
+                                f"{float(values[k])!r} s comes after sample_times[{k - 1}] = "
+                                f"{float(values[k - 1])!r} s")
+    return tuple(float(t) for t in values)
 
 
 def _in_range(name: str, value, low: float, high: float, *, open_low: bool = False) -> float:

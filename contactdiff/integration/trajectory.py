@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ContactDiffError, InvalidInputError
+from .samples import Samples
 
 EVENT_KINDS = ("touchdown", "lift-off", "slip", "stick", "bounce", "grazing", "zeno")
 """``touchdown``: contacts close and stay closed (impact); ``lift-off``: an active
@@ -229,6 +230,8 @@ class Trajectory:
         parameter_names: the names of those parameters, in column order.
         dense: whether the run kept its dense output (``simulate(..., dense=True)``),
             which `at`, `sample` and `save_npz` need.
+        samples: the state (and flow Jacobian) at ``simulate(..., sample_times=...)``,
+            a `Samples`; None without sample times.
     """
 
     scene_name: str
@@ -248,6 +251,7 @@ class Trajectory:
     dense: bool = True
     parameter_jacobian: np.ndarray | None = None
     parameter_names: tuple[str, ...] = ()
+    samples: Samples | None = None
 
     @property
     def differentiable(self) -> bool:
