@@ -7,6 +7,8 @@
                         [--neutral x,y,yaw] [--min-flight S] [--json]
     contactdiff sweep SCENE --grid NAME=lo:hi:n ... [--job JOB] [--t-final T] [--backend B] [--out FILE]
                         (contactdiff.sweeps.cli)
+    contactdiff fit SCENE DATA ... --param NAME ... [--jobs N] [--json] [--plot out.png]
+                        (contactdiff.fit.cli)
 
 SOURCE is a scene (TOML path or a name of robots/) or a robot (URDF path or
 example-robot-data name; its feet get ground contacts, chosen automatically or
@@ -211,6 +213,9 @@ def build_parser() -> argparse.ArgumentParser:
     from .sweeps.cli import add_parser as add_sweep
 
     add_sweep(sub)
+    from .fit.cli import add_parser as add_fit
+
+    add_fit(sub)
     return parser
 
 

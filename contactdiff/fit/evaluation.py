@@ -140,9 +140,14 @@ def evaluate(scene, plan_parameters: tuple, task: Task) -> Evaluation:
         empty = np.zeros(0)
         return Evaluation(task.index, empty, empty, empty, empty, Counter(), 0, f"{type(exc).__name__}: {exc}")
     samples = traj.samples
+    if len(samples) != len(k):
+        return Evaluation(task.index, np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0), Counter(), 0,
+                          f"the run ended at {traj.t} s, before its last sample at {rec.t[-1]} s")
     residual = PoseResidual(model, task.weights)
     nv = model.nv
     w = rec.sample_weights()
+    if rec.mask is not None:  # unmeasured coordinates: zero rows (and zero derivatives)
+        residual.scale = residual.scale * rec.mask
     r = np.concatenate([wk * residual.residual(qk, rec.q[i]) for wk, qk, i in zip(w, samples.q, k)])
     Jr = [wk * residual.jacobian(qk, rec.q[i]) for wk, qk, i in zip(w, samples.q, k)]
     Jp = np.vstack([Jk @ P[:nv] for Jk, P in zip(Jr, samples.parameter_jacobian)])

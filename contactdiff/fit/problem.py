@@ -25,6 +25,7 @@ at the starting values (so that the cost stays one function).
 
 from __future__ import annotations
 
+import math
 import time
 import warnings
 from collections import Counter
@@ -42,6 +43,10 @@ from .evaluation import Evaluation, StateFit, Task, evaluate
 from .parameters import FitPlan
 from .recordings import Recording
 from .residuals import ResidualWeights
+
+FAILED_RESIDUAL = 1e3
+"""A trial value at which a run fails gets every residual row this many times the start's RMS
+(so trust-region steps into a region where the scene cannot run are rejected, not fatal)."""
 
 RANK_TOL = 1e-10
 """Singular values of J below this fraction of the largest count as zero in the covariance."""
@@ -98,6 +103,7 @@ class FitResult:
         iterations: Jacobian evaluations (scipy's ``njev``); evaluations: residual
             evaluations (``nfev``), each one run per recording.
         nondifferentiable: recordings not differentiable at each evaluation.
+        failed_trials: messages of the trial values at which a run failed (each rejected).
         policy: the `NonDifferentiablePolicy`; success, message: scipy's verdict.
         rank_deficient: some direction had no information (infinite standard errors).
         wall_time: s.
@@ -114,6 +120,7 @@ class FitResult:
     iterations: int
     evaluations: int
     nondifferentiable: list[int]
+    failed_trials: list[str]
     policy: NonDifferentiablePolicy
     success: bool
     message: str
@@ -130,6 +137,7 @@ class FitResult:
                            for n, s, v, e in zip(self.names, self.start, self.values, self.standard_errors)},
             "cost": self.cost, "start_cost": self.start_cost, "iterations": self.iterations,
             "evaluations": self.evaluations, "nondifferentiable": self.nondifferentiable,
+            "failed_trials": self.failed_trials,
             "policy": self.policy.value, "success": self.success, "message": self.message,
             "rank_deficient": self.rank_deficient, "wall_time": self.wall_time,
             "recordings": [{"name": r.name, "rms": r.rms, "cost": r.cost, "differentiable": r.differentiable,
@@ -239,6 +247,7 @@ def fit(scene, recordings: Sequence[Recording], parameters, *, bounds: Mapping |
     counts: list[int] = []
     cache: dict = {}
     active = list(range(len(recordings)))
+    trials: list[str] = []  # trial values at which a run failed (the step is rejected)
 
     def run(x: np.ndarray) -> list[Evaluation]:
         if cache.get("x") is not None and np.array_equal(cache["x"], x):
@@ -250,8 +259,12 @@ def fit(scene, recordings: Sequence[Recording], parameters, *, bounds: Mapping |
         failed = [(recordings[e.index].name, e.error) for e in evals if e.error is not None]
         if failed:
             name, error = failed[0]
-            raise FitError(f"fit: the run of {name!r} failed at {values} ({error}); "
-                           f"{len(failed)} of {len(evals)} runs failed")
+            message = (f"fit: the run of {name!r} failed at {values} ({error}); "
+                       f"{len(failed)} of {len(evals)} runs failed")
+            if "x" not in cache:  # at the start: nothing to fall back on
+                raise FitError(message)
+            trials.append(message)
+            return None
         counts.append(sum(not evals[i].differentiable for i in active))
         cache.update(x=x.copy(), evals=evals)
         return evals
@@ -264,9 +277,12 @@ def fit(scene, recordings: Sequence[Recording], parameters, *, bounds: Mapping |
             raise InvalidInputError("fit: policy 'exclude' leaves no recording: every one is not differentiable "
                                     "at the starting values (use policy 'keep')")
     start_cost = 0.5 * sum(float(first[i].residual @ first[i].residual) for i in active)
+    rows = sum(len(first[i].residual) for i in active)
 
     def residuals(x):
         evals = run(x)
+        if evals is None:  # a failed run: the trial counts as far worse than the start, its step is rejected
+            return np.full(rows, FAILED_RESIDUAL * max(1.0, math.sqrt(2.0 * start_cost / rows)))
         return np.concatenate([evals[i].residual for i in active])
 
     def jacobian(x):
@@ -276,7 +292,7 @@ def fit(scene, recordings: Sequence[Recording], parameters, *, bounds: Mapping |
                                                                     _bound(plan.upper, s, recordings, upper=True)),
                              method="trf", x_scale="jac", ftol=tolerance, xtol=tolerance, gtol=tolerance,
                              max_nfev=max_evaluations)
-    final = run(solution.x)
+    final = run(solution.x)  # the accepted point: cached, or run again if the last trial failed
     J = jacobian(solution.x)
     J = J.toarray() if sparse.issparse(J) else J
     covariance, rank_deficient = _covariance(J, solution.fun, n)
@@ -288,7 +304,7 @@ def fit(scene, recordings: Sequence[Recording], parameters, *, bounds: Mapping |
             for i, (rec, ev) in enumerate(zip(recordings, final))]
     errors = np.sqrt(np.where(np.diag(covariance) >= 0.0, np.diag(covariance), np.inf))
     return FitResult(plan.names, theta0, solution.x[:n].copy(), errors, covariance, float(solution.cost),
-                     start_cost, fits, int(solution.njev or 0), int(solution.nfev), counts, policy,
+                     start_cost, fits, int(solution.njev or 0), int(solution.nfev), counts, trials, policy,
                      bool(solution.success), str(solution.message), rank_deficient,
                      time.perf_counter() - started)
 

@@ -31,6 +31,8 @@ class Recording:
             space, Pinocchio's convention).
         weights: a weight per sample (k,), >= 0, multiplying that sample's residual
             rows; None: 1 for every sample.
+        mask: (nv,) bool, the tangent coordinates that were measured (residual rows of the
+            others are zero); None: all of them.
     """
 
     name: str
@@ -40,6 +42,30 @@ class Recording:
     q0: np.ndarray
     v0: np.ndarray
     weights: np.ndarray | None = None
+    mask: np.ndarray | None = None
+
+    @classmethod
+    def from_observations(cls, observations, *, start: int = 0, v0=None, name: str | None = None) -> Recording:
+        """The recording of `contactdiff.fit.Observations` whose rollout starts at sample ``start``:
+        its measured configuration, and ``v0`` (nv,) if given, else the measured velocity when
+        every coordinate's was measured, else zero (fit it: ``state="velocity"``).
+
+        Raises:
+            InvalidInputError: ``start`` outside the samples, or ``v0`` not nv numbers.
+        """
+        k = len(observations.t)
+        if not (isinstance(start, int) and -k <= start < k):
+            raise InvalidInputError(f"recording: start must be a sample index in [0, {k}), got {start!r}")
+        nv = len(observations.mask)
+        if v0 is None:
+            measured = observations.v is not None and bool(np.all(observations.v_mask))
+            v0 = observations.v[start] if measured else np.zeros(nv)
+        v0 = np.asarray(v0, dtype=float)
+        if v0.shape != (nv,):
+            raise InvalidInputError(f"recording: v0 must hold {nv} velocities, got shape {v0.shape}")
+        return cls(name or observations.source or "observations", observations.t, observations.q,
+                   float(observations.t[start]), observations.q[start], v0, observations.weights,
+                   np.asarray(observations.mask, dtype=bool))
 
     def __post_init__(self):
         t = np.asarray(self.t, dtype=float)
@@ -60,6 +86,8 @@ class Recording:
             if w.shape != t.shape or not np.all(np.isfinite(w)) or np.any(w < 0.0):
                 raise InvalidInputError(f"{label}: weights must be {len(t)} finite numbers >= 0")
             object.__setattr__(self, "weights", w)
+        if self.mask is not None:
+            object.__setattr__(self, "mask", np.asarray(self.mask, dtype=bool))
         object.__setattr__(self, "t", t)
         object.__setattr__(self, "q", q)
         object.__setattr__(self, "q0", np.asarray(self.q0, dtype=float))
