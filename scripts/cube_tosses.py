@@ -1,0 +1,242 @@
+"""Identify the cube's contact parameters from measured tosses and evaluate them on held-out ones.
+
+Splits the tosses into a training set and a held-out set (upstream's duplicated
+recordings on one side), fits the cube's parameters on the training tosses by
+least squares with exact derivatives (`contactdiff.fit.fit`, rollouts from three
+samples before the cube can first touch), then runs every held-out toss at the
+nominal and at the fitted parameters from both published starts and reports
+the published metrics (time-averaged position error in % of the edge, rotation
+error in degrees: mean ± std and median over tosses), beside the tuned
+time-stepping simulators of Acosta, Yang and Posa (their numbers, quoted; fitted
+on all tosses, no held-out set). Also: the fit's cost, the exact Jacobian's cost
+against finite differences of the same residuals, the wall time per toss, the
+tosses whose outcome is not differentiable, and the worst held-out tosses.
+
+    python scripts/cube_tosses.py --tosses ../shared/data/cube_tosses/tosses.npz --train 100
+    python scripts/cube_tosses.py --quick          # 4 shipped tosses to fit, 4 held out, 2 evaluations
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import sys
+import time
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+
+import contactdiff as cd
+from contactdiff.data.cube_recordings import Start, split, toss_errors, toss_recording
+from contactdiff.data.cube_tosses import NOMINAL, load_tosses
+from contactdiff.fit import ResidualWeights, Scaled, fit
+from contactdiff.fit.evaluation import StateFit, Task, evaluate
+from contactdiff.fit.parameters import FitPlan
+from contactdiff.fit.rollouts import rollouts
+
+ANCHORS = {"Drake": (13.5, 8.2, 16.5, 20.0), "Bullet": (14.9, 8.9, 16.5, 20.2), "MuJoCo": (25.1, 10.8, 21.7, 21.4)}
+"""Acosta, Yang, Posa (RA-L 2022), tuned on all tosses: position % (mean, std), rotation deg (mean, std)."""
+
+STEPPING_COST = {"MuJoCo": (3.4e-3, 21.9), "Drake": (9e-3, 13.1)}
+"""Quoted wall time per toss (s) at a 0.68 ms step and position error (%) of the time-stepping simulators."""
+
+
+def unknowns(scene) -> list:
+    """μ, e and the board height shared by the eight corners, a scale of the three moments, and gravity."""
+    moments = {f"body:cube:i{a}{a}": NOMINAL.moment for a in "xyz"}
+    return ["group:cube:friction", "group:cube:restitution", "group:cube:offset",
+            Scaled("inertia_scale", moments), "scene:gravity_z"]
+
+
+def summary(errors: list[tuple[float, float]]) -> dict:
+    pos = [e[0] for e in errors]
+    rot = [e[1] for e in errors]
+    if not pos:
+        return {"tosses": 0}
+    return {"tosses": len(pos), "position_mean": statistics.fmean(pos), "position_std": statistics.pstdev(pos),
+            "position_median": statistics.median(pos), "rotation_mean": statistics.fmean(rot),
+            "rotation_std": statistics.pstdev(rot), "rotation_median": statistics.median(rot)}
+
+
+def evaluate_held_out(tosses, names, values, jobs, label) -> dict:
+    """Both starts' rollouts of the held-out ``names`` at ``values``: metrics, failures, worst tosses."""
+    out = {}
+    for start in Start:
+        recs = []
+        for n in names:
+            try:
+                recs.append(toss_recording(tosses[n], start))
+            except cd.InvalidInputError:  # a free flight too short for the parabola: start at the first sample
+                recs.append(toss_recording(tosses[n], Start.FIRST))
+        runs = rollouts(cd.cube_scene, recs, values, jobs=jobs, progress=None)
+        errors, failed, rows = [], [], []
+        for rec, run in zip(recs, runs):
+            if not run.complete:
+                failed.append(f"{rec.name}: {run.error}")
+                continue
+            e = toss_errors(rec, run.q)
+            errors.append(e)
+            rows.append({"toss": rec.name, "position": e[0], "rotation": e[1], "wall": run.wall,
+                         "events": run.events, "nonsmooth": run.nonsmooth})
+        rows.sort(key=lambda r: -r["position"])
+        out[start.value] = summary(errors) | {
+            "failed": failed, "worst": rows[:8], "not_differentiable": sum(bool(r["nonsmooth"]) for r in rows),
+            "wall_median": statistics.median([r["wall"] for r in rows]) if rows else None,
+            "per_toss": [[r["toss"], r["position"], r["rotation"]] for r in rows]}
+        print(f"{label}, start {start.value}: " + _line(out[start.value]), file=sys.stderr, flush=True)
+    return out
+
+
+def _line(s: dict) -> str:
+    if not s.get("tosses"):
+        return "no toss finished"
+    return (f"{s['tosses']} tosses: position {s['position_mean']:.1f} ± {s['position_std']:.1f} % "
+            f"(median {s['position_median']:.1f}), rotation {s['rotation_mean']:.1f} ± {s['rotation_std']:.1f} deg "
+            f"(median {s['rotation_median']:.1f}); {len(s['failed'])} failed")
+
+
+def jacobian_cost(tosses, names, scene) -> dict:
+    """One toss's residuals with their exact Jacobian against the plain run that finite differences
+    repeat (forward: n + 1 runs, central: 2n), medians over ``names`` (run in this process)."""
+    plan = FitPlan(scene, unknowns(scene))
+    values = plan.values(plan.start(scene))
+    exact, plain = [], []
+    for n in names:
+        rec = toss_recording(tosses[n], Start.BEFORE_TOUCH)
+        task = Task(0, rec, values, np.zeros(0), StateFit.NONE, ResidualWeights(), {})
+        t0 = time.perf_counter()
+        evaluate(scene, plan.parameters, task)
+        exact.append(time.perf_counter() - t0)
+        t0 = time.perf_counter()
+        evaluate(scene, (), task)
+        plain.append(time.perf_counter() - t0)
+    k = len(plan.names)
+    ratio = statistics.median(e / p for e, p in zip(exact, plain))
+    return {"unknowns": k, "exact_over_plain": ratio, "forward_fd_over_plain": k + 1, "central_fd_over_plain": 2 * k,
+            "exact_median": statistics.median(exact), "plain_median": statistics.median(plain)}
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--tosses", help="a tosses .npz file (default: the 24 shipped with the package)")
+    parser.add_argument("--train", type=int, default=100, help="tosses to fit on (default 100)")
+    parser.add_argument("--test", type=int, default=None, help="held-out tosses evaluated (default: all the rest)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the split (default 0)")
+    parser.add_argument("--max-evaluations", type=int, default=12, help="the fit's evaluations at most")
+    parser.add_argument("--jobs", type=int, default=None, help="worker processes (default: one per core)")
+    parser.add_argument("--quick", action="store_true", help="4 shipped tosses to fit, 4 held out, 2 evaluations")
+    parser.add_argument("--plot-dir", help="write plots of held-out tosses and the error distribution here")
+    parser.add_argument("--json", action="store_true", help="print the report as JSON")
+    args = parser.parse_args(argv)
+    tosses = load_tosses(args.tosses)
+    if args.quick:
+        args.train, args.test, args.max_evaluations = 4, 4, 2
+    jobs = args.jobs or 2
+    train, held_out = split(tosses, args.train, args.seed)
+    held_out = held_out[:args.test] if args.test else held_out
+    scene = cd.cube_scene()
+    report = {"train": len(train), "held_out": len(held_out), "seed": args.seed}
+
+    recs = [toss_recording(tosses[n], Start.BEFORE_TOUCH) for n in train]
+    weights = ResidualWeights(position=1.0, orientation=NOMINAL.edge / 2)  # a radian counts as a corner's travel
+    started = time.perf_counter()
+    result = fit(cd.cube_scene if jobs > 1 else scene, recs, unknowns(scene), weights=weights, jobs=jobs,
+                 max_evaluations=args.max_evaluations)
+    report["fit"] = result.to_dict() | {"wall_time": time.perf_counter() - started}
+    print(result.table(), file=sys.stderr, flush=True)
+    fitted = dict(zip(_scene_names(scene), _scene_values(scene, result)))
+    report["fitted_scene_values"] = fitted
+
+    report["nominal"] = evaluate_held_out(tosses, held_out, None, jobs, "nominal")
+    report["fitted"] = evaluate_held_out(tosses, held_out, fitted, jobs, "fitted")
+    report["jacobian_cost"] = jacobian_cost(tosses, train[:min(5, len(train))], scene)
+    report["anchors"] = ANCHORS
+    report["stepping_cost"] = STEPPING_COST
+    if args.plot_dir:
+        plot_report(report, tosses, fitted, Path(args.plot_dir))
+    print(json.dumps(report, indent=2) if args.json else format_report(report))
+    return 0
+
+
+def plot_report(report: dict, tosses, fitted: dict, folder: Path) -> None:
+    """``cube_toss_errors.png``: the held-out position errors (nominal and fitted, from before
+    touch) with the anchors' means; ``cube_toss_rollouts.png``: measured against fitted
+    centre positions of the two best and two worst held-out tosses."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from contactdiff.fit.rollouts import rollout
+
+    folder.mkdir(parents=True, exist_ok=True)
+    start = Start.BEFORE_TOUCH.value
+    fig, ax = plt.subplots(figsize=(7, 3.2))
+    for label, color in (("nominal", "C7"), ("fitted", "C0")):
+        errors = [row[1] for row in report[label][start]["per_toss"]]
+        ax.hist(errors, bins=np.linspace(0, 100, 41), alpha=0.6, color=color, label=f"{label} parameters")
+    for (name, values), color in zip(ANCHORS.items(), ("C1", "C2", "C3")):
+        ax.axvline(values[0], color=color, linestyle="--", label=f"{name} (tuned on all) {values[0]} %")
+    ax.set_xlabel("time-averaged position error (% of the edge), held-out tosses")
+    ax.set_ylabel("tosses")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(folder / "cube_toss_errors.png", dpi=120)
+    plt.close(fig)
+
+    rows = report["fitted"][start]["per_toss"]  # sorted worst first
+    chosen = [r[0] for r in rows[-2:][::-1]] + [r[0] for r in rows[:2]]
+    scene = cd.cube_scene()
+    fig, axes = plt.subplots(len(chosen), 1, figsize=(7, 2.3 * len(chosen)), squeeze=False)
+    for ax, name in zip(axes[:, 0], chosen):
+        rec = toss_recording(tosses[name], Start.BEFORE_TOUCH)
+        run = rollout(scene, rec, fitted)
+        k = rec.compared[:len(run.q)]
+        for j, axis in enumerate("xyz"):
+            ax.plot(rec.t, rec.q[:, j], ".", color=f"C{j}", markersize=2.5, label=f"{axis} measured")
+            ax.plot(rec.t[k], run.q[:, j], "-", color=f"C{j}", linewidth=1.2, label=f"{axis} simulated")
+        pos, rot = toss_errors(rec, run.q) if run.complete else (float("nan"), float("nan"))
+        ax.set_title(f"{name}: {pos:.1f} % of the edge, {rot:.1f} deg", fontsize=9)
+        ax.set_ylabel("m")
+    axes[0, 0].legend(fontsize=7, ncol=3)
+    axes[-1, 0].set_xlabel("t (s)")
+    fig.tight_layout()
+    fig.savefig(folder / "cube_toss_rollouts.png", dpi=120)
+    plt.close(fig)
+
+
+def _scene_names(scene) -> list[str]:
+    return list(FitPlan(scene, unknowns(scene)).parameters)
+
+
+def _scene_values(scene, result) -> list[float]:
+    plan = FitPlan(scene, unknowns(scene))
+    return list(plan.values(result.values).values())
+
+
+def format_report(report: dict) -> str:
+    fit_ = report["fit"]
+    lines = [f"fit on {report['train']} tosses ({fit_['iterations']} iterations, {fit_['evaluations']} evaluations, "
+             f"{fit_['wall_time']:.0f} s; not differentiable per evaluation: {fit_['nondifferentiable']}):"]
+    for name, p in fit_["parameters"].items():
+        lines.append(f"  {name:<26} {p['start']:>10.5g} -> {p['value']:>10.5g} ± {p['standard_error']:.2g}")
+    lines.append(f"held out: {report['held_out']} tosses")
+    for label in ("nominal", "fitted"):
+        for start, s in report[label].items():
+            lines.append(f"  {label:<8} from {start:<13} " + _line(s))
+    lines.append("anchors (tuned on all tosses, from before touch): " + "; ".join(
+        f"{k} {v[0]} ± {v[1]} %, {v[2]} ± {v[3]} deg" for k, v in report["anchors"].items()))
+    c = report["jacobian_cost"]
+    lines.append(f"exact Jacobian of {c['unknowns']} unknowns: {c['exact_over_plain']:.2f} plain runs "
+                 f"(forward FD {c['forward_fd_over_plain']}, central {c['central_fd_over_plain']}); plain run "
+                 f"median {c['plain_median'] * 1e3:.0f} ms per toss")
+    worst = report["fitted"][Start.BEFORE_TOUCH.value]["worst"]
+    lines.append("worst held-out tosses (fitted, from before touch): " + "; ".join(
+        f"{w['toss']} {w['position']:.0f} % {w['rotation']:.0f} deg {dict(Counter(w['events']))}" for w in worst[:5]))
+    return "\n".join(lines)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
