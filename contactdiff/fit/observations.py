@@ -271,12 +271,12 @@ def from_columns(columns: dict, scene, source: str, lines=None) -> Observations:
     back = np.flatnonzero(np.diff(t) <= 0.0)
     if back.size:
         r = back[0] + 1
-        raise fail(f"times must increase: {_row(r, lines)} has t = {t[r]!r} s, not after {t[r - 1]!r} s "
+        raise fail(f"times must increase: {_row(r, lines)} has t = {float(t[r])!r} s, not after {float(t[r - 1])!r} s "
                    f"of row {r - 1}")
     weights = arrays.get(WEIGHT, np.ones(k))
     if np.any(weights < 0.0):
         r = int(np.argmax(weights < 0.0))
-        raise fail(f"{_row(r, lines)}: weight {weights[r]!r} is negative (weights are >= 0)")
+        raise fail(f"{_row(r, lines)}: weight {float(weights[r])!r} is negative (weights are >= 0)")
     if not np.any(weights > 0.0):
         raise fail("every weight is 0: nothing is measured")
 
