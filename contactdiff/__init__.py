@@ -10,11 +10,12 @@ The public names, by concept (each lives in the subpackage named beside it):
     paper        trot_touchdown (the paper's Fig. 1 scenes at any initial pitch)
     dynamics     ModeDynamics (accelerations and contact forces in any contact mode)
     integration  simulate, SimulateOptions, HybridLoop, Trajectory, Event, Segment,
-                 NonSmooth, Termination, RunStats
+                 NonSmooth, Termination, RunStats, Samples
     analysis     check_decoupling, DecouplingReport, order_gap, stride_map,
                  find_periodic_gait, first_touchdown, period_map
     sweep        sweep (one scene over many points, on many cores or a cluster)
     data         cube_scene, load_tosses, Toss, CubeParameters (measured cube tosses)
+    fit          Observations, load_observations, toss_observations (measured trajectories)
     errors       ContactDiffError and its subclasses
 """
 
@@ -32,6 +33,7 @@ from .errors import (
     IntegrationError,
     InvalidInputError,
     ModelLoadError,
+    ObservationFileError,
     OutputFileError,
     OutsideDomainError,
     PainleveError,
@@ -45,8 +47,10 @@ from .errors import (
     UnknownNameError,
     UnknownRobotError,
 )
+from .fit import Observations, load_observations, toss_observations
 from .integration.hybrid import HybridLoop, simulate
 from .integration.options import SimulateOptions
+from .integration.samples import Samples
 from .integration.trajectory import Event, NonSmooth, RunStats, Segment, Termination, Trajectory
 from .model.contacts import Contact
 from .model.efforts import Effort, JointSpring, Spring, UserEffort
@@ -65,13 +69,14 @@ __all__ = [
     "find_periodic_gait", "first_touchdown", "GrazingError", "HybridLoop",
     "InconsistentStateError", "IntegrationError", "InvalidInputError", "JointSpring", "JointTargets",
     "load_robot",
-    "load_scene", "load_source", "ModeDynamics", "ModelLoadError", "NonSmooth", "order_gap",
+    "load_observations", "load_scene", "load_source", "ModeDynamics", "ModelLoadError", "NonSmooth",
+    "ObservationFileError", "Observations", "order_gap",
     "OutputFileError", "OutsideDomainError", "PainleveError",
-    "period_map", "QUADRUPEDS", "Robot", "RobotFrame", "RunStats", "Scene", "SceneObject", "Segment",
+    "period_map", "QUADRUPEDS", "Robot", "RobotFrame", "RunStats", "Samples", "Scene", "SceneObject", "Segment",
     "simulate", "SimulateOptions",
     "SolverError", "Spring", "StepCollapseError", "StepSizeUnderflowError", "StoppedRunError", "stride_map",
     "StrideError", "sweep",
     "Termination",
-    "TooManyEventsError", "TooManyStepsError", "Trajectory", "trot_scene", "trot_touchdown",
+    "TooManyEventsError", "TooManyStepsError", "toss_observations", "Trajectory", "trot_scene", "trot_touchdown",
     "UnknownNameError", "UnknownRobotError", "UserEffort",
 ]

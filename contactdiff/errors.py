@@ -27,6 +27,13 @@ class OutputFileError(InvalidInputError):
         self.result = result
 
 
+class ObservationFileError(InvalidInputError):
+    """A file of observations (`contactdiff.fit.load_observations`) cannot be used: it is
+    missing or unreadable, or a column, time, value or quaternion in it is bad. The
+    one-line message names the file and what is wrong (the row, the column, the valid
+    column names)."""
+
+
 class UnknownNameError(InvalidInputError, KeyError):
     """A robot, frame, joint, contact or key name is not known.
 

@@ -1,20 +1,28 @@
-"""Fitting scene parameters to measured trajectories with exact derivatives.
+"""Fitting scene parameters to measured trajectories with exact derivatives (docs/fit.md).
 
-    metrics      position_error, rotation_error (the published cube-toss metrics)
-    residuals    PoseResidual, ResidualWeights (residuals on the configuration manifold)
-    recordings   Recording (a measured trajectory and its rollout's start)
-    parameters   FitPlan, Scaled (the unknowns and the scene parameters they set)
-    evaluation   evaluate (one recording's residuals and Jacobian from one run), StateFit
-    problem      fit, FitResult, NonDifferentiablePolicy
+    observations       Observations, toss_observations (a measured trajectory of a scene)
+    observation_files  load_observations, save_observations (CSV and .npz; docs/observations.md)
+    recordings         Recording (a measured trajectory and its rollout's start)
+    residuals          PoseResidual, ResidualWeights (residuals on the configuration manifold)
+    parameters         FitPlan, Scaled (the unknowns and the scene parameters they set)
+    evaluation         evaluate (one recording's residuals and Jacobian from one run), StateFit
+    problem            fit, FitResult, NonDifferentiablePolicy
+    rollouts           rollouts (plain runs for held-out evaluation)
+    metrics            position_error, rotation_error (the published cube-toss metrics)
+    cli, plot          the ``contactdiff fit`` command and its figure
 """
 
 from .evaluation import StateFit
 from .metrics import position_error, position_errors, rotation_error, rotation_errors
+from .observation_files import load_observations, save_observations
+from .observations import Observations, joint_columns, toss_observations, valid_columns
 from .parameters import FitPlan, Scaled
 from .problem import FitResult, NonDifferentiablePolicy, NotDifferentiableWarning, RecordingFit, fit
 from .recordings import Recording
 from .residuals import PoseResidual, ResidualWeights
+from .rollouts import Rollout, rollouts
 
 __all__ = ["fit", "FitResult", "FitPlan", "NonDifferentiablePolicy", "NotDifferentiableWarning", "PoseResidual",
-           "Recording", "RecordingFit", "ResidualWeights", "Scaled", "StateFit", "position_error",
-           "position_errors", "rotation_error", "rotation_errors"]
+           "Recording", "RecordingFit", "ResidualWeights", "Rollout", "rollouts", "Scaled", "StateFit",
+           "position_error", "position_errors", "rotation_error", "rotation_errors", "joint_columns",
+           "load_observations", "Observations", "save_observations", "toss_observations", "valid_columns"]

@@ -237,3 +237,26 @@ def test_samples_before_t0_are_refused_with_a_later_start():
     with pytest.raises(InvalidInputError, match=r"sample_times\[0\] = 0.5 s is outside the run's "
                                                 r"\[t0, t_final\] = \[1.0, 2.0\]"):
         cd.simulate(cd.load_scene("ball"), 2.0, t0=1.0, sample_times=[0.5, 1.5])
+
+
+def test_radau_samples_agree_with_dop853():
+    """The samples are the steppers' own points: Radau IIA's (third-order error estimate, its
+    Jacobian good to ~1e-7 at rtol 1e-12, see test_parameter_sensitivity.py) and DOP853's agree
+    within 1e-6 of the Jacobians' size (a wrong saltation or a sample off its time is O(1))."""
+    scene = cd.load_scene("ball")
+    times = [0.5, 1.0, 2.0, 3.0, 4.0]
+    names = ["contact:ball:restitution"]
+    runs = [cd.simulate(scene, 4.5, jacobian=True, parameters=names, sample_times=times, method=m, **TOL)
+            for m in ("DOP853", "Radau")]
+    a, b = (r.samples for r in runs)
+    assert np.abs(a.jacobian - b.jacobian).max() <= 1e-6 * np.abs(a.jacobian).max()
+    assert np.abs(a.parameter_jacobian - b.parameter_jacobian).max() <= 1e-6 * np.abs(a.parameter_jacobian).max()
+
+
+def test_a_run_stopped_early_holds_the_samples_it_reached():
+    """The ball's event budget of 1 runs out at its second bounce (t = √2 + 2 e √2 = 3.68 s): the
+    run on the error holds the samples before it, not the one at 4 s."""
+    with pytest.raises(cd.TooManyEventsError) as info:
+        cd.simulate(cd.load_scene("ball"), 4.5, jacobian=True, sample_times=[0.5, 2.0, 4.0], max_events=1, **TOL)
+    s = info.value.trajectory.samples
+    assert s.t.tolist() == [0.5, 2.0] and s.jacobian.shape == (2, 2, 2) and s.q.shape == (2, 1)
