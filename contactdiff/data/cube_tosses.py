@@ -92,7 +92,8 @@ def cube_scene(parameters: CubeParameters = NOMINAL, **changes) -> Scene:
                        position=(0.0, 0.0, p.ground + p.edge / 2))
     corners = ["cube/" + "".join(s + axis for s, axis in zip(signs, "xyz"))
                for signs in itertools.product("+-", repeat=3)]
-    contacts = [Contact(name, friction=p.friction, restitution=p.restitution, offset=p.ground) for name in corners]
+    contacts = [Contact(name, friction=p.friction, restitution=p.restitution, offset=p.ground, group="cube")
+                for name in corners]
     return Scene(add_objects(empty_robot(), [cube]), contacts, gravity=(0.0, 0.0, -p.gravity), name="cube")
 
 

@@ -112,6 +112,7 @@ class Contact:
     against: str | None = None
     name: str | None = None
     radius: float | None = None
+    group: str | None = None
 
     def __post_init__(self) -> None:
         owner = f"contact {self.name or self.frame!r}"
@@ -128,6 +129,9 @@ class Contact:
         set_(self, "friction", _friction(self.friction, owner))
         if self.radius is not None:
             set_(self, "radius", check_number(owner, "radius", self.radius, minimum=0.0))
+        if self.group is not None and (not isinstance(self.group, str) or not self.group or ":" in self.group):
+            raise InvalidInputError(f"{owner}: group must be a non-empty name without ':' (or None), "
+                                    f"got {self.group!r}")
 
     def resolved(self, robot: Robot) -> Contact:
         """This contact with its radius set: a given radius is kept; without one, a
