@@ -93,7 +93,7 @@ def order_gap_gradient(scene: Scene, q, v_minus, contacts: Sequence = (0, 1), pa
     before = tuple(sorted(_index(scene, c) for c in mode))
 
     def reset_parameters(impact, v_before):
-        live = {k: columns[dyn.contact_index(k)] for k in impact.contacts if dyn.contact_index(k) in columns}
+        live = {i: columns[i] for i in map(dyn.contact_index, impact.contacts) if i in columns}
         return impact_parameter_jacobian(dyn, q, v_before, impact, forces, live)[nv:]
 
     d_after = {}

@@ -90,11 +90,10 @@ class ParameterJumps:
     def impact(self, q: np.ndarray, v_minus: np.ndarray, impact: ImpactResult, live: Sequence[int]) -> np.ndarray:
         """``∂R/∂p`` (2nv × p) of ``impact``; ``live``: the contact keys whose own
         restitution the impact used (not ended by the Zeno rule)."""
-        columns = {k: self.restitution_columns[self.dyn.contact_index(k)] for k in live
-                   if self.dyn.contact_index(k) in self.restitution_columns}
-        friction = {k: self.forces.friction_columns[self.dyn.contact_index(k)] for k in impact.contacts
-                    if self.dyn.contact_index(k) in self.forces.friction_columns}
-        return impact_parameter_jacobian(self.dyn, q, v_minus, impact, self.forces, columns, friction)
+        live = {self.dyn.contact_index(k) for k in live}
+        columns = {i: cols for i, cols in self.restitution_columns.items() if i in live}
+        return impact_parameter_jacobian(self.dyn, q, v_minus, impact, self.forces, columns,
+                                         self.forces.friction_columns)
 
     def projection(self, q: np.ndarray, mode: Sequence[int]) -> np.ndarray:
         """``∂/∂p`` (2nv × p) of the projection ``(q - P a(q), ...)`` onto ``mode``'s

@@ -147,11 +147,11 @@ def impact_parameter_jacobian(dyn: ModeDynamics, q: np.ndarray, v_minus: np.ndar
     The same equations as `impact_reset_jacobian`, differentiated in the parameters:
     ``K_vv δv+ - F^T δΛ = -∂(M (v+ - v-))/∂p`` (`ParameterForces.impulse_forces`) and, on an
     active contact whose restitution is parameter column ``c``
-    (``restitution_columns[key] = c``, or a list of columns, for the keys whose
-    coefficient the impact used as it is), ``A_n δv+ = -δe A_n v-``. A contact sliding
+    (``restitution_columns[i] = c``, or a list of columns, by scene index ``i``, for the
+    contacts whose coefficient the impact used as it is), ``A_n δv+ = -δe A_n v-``. A contact sliding
     with Coulomb friction holds its normal row only, its force column is
     ``F = A_n - μ s^T A_T`` and ``K_vv = M + μ Λ_N A_T^T D A_T`` (the turn of ``s``,
-    ``D = ds/du+_T``); its coefficient's columns (``friction_columns[key]``) get the
+    ``D = ds/du+_T``); its coefficient's columns (``friction_columns[i]``, by scene index) get the
     force ``-Λ_N A_T^T s`` (the tangential impulse's ``∂/∂μ`` at fixed ``Λ_N`` and
     ``s``). A sticking contact's impulse does not depend on ``μ`` while it sticks.
     Dependent rows (a face's corners) keep ``δΛ`` in the range of the held rows, as the
@@ -172,6 +172,7 @@ def impact_parameter_jacobian(dyn: ModeDynamics, q: np.ndarray, v_minus: np.ndar
     friction_columns = friction_columns or {}
     for k in held:
         key = impact.contacts[k]
+        index = dyn.contact_index(key)  # the columns are by scene index: a key may be a sliding one
         c = dyn.contact(key)
         rows = c.rows(kin) if k in impact.active else c.rows(kin)[1:]
         force_rows = rows
@@ -185,11 +186,11 @@ def impact_parameter_jacobian(dyn: ModeDynamics, q: np.ndarray, v_minus: np.ndar
                 u_T = full[1:] @ impact.v_plus
                 D = (np.eye(2) - np.outer(s, s)) / np.linalg.norm(u_T)
                 K_vv += mu * lam_n * full[1:].T @ D @ full[1:]
-            for col in _as_list(friction_columns.get(key)):
+            for col in _as_list(friction_columns.get(index)):
                 rhs_v[:, col] -= lam_n * full[1:].T @ s
         block = np.zeros((rows.shape[0], forces.p))
         if k in impact.active and impact.normal_speeds_before[k] < 0.0:
-            for col in _as_list(restitution_columns.get(key)):
+            for col in _as_list(restitution_columns.get(index)):
                 block[0, col] -= float(rows[0] @ v_minus)
         A_rows.append(rows)
         F_rows.append(force_rows)
