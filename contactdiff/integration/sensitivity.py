@@ -81,6 +81,9 @@ def impact_reset_jacobian(dyn: ModeDynamics, q: np.ndarray, v_minus: np.ndarray,
     only, and its tangential impulse ``-μ Λ_N s`` follows ``s = u+_T / ||u+_T||``:
     its force column is ``F = A_n - μ s^T A_T``, and ``δs = (I - s s^T) δu+_T / ||u+_T||``
     moves ``v+`` through ``-μ Λ_N A_T^T δs`` (a planar slip keeps its sign, ``δs = 0``).
+    Dependent held rows (a face's corners) keep the impulses in the range of the rows, as
+    the impact law (`contactdiff.dynamics.redundant`): with sliding corners the velocity
+    depends on the corners' shares, which least squares would not give.
     """
     model, nv = dyn.model, dyn.model.nv
     held = sorted(set(impact.active) | set(impact.tangential_only))
@@ -96,7 +99,7 @@ def impact_reset_jacobian(dyn: ModeDynamics, q: np.ndarray, v_minus: np.ndarray,
                - pin.computeGeneralizedGravityDerivatives(model, dyn.data, q))
     rhs_q = -dMdv_dq
     K_vv = M.copy()
-    A_rows, F_rows, con_q, e_rows = [], [], [], []
+    A_rows, F_rows, con_q, e_rows, held_rows = [], [], [], [], []
     for k in held:
         c = dyn.contact(impact.contacts[k])
         # a tangential-only contact keeps its tangential rows only; its normal impulse is 0
@@ -123,10 +126,23 @@ def impact_reset_jacobian(dyn: ModeDynamics, q: np.ndarray, v_minus: np.ndarray,
         F_rows.append(force_rows)
         con_q.append(constraint_q[kept])
         e_rows.append(e_block[kept])
+        held_rows.append((c, kept, impulses[kept]))
     A, F, E = np.vstack(A_rows), np.vstack(F_rows), np.diag(np.concatenate(e_rows))
+    C_q = np.vstack(con_q)
+    U = range_basis(A)
+    if U is not None:
+        # dependent rows (a face's corners): the impulses stay in range(A) as the impact law's
+        # (contactdiff.dynamics.redundant), δΛ = U δy + (I - U Uᵀ) d(A w)/dq δq, w = A⁺ Λ
+        w = np.linalg.lstsq(A, np.concatenate([lam for _, _, lam in held_rows]), rcond=None)[0]
+        turn = np.vstack([c.rows_times_dq(kin, w)[kept] for c, kept, _ in held_rows])
+        turn -= U @ (U.T @ turn)
+        rhs_q = rhs_q + F.T @ turn
+        F_held, A, C_q, EA = F.T @ U, U.T @ A, U.T @ C_q, U.T @ E @ A
+    else:
+        F_held, EA = F.T, E @ A
     m = A.shape[0]
-    K = np.block([[K_vv, -F.T], [A, np.zeros((m, m))]])
-    rhs = np.block([[rhs_q, M], [np.vstack(con_q), -E @ A]])
+    K = np.block([[K_vv, -F_held], [A, np.zeros((m, m))]])
+    rhs = np.block([[rhs_q, M], [C_q, -EA]])
     X = np.linalg.lstsq(K, rhs, rcond=None)[0] if np.linalg.matrix_rank(K) < nv + m else np.linalg.solve(K, rhs)
     DR[nv:, :nv] = X[:nv, :nv]
     DR[nv:, nv:] = X[:nv, nv:]

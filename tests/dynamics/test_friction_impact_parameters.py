@@ -25,6 +25,7 @@ from contactdiff.dynamics.frictional_impact import ContactState
 from contactdiff.dynamics.impacts import resolve_impact
 from contactdiff.dynamics.mode import ModeDynamics
 from contactdiff.integration.parameter_jumps import ParameterJumps
+from contactdiff.integration.sensitivity import impact_reset_jacobian
 from contactdiff.model.objects import SceneObject, add_objects, empty_robot
 from contactdiff.model.parameters import resolve
 
@@ -106,3 +107,32 @@ def test_impact_parameter_columns_match_finite_differences(case):
                 assert not np.any(J[:, k]), name
             elif "cube/+x+y-z" not in name:  # a single face corner's share can be small, not zero
                 assert np.abs(fd).max() > 1e-3, f"{name} does not move v+ in {case}: an empty check"
+
+
+def test_spinning_face_reset_jacobian_keeps_the_range_principle():
+    """The state's reset Jacobian ``DR`` (`impact_reset_jacobian`) at the spinning face landing:
+    its corners slide in different directions, so v+ depends on their load shares, and the
+    derivative must keep the impulses in the range of the held rows as the law does (least
+    squares errs by O(1) here). Against central differences of `resolve_impact` in every
+    velocity direction and in the configuration directions that keep the face on the board
+    (x, y, yaw); tolerance as the module doc's (h = 1e-6 on unit-scale states)."""
+    scene, q, v, _, _ = CASES["cube-face-spins"]()
+    dyn = ModeDynamics(scene)
+    closed = _closed(scene, q)
+    impact = resolve_impact(dyn, q, v, closed)
+    DR = impact_reset_jacobian(dyn, q, v, impact)
+    nv, h = scene.nv, 1e-6
+    scale = np.abs(impact.v_plus).max()
+    # (the column of DR, δq, δv)
+    directions = [(nv + k, np.zeros(nv), np.eye(nv)[k]) for k in range(nv)]
+    directions += [(k, np.eye(nv)[k], np.zeros(nv)) for k in (0, 1, 5)]
+    for column, dq, dv in directions:
+        sides = []
+        for sign in (1.0, -1.0):
+            other = resolve_impact(ModeDynamics(scene), pin.integrate(scene.model, q, sign * h * dq), v + sign * h * dv,
+                                   closed)
+            assert other.states == impact.states
+            sides.append(other.v_plus)
+        fd = (sides[0] - sides[1]) / (2 * h)
+        exact = DR[nv:, column]
+        assert np.abs(exact - fd).max() <= RTOL * max(scale, np.abs(fd).max()), (column, exact, fd)
