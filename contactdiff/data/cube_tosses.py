@@ -17,9 +17,11 @@ they lag half a sample, so the poses are the measurements.
 
 `cube_scene` is the cube as an object with a Coulomb contact at each of its eight
 corners (``cube/±x±y±z``), on a board at height ``ground`` (the contacts'
-offset); `Toss.state` gives a sample as the scene's ``(q, v)`` (Pinocchio's
-free-flyer: ``q = [x y z qx qy qz qw]``, ``v`` linear then angular velocity, both
-in the cube's frame).
+offset), the eight in group ``cube`` (one μ, e and offset: the parameters
+``group:cube:friction``, ``group:cube:restitution``, ``group:cube:offset``);
+`Toss.state` gives a sample as the scene's ``(q, v)`` (Pinocchio's free-flyer:
+``q = [x y z qx qy qz qw]``, ``v`` linear then angular velocity, both in the
+cube's frame).
 """
 
 from __future__ import annotations

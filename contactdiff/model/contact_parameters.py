@@ -77,17 +77,28 @@ def contact_value(scene: Scene, p: Parameter) -> float:
     return values[0]
 
 
-def contact_change(p: Parameter, x: float):
-    """``(member indices, field, value)`` of setting ``p`` to ``x``, validated.
+def stage_contact_change(scene: Scene, specs: dict, p: Parameter, x: float) -> None:
+    """Note setting ``p`` (a ``contact`` or ``group`` parameter) to ``x`` on each member in
+    ``specs`` (``("contact", index) -> (changes, names, values)``, as `with_parameters`
+    collects them before building the new contacts).
 
     Raises:
-        InvalidInputError: a negative friction coefficient (restitution's range is the
-            contact's own check).
+        InvalidInputError: a negative or non-finite friction coefficient (restitution's
+            range is the contact's own check), or two parameters that give one contact's
+            field different values (a contact's own and its group's).
     """
     if p.field == "friction" and not (x >= 0.0 and math.isfinite(x)):
         raise InvalidInputError(f"parameter {p.name!r} (Coulomb's friction coefficient) must be >= 0, got {x!r} "
                                 "(0 makes the contact frictionless)")
-    return p.members, p.field, x
+    for i in p.members:
+        changes, names, values = specs.setdefault(("contact", i), ({}, [], []))
+        if p.field in changes and changes[p.field] != x:
+            raise InvalidInputError(f"parameters {names[-1]!r} = {values[-1]!r} and {p.name!r} = {x!r} set the "
+                                    f"{p.field} of contact {scene.contact_specs[i].name!r} to different values")
+        changes[p.field] = x
+        names.append(p.name)
+        values.append(x)
 
 
-__all__ = ["CONTACT_FIELDS", "contact_change", "contact_fields", "contact_parameters", "contact_value", "groups"]
+__all__ = ["CONTACT_FIELDS", "contact_fields", "contact_parameters", "contact_value", "groups",
+           "stage_contact_change"]

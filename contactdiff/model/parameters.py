@@ -25,7 +25,7 @@ effort        effort name     the `UserEffort`'s own ``parameters``        the e
 ============  ==============  ===========================================  ==============================
 
 `parameter_names` lists them in that order (bodies and joints in Pinocchio's
-joint order, contacts and efforts in scene order). The rules:
+joint order, contacts and efforts in scene order, groups after the contacts). The rules:
 
 * **Bodies.** A body is what one Pinocchio joint ``j >= 1`` moves rigidly:
   ``model.inertias[j]``. Links attached by fixed joints are merged into it by
@@ -42,14 +42,9 @@ joint order, contacts and efforts in scene order). The rules:
   inertia) of every one-coordinate-velocity joint (revolute, bounded or not,
   prismatic, helical, their unaligned forms). A free-flyer, spherical or planar
   joint has none here (Pinocchio keeps one value per axis).
-* **Contacts**: by contact name; ``friction`` (Coulomb's μ, >= 0) only for a contact
-  with a Coulomb coefficient, not ``"none"`` or ``"stick"`` (`Scene.with_friction`
-  changes those). ``μ = 0`` makes the contact frictionless, and the new scene then
-  has no ``friction`` parameter for it. **Groups**: contacts with one
-  `Contact.group` share ``group:GROUP:restitution``, ``group:GROUP:offset`` and (all
-  members Coulomb) ``group:GROUP:friction``: its value is the members' common one
-  (`GroupMismatchError` if they differ), setting it sets them all, its derivative is
-  the sum of theirs (`contactdiff.model.contact_parameters`).
+* **Contacts** by contact name (``friction`` for a Coulomb coefficient only; μ = 0
+  makes the contact frictionless), **groups** by `Contact.group`: a value shared by
+  the members (`contactdiff.model.contact_parameters` has the rules).
 * **Springs**: by `Spring.name` (default ``"<frame_a>-<frame_b>"``); **joint
   springs**: by joint. **User efforts**: by `UserEffort.name`, one parameter per
   entry of its ``parameters`` (the protocol is in `UserEffort`'s docstring).
@@ -85,7 +80,7 @@ import pinocchio as pin
 
 from ..control.trot_controller import TrotController
 from ..errors import GroupMismatchError, InvalidInputError, unknown_name
-from .contact_parameters import contact_change, contact_parameters, contact_value
+from .contact_parameters import contact_parameters, contact_value, stage_contact_change
 from .efforts import JointSpring, Spring, UserEffort, bound_positions
 from .kinematics import Kinematics
 from .scene import Scene
@@ -387,15 +382,7 @@ def with_parameters(scene: Scene, values: Mapping) -> Scene:
                 bodies.setdefault(p.joint, (p.target, []))[1].append(p.name)
             continue
         if p.kind in (ParameterKind.CONTACT, ParameterKind.GROUP):
-            members, field, value = contact_change(p, x)
-            for i in members:
-                changes, names, xs = specs.setdefault(("contact", i), ({}, [], []))
-                if field in changes and changes[field] != value:
-                    raise InvalidInputError(f"parameters {names[-1]!r} = {xs[-1]!r} and {p.name!r} = {x!r} set the "
-                                            f"{field} of contact {scene.contact_specs[i].name!r} to different values")
-                changes[field] = value
-                names.append(p.name)
-                xs.append(x)
+            stage_contact_change(scene, specs, p, x)
             continue
         where = "effort"
         changes, names, xs = specs.setdefault((where, p.index), ({}, [], []))
