@@ -25,6 +25,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 from coulomb_models import MASS, MU, RADIUS, TOL, G, event_kinds
+from helpers import LEG_URDF, leg_lift, leg_lift_jacobian, leg_lift_rate
 
 import contactdiff as cd
 
@@ -322,3 +323,34 @@ def test_cube_face_landing_slides_to_a_stop():
     assert traj.events[1].parameter_time_gradient[0] == pytest.approx(-S / (mu**2 * G), rel=1e-7)
     fd, _, steps = _fd(scene, [name], T, kinds)
     _check("cube face", J, fd, np.r_[traj.q, traj.v], steps)
+
+
+# ==============================================================================================
+# a leg whose foot lands, sticks, slips and lifts off; or slides and reverses
+# ==============================================================================================
+@pytest.mark.parametrize("mu, kinds", [(1.0, ["touchdown", "slip", "lift-off"]), (0.3, ["touchdown", "slip"])],
+                         ids=["stick-slip-liftoff", "slide-reverse"])
+def test_leg_foot_friction(mu, kinds, tmp_path):
+    """The planar leg of test_friction_events (a body free in x and z, a leg on a hip hinge, landing
+    inclined by 0.4 rad; from t = 0.1 s an upward force ramps and unloads the foot) in its foot's μ,
+    against central differences. μ = 1: the foot sticks, its tangential force reaches the cone (the
+    stick → slip guard, ∂h/∂μ = λ_N), it slides (the hip couples the friction to the normal force:
+    λ_N moves with μ) and lifts off (the lift-off guard of a sliding contact, ∂λ_N/∂μ). μ = 0.3: the
+    impact leaves it sliding (the frictional impact's μ column) and its slip reverses (a guard with
+    no parameter of its own)."""
+    path = tmp_path / "leg.urdf"
+    path.write_text(LEG_URDF)
+    robot = cd.load_robot(str(path))
+    tilt = 0.4
+    effort = cd.UserEffort(leg_lift, leg_lift_jacobian, name="lift", time_derivative=leg_lift_rate)
+    scene = cd.Scene(robot, [cd.Contact("foot", friction=mu)], [effort], gravity=[0, 0, -9.81],
+                     q0=np.array([0.0, 0.5 * math.cos(tilt) + 0.01, tilt]), v0=np.zeros(3))
+    T = 0.6
+    traj, J = _run(scene, T, ["contact:foot:friction"])
+    assert [k for k, _ in event_kinds(traj)] == kinds
+    assert np.abs(J).max() > 1e-3  # μ moves the outcome: not an empty check
+    fd, fd_times, steps = _fd(scene, ["contact:foot:friction"], T, event_kinds(traj))
+    _check(f"leg {mu}", J, fd, np.r_[traj.q, traj.v], steps)
+    for event, fd_t in zip(traj.events, fd_times[:, 0]):
+        # event times: located to ~1e-12 s per run, so their differences carry 2e-12 / (2 h) ~ 1e-6 s
+        assert event.parameter_time_gradient[0] == pytest.approx(fd_t, abs=1e-12 / steps[0] + 1e-6 * abs(fd_t))
