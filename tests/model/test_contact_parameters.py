@@ -128,3 +128,14 @@ def test_cli_lists_the_friction_and_group_parameters(tmp_path, capsys):
     rows = {row["name"]: row for row in json.loads(capsys.readouterr().out)}
     assert rows["group:g:friction"] == {"name": "group:g:friction", "kind": "group", "target": "g",
                                         "field": "friction", "value": 0.4}
+
+
+def test_cli_differentiates_a_group_whose_members_differ(tmp_path, capsys):
+    """The run's parameter table shows ``(differ)`` for the value of a group whose contacts
+    differ (a floor at 0 and a ceiling at -2 m along -z: offsets 0 and -2), and the column."""
+    path = _ball_file(tmp_path, '[[contact]]\nframe = "ball"\nname = "low"\ngroup = "g"\n'
+                                '[[contact]]\nframe = "ball"\nname = "high"\nnormal = [0.0, 0.0, -1.0]\n'
+                                'offset = -2.0\ngroup = "g"\n')
+    assert main(["simulate", path, "--t-final", "0.1", "--param", "group:g:offset"]) == 0
+    line = [row for row in capsys.readouterr().out.splitlines() if row.strip().startswith("group:g:offset")]
+    assert len(line) == 1 and "(differ)" in line[0]
