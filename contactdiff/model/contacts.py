@@ -102,6 +102,10 @@ class Contact:
             of ``against``. ``None`` (the default) is resolved on the robot
             (`resolved`): the sphere's radius for a ground contact on the centre
             frame of a sphere object (`contactdiff.model.objects`), else 0.
+        group: name of a group of contacts that share their coefficients (the eight
+            corners of a cube): the scene's parameters ``group:GROUP:restitution``,
+            ``group:GROUP:offset`` and ``group:GROUP:friction`` set every member's at
+            once (`contactdiff.model.contact_parameters`). ``None``: no group.
     """
 
     frame: str
