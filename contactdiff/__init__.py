@@ -29,6 +29,7 @@ from .dynamics.mode import ModeDynamics
 from .errors import (
     ContactDiffError,
     GrazingError,
+    GroupMismatchError,
     InconsistentStateError,
     IntegrationError,
     InvalidInputError,
@@ -66,7 +67,7 @@ __version__ = "0.1.0"
 __all__ = [
     "add_objects", "check_decoupling", "Contact", "CubeParameters", "cube_scene", "load_tosses", "Toss",
     "ContactDiffError", "DecouplingReport", "Effort", "Event",
-    "find_periodic_gait", "first_touchdown", "GrazingError", "HybridLoop",
+    "find_periodic_gait", "first_touchdown", "GrazingError", "GroupMismatchError", "HybridLoop",
     "InconsistentStateError", "IntegrationError", "InvalidInputError", "JointSpring", "JointTargets",
     "load_robot",
     "load_observations", "load_scene", "load_source", "ModeDynamics", "ModelLoadError", "NonSmooth",

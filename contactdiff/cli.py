@@ -422,12 +422,16 @@ def _format_parameter_jacobian(traj, scene) -> list[str]:
     P = traj.parameter_jacobian
     names = scene.robot.tangent_names()
     labels = [f"dq[{n}]" for n in names] + [f"dv[{n}]" for n in names]
-    values = scene.parameter_values(list(traj.parameter_names))
+    from .model.parameters import parameter_table
+
+    values = {row["name"]: row["value"] for row in parameter_table(scene)}  # None: a group whose members differ
     lines = [f"parameter Jacobian d x({traj.t:g}) / d p: {P.shape[0]} x {P.shape[1]}, tangent space, "
              "per unit of each parameter", f"  {'parameter':<40} {'value':>12}  {'largest entry':>14}  of"]
-    for k, (name, value) in enumerate(zip(traj.parameter_names, values)):
+    for k, name in enumerate(traj.parameter_names):
         i = int(np.argmax(np.abs(P[:, k])))
-        lines.append(f"  {name:<40} {value:12.6g}  {P[i, k]:14.6g}  {labels[i]}")
+        value = values[name]
+        shown = f"{'(differ)':>12}" if value is None else f"{value:12.6g}"
+        lines.append(f"  {name:<40} {shown}  {P[i, k]:14.6g}  {labels[i]}")
     return lines
 
 

@@ -34,6 +34,12 @@ class ObservationFileError(InvalidInputError):
     column names)."""
 
 
+class GroupMismatchError(InvalidInputError):
+    """A group parameter (``group:GROUP:field``) was read while the group's contacts hold
+    different values of the field: there is no one value to report. The message lists
+    each member's value; setting the parameter gives them all one value."""
+
+
 class UnknownNameError(InvalidInputError, KeyError):
     """A robot, frame, joint, contact or key name is not known.
 

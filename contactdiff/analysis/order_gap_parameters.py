@@ -8,7 +8,8 @@ at a fixed event state ``(q, v-)``. Each velocity is a chain of impacts at ``q``
 order ``(i, j)`` is ``v_ij = Δ_j(Δ_i(v-))`` (the second only if that contact still
 approaches), so ``dv_ij/dp = ∂_v Δ_j · ∂Δ_i/∂p + ∂Δ_j/∂p``, each impact's
 parameter derivative ``∂Δ/∂p`` at fixed velocity (`impact_parameter_jacobian`:
-inertias and armature through M, the restitution) and its velocity derivative
+inertias and armature through M, the restitution, the Coulomb coefficient of a
+contact that slides through the impact; a group's column sums its members') and its velocity derivative
 ``∂_v Δ`` the velocity block of `impact_reset_jacobian`, with the impacts'
 complementarity states held. The metric moves too:
 ``d(xᵀ M x)/dp = 2 xᵀ M dx/dp + xᵀ (∂M/∂p) x``, with ``(∂M/∂p) x =
@@ -86,15 +87,18 @@ def order_gap_gradient(scene: Scene, q, v_minus, contacts: Sequence = (0, 1), pa
     q, v_minus = gap.q, gap.v_minus
     dyn = ModeDynamics(scene)
     forces = ParameterForces(scene, params)
-    columns = {scene.contact_index(par.target): col for col, par in enumerate(params)
-               if par.field == "restitution" and par.target in scene.contact_names}
+    columns: dict[int, list[int]] = {}  # scene index -> the restitution columns that set it
+    for col, par in enumerate(params):
+        if par.field == "restitution":
+            for member in par.members:
+                columns.setdefault(member, []).append(col)
     nv = scene.nv
     i, j = (_index(scene, c) for c in contacts)
     before = tuple(sorted(_index(scene, c) for c in mode))
 
     def reset_parameters(impact, v_before):
-        live = {k: columns[dyn.contact_index(k)] for k in impact.contacts if dyn.contact_index(k) in columns}
-        return impact_parameter_jacobian(dyn, q, v_before, impact, forces, live)[nv:]
+        live = {i: columns[i] for i in map(dyn.contact_index, impact.contacts) if i in columns}
+        return impact_parameter_jacobian(dyn, q, v_before, impact, forces, live, forces.friction_columns)[nv:]
 
     d_after = {}
     for order in ((i, j), (j, i)):

@@ -17,9 +17,11 @@ they lag half a sample, so the poses are the measurements.
 
 `cube_scene` is the cube as an object with a Coulomb contact at each of its eight
 corners (``cube/±x±y±z``), on a board at height ``ground`` (the contacts'
-offset); `Toss.state` gives a sample as the scene's ``(q, v)`` (Pinocchio's
-free-flyer: ``q = [x y z qx qy qz qw]``, ``v`` linear then angular velocity, both
-in the cube's frame).
+offset), the eight in group ``cube`` (one μ, e and offset: the parameters
+``group:cube:friction``, ``group:cube:restitution``, ``group:cube:offset``);
+`Toss.state` gives a sample as the scene's ``(q, v)`` (Pinocchio's free-flyer:
+``q = [x y z qx qy qz qw]``, ``v`` linear then angular velocity, both in the
+cube's frame).
 """
 
 from __future__ import annotations
@@ -92,7 +94,8 @@ def cube_scene(parameters: CubeParameters = NOMINAL, **changes) -> Scene:
                        position=(0.0, 0.0, p.ground + p.edge / 2))
     corners = ["cube/" + "".join(s + axis for s, axis in zip(signs, "xyz"))
                for signs in itertools.product("+-", repeat=3)]
-    contacts = [Contact(name, friction=p.friction, restitution=p.restitution, offset=p.ground) for name in corners]
+    contacts = [Contact(name, friction=p.friction, restitution=p.restitution, offset=p.ground, group="cube")
+                for name in corners]
     return Scene(add_objects(empty_robot(), [cube]), contacts, gravity=(0.0, 0.0, -p.gravity), name="cube")
 
 

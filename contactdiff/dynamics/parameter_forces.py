@@ -22,7 +22,13 @@ contact) and ``∂lam/∂tau``. `ParameterForces.forces` gives ``∂f/∂p`` (nv
   parameters (springs, gains, ...), and the model's where an effort is computed
   from the model when bound (the trot controller's feed-forward holds the
   weight: it moves with the masses, centres of mass and gravity);
-* a contact's restitution and offset: zero (they act at events only).
+* a contact's restitution and offset: zero (they act at events only);
+* a contact's friction coefficient ``μ`` (``contact:NAME:friction``, or a group's):
+  where the contact slides, its friction force ``-μ λ_N s`` moves by
+  ``-λ_N A_T^T s`` per unit of ``μ`` at fixed ``λ_N`` (`ParameterForces.mode_forces`,
+  which needs the mode's forces and slip directions); the mode's own response
+  ``∂ddq/∂tau`` (with the sliding force rows ``F = A_n - μ s^T A_T``) then carries the
+  change of ``λ_N`` it causes. Zero where it sticks or is open.
 
 At an impact the balance is ``A^T Λ - M(q; p) (v+ - v-) = 0``;
 `ParameterForces.impulse_forces` gives its ``∂/∂p`` at fixed velocities,
@@ -98,6 +104,8 @@ class ParameterForces:
         # columns the efforts depend on: their own, and the model's where an effort is computed
         # from the model when bound (`model_parameter_derivatives`, the trot's feed-forward)
         self._efforts: list[int] = []
+        self.friction_columns: dict[int, list[int]] = {}
+        """Scene index of each contact -> the columns of the friction parameters that set its μ."""
         model_dependent = any(hasattr(e, "model_parameter_derivatives") for e in scene.efforts)
         for col, par in enumerate(self.parameters):
             kind = par.kind
@@ -111,8 +119,12 @@ class ParameterForces:
                 g[_AXES[par.field[-1]]] = 1.0
                 unit.gravity = pin.Motion(g, np.zeros(3))
                 self._gravity.append((col, unit, unit.createData()))
-            if kind not in (ParameterKind.CONTACT, ParameterKind.BODY, ParameterKind.JOINT, ParameterKind.SCENE) \
-                    or (kind is not ParameterKind.CONTACT and model_dependent):
+            contact = kind in (ParameterKind.CONTACT, ParameterKind.GROUP)
+            if contact and par.field == "friction":
+                for i in par.members:
+                    self.friction_columns.setdefault(i, []).append(col)
+            if not contact and (kind not in (ParameterKind.BODY, ParameterKind.JOINT, ParameterKind.SCENE)
+                                or model_dependent):
                 self._efforts.append(col)
         self._effort_parameters = [self.parameters[k] for k in self._efforts]
         # ∂π/∂p of the inertial columns as one matrix (10 per body × their count): one product
@@ -159,6 +171,24 @@ class ParameterForces:
             out[:, col] = -pin.computeGeneralizedGravity(unit, data, q)
         if self._efforts:
             out[:, self._efforts] += self.scene.tau_parameter_derivatives(kin, t, self._effort_parameters)
+        return out
+
+    def mode_forces(self, dyn, sol, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
+        """`forces` of ``sol`` (a `ModeSolution` of ``dyn``, a `ModeDynamics` of the
+        scene, just solved at ``(q, v, t)``) plus the sliding contacts' friction columns:
+        ``-λ_N A_T^T s`` for each parameter that sets a sliding contact's ``μ`` (module
+        doc). ``dyn``'s kinematics must be at ``(q, v)``."""
+        out = self.forces(dyn.kin, q, v, sol.ddq, t)
+        if self.friction_columns:
+            for key, rows in zip(sol.active, sol.row_slices):
+                if not dyn.is_sliding(key) or not dyn.contact(key).slips:
+                    continue
+                index = dyn.contact_index(key)
+                cols = self.friction_columns.get(index)
+                if cols:
+                    A_T = dyn.contact(key).full.rows(dyn.kin)[1:]
+                    s = dyn.slip_direction(index, A_T @ v)[0]
+                    out[:, cols] -= (sol.forces[rows.start] * (A_T.T @ s))[:, None]
         return out
 
     def impulse_forces(self, q: np.ndarray, dv: np.ndarray) -> np.ndarray:

@@ -163,7 +163,10 @@ class FrictionEvents:
             if self.jumps:
                 if cone:
                     sol_k, der_k, rows, w = solved
-                    h_p = w @ der_k.forces_dtau[rows] @ self.jumps.forces.forces(dyn.kin, q, v, sol_k.ddq, t)
+                    forces = self.jumps.forces
+                    h_p = w @ der_k.forces_dtau[rows] @ forces.mode_forces(dyn, sol_k, q, v, t)
+                    # the cone's own size: ∂(μ λ_N)/∂μ = λ_N at fixed forces
+                    h_p[forces.friction_columns.get(dyn.contact_index(cone[0]), [])] += sol_k.forces[rows.start]
                 else:
                     h_p = np.zeros(self.jumps.p)  # the slip velocity does not depend on the parameters
                 xi_p = ParameterJumps.saltation(None, h_p, DR, F_minus, F_plus, rate)

@@ -59,7 +59,7 @@ class ModeField:
         sol, der = self.dyn.solve(q, v, t, self.mode, derivatives=True)
         ddq_dp = None
         if self.parameters is not None:
-            ddq_dp = der.ddq_dtau @ self.parameters.forces(self.dyn.kin, q, v, sol.ddq, t)
+            ddq_dp = der.ddq_dtau @ self.parameters.mode_forces(self.dyn, sol, q, v, t)
         self._derivatives[(t, q.tobytes(), v.tobytes())] = (der.ddq_dq, der.ddq_dv, ddq_dp)
         if len(self._derivatives) > self._KEEP:
             self._derivatives.popitem(last=False)

@@ -13,9 +13,16 @@ so that ``∂x+/∂p = Ξ ∂x-/∂p + Ξ_p`` and the event time moves by
 * a touchdown's guard, the gap ``n · p(q) - offset``: ``∂h/∂offset = -1``;
 * a lift-off's guard, the normal force: ``∂λ/∂p`` of the mode (inertias, gravity,
   efforts);
-* an impact's reset: ``∂v+/∂p`` through ``M`` (inertias, armature) and the
-  restitution (`contactdiff.integration.sensitivity.impact_parameter_jacobian`);
+* an impact's reset: ``∂v+/∂p`` through ``M`` (inertias, armature), the
+  restitution and the friction coefficient of a contact that slides through the
+  impact (`contactdiff.integration.sensitivity.impact_parameter_jacobian`);
+* a stick → slip guard, the cone margin ``h = μ λ_N - ||λ_T||``: ``∂h/∂μ = λ_N`` at
+  fixed state, plus the sticking forces' ``∂λ/∂p`` (`contactdiff.integration.friction_events`);
+  a slip → stick guard, the slip velocity, depends on no parameter;
 * the projection back onto the constraints, ``q - P a(q)``: ``+P`` on an offset.
+
+A group parameter (``group:GROUP:field``) moves every member's coefficient by the
+same amount: each member contributes its term to the group's column.
 
 A lift-off's reset is the identity, so ``Ξ_p`` there is the guard term alone (zero
 when the field does not jump).
@@ -52,21 +59,25 @@ class ParameterJumps:
         self.p = len(self.parameters)
         self.forces = ParameterForces(dyn.scene, self.parameters)
         scene = dyn.scene
-        self.offset_columns: dict[int, int] = {}
-        self.restitution_columns: dict[int, int] = {}
+        # scene index of a contact -> the columns of the parameters that set its offset,
+        # restitution (a contact's own, its group's)
+        self.offset_columns: dict[int, list[int]] = {}
+        self.restitution_columns: dict[int, list[int]] = {}
         for col, par in enumerate(self.parameters):
-            if par.kind is ParameterKind.CONTACT:
+            if par.kind in (ParameterKind.CONTACT, ParameterKind.GROUP) and par.field != "friction":
                 target = self.offset_columns if par.field == "offset" else self.restitution_columns
-                target[scene.contact_index(par.target)] = col
-        values = np.abs(scene.parameter_values([par.name for par in self.parameters]))
+                for i in par.members:
+                    target.setdefault(i, []).append(col)
+        specs = scene.contact_specs
+        values = np.array([max(abs(float(getattr(specs[i], par.field))) for i in par.members) if par.members
+                           else abs(float(scene.parameter_values([par.name])[0])) for par in self.parameters])
         self.scale = np.where(values > 0.0, values, 1.0)
 
     def gap_guard(self, contact: int) -> np.ndarray:
         """``∂h/∂p`` (p,) of the touchdown guard of scene contact ``contact``."""
         h_p = np.zeros(self.p)
-        col = self.offset_columns.get(contact)
-        if col is not None:
-            h_p[col] = -1.0
+        for col in self.offset_columns.get(contact, ()):
+            h_p[col] -= 1.0
         return h_p
 
     def force_guard(self, q: np.ndarray, v: np.ndarray, t: float, mode: Sequence[int], key: int) -> np.ndarray:
@@ -74,21 +85,21 @@ class ParameterJumps:
         mode = tuple(mode)
         sol, der = self.dyn.solve(q, v, t, mode, derivatives=True)
         row = sol.row_slices[mode.index(key)].start
-        return der.forces_dtau[row] @ self.forces.forces(self.dyn.kin, q, v, sol.ddq, t)
+        return der.forces_dtau[row] @ self.forces.mode_forces(self.dyn, sol, q, v, t)
 
     def impact(self, q: np.ndarray, v_minus: np.ndarray, impact: ImpactResult, live: Sequence[int]) -> np.ndarray:
         """``∂R/∂p`` (2nv × p) of ``impact``; ``live``: the contact keys whose own
         restitution the impact used (not ended by the Zeno rule)."""
-        columns = {k: self.restitution_columns[self.dyn.contact_index(k)] for k in live
-                   if self.dyn.contact_index(k) in self.restitution_columns}
-        return impact_parameter_jacobian(self.dyn, q, v_minus, impact, self.forces, columns)
+        live = {self.dyn.contact_index(k) for k in live}
+        columns = {i: cols for i, cols in self.restitution_columns.items() if i in live}
+        return impact_parameter_jacobian(self.dyn, q, v_minus, impact, self.forces, columns,
+                                         self.forces.friction_columns)
 
     def projection(self, q: np.ndarray, mode: Sequence[int]) -> np.ndarray:
         """``∂/∂p`` (2nv × p) of the projection ``(q - P a(q), ...)`` onto ``mode``'s
         constraints at fixed state: ``P``'s column of each offset's contact."""
         out = np.zeros((2 * self.dyn.model.nv, self.p))
-        cols = [(j, self.offset_columns.get(self.dyn.contact_index(k))) for j, k in enumerate(mode)]
-        cols = [(j, c) for j, c in cols if c is not None]
+        cols = [(j, c) for j, k in enumerate(mode) for c in self.offset_columns.get(self.dyn.contact_index(k), ())]
         if not cols:
             return out
         self.dyn.kin.update(q, np.zeros(self.dyn.model.nv))
@@ -96,7 +107,7 @@ class ParameterJumps:
         normal = [0] + list(np.cumsum([self.dyn.contact(k).n_rows for k in mode])[:-1])
         P = weighted_pinv(self.dyn, q, A[normal])
         for j, col in cols:
-            out[:self.dyn.model.nv, col] = P[:, j]
+            out[:self.dyn.model.nv, col] += P[:, j]
         return out
 
     @staticmethod

@@ -31,6 +31,7 @@ from ..dynamics.frictional_impact import ContactState
 from ..dynamics.impacts import ImpactResult, choose_mode, resolve_impact
 from ..dynamics.mode import ModeDynamics
 from ..dynamics.parameter_forces import ParameterForces
+from ..dynamics.redundant import range_basis
 from ..errors import SolverError
 from ..model.scene import Scene
 
@@ -80,6 +81,9 @@ def impact_reset_jacobian(dyn: ModeDynamics, q: np.ndarray, v_minus: np.ndarray,
     only, and its tangential impulse ``-μ Λ_N s`` follows ``s = u+_T / ||u+_T||``:
     its force column is ``F = A_n - μ s^T A_T``, and ``δs = (I - s s^T) δu+_T / ||u+_T||``
     moves ``v+`` through ``-μ Λ_N A_T^T δs`` (a planar slip keeps its sign, ``δs = 0``).
+    Dependent held rows (a face's corners) keep the impulses in the range of the rows, as
+    the impact law (`contactdiff.dynamics.redundant`): with sliding corners the velocity
+    depends on the corners' shares, which least squares would not give.
     """
     model, nv = dyn.model, dyn.model.nv
     held = sorted(set(impact.active) | set(impact.tangential_only))
@@ -95,7 +99,7 @@ def impact_reset_jacobian(dyn: ModeDynamics, q: np.ndarray, v_minus: np.ndarray,
                - pin.computeGeneralizedGravityDerivatives(model, dyn.data, q))
     rhs_q = -dMdv_dq
     K_vv = M.copy()
-    A_rows, F_rows, con_q, e_rows = [], [], [], []
+    A_rows, F_rows, con_q, e_rows, held_rows = [], [], [], [], []
     for k in held:
         c = dyn.contact(impact.contacts[k])
         # a tangential-only contact keeps its tangential rows only; its normal impulse is 0
@@ -122,10 +126,23 @@ def impact_reset_jacobian(dyn: ModeDynamics, q: np.ndarray, v_minus: np.ndarray,
         F_rows.append(force_rows)
         con_q.append(constraint_q[kept])
         e_rows.append(e_block[kept])
+        held_rows.append((c, kept, impulses[kept]))
     A, F, E = np.vstack(A_rows), np.vstack(F_rows), np.diag(np.concatenate(e_rows))
+    C_q = np.vstack(con_q)
+    U = range_basis(A)
+    if U is not None:
+        # dependent rows (a face's corners): the impulses stay in range(A) as the impact law's
+        # (contactdiff.dynamics.redundant), δΛ = U δy + (I - U Uᵀ) d(A w)/dq δq, w = A⁺ Λ
+        w = np.linalg.lstsq(A, np.concatenate([lam for _, _, lam in held_rows]), rcond=None)[0]
+        turn = np.vstack([c.rows_times_dq(kin, w)[kept] for c, kept, _ in held_rows])
+        turn -= U @ (U.T @ turn)
+        rhs_q = rhs_q + F.T @ turn
+        F_held, A, C_q, EA = F.T @ U, U.T @ A, U.T @ C_q, U.T @ E @ A
+    else:
+        F_held, EA = F.T, E @ A
     m = A.shape[0]
-    K = np.block([[K_vv, -F.T], [A, np.zeros((m, m))]])
-    rhs = np.block([[rhs_q, M], [np.vstack(con_q), -E @ A]])
+    K = np.block([[K_vv, -F_held], [A, np.zeros((m, m))]])
+    rhs = np.block([[rhs_q, M], [C_q, -EA]])
     X = np.linalg.lstsq(K, rhs, rcond=None)[0] if np.linalg.matrix_rank(K) < nv + m else np.linalg.solve(K, rhs)
     DR[nv:, :nv] = X[:nv, :nv]
     DR[nv:, nv:] = X[:nv, nv:]
@@ -139,14 +156,22 @@ def _slides_with_friction(impact: ImpactResult, k: int, contact) -> bool:
 
 
 def impact_parameter_jacobian(dyn: ModeDynamics, q: np.ndarray, v_minus: np.ndarray, impact: ImpactResult,
-                              forces: ParameterForces, restitution_columns: dict[int, int]) -> np.ndarray:
+                              forces: ParameterForces, restitution_columns: dict,
+                              friction_columns: dict | None = None) -> np.ndarray:
     """``∂R/∂p`` of the impact reset at fixed ``(q, v-)`` (2nv × p; zero ``q`` rows).
 
     The same equations as `impact_reset_jacobian`, differentiated in the parameters:
-    ``M δv+ - A^T δΛ = -∂(M (v+ - v-))/∂p`` (`ParameterForces.impulse_forces`) and, on an
+    ``K_vv δv+ - F^T δΛ = -∂(M (v+ - v-))/∂p`` (`ParameterForces.impulse_forces`) and, on an
     active contact whose restitution is parameter column ``c``
-    (``restitution_columns[key] = c``, for the keys whose coefficient the impact used
-    as it is), ``A_n δv+ = -δe A_n v-``.
+    (``restitution_columns[i] = c``, or a list of columns, by scene index ``i``, for the
+    contacts whose coefficient the impact used as it is), ``A_n δv+ = -δe A_n v-``. A contact sliding
+    with Coulomb friction holds its normal row only, its force column is
+    ``F = A_n - μ s^T A_T`` and ``K_vv = M + μ Λ_N A_T^T D A_T`` (the turn of ``s``,
+    ``D = ds/du+_T``); its coefficient's columns (``friction_columns[i]``, by scene index) get the
+    force ``-Λ_N A_T^T s`` (the tangential impulse's ``∂/∂μ`` at fixed ``Λ_N`` and
+    ``s``). A sticking contact's impulse does not depend on ``μ`` while it sticks.
+    Dependent rows (a face's corners) keep ``δΛ`` in the range of the held rows, as the
+    impact law's impulses (`contactdiff.dynamics.redundant`).
     """
     nv = dyn.model.nv
     out = np.zeros((2 * nv, forces.p))
@@ -155,24 +180,54 @@ def impact_parameter_jacobian(dyn: ModeDynamics, q: np.ndarray, v_minus: np.ndar
         return out
     kin = dyn.kin
     kin.update(q, v_minus)
-    M = pin.crba(dyn.model, dyn.data, q)  # the binding returns it symmetric
-    A_rows, e_rhs = [], []
+    M = pin.crba(dyn.model, dyn.data, q)
+    M = np.triu(M) + np.triu(M, 1).T
+    K_vv = M.copy()
+    rhs_v = forces.impulse_forces(q, impact.v_plus - v_minus)
+    A_rows, F_rows, e_rhs = [], [], []
+    friction_columns = friction_columns or {}
     for k in held:
-        c = dyn.contact(impact.contacts[k])
+        key = impact.contacts[k]
+        index = dyn.contact_index(key)  # the columns are by scene index: a key may be a sliding one
+        c = dyn.contact(key)
         rows = c.rows(kin) if k in impact.active else c.rows(kin)[1:]
+        force_rows = rows
+        if k in impact.active and _slides_with_friction(impact, k, c):
+            full = rows
+            rows = force_rows = full[:1]
+            mu, s = impact.friction[k], impact.slide_directions[k]
+            lam_n = float(impact.row_impulses[impact.rows.rows_of([k])][0])
+            force_rows = (full[0] - mu * s @ full[1:])[None, :]
+            if len(s) == 2:  # δs through the post-impact slip velocity
+                u_T = full[1:] @ impact.v_plus
+                D = (np.eye(2) - np.outer(s, s)) / np.linalg.norm(u_T)
+                K_vv += mu * lam_n * full[1:].T @ D @ full[1:]
+            for col in _as_list(friction_columns.get(index)):
+                rhs_v[:, col] -= lam_n * full[1:].T @ s
         block = np.zeros((rows.shape[0], forces.p))
-        col = restitution_columns.get(impact.contacts[k])
-        if k in impact.active and col is not None and impact.normal_speeds_before[k] < 0.0:
-            block[0, col] = -float(rows[0] @ v_minus)
+        if k in impact.active and impact.normal_speeds_before[k] < 0.0:
+            for col in _as_list(restitution_columns.get(index)):
+                block[0, col] -= float(rows[0] @ v_minus)
         A_rows.append(rows)
+        F_rows.append(force_rows)
         e_rhs.append(block)
-    A = np.vstack(A_rows)
-    m = A.shape[0]
-    K = np.block([[M, -A.T], [A, np.zeros((m, m))]])
-    rhs = np.vstack([forces.impulse_forces(q, impact.v_plus - v_minus), *e_rhs])
-    X = np.linalg.lstsq(K, rhs, rcond=None)[0] if np.linalg.matrix_rank(K) < nv + m else np.linalg.solve(K, rhs)
+    A, F = np.vstack(A_rows), np.vstack(F_rows)
+    U = range_basis(A)
+    if U is None:
+        U = np.eye(A.shape[0])
+    r = U.shape[1]
+    K = np.block([[K_vv, -F.T @ U], [U.T @ A, np.zeros((r, r))]])
+    rhs = np.vstack([rhs_v, U.T @ np.vstack(e_rhs)])
+    X = np.linalg.lstsq(K, rhs, rcond=None)[0] if np.linalg.matrix_rank(K) < nv + r else np.linalg.solve(K, rhs)
     out[nv:] = X[:nv]
     return out
+
+
+def _as_list(columns) -> list[int]:
+    """A column, a list of columns, or None, as a list."""
+    if columns is None:
+        return []
+    return [columns] if isinstance(columns, (int, np.integer)) else list(columns)
 
 
 def gap_gradient(dyn: ModeDynamics, q: np.ndarray, contact: int) -> np.ndarray:

@@ -102,6 +102,10 @@ class Contact:
             of ``against``. ``None`` (the default) is resolved on the robot
             (`resolved`): the sphere's radius for a ground contact on the centre
             frame of a sphere object (`contactdiff.model.objects`), else 0.
+        group: name of a group of contacts that share their coefficients (the eight
+            corners of a cube): the scene's parameters ``group:GROUP:restitution``,
+            ``group:GROUP:offset`` and ``group:GROUP:friction`` set every member's at
+            once (`contactdiff.model.contact_parameters`). ``None``: no group.
     """
 
     frame: str
@@ -112,6 +116,7 @@ class Contact:
     against: str | None = None
     name: str | None = None
     radius: float | None = None
+    group: str | None = None
 
     def __post_init__(self) -> None:
         owner = f"contact {self.name or self.frame!r}"
@@ -128,6 +133,9 @@ class Contact:
         set_(self, "friction", _friction(self.friction, owner))
         if self.radius is not None:
             set_(self, "radius", check_number(owner, "radius", self.radius, minimum=0.0))
+        if self.group is not None and (not isinstance(self.group, str) or not self.group or ":" in self.group):
+            raise InvalidInputError(f"{owner}: group must be a non-empty name without ':' (or None), "
+                                    f"got {self.group!r}")
 
     def resolved(self, robot: Robot) -> Contact:
         """This contact with its radius set: a given radius is kept; without one, a

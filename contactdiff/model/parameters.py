@@ -12,7 +12,10 @@ body          link name       ``mass``                                     kg
                               ``ixx ixy ixz iyy iyz izz``                  kg m², about the centre of
                                                                            mass, link axes
 joint         joint name      ``armature``                                 kg m² (revolute), kg (prismatic)
-contact       contact name    ``restitution``, ``offset``                  1, m
+contact       contact name    ``restitution``, ``offset``, ``friction``    1, m, 1 (``friction``: Coulomb
+                                                                           contacts only)
+group         group name      ``restitution``, ``offset``, ``friction``    as ``contact``, shared by the
+                                                                           group's contacts
 spring        spring name     ``stiffness``, ``damping``, ``rest_length``  N/m, N s/m, m
 joint_spring  joint name      ``stiffness``, ``damping``, ``rest``         N m/rad, N m s/rad, rad (or N/m,
                                                                            N s/m, m on a prismatic joint)
@@ -22,7 +25,7 @@ effort        effort name     the `UserEffort`'s own ``parameters``        the e
 ============  ==============  ===========================================  ==============================
 
 `parameter_names` lists them in that order (bodies and joints in Pinocchio's
-joint order, contacts and efforts in scene order). The rules:
+joint order, contacts and efforts in scene order, groups after the contacts). The rules:
 
 * **Bodies.** A body is what one Pinocchio joint ``j >= 1`` moves rigidly:
   ``model.inertias[j]``. Links attached by fixed joints are merged into it by
@@ -39,8 +42,9 @@ joint order, contacts and efforts in scene order). The rules:
   inertia) of every one-coordinate-velocity joint (revolute, bounded or not,
   prismatic, helical, their unaligned forms). A free-flyer, spherical or planar
   joint has none here (Pinocchio keeps one value per axis).
-* **Contacts**: by contact name. (Friction, ``none``, ``stick`` or a Coulomb coefficient μ, is
-  not a parameter: `Scene.with_friction` builds a scene with another.)
+* **Contacts** by contact name (``friction`` for a Coulomb coefficient only; μ = 0
+  makes the contact frictionless), **groups** by `Contact.group`: a value shared by
+  the members (`contactdiff.model.contact_parameters` has the rules).
 * **Springs**: by `Spring.name` (default ``"<frame_a>-<frame_b>"``); **joint
   springs**: by joint. **User efforts**: by `UserEffort.name`, one parameter per
   entry of its ``parameters`` (the protocol is in `UserEffort`'s docstring).
@@ -54,7 +58,7 @@ a changed body keeps mass > 0 and an inertia about its centre of mass that some
 mass distribution has (positive semi-definite, principal moments obeying the
 triangle inequality ``I1 <= I2 + I3``: semi-definite, not definite, because the
 planar models' bodies are point masses with zero inertia); armature >= 0;
-restitution in [0, 1]; stiffness, damping, rest length >= 0; the trot
+restitution in [0, 1]; friction >= 0; stiffness, damping, rest length >= 0; the trot
 controller's own checks. It copies the robot and builds the new scene with the
 `Scene` constructor, so every effort is bound again on the changed model: the
 trot controller's feed-forward (leg gravity torques and weight shares at the
@@ -75,7 +79,8 @@ import numpy as np
 import pinocchio as pin
 
 from ..control.trot_controller import TrotController
-from ..errors import InvalidInputError, unknown_name
+from ..errors import GroupMismatchError, InvalidInputError, unknown_name
+from .contact_parameters import contact_parameters, contact_value, stage_contact_change
 from .efforts import JointSpring, Spring, UserEffort, bound_positions
 from .kinematics import Kinematics
 from .scene import Scene
@@ -92,12 +97,12 @@ class ParameterKind(Enum):
     TROT = "trot"
     EFFORT = "effort"
     SCENE = "scene"
+    GROUP = "group"
 
 
 BODY_FIELDS = ("mass", "com_x", "com_y", "com_z", "ixx", "ixy", "ixz", "iyy", "iyz", "izz")
 """Fields of a body: mass (kg), centre of mass (m, link frame), inertia about it (kg m², link axes)."""
 JOINT_FIELDS = ("armature",)
-CONTACT_FIELDS = ("restitution", "offset")
 SPRING_FIELDS = ("stiffness", "damping", "rest_length")
 JOINT_SPRING_FIELDS = ("stiffness", "damping", "rest")
 SCENE_FIELDS = ("gravity_x", "gravity_y", "gravity_z")
@@ -123,6 +128,8 @@ class Parameter:
         index: position of the spec in ``scene.contact_specs`` (``contact``) or in
             ``scene.effort_specs`` (``spring``, ``joint_spring``, ``trot``, ``effort``);
             -1 otherwise.
+        members: positions in ``scene.contact_specs`` of the contacts it sets (one for
+            ``contact``, the group's for ``group``); empty otherwise.
     """
 
     kind: ParameterKind
@@ -130,6 +137,7 @@ class Parameter:
     field: str
     joint: int = 0
     index: int = -1
+    members: tuple[int, ...] = ()
 
     @property
     def name(self) -> str:
@@ -183,8 +191,7 @@ def all_parameters(scene: Scene) -> list[Parameter]:
     for j in range(1, model.njoints):
         if model.joints[j].nv == 1:
             out.append(Parameter(ParameterKind.JOINT, model.names[j], "armature", joint=j))
-    for i, c in enumerate(scene.contact_specs):
-        out += [Parameter(ParameterKind.CONTACT, c.name, f, index=i) for f in CONTACT_FIELDS]
+    out += contact_parameters(scene)
     specs = list(enumerate(scene.effort_specs))
     groups = (
         (ParameterKind.SPRING, Spring, lambda s: s.name, lambda s: SPRING_FIELDS),
@@ -202,7 +209,7 @@ def all_parameters(scene: Scene) -> list[Parameter]:
 
 def parameter_names(scene: Scene) -> list[str]:
     """Names of every parameter of ``scene`` (module notes: scene, bodies, joints,
-    contacts, springs, joint springs, trot, user efforts)."""
+    contacts, groups of contacts, springs, joint springs, trot, user efforts)."""
     return [p.name for p in all_parameters(scene)]
 
 
@@ -250,8 +257,8 @@ def _value(scene: Scene, p: Parameter) -> float:
         return float(inertia.inertia[_INERTIA_ENTRY[p.field]])
     if kind is ParameterKind.JOINT:
         return float(model.armature[model.joints[p.joint].idx_v])
-    if kind is ParameterKind.CONTACT:
-        return float(getattr(scene.contact_specs[p.index], p.field))
+    if kind in (ParameterKind.CONTACT, ParameterKind.GROUP):
+        return contact_value(scene, p)
     spec = scene.effort_specs[p.index]
     if kind is ParameterKind.EFFORT:
         return float(dict(spec.parameters)[p.field])
@@ -267,10 +274,15 @@ def parameter_table(scene: Scene) -> list[dict]:
     """Every parameter of ``scene`` as a dict (what ``simulate --param list --json``
     prints): ``name``, ``kind`` (a `ParameterKind` value), ``target`` ("" for
     ``trot`` and ``scene``), ``field`` and ``value`` (its current value, in its unit;
-    the units are in the module notes), in the order of `parameter_names`."""
-    every = all_parameters(scene)
-    return [{"name": p.name, "kind": p.kind.value, "target": p.target, "field": p.field, "value": _value(scene, p)}
-            for p in every]
+    the units are in the module notes; None for a group whose contacts differ), in the
+    order of `parameter_names`."""
+    def value(p):
+        try:
+            return _value(scene, p)
+        except GroupMismatchError:
+            return None
+    return [{"name": p.name, "kind": p.kind.value, "target": p.target, "field": p.field, "value": value(p)}
+            for p in all_parameters(scene)]
 
 
 def _number(name: str, value) -> float:
@@ -369,7 +381,10 @@ def with_parameters(scene: Scene, values: Mapping) -> Scene:
             if p.kind is ParameterKind.BODY:
                 bodies.setdefault(p.joint, (p.target, []))[1].append(p.name)
             continue
-        where = "contact" if p.kind is ParameterKind.CONTACT else "effort"
+        if p.kind in (ParameterKind.CONTACT, ParameterKind.GROUP):
+            stage_contact_change(scene, specs, p, x)
+            continue
+        where = "effort"
         changes, names, xs = specs.setdefault((where, p.index), ({}, [], []))
         if p.kind is ParameterKind.EFFORT:
             current = changes.get("parameters", dict(scene.effort_specs[p.index].parameters))

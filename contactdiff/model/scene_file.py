@@ -25,7 +25,7 @@ from .scene import Scene
 _TOP_KEYS = ("robot", "floating_base", "gravity", "name", "description", "frame", "object", "contact",
              "spring", "joint_spring", "joint_targets", "trot", "initial")
 _TROT_KEYS = TrotController.KEYS
-_CONTACT_KEYS = ("frame", "normal", "offset", "restitution", "friction", "against", "name", "radius")
+_CONTACT_KEYS = ("frame", "normal", "offset", "restitution", "friction", "against", "name", "radius", "group")
 _SPRING_KEYS = ("frame_a", "frame_b", "stiffness", "damping", "rest_length")
 _JOINT_SPRING_KEYS = ("joint", "stiffness", "damping", "rest")
 _INITIAL_KEYS = ("q", "v")

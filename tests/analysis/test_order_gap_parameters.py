@@ -42,6 +42,38 @@ def test_outcome_gradient_matches_finite_differences():
     assert np.abs(fd[NAMES.index("scene:gravity_z")]) <= 1e-9
 
 
+def test_friction_and_group_columns_match_finite_differences():
+    """The same landing, 0.8 m/s forward, with Coulomb feet (μ = 0.3, both in group ``feet``:
+    the forward speed makes the impacts slide, so μ acts): the feet's own μ,
+    the group's μ and the group's restitution against the same central differences (the
+    outcome is smooth in them while each impact's sticking/sliding states stay; the
+    perturbed runs must keep them, else the difference straddles a pattern change). The
+    group's columns equal the sums of the members' (the restitution's: the two contacts'
+    in NAMES)."""
+    import dataclasses
+
+    import contactdiff as cd
+
+    base, q, v = planar_touchdown("planar_trot_rigid")
+    v = v + np.array([0.8, 0.0, 0.0])  # m/s along the body's x coordinate
+    contacts = [dataclasses.replace(c, friction=0.3, restitution=0.2, group="feet") for c in base.contact_specs]
+    scene = cd.Scene(base.robot, contacts, list(base.effort_specs), None, base.q0, base.v0, base.name)
+    names = ["contact:rear_foot:friction", "contact:front_foot:friction", "group:feet:friction",
+             "group:feet:restitution", "contact:rear_foot:restitution", "contact:front_foot:restitution"]
+    g = order_gap_gradient(scene, q, v, PAIR, names, t=1.0)
+    assert g.gap.outcome > 0.1
+    fd = []
+    for name, value in zip(names, scene.parameter_values(names)):
+        h = 1e-6 * max(abs(value), 1e-2)
+        plus, minus = (order_gap(scene.with_parameters({name: value + s * h}), q, v, PAIR, t=1.0) for s in (1, -1))
+        fd.append((plus.outcome - minus.outcome) / (2 * h))
+    fd = np.array(fd)
+    assert np.abs(g.outcome - fd).max() <= 1e-7 * np.abs(fd).max(), (g.outcome, fd)
+    assert np.abs(fd[:3]).max() > 1e-3, "μ does not move the outcome: an empty check"
+    assert g.outcome[2] == pytest.approx(g.outcome[0] + g.outcome[1], abs=1e-12 * np.abs(g.outcome).max())
+    assert g.outcome[3] == pytest.approx(g.outcome[4] + g.outcome[5], abs=1e-12 * np.abs(g.outcome).max())
+
+
 def test_a_decoupled_pair_has_no_outcome_gradient():
     scene, q, v = planar_touchdown("two_limb")
     with pytest.raises(InvalidInputError, match="no derivative"):
