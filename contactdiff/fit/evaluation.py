@@ -150,7 +150,8 @@ def evaluate(scene, plan_parameters: tuple, task: Task) -> Evaluation:
         residual.scale = residual.scale * rec.mask
     r = np.concatenate([wk * residual.residual(qk, rec.q[i]) for wk, qk, i in zip(w, samples.q, k)])
     Jr = [wk * residual.jacobian(qk, rec.q[i]) for wk, qk, i in zip(w, samples.q, k)]
-    Jp = np.vstack([Jk @ P[:nv] for Jk, P in zip(Jr, samples.parameter_jacobian)])
+    Jp = (np.vstack([Jk @ P[:nv] for Jk, P in zip(Jr, samples.parameter_jacobian)])
+          if samples.parameter_jacobian is not None else np.zeros((len(r), 0)))
     if fitted_state:
         cols = task.state_fit.columns(nv)
         start = _start_derivative(model, rec, task.state_fit, task.offset)[:, cols]
