@@ -35,8 +35,10 @@ near-grazing misses (a gap turning back up within ``grazing_gap`` of 0, where
 the integration error cannot tell a touch from a miss); a bounce slower than
 ``zeno_speed`` ends the bounce sequence (the contact stays closed, event kind
 ``zeno``); more than ``max_events`` events raise `TooManyEventsError`, more
-than ``max_steps`` steps `TooManyStepsError`, and steps that collapse by orders of
-magnitude with no event `StepCollapseError` (`contactdiff.integration.step_collapse`).
+than ``max_steps`` steps `TooManyStepsError` (early, as `StepBudgetError`, when steady
+steps project far more than the budget: `contactdiff.integration.step_budget`), and steps
+that collapse by orders of magnitude with no event `StepCollapseError`
+(`contactdiff.integration.step_collapse`).
 
 `HybridLoop` is the loop itself, public and meant to be extended: a subclass
 may override `HybridLoop.initial_mode` (the consistent start) and
@@ -58,6 +60,7 @@ from ..errors import (
     GrazingError,
     InvalidInputError,
     OutsideDomainError,
+    StepBudgetError,
     StepCollapseError,
     StepSizeUnderflowError,
     TooManyEventsError,
@@ -75,6 +78,7 @@ from .mode_field import ModeField
 from .options import AUTO, OnGrazing, SimulateOptions
 from .parameter_jumps import ParameterJumps
 from .projection import held_velocity, project_state
+from .step_budget import MARGIN, WINDOW, BudgetWatch
 from .step_collapse import COLLAPSE_RATIO, COLLAPSE_STEPS, CollapseWatch
 from .steppers import PinocchioGroup, make_stepper
 from .trajectory import Event, RunStats, Segment, Termination, Trajectory
@@ -299,7 +303,7 @@ class HybridLoop(EventResets, FrictionEvents):
         forces = field.guard_values(stepper.t, stepper.q, stepper.v)
         steps = 0
         h = 0.0  # the last accepted step (s)
-        watch = CollapseWatch()
+        watch, budget = CollapseWatch(), BudgetWatch(options.max_steps)
         next_break = -np.inf  # the efforts' next breakpoint: a time a step must end on
         while stepper.t < self.t_final:
             if steps == options.max_steps:
@@ -337,14 +341,19 @@ class HybridLoop(EventResets, FrictionEvents):
                 if projected or field.slipping:
                     forces = field.guard_values(stepper.t, stepper.q, stepper.v)
                 segment.t1 = stepper.t
-                if watch.after_step(h, clipped=stepper.t == stepper.t_bound):
+                clipped = stepper.t == stepper.t_bound
+                if watch.after_step(h, clipped):
                     self._collapse(stepper, mode, h, watch.typical)
+                if projection := budget.after_step(h, clipped, self.t_final - stepper.t, steps):
+                    self._over_budget(stepper, mode, steps, *projection)
                 if self.chooser is not None and stepper.t < self.t_final:
                     switch = self.chooser.after_step(h, stepper.q, stepper.v, stepper.t)
                     if switch:
                         stepper = self._switch(stepper, switch, field)
+                        budget.new_regime()
                 continue
             watch.new_mode()
+            budget.new_regime()
             t_event, fired = simultaneous_group(crossings, options.simultaneous_tol)
             self._near_misses(misses, t_event)
             stepper.truncate(t_event)
@@ -393,6 +402,18 @@ class HybridLoop(EventResets, FrictionEvents):
             "so here (a mechanism reaching a singular pose with its contacts held, e.g. a leg folded flat, "
             "or a force that blows up in finite time)",
             self._trajectory(stepper, Termination.STEP_COLLAPSE), stepper.t, names, h)
+
+    def _over_budget(self, stepper, mode, steps: int, needed: float, reference: float):
+        """Raise `StepBudgetError` (`contactdiff.integration.step_budget`) at the stepper's point."""
+        names = self._mode_names(mode)
+        raise StepBudgetError(
+            f"max_steps = {self.options.max_steps} cannot reach t_final = {self.t_final:g} s: at t = "
+            f"{stepper.t:.6g} s in mode ({', '.join(names) or 'free flight'}), after {steps} steps, the last "
+            f"{WINDOW} steady ones (no event) at most ~{reference:.3g} s (9 in 10), the remaining "
+            f"{self.t_final - stepper.t:.6g} s need ~{needed:.3g} steps, more than {MARGIN:g} times the "
+            f"{self.options.max_steps - steps} left; raise max_steps to about {steps + needed:.2g} "
+            "(--max-steps), or look for a runaway state (a body spinning fast, a stiff spring)",
+            self._trajectory(stepper, Termination.MAX_STEPS), stepper.t, names, reference, needed)
 
     # -- method="auto" ----------------------------------------------------------------
     def _probe(self, mode):
