@@ -21,6 +21,9 @@
 5. Active constraints are kept on their manifold: when the gap of an active
    contact drifts beyond ``project_tol`` the state is projected back
    (M-orthogonally) and the largest drift is reported.
+6. A run at rest (an equilibrium of an autonomous scene's mode, stable, with no guard
+   near) steps to ``t_final`` in one step of its linearised flow
+   (`contactdiff.integration.rest`).
 
 With ``method="auto"`` the stepper is DOP853 while its steps are limited by
 accuracy and Radau IIA while they would be limited by stability
@@ -78,7 +81,8 @@ from .mode_field import ModeField
 from .options import AUTO, OnGrazing, SimulateOptions
 from .parameter_jumps import ParameterJumps
 from .projection import held_velocity, project_state
-from .step_budget import MARGIN, WINDOW, BudgetWatch
+from .rest import RestCheck
+from .step_budget import BudgetWatch, budget_message
 from .step_collapse import COLLAPSE_RATIO, COLLAPSE_STEPS, CollapseWatch
 from .steppers import PinocchioGroup, make_stepper
 from .trajectory import Event, RunStats, Segment, Termination, Trajectory
@@ -303,7 +307,7 @@ class HybridLoop(EventResets, FrictionEvents):
         forces = field.guard_values(stepper.t, stepper.q, stepper.v)
         steps = 0
         h = 0.0  # the last accepted step (s)
-        watch, budget = CollapseWatch(), BudgetWatch(options.max_steps)
+        watch, budget, rest = CollapseWatch(), BudgetWatch(options.max_steps), RestCheck(self)
         next_break = -np.inf  # the efforts' next breakpoint: a time a step must end on
         while stepper.t < self.t_final:
             if steps == options.max_steps:
@@ -346,6 +350,7 @@ class HybridLoop(EventResets, FrictionEvents):
                     self._collapse(stepper, mode, h, watch.typical)
                 if projection := budget.after_step(h, clipped, self.t_final - stepper.t, steps):
                     self._over_budget(stepper, mode, steps, *projection)
+                rest.settle(stepper, field, mode, segment)  # at rest: to t_final in one step
                 if self.chooser is not None and stepper.t < self.t_final:
                     switch = self.chooser.after_step(h, stepper.q, stepper.v, stepper.t)
                     if switch:
@@ -406,14 +411,9 @@ class HybridLoop(EventResets, FrictionEvents):
     def _over_budget(self, stepper, mode, steps: int, needed: float, reference: float):
         """Raise `StepBudgetError` (`contactdiff.integration.step_budget`) at the stepper's point."""
         names = self._mode_names(mode)
-        raise StepBudgetError(
-            f"max_steps = {self.options.max_steps} cannot reach t_final = {self.t_final:g} s: at t = "
-            f"{stepper.t:.6g} s in mode ({', '.join(names) or 'free flight'}), after {steps} steps, the last "
-            f"{WINDOW} steady ones (no event) at most ~{reference:.3g} s (9 in 10), the remaining "
-            f"{self.t_final - stepper.t:.6g} s need ~{needed:.3g} steps, more than {MARGIN:g} times the "
-            f"{self.options.max_steps - steps} left; raise max_steps to about {steps + needed:.2g} "
-            "(--max-steps), or look for a runaway state (a body spinning fast, a stiff spring)",
-            self._trajectory(stepper, Termination.MAX_STEPS), stepper.t, names, reference, needed)
+        raise StepBudgetError(budget_message(self.options.max_steps, self.t_final, stepper.t, names, steps, needed,
+                                             reference), self._trajectory(stepper, Termination.MAX_STEPS),
+                              stepper.t, names, reference, needed)
 
     # -- method="auto" ----------------------------------------------------------------
     def _probe(self, mode):
