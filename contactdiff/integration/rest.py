@@ -27,9 +27,12 @@ know it rests.
   by at most `REST_TOL` of the tolerance (RMS of ``d / (atol + rtol |y|)``): the
   state is an equilibrium to well within one step's error.
 
-The run then ends at ``x + d`` with the flow Jacobian ``exp(D J D T) phi`` (and for
-parameters ``+ ∫_0^T exp(D J D s) ds D (0, J_p)``), one matrix exponential of the
-augmented matrix (Van Loan), and a note says so. The velocity check runs first at
+The run then ends at ``x + d`` (the held row velocities removed first, as a projection
+of the state does) with the flow Jacobian ``exp(J T) phi``, the variational equation
+the stepper integrates (the index-reduced convention: columns off the manifold are
+carried, not projected, `contactdiff.integration.projection`), and for parameters
+``+ ∫_0^T exp(J s) ds (0, J_p)``: one matrix exponential of the augmented matrix
+(Van Loan). A note says so. The velocity check runs first at
 no cost; a full check that fails is tried again after twice as many steps (1, 2,
 4, ...), so a run that stays just short of rest pays a few checks, not one a step.
 Runs that do not rest are unchanged; a run that rests ends within ``REST_TOL`` of the
@@ -141,28 +144,25 @@ class RestCheck:
         eigenvalues = np.linalg.eigvals(Jm)
         if not np.isfinite(eigenvalues).all() or np.max(eigenvalues.real) * remaining > 1.0:
             return None  # an unstable rest: its round-off grows
-        p = 0 if loop.jumps is None else loop.jumps.p
-        big = np.zeros((n + p + 1, n + p + 1))
-        big[:n, :n] = Jm
-        if p:
-            forcing = np.zeros((n, p))
-            forcing[nv:] = field.parameter_jac(t, q, v)
-            big[:n, n:n + p] = D @ forcing
-        big[:n, n + p] = D @ np.concatenate((v, a))
-        E = expm(big * remaining)
-        d = E[:n, n + p]
-        if not np.isfinite(E).all() or _rms(d / self._scale(q, v, stepper)) > REST_TOL:
+        motion = np.zeros((n + 1, n + 1))
+        motion[:n, :n], motion[:n, n] = Jm, D @ np.concatenate((v, a))
+        d = expm(motion * remaining)[:n, n]
+        if not np.isfinite(d).all() or _rms(d / self._scale(q, v, stepper)) > REST_TOL:
             return None
         q1 = q + d[:nv] if stepper._vs else stepper.group.integrate(q, d[:nv])
         phi1 = None
-        if stepper.phi is not None:
-            # onto the manifold's tangent first, as a projection of the state does (`HybridLoop._project`)
-            phi = D @ stepper.phi
+        if stepper.phi is not None:  # the variational equation the stepper integrates, phi' = J phi (+ (0, J_p))
+            p = 0 if loop.jumps is None else loop.jumps.p
+            flow = np.zeros((n + p, n + p))
+            flow[:n, :n] = J
             if p:
-                phi[:, loop.n_state:] += loop.jumps.projection(q, mode)
-            phi1 = E[:n, :n] @ phi
+                flow[nv:n, n:] = field.parameter_jac(t, q, v)
+            E = expm(flow * remaining)
+            phi1 = E[:n, :n] @ stepper.phi
             if p:
-                phi1[:, loop.n_state:] += E[:n, n:n + p]
+                phi1[:, loop.n_state:] += E[:n, n:]
+            if not np.isfinite(phi1).all():
+                return None
         stable = -eigenvalues.real[eigenvalues.real < -1e-9 * max(1.0, float(np.max(np.abs(eigenvalues))))]
         return q1, v + d[nv:], d, phi1, float(np.min(stable)) if stable.size else 0.0
 

@@ -213,3 +213,18 @@ def test_rest_flow_jacobian_against_finite_differences(tmp_path):
         np.testing.assert_allclose(traj.jacobian[:, k], fd, atol=1e-4)
     fd = (final(rest=1.0 + eps) - final(rest=1.0 - eps)) / (2 * eps)
     np.testing.assert_allclose(traj.parameter_jacobian[:, 0], fd, atol=1e-4)
+
+
+def test_which_scenes_are_autonomous():
+    """The rest check needs a scene whose efforts no longer depend on time: joint springs
+    always (solo12_drop), no effort at all (the ball), joint targets only past their last
+    knot (panda_lift's arm at 0.9 s, its fingers at 0.35 s), a user effort never (its
+    function takes t)."""
+    assert cd.load_scene("solo12_drop").autonomous_from(0.0)
+    assert cd.load_scene("ball").autonomous_from(0.0)
+    panda = cd.load_scene("panda_lift")
+    assert not panda.autonomous_from(0.5) and not panda.autonomous_from(0.9 - 1e-9)
+    assert panda.autonomous_from(0.9) and panda.autonomous_from(1e9)
+    ball = cd.load_scene("ball")
+    pushed = cd.Scene(ball.robot, efforts=[cd.UserEffort(lambda q, v, t: np.zeros(ball.nv))])
+    assert not pushed.autonomous_from(1e9)
