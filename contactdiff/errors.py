@@ -101,6 +101,19 @@ class TooManyStepsError(StoppedRunError):
     the horizon, e.g. a body spinning at 1e6 rad/s)."""
 
 
+class StepBudgetError(TooManyStepsError):
+    """The run cannot reach its final time within ``max_steps``: its steady recent steps
+    project far more steps than the budget has left (`contactdiff.integration.step_budget`),
+    and it stopped early rather than spend the budget. ``.trajectory`` holds the run so
+    far; ``.t`` (s), ``.mode`` (the names of the active contacts), ``.step`` (s, the
+    reference step of the projection) and ``.steps_needed`` say where and how far."""
+
+    def __init__(self, message: str, trajectory, t: float, mode: tuple[str, ...], step: float,
+                 steps_needed: float):
+        super().__init__(message, trajectory)
+        self.t, self.mode, self.step, self.steps_needed = t, mode, step, steps_needed
+
+
 class StepCollapseError(StoppedRunError):
     """The step size collapsed with no event in sight: many accepted steps in a row, each
     far shorter than the mode's own steps (`contactdiff.integration.step_collapse`), as

@@ -230,6 +230,10 @@ class JointTargetsEvaluator:
         out[self.iv] = self.stiffness * dr + self.damping * ddr
         return out
 
+    def autonomous_from(self, t: float) -> bool:
+        """Whether the targets no longer move after ``t`` (s): past the last knot."""
+        return t >= self.times[-1]
+
     def next_breakpoint(self, t: float) -> float:
         """The first knot time strictly after ``t`` (s), inf when none is left."""
         k = bisect.bisect_right(self.times, t)

@@ -21,6 +21,9 @@
 5. Active constraints are kept on their manifold: when the gap of an active
    contact drifts beyond ``project_tol`` the state is projected back
    (M-orthogonally) and the largest drift is reported.
+6. A run at rest (an equilibrium of an autonomous scene's mode, stable, with no guard
+   near) steps to ``t_final`` in one step of its linearised flow
+   (`contactdiff.integration.rest`).
 
 With ``method="auto"`` the stepper is DOP853 while its steps are limited by
 accuracy and Radau IIA while they would be limited by stability
@@ -35,8 +38,10 @@ near-grazing misses (a gap turning back up within ``grazing_gap`` of 0, where
 the integration error cannot tell a touch from a miss); a bounce slower than
 ``zeno_speed`` ends the bounce sequence (the contact stays closed, event kind
 ``zeno``); more than ``max_events`` events raise `TooManyEventsError`, more
-than ``max_steps`` steps `TooManyStepsError`, and steps that collapse by orders of
-magnitude with no event `StepCollapseError` (`contactdiff.integration.step_collapse`).
+than ``max_steps`` steps `TooManyStepsError` (early, as `StepBudgetError`, when steady
+steps project far more than the budget: `contactdiff.integration.step_budget`), and steps
+that collapse by orders of magnitude with no event `StepCollapseError`
+(`contactdiff.integration.step_collapse`).
 
 `HybridLoop` is the loop itself, public and meant to be extended: a subclass
 may override `HybridLoop.initial_mode` (the consistent start) and
@@ -58,6 +63,7 @@ from ..errors import (
     GrazingError,
     InvalidInputError,
     OutsideDomainError,
+    StepBudgetError,
     StepCollapseError,
     StepSizeUnderflowError,
     TooManyEventsError,
@@ -75,7 +81,9 @@ from .mode_field import ModeField
 from .options import AUTO, OnGrazing, SimulateOptions
 from .parameter_jumps import ParameterJumps
 from .projection import held_velocity, project_state
+from .rest import RestCheck
 from .samples import SampleRecorder, check_sample_times
+from .step_budget import BudgetWatch, budget_message
 from .step_collapse import COLLAPSE_RATIO, COLLAPSE_STEPS, CollapseWatch
 from .steppers import PinocchioGroup, make_stepper
 from .trajectory import Event, RunStats, Segment, Termination, Trajectory
@@ -303,7 +311,7 @@ class HybridLoop(EventResets, FrictionEvents):
         forces = field.guard_values(stepper.t, stepper.q, stepper.v)
         steps = 0
         h = 0.0  # the last accepted step (s)
-        watch = CollapseWatch()
+        watch, budget, rest = CollapseWatch(), BudgetWatch(options.max_steps), RestCheck(self)
         next_break = -np.inf  # the efforts' next breakpoint: a time a step must end on
         while stepper.t < self.t_final:
             if steps == options.max_steps:
@@ -343,14 +351,22 @@ class HybridLoop(EventResets, FrictionEvents):
                     forces = field.guard_values(stepper.t, stepper.q, stepper.v)
                 segment.t1 = stepper.t
                 self.recorder.take(stepper)
-                if watch.after_step(h, clipped=stepper.t == stepper.t_bound):
+                clipped = stepper.t == stepper.t_bound
+                if watch.after_step(h, clipped):
                     self._collapse(stepper, mode, h, watch.typical)
+                if projection := budget.after_step(h, clipped, self.t_final - stepper.t, steps):
+                    self._over_budget(stepper, mode, steps, *projection)
+                # at rest: to t_final in one step (not over samples still to take: steps end on them)
+                if self.recorder.next_time >= self.t_final and rest.settle(stepper, field, mode, segment):
+                    self.recorder.take(stepper)
                 if self.chooser is not None and stepper.t < self.t_final:
                     switch = self.chooser.after_step(h, stepper.q, stepper.v, stepper.t)
                     if switch:
                         stepper = self._switch(stepper, switch, field)
+                        budget.new_regime()
                 continue
             watch.new_mode()
+            budget.new_regime()
             t_event, fired = simultaneous_group(crossings, options.simultaneous_tol)
             self._near_misses(misses, t_event)
             stepper.truncate(t_event)
@@ -400,6 +416,13 @@ class HybridLoop(EventResets, FrictionEvents):
             "so here (a mechanism reaching a singular pose with its contacts held, e.g. a leg folded flat, "
             "or a force that blows up in finite time)",
             self._trajectory(stepper, Termination.STEP_COLLAPSE), stepper.t, names, h)
+
+    def _over_budget(self, stepper, mode, steps: int, needed: float, reference: float):
+        """Raise `StepBudgetError` (`contactdiff.integration.step_budget`) at the stepper's point."""
+        names = self._mode_names(mode)
+        raise StepBudgetError(budget_message(self.options.max_steps, self.t_final, stepper.t, names, steps, needed,
+                                             reference), self._trajectory(stepper, Termination.MAX_STEPS),
+                              stepper.t, names, reference, needed)
 
     # -- method="auto" ----------------------------------------------------------------
     def _probe(self, mode):

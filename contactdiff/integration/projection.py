@@ -94,8 +94,18 @@ def project_state(dyn, q: np.ndarray, v: np.ndarray, mode, jacobian: bool = Fals
     v = v - pinv @ (A @ v)
     if not jacobian:
         return q, v, None
+    return q, v, projection_jacobian(dyn, q, v, mode)
+
+
+def projection_jacobian(dyn, q: np.ndarray, v: np.ndarray, mode) -> np.ndarray:
+    """``D`` (2nv × 2nv, tangent space) of `project_state` at a ``(q, v)`` on the manifold of
+    ``mode``: `held_velocity_jacobian` with ``I - P_N A_N`` on the configuration block
+    (``A_N`` the normal rows). ``D`` is the identity for the empty mode."""
     nv = dyn.model.nv
+    if not mode:
+        return np.eye(2 * nv)
     D = held_velocity_jacobian(dyn, q, v, mode)
+    A = mode_rows(dyn, mode)
     normal = [0] + list(np.cumsum([dyn.contact(k).n_rows for k in mode])[:-1])
     D[:nv, :nv] -= weighted_pinv(dyn, q, A[normal]) @ A[normal]
-    return q, v, D
+    return D

@@ -61,6 +61,9 @@ class BoundEffort(Protocol):
     def time_derivative(self, kin: Kinematics, t: float) -> np.ndarray:
         """``d tau/dt`` (nv,) at fixed state (zero for an autonomous effort)."""
 
+    # optional: ``autonomous_from(t) -> bool``, whether the effort no longer depends on time
+    # after ``t`` (s); an effort without it counts as time-dependent (`Scene.autonomous_from`)
+
 
 @runtime_checkable
 class Effort(Protocol):
@@ -132,6 +135,10 @@ class _BoundJointSpring:
 
     def time_derivative(self, kin: Kinematics, t: float) -> np.ndarray:
         return np.zeros(self.nv)  # autonomous
+
+    def autonomous_from(self, t: float) -> bool:
+        """Whether the effort no longer depends on time after ``t`` (s): always."""
+        return True
 
     _FIELDS = ("stiffness", "damping", "rest")
 
@@ -238,6 +245,10 @@ class _BoundSpring:
 
     def time_derivative(self, kin: Kinematics, t: float) -> np.ndarray:
         return np.zeros(kin.v.size)  # autonomous
+
+    def autonomous_from(self, t: float) -> bool:
+        """Whether the effort no longer depends on time after ``t`` (s): always."""
+        return True
 
     def parameter_derivatives(self, kin: Kinematics, t: float, fields) -> np.ndarray:
         """``d tau/dp`` (nv × len(fields)) for ``fields`` = ``(0, field)`` pairs, with

@@ -141,6 +141,12 @@ class Scene:
             first = min(first, t_break)
         return first
 
+    def autonomous_from(self, t: float) -> bool:
+        """Whether no effort depends on time after ``t`` (s): each effort says so with its
+        optional ``autonomous_from(t)`` (joint springs, springs: always; joint targets: past
+        their last knot); an effort without it (a user effort, a controller) depends on time."""
+        return all(getattr(e, "autonomous_from", None) is not None and e.autonomous_from(t) for e in self.efforts)
+
     def tau_derivatives(self, kin: Kinematics, t: float) -> tuple[np.ndarray, np.ndarray]:
         """``d tau/dq`` and ``d tau/dv`` of the efforts (tangent space, nv × nv each)."""
         dq, dv = np.zeros((self.nv, self.nv)), np.zeros((self.nv, self.nv))
