@@ -125,8 +125,9 @@ def brax_rows(quick: bool, variants) -> tuple[list[dict], list[dict]]:
     verdicts, rows = [], []
     runs = [(z0, g.contactdiff_brax(task, z0), g.brax_outcome(task, z0)) for z0 in points]
     for z0, r, (z_exact, d_exact) in runs:
-        verdicts.append({"z0": z0, "z_T": float(r.outcome[0]), "z_T_exact": z_exact, "gradient": float(r.gradient[0, 0]),
-                         "exact": d_exact, "differentiable": r.differentiable, "notes": r.notes})
+        verdicts.append({"z0": z0, "z_T": float(r.outcome[0]), "z_T_exact": z_exact,
+                         "gradient": float(r.gradient[0, 0]), "exact": d_exact,
+                         "differentiable": r.differentiable, "notes": r.notes})
     smooth = [(z0, d) for z0, _, (_, d) in runs if d is not None]
     errors = [abs(r.gradient[0, 0] - d) for _, r, (_, d) in runs if d is not None]
     rows.append(row("4 brax", "contactdiff", "rtol 1e-12", max(errors),

@@ -54,6 +54,7 @@ class Variant:
 
     @property
     def label(self) -> str:
+        """The variant as text (the tables' column)."""
         return f"dt {self.timestep:g} s, tau {self.timeconst:g} s"
 
 
@@ -229,8 +230,9 @@ def cube_model(variant: Variant, friction: float, restitution: float):
     from ..data.cube_tosses import NOMINAL
     p = NOMINAL
     contact = _contact(variant.timeconst, restitution, friction)
+    inertia = f"{p.moment:.17g} " * 3
     world = (f'<geom type="plane" size="0 0 1" {contact}/><body name="cube"><freejoint/>'
-             f'<inertial pos="0 0 0" mass="{p.mass:.17g}" diaginertia="{p.moment:.17g} {p.moment:.17g} {p.moment:.17g}"/>'
+             f'<inertial pos="0 0 0" mass="{p.mass:.17g}" diaginertia="{inertia.strip()}"/>'
              f'<geom type="box" size="{p.edge / 2:.17g} {p.edge / 2:.17g} {p.edge / 2:.17g}" {contact}/></body>')
     return _model(variant, p.gravity, world)
 
@@ -244,8 +246,8 @@ def _quaternion_matrix(w, x, y, z) -> np.ndarray:
 def mujoco_cube(variant: Variant, h: float = 1e-4) -> tuple[np.ndarray, float]:
     """MuJoCo's ``d pose(T) / d(μ, e)`` (6 × 2, the pose's tangent at T as contactdiff's, from
     central differences of rollouts with models at ``μ ± h``, ``e ± h``) and its wall time (s)."""
-    from .gradients_cube import HORIZON, pose_difference, toss_scene
     from ..data.cube_tosses import NOMINAL
+    from .gradients_cube import HORIZON, pose_difference, toss_scene
     scene = toss_scene()
     q, v = scene.q0, scene.v0                     # Pinocchio: [x y z qx qy qz qw], body-frame v
     qpos = np.concatenate([q[:3], [q[6]], q[3:6]])
