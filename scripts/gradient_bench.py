@@ -205,7 +205,7 @@ def plot(rows: list[dict], folder: Path) -> list[Path]:
         ax.set_title(f"task {task}")
         ax.legend(fontsize=7)
         fig.tight_layout()
-        path = folder / f"task_{task.split()[0]}.png"
+        path = folder / f"task_{task.replace(' ', '_').replace('+', '_')}.png"
         fig.savefig(path, dpi=110)
         plt.close(fig)
         written.append(path)
