@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from contactdiff.bench import gradients as g
+from contactdiff.errors import InvalidInputError
 
 RUN_TOL = 1e-8
 """Relative gradient error allowed of a run at rtol 1e-12, atol 1e-13: the flow Jacobian
@@ -158,3 +159,36 @@ def test_mujoco_gradients_converge_as_the_time_step_shrinks():
     exact = g.two_ball_gradient()
     coarse, fine = (rel(mj.mujoco_two_balls(g.NIMBLE, mj.Variant(dt, 0.02), "fd")[0], exact) for dt in (1e-3, 1e-4))
     assert fine < coarse / 2
+
+
+def test_two_ball_gradient_against_differences_of_its_closed_form():
+    """The closed form of task 3 (module doc): tc = (x2 - x1 - 2r)/(v1 - v2), then x1(T) = x1 + v1 tc
+    + v2 (T - tc) and x2(T) = x2 + v2 tc + v1 (T - tc) (velocities swapped); central differences
+    (h = 1e-6) of it agree with `two_ball_gradient` to round-off over h (1e-9)."""
+    task = g.NIMBLE
+
+    def final(x):
+        x1, x2, v1, v2 = x
+        tc = (x2 - x1 - 2 * task.radius) / (v1 - v2)
+        return np.array([x1 + v1 * tc + v2 * (task.horizon - tc), x2 + v2 * tc + v1 * (task.horizon - tc)])
+
+    fd = central(final, [task.x1, task.x2, task.v1, task.v2], 1e-6)
+    assert np.allclose(fd, g.two_ball_gradient(task), rtol=0, atol=1e-9)
+
+
+def test_mujoco_transition_product_equals_rollout_differences():
+    """Both MuJoCo gradients estimate the same local derivative of the time-stepped map:
+    at dt = 1e-3 s a rollout difference of h = 1e-5 m stays within one smooth piece (the
+    contact starts a step later when z0 moves by c dt = 1e-3 m), so they agree to the
+    differences' errors (h² f''' ~ 1e-10, eps/h ~ 1e-11 and 1000 steps of centred eps = 1e-6
+    Jacobians, ~1e-9): allowed 1e-6 relative."""
+    _mujoco()
+    from contactdiff.bench import gradients_mujoco as mj
+    variant = mj.Variant(1e-3, 0.02)
+    fd = mj.mujoco_brax(g.BRAX, variant, 0.6, "fd")[0]
+    product = mj.mujoco_brax(g.BRAX, variant, 0.6, "transition")[0]
+    assert rel(product, fd) < 1e-6
+    with pytest.raises(InvalidInputError, match="method must be"):
+        mj.mujoco_brax(g.BRAX, variant, 0.6, "adjoint")
+    with pytest.raises(InvalidInputError, match="does not divide"):
+        mj.mujoco_brax(g.BRAX, mj.Variant(3e-3, 0.02), 0.6, "fd")
