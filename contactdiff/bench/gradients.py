@@ -89,7 +89,7 @@ class BallTask:
 
 
 BOUNCE = BallTask()
-"""Task 1: one bounce by T = 1 s (lands at t1 ≈ 0.496 s), no wall."""
+"""Task 1: one bounce by T = 1 s (lands at t1 ≈ 0.482 s), no wall."""
 
 WALL = BallTask(velocity=(2.0, 0.5), wall=1.5, target=(0.9, 0.6))
 """Task 2 without friction: from x = 0 the ball lands (t1 ≈ 0.48 s), reaches the wall
