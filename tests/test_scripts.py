@@ -28,6 +28,10 @@ SMOKE = {
     "friction_trots.py": (["--quick"], [], "where the time goes"),
     "loop_floor.py": (["--quick"], [], "the whole run's time"),
     "loop_share.py": (["--quick"], [], "two_limb"),
+    "gradient_bench.py": (["--quick", "--plots", "{tmp}", "--json", "{tmp}/gradients.json"],
+                          [f"task_{t}.png" for t in ("1_bounce", "2_wall", "2_wall_friction", "3_two_balls",
+                                                     "4_brax", "5_cube")] + ["gradients.json"],
+                          "no MuJoCo variant reaches"),
     "mjcf_vs_mujoco.py": (["--quick"], [], "max rel. diff of M"),
     "mode_dynamics_cost.py": (["--quick", "planar_trot_soft"], [], "pin.aba"),
     "panda_lift_targets.py": ([], [], "residual"),  # its whole run takes well under a second
