@@ -13,7 +13,7 @@ against finite differences of the same residuals, the wall time per toss, the
 tosses whose outcome is not differentiable, and the worst held-out tosses.
 
     python scripts/cube_tosses.py --tosses ../shared/data/cube_tosses/tosses.npz --train 100
-    python scripts/cube_tosses.py --quick          # 4 shipped tosses to fit, 4 held out, 2 evaluations
+    python scripts/cube_tosses.py --quick          # 2 shipped tosses to fit, 2 held out, 1 evaluation
 """
 
 from __future__ import annotations
@@ -124,13 +124,13 @@ def main(argv=None) -> int:
     parser.add_argument("--seed", type=int, default=0, help="seed of the split (default 0)")
     parser.add_argument("--max-evaluations", type=int, default=12, help="the fit's evaluations at most")
     parser.add_argument("--jobs", type=int, default=None, help="worker processes (default: one per core)")
-    parser.add_argument("--quick", action="store_true", help="4 shipped tosses to fit, 4 held out, 2 evaluations")
+    parser.add_argument("--quick", action="store_true", help="2 shipped tosses to fit, 2 held out, 1 evaluation")
     parser.add_argument("--plot-dir", help="write plots of held-out tosses and the error distribution here")
     parser.add_argument("--json", action="store_true", help="print the report as JSON")
     args = parser.parse_args(argv)
     tosses = load_tosses(args.tosses)
     if args.quick:
-        args.train, args.test, args.max_evaluations = 4, 4, 2
+        args.train, args.test, args.max_evaluations = 2, 2, 1
     jobs = args.jobs or 2
     train, held_out = split(tosses, args.train, args.seed)
     held_out = held_out[:args.test] if args.test else held_out

@@ -23,6 +23,8 @@ SMOKE = {
     "bench_error_vs_time.py": (["--quick", "--out", "{tmp}/bench.png", "--json", "{tmp}/bench.json"],
                                ["bench.png", "bench.json"], "plot written to"),
     "cube_toss_runs.py": (["--quick", "--jobs", "1"], [], "3 tosses x 1 settings"),
+    "cube_tosses.py": (["--quick", "--jobs", "1", "--plot-dir", "{tmp}"],
+                       ["cube_toss_errors.png", "cube_toss_rollouts.png"], "held out: 2 tosses"),
     "decoupling_atlas.py": (["--quick", "--out", "{tmp}/atlas.md"], ["atlas.md"], "atlas written"),
     "fig1_trot.py": (["--quick", "--out", "{tmp}/fig1.png"], ["fig1.png"], "figure written to"),
     "friction_trots.py": (["--quick"], [], "where the time goes"),
