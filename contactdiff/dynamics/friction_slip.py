@@ -16,7 +16,8 @@ from every local minimum of ``max|f|`` on a grid (infeasible points ranked
 last), the pre-impact slip, a rough solution of the whole law (a projected
 fixed point) and the frictionless slip; roots with a slip against ``s``
 (``g = π``, also roots of ``f``) are dropped. Of two copies of one root (2π apart, or
-found from two starts) the one Newton brought closer to zero is kept. A mixin of the solver's problem
+found from two starts) the first is tried, and the other after it where Newton stopped
+the first short of convergence and the other is closer. A mixin of the solver's problem
 class (its state: ``G``, ``u``, ``mu``, ``tol``, the candidate's layout and
 evaluation methods).
 """
@@ -226,7 +227,8 @@ class SlipDirections:
         infinite): all roots that the grid separates. Near a small post-impact
         slip the direction turns fast (|dg/dθ| ~ 1e3 seen), so a steep sign
         change is not taken for a jump; the cross form's sign changes are polished
-        too (`cross_roots`). Of two copies of one root the more accurate is kept.
+        too (`cross_roots`). Of two copies of one root the first is tried, and the
+        other after it where the first is not converged and the other is closer.
         Several: `newton` on the cross form from
         the pre-impact slip, from the post-impact slip of an approximate solution
         of the whole law (`fixed_point`), from the frictionless post-impact
@@ -245,15 +247,21 @@ class SlipDirections:
             roots += self.cross_roots(SlipMap(self, states, dirs, spatial, lay, cross=True), float(pre[0]))
         else:
             roots = self.roots_nd(fmap, states, dirs, spatial, lay, pre)
-        # the most accurate first, so that of two copies of one root (found from two
-        # brackets, or 2π apart) the better one is kept: a bracket of a wrap jump may
-        # walk to a neighbouring root and stop short of round-off
-        roots.sort(key=lambda root: root[1])
-        found: list[np.ndarray] = []
-        for theta, _ in roots:
-            if not found or np.abs(_wrap(theta - np.asarray(found))).max(axis=1).min() >= _DUPLICATE:
-                found.append(theta)
-        yield from sorted(found, key=lambda t: float(np.linalg.norm(_wrap(t - pre))))
+        # of two copies of one root (found from two brackets, or 2π apart) the first is
+        # tried; a copy closer to zero follows it where the first stopped short of
+        # convergence (a bracket of a wrap jump may walk to a neighbouring root and stop
+        # after its few iterations), for the case that the law's check rejects the first
+        groups: list[list[tuple[np.ndarray, float]]] = []
+        for theta, merit in roots:
+            twin = next((g for g in groups if np.abs(_wrap(theta - g[0][0])).max() < _DUPLICATE), None)
+            if twin is None:
+                groups.append([(theta, merit)])
+            elif twin[-1][1] > _NEWTON_ATOL and merit < twin[-1][1]:
+                twin.append((theta, merit))
+        groups.sort(key=lambda g: float(np.linalg.norm(_wrap(g[0][0] - pre))))
+        for group in groups:
+            for theta, _ in group:
+                yield theta
 
     def roots_nd(self, fmap, states, dirs, spatial, lay, pre) -> list[tuple[np.ndarray, float]]:
         """Several spatial sliders: Newton on the cross form from the starts of `slip_roots`."""

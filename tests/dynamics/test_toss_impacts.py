@@ -29,8 +29,9 @@ def test_a_corner_slip_root_found_twice_keeps_the_accurate_copy():
     """One spatial slider: its slip angle has one root on the circle, which the scan
     brackets twice (a sign change at the root, and a wrap jump of the angle form whose
     Newton run walks 2π over to the same root and stops after its few iterations short of
-    round-off, ~1e-8 rad). Of two copies of one root the more accurate must be checked:
-    the solve returns the sliding corner, and every condition of the law holds.
+    round-off, ~1e-8 rad, so the law's check rejects it). The more accurate copy must
+    then be tried: the solve returns the sliding corner, and every condition of the law
+    holds.
 
     The sticking alternative is outside the cone here (its tangential impulse needs
     |Λ_T| / Λ_N = 0.81 > μ: ``G_ee z = -b`` over the three rows, derived below), so the
