@@ -24,7 +24,7 @@ evaluation methods).
 
 from __future__ import annotations
 
-import itertools
+import functools
 from collections.abc import Iterator
 
 import numpy as np
@@ -70,6 +70,17 @@ def project_cone(x: np.ndarray, mu: float) -> np.ndarray:
 
 def _wrap(a: np.ndarray) -> np.ndarray:
     return (a + np.pi) % (2.0 * np.pi) - np.pi
+
+
+@functools.lru_cache(maxsize=8)
+def _torus_grid(ns: int) -> tuple[int, np.ndarray]:
+    """Points per axis and the offsets (per_axis**ns, ns) of the grid on the torus of
+    ``ns`` slip angles, last angle fastest; formed once per ``ns`` (read-only)."""
+    per_axis = _GRID_POINTS.get(ns, max(4, int(_GRID_BUDGET ** (1.0 / ns))))
+    axis = 2.0 * np.pi * np.arange(per_axis) / per_axis
+    offsets = np.stack(np.meshgrid(*([axis] * ns), indexing="ij"), axis=-1).reshape(-1, ns)
+    offsets.flags.writeable = False
+    return per_axis, offsets
 
 
 def _run_starts(mask: np.ndarray) -> np.ndarray:
@@ -252,11 +263,15 @@ class SlipDirections:
         # convergence (a bracket of a wrap jump may walk to a neighbouring root and stop
         # after its few iterations), for the case that the law's check rejects the first
         groups: list[list[tuple[np.ndarray, float]]] = []
+        firsts = np.empty((len(roots), len(spatial)))  # each group's first copy
         for theta, merit in roots:
-            twin = next((g for g in groups if np.abs(_wrap(theta - g[0][0])).max() < _DUPLICATE), None)
-            if twin is None:
+            gaps = np.abs(_wrap(theta - firsts[:len(groups)])).max(axis=1) if groups else np.zeros(0)
+            if not (gaps < _DUPLICATE).any():
+                firsts[len(groups)] = theta
                 groups.append([(theta, merit)])
-            elif twin[-1][1] > _NEWTON_ATOL and merit < twin[-1][1]:
+                continue
+            twin = groups[int(np.argmax(gaps < _DUPLICATE))]
+            if twin[-1][1] > _NEWTON_ATOL and merit < twin[-1][1]:
                 twin.append((theta, merit))
         groups.sort(key=lambda g: float(np.linalg.norm(_wrap(g[0][0] - pre))))
         for group in groups:
@@ -272,9 +287,8 @@ class SlipDirections:
         starts.append(np.array([np.arctan2(free.up[self.tang[k][1]], free.up[self.tang[k][0]])
                                 for k in spatial]))
         ns = len(spatial)
-        per_axis = _GRID_POINTS.get(ns, max(4, int(_GRID_BUDGET ** (1.0 / ns))))
-        axis = 2.0 * np.pi * np.arange(per_axis) / per_axis
-        grid = pre + np.array(list(itertools.product(axis, repeat=ns)))
+        per_axis, offsets = _torus_grid(ns)
+        grid = pre + offsets
         f, _, feas, _, vscale = fmap(grid, jac=False)
         merit = np.abs(f).max(axis=1) / vscale + np.where(feas, 0.0, 1.0)
         merit = np.where(np.isfinite(merit), merit, np.inf).reshape((per_axis,) * ns)
@@ -352,19 +366,26 @@ class SlipDirections:
             return self._fp
         lam = np.zeros(self.m)
         blocks = self.rows._rows_of  # type: ignore[attr-defined]
+        # each contact's rows of G, restitution term, step and cone, formed once (a sweep
+        # repeats them up to _FP_SWEEPS times; the arithmetic of a sweep is unchanged)
+        sweep = []
+        for k in range(self.n):
+            r, t, mu = blocks[k], self.tang[k], self.mu[k]
+            friction = float(mu) if t.size and mu > 0.0 and mu < np.inf else None
+            dg = float(self.G[r[:, None], r].diagonal().max())
+            at = slice(int(r[0]), int(r[-1]) + 1) if np.array_equal(r, np.arange(r[0], r[-1] + 1)) else r
+            sweep.append((at, self.u[r], self.G[r], self.e[k] * self.u[self.normal[k]], friction,
+                          t.size and mu > 0.0, dg, mu if t.size else 0.0))
         for _ in range(_FP_SWEEPS):
             old = lam.copy()
-            for k in range(self.n):
-                r, t = blocks[k], self.tang[k]
-                w = self.u[r] + self.G[r] @ lam
-                mu = self.mu[k]
-                if t.size and mu > 0.0:
-                    w[0] += self.e[k] * self.u[self.normal[k]] + (mu * np.linalg.norm(w[1:]) if mu < np.inf else 0.0)
+            for r, u_r, G_r, restitution, friction, coulomb, dg, cone in sweep:
+                w = u_r + G_r @ lam
+                if coulomb:
+                    w[0] += restitution + (friction * np.linalg.norm(w[1:]) if friction is not None else 0.0)
                 else:
-                    w[0] += self.e[k] * self.u[self.normal[k]]
-                dg = float(self.G[r[:, None], r].diagonal().max())
+                    w[0] += restitution
                 x = lam[r] - w / dg if dg > 0.0 else lam[r]
-                lam[r] = project_cone(x, mu if t.size else 0.0)
+                lam[r] = project_cone(x, cone)
             if np.abs(lam - old).max() <= 1e-14 * max(np.abs(lam).max(), 1e-300):
                 break
         self._fp = (lam, self.u + self.G @ lam)
