@@ -6,21 +6,25 @@ its post-impact slip, itself a result of the impact: in 3-D an angle ``θ`` per 
 contact to solve for, ``g(θ) = wrap(atan2(u+_T(θ)) - θ) = 0``. The map ``θ -> u+_T``
 and its Jacobian are evaluated for a whole batch of angles at once (`SlipMap`: one
 stacked linear solve). One slider: ``g`` scanned around the circle and beside
-the poles of ``Λ_N`` (closed form), each sign change bisected and polished (Newton). Several: the cross form
+the poles of ``Λ_N`` (closed form), each sign change bisected and polished (Newton),
+and the sign changes of the cross form below polished too (a slip that vanishes at one
+direction is a root of that form only). Several: the cross form
 ``f_k = s_k x u+_T,k = ||u+_T,k|| sin g_k``, smooth on the torus (``g`` jumps by
 2π and, where a slip is small, turns so fast that a root is a needle a grid
 misses), solved by Newton's method with a backtracking line search run at once
 from every local minimum of ``max|f|`` on a grid (infeasible points ranked
 last), the pre-impact slip, a rough solution of the whole law (a projected
 fixed point) and the frictionless slip; roots with a slip against ``s``
-(``g = π``, also roots of ``f``) are dropped. A mixin of the solver's problem
+(``g = π``, also roots of ``f``) are dropped. Of two copies of one root (2π apart, or
+found from two starts) the first is tried, and the other after it where Newton stopped
+the first short of convergence and the other is closer. A mixin of the solver's problem
 class (its state: ``G``, ``u``, ``mu``, ``tol``, the candidate's layout and
 evaluation methods).
 """
 
 from __future__ import annotations
 
-import itertools
+import functools
 from collections.abc import Iterator
 
 import numpy as np
@@ -66,6 +70,17 @@ def project_cone(x: np.ndarray, mu: float) -> np.ndarray:
 
 def _wrap(a: np.ndarray) -> np.ndarray:
     return (a + np.pi) % (2.0 * np.pi) - np.pi
+
+
+@functools.lru_cache(maxsize=8)
+def _torus_grid(ns: int) -> tuple[int, np.ndarray]:
+    """Points per axis and the offsets (per_axis**ns, ns) of the grid on the torus of
+    ``ns`` slip angles, last angle fastest; formed once per ``ns`` (read-only)."""
+    per_axis = _GRID_POINTS.get(ns, max(4, int(_GRID_BUDGET ** (1.0 / ns))))
+    axis = 2.0 * np.pi * np.arange(per_axis) / per_axis
+    offsets = np.stack(np.meshgrid(*([axis] * ns), indexing="ij"), axis=-1).reshape(-1, ns)
+    offsets.flags.writeable = False
+    return per_axis, offsets
 
 
 def _run_starts(mask: np.ndarray) -> np.ndarray:
@@ -222,7 +237,10 @@ class SlipDirections:
         by Newton, which rejects the wrap jumps (g = ±π) and the poles (Λ_N
         infinite): all roots that the grid separates. Near a small post-impact
         slip the direction turns fast (|dg/dθ| ~ 1e3 seen), so a steep sign
-        change is not taken for a jump. Several: `newton` on the cross form from
+        change is not taken for a jump; the cross form's sign changes are polished
+        too (`cross_roots`). Of two copies of one root the first is tried, and the
+        other after it where the first is not converged and the other is closer.
+        Several: `newton` on the cross form from
         the pre-impact slip, from the post-impact slip of an approximate solution
         of the whole law (`fixed_point`), from the frictionless post-impact
         slip, and from the local minima of max|f| on a grid on the torus (one
@@ -236,17 +254,31 @@ class SlipDirections:
             roots = self.roots_1d(fmap, float(pre[0]))
             # a slip that vanishes at one direction (the impulse on the cone's edge, the
             # contact at rest after it) is no root of the angle form, whose angle is
-            # undefined there, but one of the cross form s × u+_T (`zero_slip_roots`)
-            roots += self.zero_slip_roots(SlipMap(self, states, dirs, spatial, lay, cross=True), float(pre[0]))
+            # undefined there, but one of the cross form s × u+_T (`cross_roots`)
+            roots += self.cross_roots(SlipMap(self, states, dirs, spatial, lay, cross=True), float(pre[0]))
         else:
             roots = self.roots_nd(fmap, states, dirs, spatial, lay, pre)
-        found: list[np.ndarray] = []
-        for theta in roots:  # the converged ones first: a duplicate keeps the more accurate
-            if not found or np.abs(_wrap(theta - np.asarray(found))).max(axis=1).min() >= _DUPLICATE:
-                found.append(theta)
-        yield from sorted(found, key=lambda t: float(np.linalg.norm(_wrap(t - pre))))
+        # of two copies of one root (found from two brackets, or 2π apart) the first is
+        # tried; a copy closer to zero follows it where the first stopped short of
+        # convergence (a bracket of a wrap jump may walk to a neighbouring root and stop
+        # after its few iterations), for the case that the law's check rejects the first
+        groups: list[list[tuple[np.ndarray, float]]] = []
+        firsts = np.empty((len(roots), len(spatial)))  # each group's first copy
+        for theta, merit in roots:
+            gaps = np.abs(_wrap(theta - firsts[:len(groups)])).max(axis=1) if groups else np.zeros(0)
+            if not (gaps < _DUPLICATE).any():
+                firsts[len(groups)] = theta
+                groups.append([(theta, merit)])
+                continue
+            twin = groups[int(np.argmax(gaps < _DUPLICATE))]
+            if twin[-1][1] > _NEWTON_ATOL and merit < twin[-1][1]:
+                twin.append((theta, merit))
+        groups.sort(key=lambda g: float(np.linalg.norm(_wrap(g[0][0] - pre))))
+        for group in groups:
+            for theta, _ in group:
+                yield theta
 
-    def roots_nd(self, fmap, states, dirs, spatial, lay, pre) -> list[np.ndarray]:
+    def roots_nd(self, fmap, states, dirs, spatial, lay, pre) -> list[tuple[np.ndarray, float]]:
         """Several spatial sliders: Newton on the cross form from the starts of `slip_roots`."""
         starts = [pre]
         ups = self.fixed_point()[1]
@@ -255,9 +287,8 @@ class SlipDirections:
         starts.append(np.array([np.arctan2(free.up[self.tang[k][1]], free.up[self.tang[k][0]])
                                 for k in spatial]))
         ns = len(spatial)
-        per_axis = _GRID_POINTS.get(ns, max(4, int(_GRID_BUDGET ** (1.0 / ns))))
-        axis = 2.0 * np.pi * np.arange(per_axis) / per_axis
-        grid = pre + np.array(list(itertools.product(axis, repeat=ns)))
+        per_axis, offsets = _torus_grid(ns)
+        grid = pre + offsets
         f, _, feas, _, vscale = fmap(grid, jac=False)
         merit = np.abs(f).max(axis=1) / vscale + np.where(feas, 0.0, 1.0)
         merit = np.where(np.isfinite(merit), merit, np.inf).reshape((per_axis,) * ns)
@@ -270,10 +301,15 @@ class SlipDirections:
         starts.extend(grid[idx])
         return self.newton(fmap, np.array(starts))
 
-    def zero_slip_roots(self, fmap, pre: float) -> list[np.ndarray]:
+    def cross_roots(self, fmap, pre: float) -> list[tuple[np.ndarray, float]]:
         """One spatial slider: the sign changes of the cross form ``s × u+_T`` over the
-        scan that are zeros of the slip itself (``||u+_T||`` within `SLIP_ZERO` of the
-        velocity scale after Newton), where the angle form has no root."""
+        scan, each polished by Newton. Those Newton keeps (slip along ``s``, or zero) are
+        roots of the law: with the slip along ``s`` they are the angle form's roots again
+        (`slip_roots` keeps one copy), with a slip that vanishes they are roots the angle
+        form has not. Which of the two a root is need not be decided: the zero of the slip
+        is found only to the accuracy of the angle (``|du+_T/dθ| δθ``, above `SLIP_ZERO`
+        of the velocity scale where the slip turns slowly), and the candidate's check
+        judges the law either way."""
         th = pre + 2.0 * np.pi * np.arange(_SCAN_POINTS + 1) / _SCAN_POINTS
         f = fmap(th[:, None], jac=False)[0][:, 0]
         fin = np.isfinite(f[:-1]) & np.isfinite(f[1:])
@@ -281,21 +317,9 @@ class SlipDirections:
         if not ch.size:
             return []
         starts = 0.5 * (th[ch] + th[ch + 1])
-        return [theta for theta in self.newton(fmap, starts[:, None], max_iter=_NEWTON_MAX_ITER)
-                if self._slip_vanishes(fmap, theta)]
+        return self.newton(fmap, starts[:, None], max_iter=_NEWTON_MAX_ITER)
 
-    def _slip_vanishes(self, fmap, theta: np.ndarray) -> bool:
-        """Whether the one slider's post-impact slip at ``theta`` is zero (below `SLIP_ZERO`
-        of the velocity scale)."""
-        vscale = float(fmap(np.atleast_2d(theta), jac=False)[4][0])
-        a = fmap.GT[0] @ np.array([np.cos(theta[0]), np.sin(theta[0])])
-        K = fmap.K0.copy()
-        K[:, fmap.c[0]] += a[fmap.eq]
-        z = fmap._solve(K[None], fmap.r[None, :, None])[0, :, 0]
-        up = self.u + fmap.GB0 @ z + a * z[fmap.c[0]]
-        return bool(np.linalg.norm(up[fmap.T[0]]) <= SLIP_ZERO * vscale)
-
-    def roots_1d(self, fmap, pre: float) -> list[np.ndarray]:
+    def roots_1d(self, fmap, pre: float) -> list[tuple[np.ndarray, float]]:
         """The slip angles of one spatial slider: the circle scanned, each sign change
         bisected (_BISECT halvings, all at once) and polished by Newton."""
         th = pre + 2.0 * np.pi * np.arange(_SCAN_POINTS + 1) / _SCAN_POINTS
@@ -342,25 +366,33 @@ class SlipDirections:
             return self._fp
         lam = np.zeros(self.m)
         blocks = self.rows._rows_of  # type: ignore[attr-defined]
+        # each contact's rows of G, restitution term, step and cone, formed once (a sweep
+        # repeats them up to _FP_SWEEPS times; the arithmetic of a sweep is unchanged)
+        sweep = []
+        for k in range(self.n):
+            r, t, mu = blocks[k], self.tang[k], self.mu[k]
+            friction = float(mu) if t.size and mu > 0.0 and mu < np.inf else None
+            dg = float(self.G[r[:, None], r].diagonal().max())
+            at = slice(int(r[0]), int(r[-1]) + 1) if np.array_equal(r, np.arange(r[0], r[-1] + 1)) else r
+            sweep.append((at, self.u[r], self.G[r], self.e[k] * self.u[self.normal[k]], friction,
+                          t.size and mu > 0.0, dg, mu if t.size else 0.0))
         for _ in range(_FP_SWEEPS):
             old = lam.copy()
-            for k in range(self.n):
-                r, t = blocks[k], self.tang[k]
-                w = self.u[r] + self.G[r] @ lam
-                mu = self.mu[k]
-                if t.size and mu > 0.0:
-                    w[0] += self.e[k] * self.u[self.normal[k]] + (mu * np.linalg.norm(w[1:]) if mu < np.inf else 0.0)
+            for r, u_r, G_r, restitution, friction, coulomb, dg, cone in sweep:
+                w = u_r + G_r @ lam
+                if coulomb:
+                    w[0] += restitution + (friction * np.linalg.norm(w[1:]) if friction is not None else 0.0)
                 else:
-                    w[0] += self.e[k] * self.u[self.normal[k]]
-                dg = float(self.G[r[:, None], r].diagonal().max())
+                    w[0] += restitution
                 x = lam[r] - w / dg if dg > 0.0 else lam[r]
-                lam[r] = project_cone(x, mu if t.size else 0.0)
+                lam[r] = project_cone(x, cone)
             if np.abs(lam - old).max() <= 1e-14 * max(np.abs(lam).max(), 1e-300):
                 break
         self._fp = (lam, self.u + self.G @ lam)
         return self._fp
 
-    def newton(self, fmap, theta0: np.ndarray, max_iter: int = _NEWTON_MAX_ITER) -> list[np.ndarray]:
+    def newton(self, fmap, theta0: np.ndarray,
+               max_iter: int = _NEWTON_MAX_ITER) -> list[tuple[np.ndarray, float]]:
         """Newton's method on f from each row of theta0 (all at once), with steps
         capped at _NEWTON_MAX_STEP and a backtracking line search on ||f|| (the
         largest fraction in _LINE_SEARCH that decreases it, else the smallest).
@@ -368,7 +400,8 @@ class SlipDirections:
         scale) or its step is below round-off, else its best iterate if max|f|
         <= _NEWTON_LOOSE (round-off of a small slip: the candidate's residual
         check decides), else nothing; and nothing if a slip points against its
-        direction (a root of the cross form that is not one of the law)."""
+        direction (a root of the cross form that is not one of the law). Each
+        root comes with its max|f| (relative to f's scale)."""
         theta = np.array(theta0, dtype=float)
         P, ns = theta.shape
         best_f = np.full(P, np.inf)
@@ -417,6 +450,6 @@ class SlipDirections:
             dec = nt < np.linalg.norm(f, axis=1)[:, None]
             pick = np.where(dec.any(axis=1), dec.argmax(axis=1), _LINE_SEARCH.size - 1)
             theta[ia] = trial[np.arange(ia.size), pick]
-        out = [theta[i] for i in range(P) if done[i]]
-        out += [best[i] for i in range(P) if not done[i] and best_f[i] <= _NEWTON_LOOSE]
+        out = [(theta[i], float(best_f[i])) for i in range(P) if done[i]]
+        out += [(best[i], float(best_f[i])) for i in range(P) if not done[i] and best_f[i] <= _NEWTON_LOOSE]
         return out

@@ -34,7 +34,9 @@ given ``s`` this is one linear system; ``s`` is ``±1`` on a planar contact
 (both signs are tried) and ``(cos θ, sin θ)`` on a spatial one, where ``θ``
 solves ``atan2(u+_T(θ)) = θ``: with one spatial sliding contact by a scan of
 the circle, also split beside the poles of ``Λ_N`` (in closed form), then
-bisection and a Newton polish (every root the scan separates);
+bisection and a Newton polish (every root the scan separates), and the sign
+changes of the cross form below polished too (a slip that vanishes at one
+direction, its impulse on the cone's edge, is a root of that form only);
 with several by Newton's method with a line search on the smooth cross form
 ``s_k x u+_T,k(θ) = 0`` (no angle wrap, and no ``1/||u+_T||`` that makes a root
 with a small slip a needle in ``θ``), run at once from the pre-impact slip,

@@ -91,6 +91,9 @@ class GuardFinder:
         self.scene, self.dyn, self.options, self.gap_tol = scene, dyn, options, gap_tol
         self.kin = scene.kinematics
         self.contacts = scene.contacts
+        self.from_rest: set[int] = set()
+        """Keys of the slips the last event started from rest (set by the hybrid loop for
+        the first step after an event, `restart_from_rest`)."""
 
     def crossings(self, stepper, dense, field, mode, start, end) -> tuple[list[tuple[float, Guard]], list[NearMiss]]:
         """The guards the last step of ``stepper`` crossed, and its near-grazing misses.
@@ -166,8 +169,12 @@ class GuardFinder:
             if values1[k] >= 0.0:
                 continue
             # a slip that starts at (or is stopped within noise of) zero speed fires only once
-            # its speed along its direction passes -floor: below floor its direction is noise
-            shift = floor if guard.kind is GuardKind.STOP and values0[k] <= 0.0 else 0.0
+            # its speed along its direction passes -floor: below floor its direction is noise.
+            # One an event started from rest starts at round-off of either sign (`from_rest`)
+            shift = 0.0
+            if guard.kind is GuardKind.STOP and (values0[k] <= 0.0 or
+                                                 (guard.contact in self.from_rest and values0[k] <= floor)):
+                shift = floor
             if values1[k] + shift >= 0.0:
                 continue
             def value(t, k=k, shift=shift):
@@ -181,6 +188,20 @@ class GuardFinder:
                 continue
             found.append((locate_crossing(value, t_a, t_b, start, values1[k] + shift), guard))
         return found, misses
+
+    def restart_from_rest(self, mode_before, mode_after, fired) -> None:
+        """After an event from ``mode_before`` to ``mode_after`` (contact keys) where the
+        guards ``fired``: the slips of ``mode_after`` that start from rest, those whose
+        contact did not slip before (it stuck: its slip held at zero) or whose stop fired
+        (its slip held at zero, then slipping on). Their slip velocity is zero by
+        construction, so its sign at the first step's start is round-off (+1e-17 m/s seen):
+        their stop fires only past ``-floor`` (`crossings`). With the round-off positive
+        the stop was located at zero instead, where a step's dense output reversing from
+        the start put it at the start itself: after every restart the same stop, and a
+        run that repeated one event without advancing."""
+        stopped = {g.contact for g in fired if g.kind is GuardKind.STOP}
+        self.from_rest = {key for key in mode_after if self.dyn.contact(key).slips
+                          and (key not in mode_before or key in stopped)}
 
     def grazing_band(self, q) -> float:
         """Gap (m) within which a contact that turns back up may have touched, given

@@ -339,6 +339,7 @@ class HybridLoop(EventResets, FrictionEvents):
             forces1 = field.guard_values(stepper.t, stepper.q, stepper.v)
             crossings, misses = self.guards.crossings(stepper, dense, field, mode, (gaps, rates, forces),
                                                       (gaps1, rates1, forces1))
+            self.guards.from_rest = set()  # the first step after an event only
             if not crossings:
                 self._near_misses(misses, np.inf)
                 gaps, rates, forces = gaps1, rates1, forces1
@@ -376,6 +377,7 @@ class HybridLoop(EventResets, FrictionEvents):
             self.phi = stepper.phi
             n_before, mode_before = len(self.events), tuple(mode)
             mode, v_plus = self._event(t_event, stepper.q, stepper.v, mode, fired)
+            self.guards.restart_from_rest(mode_before, mode, fired)
             if len(self.events) > options.max_events:
                 raise TooManyEventsError(
                     f"more than max_events = {options.max_events} events by t = {t_event:.17g} "

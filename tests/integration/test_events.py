@@ -81,3 +81,61 @@ def test_a_dip_below_the_ground_inside_one_step_is_found(rtol):
     traj = cd.simulate(scene, 0.2, rtol=rtol, atol=rtol * 1e-2)
     assert [e.kind for e in traj.events] == ["bounce"]
     assert traj.events[0].t == pytest.approx(t_in, abs=1e3 * rtol)
+
+
+def _stop_crossing(h, t_a, t_b, from_rest: bool):
+    """Where `GuardFinder` locates the stop guard ``h(t)`` (m/s) of a slipping corner over
+    one step ``[t_a, t_b]`` (the first after an event that started it from rest, if
+    ``from_rest``): the cube with every corner in the mode (no gap to watch), the dense
+    output and the mode's guard values replaced by ``h`` alone, the noise floor of the
+    slip direction the hybrid loop's (``zeno_speed``)."""
+    from types import SimpleNamespace
+
+    from contactdiff.dynamics.mode import ModeDynamics
+    from contactdiff.integration.guards import Guard, GuardFinder, GuardKind
+    from contactdiff.integration.options import SimulateOptions
+
+    scene = cd.cube_scene(friction=0.5)
+    dyn = ModeDynamics(scene)
+    options = SimulateOptions()
+    dyn.slip_speed_floor = options.zeno_speed
+    mode = tuple(dyn.sliding_key(i) for i in range(len(scene.contacts)))
+    field = SimpleNamespace(guards=[Guard(GuardKind.STOP, mode[0])],
+                            guard_values=lambda t, q, v: np.array([h(t)]))
+    stepper = SimpleNamespace(t_old=t_a, t=t_b, q=scene.q0, q_old=scene.q0)
+    zeros = np.zeros(len(scene.contacts))
+    finder = GuardFinder(scene, dyn, options, 1e-12)
+    finder.from_rest = {mode[0]} if from_rest else set()
+    found, _ = finder.crossings(
+        stepper, lambda t: (scene.q0, scene.v0), field, mode, (zeros, zeros, np.array([h(t_a)])),
+        (zeros, zeros, np.array([h(t_b)])))
+    return [t for t, _ in found], options.zeno_speed
+
+
+@pytest.mark.parametrize("start", [1e-17, 0.0, -1e-17])
+def test_a_slip_restarted_from_rest_stops_only_past_the_noise_floor(start):
+    """A slip an event restarted from rest (its velocity held to zero at a stop, then
+    slipping on) starts at round-off of either sign, +1e-17 m/s seen on a measured toss
+    (μ 0.5, e 0);
+    below the floor ε (zeno_speed) its direction is noise, so its stop guard
+    ``h = s · u_T`` fires only once h passes -ε (docs: a slip below the floor follows its
+    reference). A dense output reversing from the start, h(t) = start - a (t - t_a)² with
+    a = 4.1 m/s³ (2.8 mm/s over a 26 ms step, as there), then crosses -ε at
+    t_a + sqrt((start + ε) / a) whatever the start's sign; located at h = 0 instead (at
+    t_a + 1.6e-9 s for +1e-17), the stop repeated at the same instant after every restart
+    and the run never advanced. Tolerance: the crossing is located to 4 ulp in time, where
+    |dh/dt| = 2 sqrt(a ε) ~ 4e-3 m/s²: h to ~1e-18 m/s."""
+    t_a, t_b, a = 0.3, 0.326, 4.1
+    found, floor = _stop_crossing(lambda t: start - a * (t - t_a) ** 2, t_a, t_b, from_rest=True)
+    assert found == [pytest.approx(t_a + np.sqrt((start + floor) / a), abs=1e-14)]
+
+
+@pytest.mark.parametrize("speed, from_rest", [(1e-3, True), (1e-3, False), (5e-7, False)])
+def test_a_slowing_slip_stops_at_zero(speed, from_rest):
+    """A slip that was moving at the step start (faster than the floor, or slower but not
+    just started from rest: it slowed down into the band), decelerating at 1 m/s², stops
+    where its speed along its direction is zero: at t_a + speed / (1 m/s²), to the
+    crossing's 4 ulp in time."""
+    t_a = 0.3
+    found, _ = _stop_crossing(lambda t: speed - (t - t_a), t_a, t_a + 0.01, from_rest)
+    assert found == [pytest.approx(t_a + speed, abs=1e-14)]
