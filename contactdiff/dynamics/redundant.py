@@ -54,7 +54,7 @@ RANK_TOL = 1e-9
 
 GRAM_RANK_TOL = 1e-12
 """Eigenvalues of a Delassus block below this share of the largest count as zero:
-dependent rows leave ~1e-16 (round-off); 1e-10 is a singular-value ratio of 1e-5 of
+dependent rows leave ~1e-16 (round-off); 1e-12 is a singular-value ratio of 1e-6 of
 the rows, far below that of a well-posed contact set."""
 
 
