@@ -7,7 +7,7 @@ touches, turning about y at -11 rad/s, under gravity tilted by 0.2 rad towards +
 corner sticks until its sticking force leaves the cone (t ≈ 0.0122 s) and then slips
 from zero speed. Its reference direction is the sticking force's, ``r = -λ_T/|λ_T|``,
 but the slip grows along ``W r`` (W the corner's tangential inverse mass, not a
-multiple of the identity for a point off the centre's vertical): 38° apart here. Below
+multiple of the identity for a point off the centre's vertical): 55° apart here. Below
 the noise floor ε (``zeno_speed``) the slip follows ``r``, between ε and 2ε it turns to
 its own direction (`contactdiff.dynamics.slip`). With the flow Jacobian that turn
 collapsed the steps (`StepCollapseError`) before the turn was C^∞ and the reference was
