@@ -14,7 +14,8 @@ in tangent coordinates (`slip_direction`).
 **Slip direction.** In 3-D, ``s = u_T / ||u_T||`` with ``u_T = A_T v`` the
 slip velocity; on a planar contact ``s = ±1`` is fixed for the whole slip.
 The 3-D direction is continued through the stop: where ``u_T`` points against
-the contact's *reference* ``r`` (its direction at the last accepted step), past
+the contact's *reference* ``r`` (its direction at the last accepted step that
+ended outside the band below), past
 the stop, ``s`` is ``r`` itself, as on a planar contact, so the stop is the zero
 of ``r · u_T``, a sign change the guards locate like any other. Not
 ``-u_T / ||u_T||``, the continuation along the slip's own direction: past the
@@ -29,9 +30,25 @@ arithmetic (the BLAS kernel). Below a floor ``ε`` (`SLIP_SPEED_EPS`; the hybrid
 ``r`` itself: at the onset of a slip from sticking ``u_T`` grows from 0 and its
 direction there is noise. Between ``ε`` and ``2ε`` it turns from ``r`` to the
 slip's own direction ``ŵ`` along ``b = a ŵ + (1 - a) r``, ``s = b / ||b||``,
-with the smooth step ``a = 3x² - 2x³``, ``x = ||u_T|| / ε - 1``: the field is
-C¹ through the band (a slip whose direction is not the reference's would
+with the smooth step ``a(x)``, ``x = ||u_T|| / ε - 1`` (`_turn`): the field is
+smooth through the band (a slip whose direction is not the reference's would
 otherwise jump there, and no step could cross it), and exact above ``2ε``.
+``a`` is C^∞ (every derivative zero at both ends), not the cubic ``3x² - 2x³``:
+the cubic left the field's Jacobian with a kink at each end of the band, and a
+slip that starts from rest with its reference at an angle to the direction it
+grows in (the sticking force's direction, where the tangential inverse mass is
+not isotropic) creeps at a speed just above ``ε`` while it turns, so every step
+straddled the kink and the flow Jacobian's error estimate did not shrink with
+the step (steps of 1e-10 s: a collapse).
+Inside the band ``r`` stays as it entered (`ModeField.advance`): the turn is
+then a function of the state, the flow of one vector field. Set to ``s`` after
+every accepted step there, it turned ``s`` by a share ``a`` of the remaining
+angle *per step*, a field that changed between steps: the steps' first stage
+and Jacobian (kept from the step before) belonged to the old field, and with
+the flow Jacobian's error controlled its estimate did not shrink with the step
+(``ds/du_T`` is of order ``|ŵ - r| / ε`` there): a slip that started from
+rest at an angle to its reference collapsed the steps, and the flow Jacobian
+ignored how ``r`` depended on the steps.
 
 **Painlevé's paradox.** With one slipping contact the normal force solves
 ``g λ_N = -b`` with ``g = A_n M^-1 F^T``: where ``g <= 0`` a normal force
@@ -41,6 +58,7 @@ pushes the contact *into* the ground, and the sliding problem has no solution
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -49,6 +67,17 @@ SLIP_SPEED_EPS = 1e-10
 """m/s: a 3-D slip slower than this takes its direction from the reference (a
 slip just starting from sticking; round-off in the slip velocity of a unit-scale
 model is about 1e-16 m/s)."""
+
+
+def _turn(x: float) -> tuple[float, float]:
+    """The share ``a`` of the slip's own direction at ``x`` in [0, 1] across the band, and
+    ``da/dx``: ``a = ψ(x) / (ψ(x) + ψ(1 - x))`` with ``ψ(x) = exp(-1/x)``, 0 at 0 and 1 at 1
+    with every derivative zero at both ends (C^∞, module doc)."""
+    if x <= 0.0 or x >= 1.0:
+        return (0.0 if x <= 0.0 else 1.0), 0.0
+    p, m = math.exp(-1.0 / x), math.exp(-1.0 / (1.0 - x))
+    total = p + m
+    return p / total, p * m * (1.0 / (x * x) + 1.0 / ((1.0 - x) ** 2)) / (total * total)
 
 
 def slip_direction(slip_velocity: np.ndarray, reference: np.ndarray | None, floor: float = SLIP_SPEED_EPS
@@ -82,8 +111,8 @@ def slip_direction(slip_velocity: np.ndarray, reference: np.ndarray | None, floo
         return s, (np.eye(2) - np.outer(s, s)) / speed
     # the band [floor, 2 floor]: from the reference to the slip's own direction (module doc)
     r = np.asarray(reference, dtype=float)
-    x = speed / floor - 1.0
-    a, da = x * x * (3.0 - 2.0 * x), 6.0 * x * (1.0 - x) / floor  # da / d||u||
+    a, da = _turn(speed / floor - 1.0)
+    da /= floor  # da / d||u||
     b = a * s + (1.0 - a) * r
     norm = float(np.linalg.norm(b))
     blended = b / norm

@@ -128,9 +128,12 @@ class ModeField:
 
     def advance(self, q, v) -> None:
         """After an accepted step ending at ``(q, v)``: each 3-D slip continues along its
-        direction there (the reference of `contactdiff.dynamics.slip`)."""
+        direction there (the reference of `contactdiff.dynamics.slip`), unless its speed
+        is in the band ``[0, 2 floor)`` where the direction depends on the reference: there
+        the reference stays, so the field is the same before and after the step (the
+        stepper keeps the end point's field value and Jacobian for the next step)."""
         for guard in self.guards:
             if guard.kind is GuardKind.STOP:
                 index, u_T, s = self._slip(guard.contact, q, v)
-                if len(u_T) == 2:
+                if len(u_T) == 2 and np.hypot(u_T[0], u_T[1]) >= 2.0 * self.dyn.slip_speed_floor:
                     self.dyn.slip_reference[index] = s
