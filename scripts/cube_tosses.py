@@ -60,7 +60,7 @@ def summary(errors: list[tuple[float, float]]) -> dict:
             "rotation_std": statistics.pstdev(rot), "rotation_median": statistics.median(rot)}
 
 
-def evaluate_held_out(tosses, names, values, jobs, label) -> dict:
+def evaluate_held_out(tosses, names, values, jobs, label, options) -> dict:
     """Both starts' rollouts of the held-out ``names`` at ``values``: metrics, failures, worst tosses."""
     out = {}
     for start in Start:
@@ -70,7 +70,7 @@ def evaluate_held_out(tosses, names, values, jobs, label) -> dict:
                 recs.append(toss_recording(tosses[n], start))
             except cd.InvalidInputError:  # a free flight too short for the parabola: start at the first sample
                 recs.append(toss_recording(tosses[n], Start.FIRST))
-        runs = rollouts(cd.cube_scene, recs, values, jobs=jobs, progress=None)
+        runs = rollouts(cd.cube_scene, recs, values, jobs=jobs, options=options, progress=None)
         errors, failed, rows = [], [], []
         for rec, run in zip(recs, runs):
             if not run.complete:
@@ -97,7 +97,7 @@ def _line(s: dict) -> str:
             f"(median {s['rotation_median']:.1f}); {len(s['failed'])} failed")
 
 
-def jacobian_cost(tosses, names, scene) -> dict:
+def jacobian_cost(tosses, names, scene, options) -> dict:
     """One toss's residuals with their exact Jacobian against the plain run that finite differences
     repeat (forward: n + 1 runs, central: 2n), medians over ``names`` (run in this process)."""
     plan = FitPlan(scene, unknowns(scene))
@@ -105,11 +105,11 @@ def jacobian_cost(tosses, names, scene) -> dict:
     exact, plain = [], []
     for n in names:
         rec = toss_recording(tosses[n], Start.BEFORE_TOUCH)
-        task = Task(0, rec, values, np.zeros(0), StateFit.NONE, ResidualWeights(), {})
+        task = Task(0, rec, values, np.zeros(0), StateFit.NONE, ResidualWeights(), options)
         t0 = time.perf_counter()
         evaluate(scene, plan.parameters, task)
         exact.append(time.perf_counter() - t0)
-        plain.append(rollout(scene, rec, values).wall)
+        plain.append(rollout(scene, rec, values, options).wall)
     k = len(plan.names)
     ratio = statistics.median(e / p for e, p in zip(exact, plain))
     return {"unknowns": k, "exact_over_plain": ratio, "forward_fd_over_plain": k + 1, "central_fd_over_plain": 2 * k,
@@ -124,6 +124,9 @@ def main(argv=None) -> int:
     parser.add_argument("--seed", type=int, default=0, help="seed of the split (default 0)")
     parser.add_argument("--max-evaluations", type=int, default=12, help="the fit's evaluations at most")
     parser.add_argument("--jobs", type=int, default=None, help="worker processes (default: one per core)")
+    parser.add_argument("--rtol", type=float, default=1e-6,
+                        help="the runs' relative tolerance (default 1e-6: the data's noise is ~1e-3 m on 0.1 m)")
+    parser.add_argument("--atol", type=float, default=1e-8, help="the runs' absolute tolerance (default 1e-8)")
     parser.add_argument("--quick", action="store_true", help="2 shipped tosses to fit, 2 held out, 1 evaluation")
     parser.add_argument("--plot-dir", help="write plots of held-out tosses and the error distribution here")
     parser.add_argument("--json", action="store_true", help="print the report as JSON")
@@ -140,16 +143,18 @@ def main(argv=None) -> int:
     recs = [toss_recording(tosses[n], Start.BEFORE_TOUCH) for n in train]
     weights = ResidualWeights(position=1.0, orientation=NOMINAL.edge / 2)  # a radian counts as a corner's travel
     started = time.perf_counter()
+    options = {"rtol": args.rtol, "atol": args.atol}
     result = fit(cd.cube_scene if jobs > 1 else scene, recs, unknowns(scene), weights=weights, jobs=jobs,
-                 max_evaluations=args.max_evaluations)
+                 max_evaluations=args.max_evaluations, options=options)
     report["fit"] = result.to_dict() | {"wall_time": time.perf_counter() - started}
     print(result.table(), file=sys.stderr, flush=True)
     fitted = dict(zip(_scene_names(scene), _scene_values(scene, result)))
     report["fitted_scene_values"] = fitted
 
-    report["nominal"] = evaluate_held_out(tosses, held_out, None, jobs, "nominal")
-    report["fitted"] = evaluate_held_out(tosses, held_out, fitted, jobs, "fitted")
-    report["jacobian_cost"] = jacobian_cost(tosses, train[:min(5, len(train))], scene)
+    report["options"] = options
+    report["nominal"] = evaluate_held_out(tosses, held_out, None, jobs, "nominal", options)
+    report["fitted"] = evaluate_held_out(tosses, held_out, fitted, jobs, "fitted", options)
+    report["jacobian_cost"] = jacobian_cost(tosses, train[:min(5, len(train))], scene, options)
     report["anchors"] = ANCHORS
     report["stepping_cost"] = STEPPING_COST
     if args.plot_dir:
@@ -188,7 +193,7 @@ def plot_report(report: dict, tosses, fitted: dict, folder: Path) -> None:
     fig, axes = plt.subplots(len(chosen), 1, figsize=(7, 2.3 * len(chosen)), squeeze=False)
     for ax, name in zip(axes[:, 0], chosen):
         rec = toss_recording(tosses[name], Start.BEFORE_TOUCH)
-        run = rollout(scene, rec, fitted)
+        run = rollout(scene, rec, fitted, report["options"])
         k = rec.compared[:len(run.q)]
         for j, axis in enumerate("xyz"):
             ax.plot(rec.t, rec.q[:, j], ".", color=f"C{j}", markersize=2.5, label=f"{axis} measured")
