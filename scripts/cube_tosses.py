@@ -64,12 +64,7 @@ def evaluate_held_out(tosses, names, values, jobs, label, options) -> dict:
     """Both starts' rollouts of the held-out ``names`` at ``values``: metrics, failures, worst tosses."""
     out = {}
     for start in Start:
-        recs = []
-        for n in names:
-            try:
-                recs.append(toss_recording(tosses[n], start))
-            except cd.InvalidInputError:  # a free flight too short for the parabola: start at the first sample
-                recs.append(toss_recording(tosses[n], Start.FIRST))
+        recs = [toss_recording(tosses[n], start) for n in names]
         runs = rollouts(cd.cube_scene, recs, values, jobs=jobs, options=options, progress=None)
         errors, failed, rows = [], [], []
         for rec, run in zip(recs, runs):

@@ -12,7 +12,8 @@ Two rollout starts, as the two published studies of these tosses start theirs:
   the sample time: a cube whose three moments are equal turns at a constant
   body-frame rate in free flight). The cube *can* touch once its centre is
   within half a space diagonal (√3 edge / 2) of the board: no orientation
-  reaches the board from higher up.
+  reaches the board from higher up. A toss with fewer than three samples of free
+  flight starts at its first sample, as measured.
 
 `split` keeps the tosses that upstream holds twice (the same recording
 processed again with another yaw: identical heights z(t)) on one side.
@@ -78,8 +79,7 @@ def toss_recording(toss: Toss, start: Start | str = Start.FIRST,
     """The toss as a `Recording` of the cube scene from the chosen `Start`.
 
     Raises:
-        InvalidInputError: an unknown start (the valid ones listed), or too short a free flight
-            for `Start.BEFORE_TOUCH`.
+        InvalidInputError: an unknown start (the valid ones listed).
     """
     try:
         start = Start(start)
@@ -93,7 +93,11 @@ def toss_recording(toss: Toss, start: Start | str = Start.FIRST,
     else:
         k_touch = first_touch_sample(toss, parameters)
         k0 = max(0, k_touch - MARGIN_SAMPLES)
-        q0, v0 = q[k0], free_flight_velocity(toss, k0, k_touch)
+        if k_touch >= 3:
+            q0, v0 = q[k0], free_flight_velocity(toss, k0, k_touch)
+        else:  # fewer than three samples of free flight: no parabola, the first sample as measured
+            k0 = 0
+            q0, v0 = toss.state(0)
     return Recording(toss.name, toss.t, q, float(toss.t[k0]), q0, v0)
 
 
