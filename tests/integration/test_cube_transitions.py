@@ -232,3 +232,101 @@ def test_a_cube_tipped_onto_a_corner_falls_back_onto_its_face_and_stops():
     assert len(traj.events) == 1
     np.testing.assert_allclose(traj.q[:3], [0.0, 0.0, B], atol=1e-8)
     np.testing.assert_allclose(traj.v, 0.0, atol=1e-9)
+
+
+def push_at_the_top(rate):
+    """A horizontal force ``rate`` × t (N) along world x at the centre of the cube's top
+    face (its frame's (0, 0, b)), as the free flyer's generalised force: the force and its
+    moment about the centre, both in the cube's frame."""
+    arm = np.array([0.0, 0.0, B])
+
+    def wrench(q, v, t, scale):
+        force = pin.Quaternion(q[3:7]).matrix().T @ np.array([scale, 0.0, 0.0])
+        return np.r_[force, np.cross(arm, force)]
+    return cd.UserEffort(lambda q, v, t: wrench(q, v, t, rate * t), name="push",
+                         time_derivative=lambda q, v, t: wrench(q, v, t, rate))
+
+
+@pytest.mark.parametrize("u0, mu", [(0.0, 0.8), (1.0, 0.3)])
+def test_a_push_at_the_top_lifts_the_back_edge(u0, mu):
+    """Flat on its face, sliding along x at u0 (or at rest), pushed along x at the top
+    face's centre (2b above the ground) by F = k t. Moments about the front bottom edge
+    while all four corners hold: the push tips with F 2b, the centre's deceleration a
+    (d'Alembert's force m a forward at height b) with m a b, gravity restores with
+    m g b. At rest the corners stick (F <= μ m g) and a = 0; sliding, friction is
+    μ m g backwards and a = μ g - F/m, so the tipping moment is F b + μ m g b. The back
+    corners' normal force (the back edge's total is determined by the pitch balance;
+    left = right by symmetry) reaches zero together when F = m g / 2 at rest, or
+    F = m g (1 - μ) sliding: a lift-off of the two back corners at t = F / k, the front
+    edge holding (still sliding at u0 - μ g t + k t² / (2 m) > 0 in the sliding case).
+    At rest the friction's split is the principle's (`contactdiff.dynamics.redundant`):
+    the compatible deflection of a push along x is a translation (the pitch moves every
+    bottom corner along x by the same amount too), so each corner carries F/4 of it,
+    while a back corner's load is (m g - 2F)/4: the back corners reach their cones
+    first, F/4 = μ (m g - 2F)/4 at F = μ m g / (1 + 2μ), and slip (on the spot: the
+    front corners stick) before they lift."""
+    F_lift = MASS * G / 2 if u0 == 0.0 else MASS * G * (1 - mu)
+    if u0 == 0.0:
+        assert F_lift <= mu * MASS * G
+    t_lift = 0.1
+    rate = F_lift / t_lift
+    speed = u0 - mu * G * t_lift + rate * t_lift**2 / (2 * MASS)
+    scene = cube(mu)
+    scene = cd.Scene(scene.robot, scene.contact_specs, efforts=[push_at_the_top(rate)])  # the model's gravity
+    q = np.r_[0.0, 0.0, B, 0.0, 0.0, 0.0, 1.0]
+    traj = cd.simulate(scene.with_state(q, np.r_[u0, 0.0, 0.0, 0.0, 0.0, 0.0]), t_lift + 1e-3, **TIGHT)
+    if u0 == 0.0:
+        slip, lift = traj.events
+        assert slip.kind == "slip" and set(slip.contacts) == corners(x="-", z="-")
+        assert slip.t == pytest.approx(mu * MASS * G / (1 + 2 * mu) / rate, abs=EVENT_ATOL)
+        assert set(slip.sliding) == corners(x="-", z="-") and set(slip.mode_after) == corners(z="-")
+    else:
+        (lift,) = traj.events
+    assert lift.kind == "lift-off" and set(lift.contacts) == corners(x="-", z="-") and lift.simultaneous
+    assert lift.t == pytest.approx(t_lift, abs=EVENT_ATOL)
+    assert set(lift.mode_after) == corners(x="+", z="-")
+    front_slides = set(lift.sliding) == corners(x="+", z="-")
+    assert front_slides == (u0 > 0.0)
+    if u0 > 0.0:
+        assert lift.v_minus[0] == pytest.approx(speed, abs=STATE_ATOL) and speed > 0.0
+    else:
+        np.testing.assert_allclose(lift.v_minus, 0.0, atol=STATE_ATOL)
+
+
+@pytest.mark.parametrize("mu", [0.9, 1.2])
+def test_a_slide_pitches_the_cube_onto_its_front_edge_when_friction_exceeds_one(mu):
+    """Flat, sliding along x at u0 = 1 m/s. On four corners friction μ m g acts b below the
+    centre; the pitch balance puts the front edge's load at m g (1 + μ)/2 and the back
+    edge's at m g (1 - μ)/2 (b from the centre each): below μ = 1 (a cube's half edge over
+    its half height) it slides flat to a stop at u0 / (μ g), all four corners sticking
+    together; above, the back corners would pull, so they lift at once (t = 0) and the
+    cube slides on its front edge at r = (b, -b) from the centre. There, with normal force
+    N and friction -μ N along x: the pitch (about +y, front down) α = b N (μ - 1) / I_c,
+    the centre's accelerations a_x = -μ N / m and a_z = N / m - g, and the edge keeps its
+    height, a_z - b α = 0 (ω = 0): N = m g / (1 - m b² (μ - 1) / I_c), positive below
+    Painlevé's bound μ < 1 + I_c / (m b²) (1.80 for this cube). Checked on the run's
+    velocity (world frame) after t_s = 1e-4 s: the accelerations depend on the pitch θ
+    and on ω² only, so their rate vanishes at t = 0 and the difference quotient's error
+    is ä t_s² / 6, ä ~ α² a (a relative 1e-5 here), plus the run's ~1e-10 / t_s."""
+    u0 = 1.0
+    q = np.r_[0.0, 0.0, B, 0.0, 0.0, 0.0, 1.0]
+    T = u0 / (mu * G) + 0.01 if mu < 1 else 0.01
+    traj = cd.simulate(cube(mu).with_state(q, np.r_[u0, 0.0, 0.0, 0.0, 0.0, 0.0]), T, dense=True, **TIGHT)
+    first = traj.events[0]
+    assert set(traj.segments[0].sliding) == corners(z="-")
+    if mu < 1:
+        assert [e.kind for e in traj.events] == ["stick"] and set(first.contacts) == corners(z="-")
+        assert first.t == pytest.approx(u0 / (mu * G), abs=EVENT_ATOL)
+        assert traj.q[0] == pytest.approx(u0**2 / (2 * mu * G), abs=STATE_ATOL)
+        assert traj.q[2] == pytest.approx(B, abs=STATE_ATOL) and level(traj.q) < 1e-14
+        return
+    assert I_C / (MASS * B**2) + 1 > mu
+    assert first.kind == "lift-off" and first.t == 0.0 and set(first.contacts) == corners(x="-", z="-")
+    assert set(first.mode_after) == set(first.sliding) == corners(x="+", z="-")
+    normal = MASS * G / (1 - MASS * B**2 * (mu - 1) / I_C)
+    expected = np.array([-mu * normal / MASS, 0.0, normal / MASS - G, 0.0, B * normal * (mu - 1) / I_C, 0.0])
+    t_s = 1e-4
+    q_s, v_s = traj.at(t_s)
+    rotation = pin.Quaternion(q_s[3:7]).matrix()
+    measured = (np.r_[rotation @ v_s[:3], rotation @ v_s[3:]] - traj.v0) / t_s
+    np.testing.assert_allclose(measured, expected, rtol=1e-4, atol=1e-6)
