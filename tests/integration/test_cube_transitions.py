@@ -330,3 +330,64 @@ def test_a_slide_pitches_the_cube_onto_its_front_edge_when_friction_exceeds_one(
     rotation = pin.Quaternion(q_s[3:7]).matrix()
     measured = (np.r_[rotation @ v_s[:3], rotation @ v_s[3:]] - traj.v0) / t_s
     np.testing.assert_allclose(measured, expected, rtol=1e-4, atol=1e-6)
+
+
+def test_a_corner_released_in_a_diagonal_slide_bears_again_when_the_cube_stops():
+    """Sliding at u0 along the diagonal d = (1, 1)/√2: friction μ m g acts b below the
+    centre along -d. The compatible loads are linear in the corners' positions p_i
+    (`contactdiff.dynamics.redundant`): λ_i = α + β · p_i, with Σ λ_i = m g and the
+    moment balance Σ λ_i p_i = b μ m g d (four corners: Σ p_i p_iᵀ = 4 b² I), so
+    λ_i = (m g / 4) (1 + μ d · p_i / b); the trailing corner (-b, -b) gets
+    (m g / 4) (1 - μ √2), which would pull for μ > 1/√2: it lifts at once (μ = 0.85).
+    The other three then carry the determined loads λ_(+,+) = μ' m g and
+    λ_(+,-) = λ_(-,+) = m g (1 - μ')/2, μ' = μ/√2 (< 1: none pulls), all sliding
+    along d with no yaw moment (the two side corners' moments cancel): the cube stops
+    at u0 / (μ g) after u0² / (2 μ g), the three corners sticking together. At rest the
+    principle's loads on the whole face are m g / 4 each (no friction): the released
+    corner, held at zero gap by the others all along, bears again at the stop, and
+    the cube rests on four sticking corners (on three, the centre would sit on the line
+    of the two side corners, with the third unloaded: a balance on a diagonal that any
+    round-off tips)."""
+    mu, u0 = 0.85, 0.5
+    d = np.array([1.0, 1.0, 0.0]) / np.sqrt(2)
+    q = np.r_[0.0, 0.0, B, 0.0, 0.0, 0.0, 1.0]
+    t_stop = u0 / (mu * G)
+    traj = cd.simulate(cube(mu).with_state(q, np.r_[u0 * d, 0.0, 0.0, 0.0]), t_stop + 0.3, **TIGHT)
+    lift, stop = traj.events
+    assert lift.kind == "lift-off" and lift.t == 0.0 and lift.contacts == ("cube/-x-y-z",)
+    assert set(lift.mode_after) == set(lift.sliding) == corners(z="-") - {"cube/-x-y-z"}
+    assert stop.kind == "stick" and stop.t == pytest.approx(t_stop, abs=EVENT_ATOL)
+    assert set(stop.contacts) == corners(z="-") - {"cube/-x-y-z"}
+    assert set(stop.mode_after) == corners(z="-") and not stop.sliding
+    np.testing.assert_allclose(traj.q[:3], np.r_[u0**2 / (2 * mu * G) * d[:2], B], atol=STATE_ATOL)
+    assert level(traj.q) < 1e-14
+    np.testing.assert_allclose(traj.v, 0.0, atol=STATE_ATOL)
+
+
+def test_flow_jacobian_through_the_diagonal_stop_matches_finite_differences():
+    """The flow Jacobian of the diagonal slide of the test above through the trailing
+    corner's lift-off at t = 0 and the stop on three corners (where the released one
+    bears again), along the perturbations that keep the slide diagonal (horizontal
+    position, speed along d), against central differences on the manifold. The speed's
+    column is (d u0 / (μ g), 0) at rest: stop distance u0² / (2 μ g). ε = 1e-6 with
+    rtol 1e-12: the differences' error is ~1e-12/ε plus ε² terms, so 1e-5 relative to
+    the columns' size."""
+    mu, u0 = 0.85, 0.5
+    d = np.array([1.0, 1.0, 0.0]) / np.sqrt(2)
+    q = np.r_[0.0, 0.0, B, 0.0, 0.0, 0.0, 1.0]
+    scene = cube(mu)
+    T = u0 / (mu * G) + 0.05
+    opts = dict(rtol=1e-12, atol=1e-14)
+    traj = cd.simulate(scene.with_state(q, np.r_[u0 * d, 0.0, 0.0, 0.0]), T, jacobian=True, **opts)
+    assert [e.kind for e in traj.events] == ["lift-off", "stick"]
+    model, v = scene.model, np.r_[u0 * d, 0.0, 0.0, 0.0]
+    directions = [(np.eye(6)[0], np.zeros(6)), (np.eye(6)[1], np.zeros(6)), (np.zeros(6), np.r_[d, 0.0, 0.0, 0.0])]
+    eps = 1e-6
+    for dq, dv in directions:
+        runs = [cd.simulate(scene.with_state(pin.integrate(model, q, s * eps * dq), v + s * eps * dv), T, **opts)
+                for s in (1.0, -1.0)]
+        fd = np.r_[pin.difference(model, runs[1].q, runs[0].q), runs[0].v - runs[1].v] / (2 * eps)
+        exact = traj.jacobian @ np.r_[dq, dv]
+        assert np.abs(exact - fd).max() <= 1e-5 * max(1.0, np.abs(fd).max()), (exact, fd)
+    speed_column = traj.jacobian @ np.r_[np.zeros(6), d, 0.0, 0.0, 0.0]
+    np.testing.assert_allclose(speed_column[:3], u0 / (mu * G) * d, atol=1e-7)
