@@ -39,7 +39,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..dynamics.mode import ModeDynamics, ModeSolution
-from ..dynamics.redundant import RANK_TOL
+from ..dynamics.redundant import row_rank
 from ..errors import PainleveError, SolverError
 from .guards import Guard, GuardKind
 from .parameter_jumps import ParameterJumps
@@ -87,11 +87,6 @@ def settle_friction(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float,
     raise SolverError(f"no mode satisfies Coulomb's law for contacts {mode} at t = {t!r}")
 
 
-def _rank(A: np.ndarray) -> int:
-    s = np.linalg.svd(A, compute_uv=False)
-    return int(np.sum(s > RANK_TOL * s[0])) if len(s) and s[0] > 0.0 else 0
-
-
 def held_at_rest(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float, mode: tuple[int, ...],
                  closed: list[int], speed_tol: float) -> tuple[tuple[int, ...], ModeSolution] | None:
     """The mode with the held contacts among ``closed`` bearing again (module doc), or
@@ -120,8 +115,8 @@ def held_at_rest(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float, mode
     A = mode_rows(dyn, resting)
     if np.max(np.abs(A @ v)) > speed_tol:
         return None
-    rank = _rank(A)
-    held = [i for i in closed if _rank(np.vstack([A, dyn.contact(i).rows(dyn.kin)])) == rank]
+    rank = row_rank(A)
+    held = [i for i in closed if row_rank(np.vstack([A, dyn.contact(i).rows(dyn.kin)])) == rank]
     if not held:
         return None
     try:
