@@ -456,3 +456,35 @@ def test_the_held_corners_slide_ends_where_the_closed_form_puts_it_at_default_to
     assert "stick" not in [e.kind for e in traj.events]
     np.testing.assert_allclose(traj.v[:3], (u0 - mu * G * T) * d, atol=1e-6)
     np.testing.assert_allclose(traj.q[:3], np.r_[(u0 * T - mu * G * T**2 / 2) * d[:2], B], atol=1e-6)
+
+
+def test_an_impacts_open_neighbour_slides_on_along_its_own_slip():
+    """After a frictional impact, a closed contact the law leaves open (no impulse, zero
+    normal speed after) that still slips keeps sliding along its own slip velocity,
+    whatever slip direction an earlier mode left for it: here the cube slides along +x
+    at 1 m/s on its face, the corner (+x, -y)'s stored direction points back along -x
+    (stale), and the impact's outcome is read as the four corners sliding along +x (the
+    cube's own velocity, each corner's slip) with no creeping contact."""
+    from types import SimpleNamespace
+
+    from contactdiff.dynamics.frictional_impact import ContactState
+    q = np.r_[0.0, 0.0, B, 0.0, 0.0, 0.0, 1.0]
+    v = np.r_[1.0, 0.0, 0.0, 0.0, 0.0, 0.0]
+    scene = cube(0.18).with_state(q, v)
+    loop = cd.HybridLoop(scene, 0.0, 1.0)
+    dyn, names = loop.dyn, scene.contact_names
+    bottom = [names.index(n) for n in sorted(corners(z="-"))]
+    stale = names.index("cube/+x-y-z")
+    dyn.slip_reference[stale] = np.array([-1.0, 0.0])
+    keys_before = [dyn.sliding_key(i) if i == stale else i for i in bottom]
+    slide = ContactState.SLIDE
+    impact = SimpleNamespace(
+        contacts=keys_before, v_plus=v, normal_speeds_before=np.zeros(4), normal_speeds_after=np.zeros(4),
+        states=tuple(ContactState.OPEN if i == stale else slide for i in bottom),
+        slide_directions=tuple(np.zeros(2) if i == stale else np.array([1.0, 0.0]) for i in bottom))
+    keys, creeping = loop._friction_keys(q, impact)
+    assert keys == [dyn.sliding_key(i) for i in bottom] and creeping == []
+    dyn.kin.update(q, v)
+    slip = dyn.contact(stale).rows(dyn.kin)[1:] @ v
+    np.testing.assert_allclose(dyn.slip_reference[stale], slip / np.linalg.norm(slip), atol=1e-15)
+    assert slip @ np.array([-1.0, 0.0]) < 0.0  # the stale direction was the other way
