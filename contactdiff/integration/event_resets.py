@@ -65,9 +65,9 @@ class EventResets:
             return self._impact(t, q, v, mode, closed, touching, releasing)
         # a released sticking contact that would sink (the tangential force it carried
         # pressed it down) slides instead: normal row only, until its force vanishes
-        new_mode = liftoff_mode(dyn, q, v, t, mode, releasing, self._unheld(q, v, mode, releasing))
-        slid = {dyn.sliding_key(k) for k in releasing if not dyn.is_sliding(k)}
-        kind = "slip" if slid & set(new_mode) else "lift-off"
+        unheld = self._unheld(q, v, mode, releasing)
+        new_mode = liftoff_mode(dyn, q, v, t, mode, releasing, unheld)
+        kind = "slip" if any(dyn.is_sliding(k) and k not in mode and k not in unheld for k in new_mode) else "lift-off"
         event = Event(t=t, kind=kind, contacts=self._mode_names(releasing), simultaneous=len(releasing) > 1,
                       q=q.copy(), v_minus=v.copy(), v_plus=v.copy(), impulses={},
                       mode_before=self._mode_names(mode), mode_after=self._mode_names(new_mode),
