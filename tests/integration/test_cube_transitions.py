@@ -1,7 +1,9 @@
 """The measured cube (`contactdiff.cube_scene`: eight Coulomb corners) through the
 transitions between its face, an edge and a corner: tipping and falling back, rolling
 over an edge, rocking to rest, pivoting on a corner, a push that lifts the back edge,
-and a slide that pitches onto the front edge. Runs against closed forms.
+a slide that pitches onto the front edge, and a diagonal slide whose trailing corner
+the compatible loads release and which bears again (at the stop, or when a couple lifts
+the leading corner). Runs against closed forms.
 
 Cube of half edge b, mass m, moment I_c about every axis through its centre (the
 scene's inertia is isotropic), gravity g; ground z = 0.
