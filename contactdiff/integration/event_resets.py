@@ -318,26 +318,30 @@ class EventResets:
         slip is below `CREEP_FACTOR` noise floors (``dyn.slip_speed_floor``). A contact with Coulomb
         friction that slides faster takes its slipping key, its slip direction the
         impact's; a slower one keeps its sticking key (its forces decide, afterwards).
-        One the law leaves open at zero normal speed with no impulse (a grazing landing's
-        neighbours) that still slips keeps sliding along its own slip: whatever it slid
-        along before, the reference is set here, never left from an earlier mode (a stale
-        one makes its slip look stopped, and the stop holds a sliding face still)."""
+        One that slid before and that the law leaves open at zero normal speed with no
+        impulse (a grazing landing's neighbours) slides on along its own slip, not along
+        a direction an earlier mode left (a stale one makes its slip look stopped, and
+        the stop holds a sliding face still)."""
         dyn, keys, creeping = self.dyn, [], []
         dyn.kin.update(q, impact.v_plus)
         scale = max(1.0, float(np.max(np.abs(impact.normal_speeds_before))))
         for k, state, s, u_n in zip(impact.contacts, impact.states, impact.slide_directions,
                                     impact.normal_speeds_after):
-            index = dyn.contact_index(k)
-            contact = dyn.contact(index)  # all its rows, whether it slid before or not
-            sliding = state is ContactState.SLIDE and np.any(s)
-            if contact.spec.coulomb and contact.n_rows > 1 and (sliding or state is ContactState.OPEN):
-                u_T = contact.rows(dyn.kin)[1:] @ impact.v_plus
+            contact = dyn.contact(k)
+            if contact.spec.coulomb and state is ContactState.SLIDE and np.any(s):
+                slip = float(np.linalg.norm(contact.rows(dyn.kin)[1:] @ impact.v_plus))
+                if slip > CREEP_FACTOR * dyn.slip_speed_floor:
+                    dyn.slip_reference[k] = np.array(s, dtype=float)
+                    k = dyn.sliding_key(k)
+                elif u_n <= SPEED_TOL * scale:
+                    creeping.append(k)
+            elif contact.spec.coulomb and state is ContactState.OPEN and dyn.is_sliding(k):
+                # left open at zero normal speed, it stays in the mode sliding: along its own slip
+                index = dyn.contact_index(k)
+                u_T = contact.full.rows(dyn.kin)[1:] @ impact.v_plus
                 slip = float(np.linalg.norm(u_T))
                 if slip > CREEP_FACTOR * dyn.slip_speed_floor:
-                    dyn.slip_reference[index] = np.array(s, dtype=float) if sliding else u_T / slip
-                    k = dyn.sliding_key(index)
-                elif sliding and u_n <= SPEED_TOL * scale:
-                    creeping.append(k)
+                    dyn.slip_reference[index] = u_T / slip
             keys.append(k)
         return keys, creeping
 

@@ -53,6 +53,11 @@ guard rate (per second, of ``μ λ_N``), below which an event sits on the stick/
 threshold (round-off of the forces is about 1e-14 relative)."""
 
 
+SLIPPING_FLOORS = 10.0
+"""A sticking contact that leaves its cone while slipping faster than this many slip-speed
+floors (``zeno_speed``, as an impact's creeping rule) slips along its own slip."""
+
+
 def settle_friction(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float,
                     mode: tuple[int, ...]) -> tuple[tuple[int, ...], ModeSolution]:
     """The mode after Coulomb's law on ``mode`` at ``(q, v, t)``.
@@ -81,7 +86,12 @@ def settle_friction(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float,
         keys = list(mode)
         for key, f in over:
             index = dyn.contact_index(key)
-            dyn.slip_reference[index] = -f[1:] / np.linalg.norm(f[1:])
+            # along the force it resisted, unless it already slips (a sliding face's corner
+            # an impact left with a sticking key): then along its slip
+            slip = dyn.contact(key).rows(dyn.kin)[1:] @ v
+            speed = float(np.linalg.norm(slip))
+            moving = speed > SLIPPING_FLOORS * dyn.slip_speed_floor
+            dyn.slip_reference[index] = slip / speed if moving else -f[1:] / np.linalg.norm(f[1:])
             keys[keys.index(key)] = dyn.sliding_key(index)
         mode = tuple(sorted(keys))
     raise SolverError(f"no mode satisfies Coulomb's law for contacts {mode} at t = {t!r}")
