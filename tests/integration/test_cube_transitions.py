@@ -447,9 +447,9 @@ def test_the_held_corners_slide_ends_where_the_closed_form_puts_it_at_default_to
     impulse) while the others slide. Whichever way, the face slides on at μ g along d:
     the velocity and the position at T = 0.13 s are those of the closed form, to the
     run's error (~1e-8 relative over the slide) and the drift the projection allows.
-    (A grazing landing's sliding neighbours, which the impact law leaves open at zero
-    normal speed, kept slip directions from an earlier mode: their slips looked stopped
-    and the stop held the whole face still, at 1.3 m/s.)"""
+    (After a grazing landing, corners that slid on at 1.3 m/s with sticking keys took
+    as slip direction the force they resisted, against their slip: their slips looked
+    stopped and the stop held the whole face still.)"""
     mu, u0, T = 0.85, 2.0, 0.13
     scene = couple_slide(mu, mu * B * MASS * G / 0.1)
     d = np.array([1.0, 1.0, 0.0]) / np.sqrt(2)
