@@ -204,15 +204,19 @@ ACCEL_TOL = 1e-9
 
 
 def liftoff_mode(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float, mode: Sequence[int],
-                 releasing: Sequence[int]) -> tuple[int, ...]:
+                 releasing: Sequence[int], resting: Sequence[int] = ()) -> tuple[int, ...]:
     """The mode after the normal forces of ``releasing`` (keys of ``mode``) reach zero.
 
     The releasing contacts leave, unless a sticking one would then sink: at zero
     normal speed its normal acceleration in the new mode is negative beyond
     round-off, because the tangential force it carried pressed it down. That one
     slides instead (module doc): its normal row stays, its tangents go.
+    ``resting`` (keys) are closed contacts outside ``mode`` at zero normal speed (a
+    face's corner released earlier, held at zero gap by the releasing contacts):
+    they are candidates of the new mode with the staying ones, so that one the
+    release would let sink bears at once instead of being caught below the ground.
     """
-    staying = [k for k in mode if k not in releasing]
+    staying = [k for k in mode if k not in releasing] + list(resting)
     new_mode = choose_mode(dyn, q, v, t, staying)
     released = [k for k in releasing if dyn.contact(k).sticking]
     if not released:

@@ -85,6 +85,15 @@ def range_basis(A: np.ndarray) -> np.ndarray | None:
     return W[:, :rank]
 
 
+def row_rank(A: np.ndarray) -> int:
+    """Rank of the rows ``A`` by the rule of `range_basis` (singular values above
+    `RANK_TOL` of the largest); 0 for no rows."""
+    if A.size == 0:
+        return 0
+    s = np.linalg.svd(A, compute_uv=False)
+    return int(np.sum(s > RANK_TOL * s[0])) if s[0] > 0.0 else 0
+
+
 def solve_in_range(G: np.ndarray, b: np.ndarray, U: np.ndarray) -> np.ndarray:
     """The forces ``λ = U y`` in ``range(A)`` with ``Uᵀ (G λ - b) = 0`` (module doc).
 

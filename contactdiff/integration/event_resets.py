@@ -15,12 +15,13 @@ import numpy as np
 
 from ..dynamics.frictional_impact import ContactState
 from ..dynamics.impacts import choose_mode, liftoff_mode, resolve_impact
+from ..dynamics.redundant import row_rank
 from ..errors import GrazingError
 from .friction_events import refuse_ambiguous_slip, settle_friction
 from .guards import Guard, GuardKind
 from .options import OnGrazing
 from .parameter_jumps import ParameterJumps
-from .projection import close, held_velocity, held_velocity_jacobian
+from .projection import close, held_velocity, held_velocity_jacobian, mode_rows
 from .resting import CASCADE_ROUNDS, cascade_outcome, resting_contacts
 from .sensitivity import (
     gap_gradient,
@@ -64,8 +65,9 @@ class EventResets:
             return self._impact(t, q, v, mode, closed, touching, releasing)
         # a released sticking contact that would sink (the tangential force it carried
         # pressed it down) slides instead: normal row only, until its force vanishes
-        new_mode = liftoff_mode(dyn, q, v, t, mode, releasing)
-        kind = "slip" if any(dyn.is_sliding(k) and k not in mode for k in new_mode) else "lift-off"
+        unheld = self._unheld(q, v, mode, releasing)
+        new_mode = liftoff_mode(dyn, q, v, t, mode, releasing, unheld)
+        kind = "slip" if any(dyn.is_sliding(k) and k not in mode and k not in unheld for k in new_mode) else "lift-off"
         event = Event(t=t, kind=kind, contacts=self._mode_names(releasing), simultaneous=len(releasing) > 1,
                       q=q.copy(), v_minus=v.copy(), v_plus=v.copy(), impulses={},
                       mode_before=self._mode_names(mode), mode_after=self._mode_names(new_mode),
@@ -81,6 +83,38 @@ class EventResets:
             self._attach_sensitivity(event, xi, *guard, xi_p=xi_p, h_p=h_p)
         self.events.append(event)
         return new_mode, v
+
+    def _unheld(self, q, v, mode, releasing) -> list[int]:
+        """Keys of the closed contacts outside ``mode`` at zero normal speed whose normal
+        row the contacts staying after the release of ``releasing`` do not hold (rank of
+        the rows, `contactdiff.dynamics.redundant.row_rank`): the contacts the release
+        may let sink (`liftoff_mode`). One slipping with Coulomb friction enters as
+        sliding along its slip; one slipping without it is left to its gap."""
+        dyn, speed = self.dyn, self.options.grazing_speed
+        gaps, rates = self._gaps_and_rates(q, v)
+        active = dyn.contacts_of(mode)
+        closed = [i for i, (g, r) in enumerate(zip(gaps, rates)) if i not in active and g <= self.gap_tol
+                  and abs(r) <= speed]
+        if not closed:
+            return []
+        dyn.kin.update(q, v)
+        staying = [k for k in mode if k not in releasing]
+        A = mode_rows(dyn, staying) if staying else np.zeros((0, self.scene.nv))
+        rank = row_rank(A)
+        keys = []
+        for i in closed:
+            rows = dyn.contact(i).rows(dyn.kin)
+            if row_rank(np.vstack([A, rows[:1]])) == rank:
+                continue  # held at zero gap by the staying contacts
+            slip = rows[1:] @ v
+            if len(slip) and np.max(np.abs(slip)) > speed:
+                if not self.contacts[i].spec.coulomb:
+                    continue
+                dyn.slip_reference[i] = slip / np.linalg.norm(slip)
+                keys.append(dyn.sliding_key(i))
+            else:
+                keys.append(i)
+        return keys
 
     def _liftoff_sequence(self, t, q, v, mode, releasing, new_mode, first_guard, first_h_p=None):
         """Saltation of the lift-off of ``releasing`` from ``mode``, one contact after the
@@ -283,7 +317,11 @@ class EventResets:
         """The keys of a frictional impact's contacts after it, and the closed ones whose
         slip is below `CREEP_FACTOR` noise floors (``dyn.slip_speed_floor``). A contact with Coulomb
         friction that slides faster takes its slipping key, its slip direction the
-        impact's; a slower one keeps its sticking key (its forces decide, afterwards)."""
+        impact's; a slower one keeps its sticking key (its forces decide, afterwards).
+        One that slid before and that the law leaves open at zero normal speed with no
+        impulse (a grazing landing's neighbours) slides on along its own slip, not along
+        a direction an earlier mode left (a stale one makes its slip look stopped, and
+        the stop holds a sliding face still)."""
         dyn, keys, creeping = self.dyn, [], []
         dyn.kin.update(q, impact.v_plus)
         scale = max(1.0, float(np.max(np.abs(impact.normal_speeds_before))))
@@ -297,6 +335,13 @@ class EventResets:
                     k = dyn.sliding_key(k)
                 elif u_n <= SPEED_TOL * scale:
                     creeping.append(k)
+            elif contact.spec.coulomb and state is ContactState.OPEN and dyn.is_sliding(k):
+                # left open at zero normal speed, it stays in the mode sliding: along its own slip
+                index = dyn.contact_index(k)
+                u_T = contact.full.rows(dyn.kin)[1:] @ impact.v_plus
+                slip = float(np.linalg.norm(u_T))
+                if slip > CREEP_FACTOR * dyn.slip_speed_floor:
+                    dyn.slip_reference[index] = u_T / slip
             keys.append(k)
         return keys, creeping
 

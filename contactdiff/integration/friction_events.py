@@ -16,6 +16,16 @@ A mixin of `contactdiff.integration.hybrid.HybridLoop` (its state as for
   (`held_velocity`, removing the slip velocity left by the integration error),
   so ``Ξ = DR + (F+ - DR F-) Dh / (Dh F-)``.
 
+**Held contacts bear again at a stop.** A contact released at a lift-off whose
+rows depend on those of the contacts that stay (a face's corner whose compatible
+load would pull, `contactdiff.dynamics.redundant`) keeps a gap and a gap speed of
+exactly zero while the others hold it, so no gap guard brings it back. Where a
+slip → stick event leaves every active contact at rest, the mode after it is
+chosen again over the active contacts and such held ones, all sticking, by the
+compatible-load principle (`held_at_rest`): the held ones join when every load is
+then positive and inside its cone. The motion is the same (their rows add no
+constraint); the loads, and the guards that follow, are the principle's.
+
 Differentiability: a crossing is transversal when the guard's rate is not zero.
 The flow is not differentiable where the tangential force only touches the cone
 (stick → slip with a vanishing rate: neighbours on one side stay stuck), or
@@ -29,10 +39,11 @@ from __future__ import annotations
 import numpy as np
 
 from ..dynamics.mode import ModeDynamics, ModeSolution
+from ..dynamics.redundant import row_rank
 from ..errors import PainleveError, SolverError
 from .guards import Guard, GuardKind
 from .parameter_jumps import ParameterJumps
-from .projection import held_velocity, held_velocity_jacobian
+from .projection import held_velocity, held_velocity_jacobian, mode_rows
 from .sensitivity import saltation, vector_field
 from .trajectory import Event, NonSmooth
 
@@ -40,6 +51,11 @@ THRESHOLD_TOL = 1e-9
 """Relative distance to the friction cone's boundary (of ``μ λ_N``), and relative
 guard rate (per second, of ``μ λ_N``), below which an event sits on the stick/slip
 threshold (round-off of the forces is about 1e-14 relative)."""
+
+
+SLIPPING_FLOORS = 10.0
+"""A sticking contact that leaves its cone while slipping faster than this many slip-speed
+floors (``zeno_speed``, as an impact's creeping rule) slips along its own slip."""
 
 
 def settle_friction(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float,
@@ -70,10 +86,57 @@ def settle_friction(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float,
         keys = list(mode)
         for key, f in over:
             index = dyn.contact_index(key)
-            dyn.slip_reference[index] = -f[1:] / np.linalg.norm(f[1:])
+            # along the force it resisted, unless it already slips (a sliding face's corner
+            # an impact left with a sticking key): then along its slip
+            slip = dyn.contact(key).rows(dyn.kin)[1:] @ v
+            speed = float(np.linalg.norm(slip))
+            moving = speed > SLIPPING_FLOORS * dyn.slip_speed_floor
+            dyn.slip_reference[index] = slip / speed if moving else -f[1:] / np.linalg.norm(f[1:])
             keys[keys.index(key)] = dyn.sliding_key(index)
         mode = tuple(sorted(keys))
     raise SolverError(f"no mode satisfies Coulomb's law for contacts {mode} at t = {t!r}")
+
+
+def held_at_rest(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float, mode: tuple[int, ...],
+                 closed: list[int], speed_tol: float) -> tuple[tuple[int, ...], ModeSolution] | None:
+    """The mode with the held contacts among ``closed`` bearing again (module doc), or
+    None where none joins.
+
+    Args:
+        dyn: the scene's `ModeDynamics` (its kinematics cache is moved to ``(q, v)``).
+        q: configuration (nq,).
+        v: velocity (nv,), tangent space, after the event's reset.
+        t: time (s), for time-dependent efforts.
+        mode: the mode after a slip → stick event, at ``(q, v)`` (its rows held).
+        closed: scene indices of the contacts not in ``mode`` whose gap is closed and
+            whose gap speed is zero (within ``speed_tol``, m/s).
+        speed_tol: m/s; ``mode``'s contacts must all be at rest within it.
+
+    Returns:
+        ``(mode, solution)`` with every contact sticking, the held ones included, when
+        every contact of ``mode`` is at rest, the held ones' rows (sticking) add no rank
+        to ``mode``'s, and the principle's loads of the whole set push (beyond
+        round-off, `THRESHOLD_TOL` of the largest) inside their cones.
+    """
+    if not closed:
+        return None
+    resting = tuple(sorted(dyn.contact_index(k) for k in mode))
+    dyn.kin.update(q, v)
+    A = mode_rows(dyn, resting)
+    if np.max(np.abs(A @ v)) > speed_tol:
+        return None
+    rank = row_rank(A)
+    held = [i for i in closed if row_rank(np.vstack([A, dyn.contact(i).rows(dyn.kin)])) == rank]
+    if not held:
+        return None
+    try:
+        new_mode, sol = settle_friction(dyn, q, v, t, tuple(sorted(resting + tuple(held))))
+    except (PainleveError, SolverError):
+        return None
+    normal = np.array([f[0] for f in sol.row_forces()])
+    if any(dyn.is_sliding(k) for k in new_mode) or normal.min() <= THRESHOLD_TOL * normal.max():
+        return None
+    return new_mode, sol
 
 
 def refuse_ambiguous_slip(dyn: ModeDynamics, q, v, t, candidates, mode) -> None:
@@ -140,6 +203,14 @@ class FrictionEvents:
         new_mode = tuple(sorted(keys))
         v_plus = held_velocity(dyn, q, v, new_mode) if stops else v
         new_mode, settled = settle_friction(dyn, q, v_plus, t, new_mode)
+        if stops:
+            gaps, rates = self._gaps_and_rates(q, v_plus)
+            active = dyn.contacts_of(new_mode)
+            closed = [i for i, (g, r) in enumerate(zip(gaps, rates)) if i not in active and g <= self.gap_tol
+                      and abs(r) <= self.options.grazing_speed]
+            bearing = held_at_rest(dyn, q, v_plus, t, new_mode, closed, self.options.grazing_speed)
+            if bearing is not None:
+                new_mode, settled = bearing
         stuck = [dyn.contact_index(k) for k in stops if dyn.contact_index(k) in new_mode]
         kind = "stick" if stuck and not cone else "slip"
         fired_names = self._mode_names(cone + stops)

@@ -28,6 +28,15 @@ from .options import SimulateOptions
 DIP_FRACTION = 0.5
 """A step is searched for a dip when its Hermite minimum is below this share of the end gaps."""
 
+PULL_TOL = 1e-9
+"""A normal force below -PULL_TOL times the largest of its mode's at a step's start
+(beyond the solve's round-off, ~1e-15 of the forces) pulls already: its guard fires
+at the step's start whatever its value at the step's end. A mode chosen at an event
+or at t0 may start so (the compatible load of a face's corner, `dynamics/redundant`,
+is negative where another split of the same forces is not), and the force may come
+back above zero within the first step (a step grown long on a motion of constant
+acceleration): judged at the step's end only, the corner would have pulled unseen."""
+
 
 class GuardKind(Enum):
     """What a guard watches."""
@@ -165,8 +174,11 @@ class GuardFinder:
                 t_lo, g_lo = t_peak, g_peak
             found.append((locate_crossing(gap, t_lo, t_hi, g_lo, g_hi), Guard(GuardKind.GAP, i)))
         floor = self.dyn.slip_speed_floor
+        forces0 = [abs(values0[k]) for k, g in enumerate(field.guards) if g.kind is GuardKind.FORCE]
+        pull = -PULL_TOL * max(forces0, default=0.0)
         for k, guard in enumerate(field.guards):
-            if values1[k] >= 0.0:
+            pulling = guard.kind is GuardKind.FORCE and values0[k] < pull
+            if values1[k] >= 0.0 and not pulling:
                 continue
             # a slip that starts at (or is stopped within noise of) zero speed fires only once
             # its speed along its direction passes -floor: below floor its direction is noise.
@@ -175,7 +187,7 @@ class GuardFinder:
             if guard.kind is GuardKind.STOP and (values0[k] <= 0.0 or
                                                  (guard.contact in self.from_rest and values0[k] <= floor)):
                 shift = floor
-            if values1[k] + shift >= 0.0:
+            if values1[k] + shift >= 0.0 and not pulling:
                 continue
             def value(t, k=k, shift=shift):
                 qt, vt = dense(t)
@@ -185,6 +197,8 @@ class GuardFinder:
             start = value(t_a)
             if start <= 0.0:  # already past it at the step start (a slip stopped by a reset)
                 found.append((t_a, guard))
+                continue
+            if values1[k] + shift >= 0.0:  # a pull at the stored start that the fresh value does not see
                 continue
             found.append((locate_crossing(value, t_a, t_b, start, values1[k] + shift), guard))
         return found, misses
