@@ -84,3 +84,14 @@ def test_the_browser_tests_have_an_extra():
     """The tests marked browser import playwright: an extra installs it, and the docs name it."""
     assert "playwright" in {_name(r) for r in _extras()["browser"]}
     assert 'pip install -e ".[browser]"' in (ROOT / "docs" / "development.md").read_text()
+
+
+def test_every_subpackage_is_listed_for_the_wheel():
+    """pyproject's explicit package list names every folder of contactdiff with an __init__.py:
+    a subpackage left out installs nowhere (an editable checkout hides it; a wheel does not)."""
+    import tomllib
+
+    root = Path(__file__).resolve().parents[1]
+    listed = set(tomllib.loads((root / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"])
+    found = {".".join(p.parent.relative_to(root).parts) for p in (root / "contactdiff").rglob("__init__.py")}
+    assert found - listed == set(), f"not in pyproject's packages: {sorted(found - listed)}"
