@@ -24,6 +24,7 @@ from .parameter_jumps import ParameterJumps
 from .projection import close, held_velocity, held_velocity_jacobian, mode_rows
 from .resting import CASCADE_ROUNDS, cascade_outcome, resting_contacts
 from .sensitivity import (
+    VanishingSlipError,
     gap_gradient,
     impact_reset_jacobian,
     liftoff_guard,
@@ -245,7 +246,11 @@ class EventResets:
                       normal_speeds={self.names[i]: s for i, s in speeds.items()},
                       sliding=self._sliding_names(new_mode), nonsmooth=nonsmooth, outcomes=outcomes)
         def reset_jacobian():
-            DR = impact_reset_jacobian(self.dyn, q, v_minus, impact)
+            try:
+                DR = impact_reset_jacobian(self.dyn, q, v_minus, impact)
+            except VanishingSlipError as exc:  # a stick/slip threshold: flagged, its direction held
+                event.nonsmooth[NonSmooth.FRICTION_THRESHOLD] = self._note(f"not differentiable at t = {t:.12g}: {exc}")
+                DR = impact_reset_jacobian(self.dyn, q, v_minus, impact, hold_vanishing=True)
             if settled:  # the reset is the impact followed by holding the settled contacts
                 DR = held_velocity_jacobian(self.dyn, q, v_plus, new_mode) @ DR
             return DR
@@ -304,7 +309,8 @@ class EventResets:
             event.nonsmooth[NonSmooth.ORDER] = self._note(
                 f"not differentiable at t = {t:.12g}: {len(sim.unresolved)} of the landing orders of "
                 f"{', '.join(self.names[i] for i in touching)} have no impact solution the impact law's "
-                f"search finds, so the orders cannot be compared ({next(iter(sim.unresolved.values()))})")
+                f"search finds, or no derivative there, so the orders cannot be compared "
+                f"({next(iter(sim.unresolved.values()))})")
         elif not sim.differentiable:
             by = "by" if sim.complete else "by at least"
             event.nonsmooth[NonSmooth.ORDER] = self._note(

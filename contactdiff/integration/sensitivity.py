@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pinocchio as pin
 
+from ..dynamics.friction_slip import SLIP_ZERO
 from ..dynamics.frictional_impact import ContactState
 from ..dynamics.impacts import ImpactResult, choose_mode, resolve_impact
 from ..dynamics.mode import ModeDynamics
@@ -69,8 +70,14 @@ def force_time_rate(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float, m
     return float(dyn.solve(q, v, t, mode, tau=tau + tau_t).forces[row] - dyn.solve(q, v, t, mode, tau=tau).forces[row])
 
 
+class VanishingSlipError(SolverError):
+    """A contact the impact leaves sliding has no slip after it (its impulse on its cone's edge
+    with a slip below `SLIP_ZERO` of the velocity scale): a stick/slip threshold, where the
+    slip direction, and so the reset, has no derivative."""
+
+
 def impact_reset_jacobian(dyn: ModeDynamics, q: np.ndarray, v_minus: np.ndarray,
-                          impact: ImpactResult) -> np.ndarray:
+                          impact: ImpactResult, hold_vanishing: bool = False) -> np.ndarray:
     """``DR`` of the impact reset ``(q, v-) -> (q, v+)`` (2nv × 2nv), tangent space.
 
     Differentiates the equations of the rows that carry impulse, with the
@@ -81,6 +88,8 @@ def impact_reset_jacobian(dyn: ModeDynamics, q: np.ndarray, v_minus: np.ndarray,
     only, and its tangential impulse ``-μ Λ_N s`` follows ``s = u+_T / ||u+_T||``:
     its force column is ``F = A_n - μ s^T A_T``, and ``δs = (I - s s^T) δu+_T / ||u+_T||``
     moves ``v+`` through ``-μ Λ_N A_T^T δs`` (a planar slip keeps its sign, ``δs = 0``).
+    A sliding contact whose slip vanishes after the impact (`VanishingSlipError`) has no
+    derivative there; with ``hold_vanishing`` its direction is held (a one-sided derivative).
     Dependent held rows (a face's corners) keep the impulses in the range of the rows, as
     the impact law (`contactdiff.dynamics.redundant`): with sliding corners the velocity
     depends on the corners' shares, which least squares would not give.
@@ -116,9 +125,14 @@ def impact_reset_jacobian(dyn: ModeDynamics, q: np.ndarray, v_minus: np.ndarray,
             kept = slice(0, 1)
             mu, s = impact.friction[k], impact.slide_directions[k]
             force_rows = (rows[0] - mu * s @ rows[1:])[None, :]
-            if len(s) == 2:  # δs through the post-impact slip velocity
-                u_T = rows[1:] @ v_plus
-                D = (np.eye(2) - np.outer(s, s)) / np.linalg.norm(u_T)
+            u_T = rows[1:] @ v_plus
+            speed = float(np.linalg.norm(u_T))
+            vanishing = len(s) == 2 and not speed > SLIP_ZERO * max(1.0, float(np.max(np.abs(v_minus))))
+            if vanishing and not hold_vanishing:
+                raise VanishingSlipError(f"contact {impact.contacts[k]} slides with a slip of {speed:.2e} m/s after "
+                                         "the impact: a stick/slip threshold, where the reset has no derivative")
+            if len(s) == 2 and not vanishing:  # δs through the post-impact slip velocity
+                D = (np.eye(2) - np.outer(s, s)) / speed
                 coef = mu * impulses[0] * rows[1:].T @ D
                 K_vv += coef @ rows[1:]
                 rhs_q -= coef @ c.rows_times_dq(kin, v_plus)[1:]
@@ -198,9 +212,11 @@ def impact_parameter_jacobian(dyn: ModeDynamics, q: np.ndarray, v_minus: np.ndar
             mu, s = impact.friction[k], impact.slide_directions[k]
             lam_n = float(impact.row_impulses[impact.rows.rows_of([k])][0])
             force_rows = (full[0] - mu * s @ full[1:])[None, :]
-            if len(s) == 2:  # δs through the post-impact slip velocity
-                u_T = full[1:] @ impact.v_plus
-                D = (np.eye(2) - np.outer(s, s)) / np.linalg.norm(u_T)
+            u_T = full[1:] @ impact.v_plus
+            speed = float(np.linalg.norm(u_T))
+            # a vanishing slip (`VanishingSlipError`, flagged by the reset's Jacobian): direction held
+            if len(s) == 2 and speed > SLIP_ZERO * max(1.0, float(np.max(np.abs(v_minus)))):
+                D = (np.eye(2) - np.outer(s, s)) / speed  # δs through the post-impact slip velocity
                 K_vv += mu * lam_n * full[1:].T @ D @ full[1:]
             for col in _as_list(friction_columns.get(index)):
                 rhs_v[:, col] -= lam_n * full[1:].T @ s

@@ -113,3 +113,19 @@ def test_object_moments_are_checked():
         cd.SceneObject("b", shape="box", size=(1, 1, 1), mass=1.0, moments=-1.0)
     box = cd.SceneObject("b", shape="box", size=(1, 1, 1), mass=1.0, moments=(0.2, 0.3, 0.4))
     np.testing.assert_allclose(box.inertia().inertia, np.diag([0.2, 0.3, 0.4]))
+
+
+@pytest.mark.skipif(not SHARED_TOSSES.is_file(), reason="the full set of tosses (shared data) is not beside the "
+                                                        "repository")
+@pytest.mark.parametrize("name, mu, e", [("toss_066", 0.5, 0.0), ("toss_170", 0.5, 0.3)])
+def test_a_landing_order_whose_slip_vanishes_is_flagged_not_fatal(name, mu, e):
+    """Regression: a hypothetical landing order of a two-corner touchdown leaves a corner sliding
+    with zero slip (its impulse on its cone's edge), whose slip direction has no derivative;
+    the reset's Jacobian divided by the zero slip speed and LinAlgError stopped the run. Now
+    the order is unresolved, the event flagged, and the toss runs to its end."""
+    toss = cd.load_tosses(SHARED_TOSSES)[name]
+    traj = cd.simulate(cd.cube_scene(friction=mu, restitution=e).with_state(*toss.state(0)), toss.t[-1])
+    assert traj.t == toss.t[-1]
+    vanishing = [n for n in traj.notes if "slides with a slip of" in n and "stick/slip threshold" in n]
+    assert vanishing
+    assert any(not ev.differentiable for ev in traj.events)
