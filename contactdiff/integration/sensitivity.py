@@ -127,7 +127,7 @@ def impact_reset_jacobian(dyn: ModeDynamics, q: np.ndarray, v_minus: np.ndarray,
             force_rows = (rows[0] - mu * s @ rows[1:])[None, :]
             u_T = rows[1:] @ v_plus
             speed = float(np.linalg.norm(u_T))
-            vanishing = len(s) == 2 and not speed > SLIP_ZERO * max(1.0, float(np.max(np.abs(v_minus))))
+            vanishing = len(s) == 2 and _slip_vanishes(speed, v_minus)
             if vanishing and not hold_vanishing:
                 raise VanishingSlipError(f"contact {impact.contacts[k]} slides with a slip of {speed:.2e} m/s after "
                                          "the impact: a stick/slip threshold, where the reset has no derivative")
@@ -161,6 +161,11 @@ def impact_reset_jacobian(dyn: ModeDynamics, q: np.ndarray, v_minus: np.ndarray,
     DR[nv:, :nv] = X[:nv, :nv]
     DR[nv:, nv:] = X[:nv, nv:]
     return DR
+
+
+def _slip_vanishes(speed: float, v_minus: np.ndarray) -> bool:
+    """Whether a post-impact slip speed (m/s) is below `SLIP_ZERO` of the velocity scale: no direction."""
+    return not speed > SLIP_ZERO * max(1.0, float(np.max(np.abs(v_minus))))
 
 
 def _slides_with_friction(impact: ImpactResult, k: int, contact) -> bool:
@@ -215,7 +220,7 @@ def impact_parameter_jacobian(dyn: ModeDynamics, q: np.ndarray, v_minus: np.ndar
             u_T = full[1:] @ impact.v_plus
             speed = float(np.linalg.norm(u_T))
             # a vanishing slip (`VanishingSlipError`, flagged by the reset's Jacobian): direction held
-            if len(s) == 2 and speed > SLIP_ZERO * max(1.0, float(np.max(np.abs(v_minus)))):
+            if len(s) == 2 and not _slip_vanishes(speed, v_minus):
                 D = (np.eye(2) - np.outer(s, s)) / speed  # δs through the post-impact slip velocity
                 K_vv += mu * lam_n * full[1:].T @ D @ full[1:]
             for col in _as_list(friction_columns.get(index)):
