@@ -95,6 +95,12 @@ class Evaluation:
     events: int
     error: str | None = None
 
+    @classmethod
+    def failed(cls, index: int, error: str) -> Evaluation:
+        """A run that failed: its error, and empty residuals."""
+        empty = np.zeros(0)
+        return cls(index, empty, empty, empty, empty, Counter(), 0, error)
+
     @property
     def differentiable(self) -> bool:
         """No flagged event before the last compared sample."""
@@ -137,12 +143,10 @@ def evaluate(scene, plan_parameters: tuple, task: Task) -> Evaluation:
                         **task.options, sample_times=rec.t[k], parameters=list(plan_parameters),
                         jacobian=fitted_state)
     except ContactDiffError as exc:
-        empty = np.zeros(0)
-        return Evaluation(task.index, empty, empty, empty, empty, Counter(), 0, f"{type(exc).__name__}: {exc}")
+        return Evaluation.failed(task.index, f"{type(exc).__name__}: {exc}")
     samples = traj.samples
     if len(samples) != len(k):
-        return Evaluation(task.index, np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0), Counter(), 0,
-                          f"the run ended at {traj.t} s, before its last sample at {rec.t[-1]} s")
+        return Evaluation.failed(task.index, f"the run ended at {traj.t} s, before its last sample at {rec.t[-1]} s")
     residual = PoseResidual(model, task.weights)
     nv = model.nv
     w = rec.sample_weights()
