@@ -143,7 +143,7 @@ def main(argv=None) -> int:
                  max_evaluations=args.max_evaluations, options=options)
     report["fit"] = result.to_dict() | {"wall_time": time.perf_counter() - started}
     print(result.table(), file=sys.stderr, flush=True)
-    fitted = dict(zip(_scene_names(scene), _scene_values(scene, result)))
+    fitted = FitPlan(scene, unknowns(scene)).values(result.values)
     report["fitted_scene_values"] = fitted
 
     report["options"] = options
@@ -201,15 +201,6 @@ def plot_report(report: dict, tosses, fitted: dict, folder: Path) -> None:
     fig.tight_layout()
     fig.savefig(folder / "cube_toss_rollouts.png", dpi=120)
     plt.close(fig)
-
-
-def _scene_names(scene) -> list[str]:
-    return list(FitPlan(scene, unknowns(scene)).parameters)
-
-
-def _scene_values(scene, result) -> list[float]:
-    plan = FitPlan(scene, unknowns(scene))
-    return list(plan.values(result.values).values())
 
 
 def format_report(report: dict) -> str:
