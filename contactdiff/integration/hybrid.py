@@ -358,10 +358,8 @@ class HybridLoop(EventResets, FrictionEvents):
                 if projection := budget.after_step(h, clipped, self.t_final - stepper.t, steps):
                     self._over_budget(stepper, mode, steps, *projection)
                 # at rest: to t_final in one step (not over samples still to take: steps end on them)
-                if self.recorder.next_time >= self.t_final:
-                    stepper.t_bound = self.t_final  # (a step cut at the last sample left it there)
-                    if rest.settle(stepper, field, mode, segment):
-                        self.recorder.take(stepper)
+                if self.recorder.next_time >= self.t_final and rest.settle(stepper, field, mode, segment):
+                    self.recorder.take(stepper)
                 if self.chooser is not None and stepper.t < self.t_final:
                     switch = self.chooser.after_step(h, stepper.q, stepper.v, stepper.t)
                     if switch:

@@ -108,6 +108,7 @@ class RestCheck:
             segment.pieces.append(DenseOutput(t, loop.t_final, remaining, y0, change,
                                               None if stepper._vs else stepper.group, None if stepper._vs
                                               else stepper.q, nv))
+        stepper.t_bound = loop.t_final  # (a step cut short at a sample or breakpoint left it there)
         stepper.restart(loop.t_final, q1, v1, phi=phi1)
         stepper.n_steps += 1
         segment.t1 = loop.t_final
