@@ -15,7 +15,12 @@ A fixed-base model with two or more leaf limbs (a hand) is checked with a contac
 the end body of each leaf limb (its fingertips, "given by hand" in the table); a
 fixed-base chain (an arm) has one end, and nothing to couple.
 
-    python scripts/decoupling_atlas.py [--menagerie DIR] [--samples N] [--jobs N] [--out docs/results/atlas.md]
+Menagerie models downloaded by the user (``--extra DIR``, each model in its own folder as in
+the Menagerie repository, meshes included where they were downloaded; ``--extra-source``
+says where they came from) are checked beside them, and the table gives each row's origin.
+
+    python scripts/decoupling_atlas.py [--menagerie DIR] [--extra DIR --extra-source TEXT] [--samples N]
+        [--jobs N] [--out docs/results/atlas.md]
 """
 
 from __future__ import annotations
@@ -35,21 +40,46 @@ from contactdiff.sweeps import sweep
 ROOT = Path(__file__).resolve().parents[1]
 MENAGERIE = ROOT.parent / "shared" / "data" / "menagerie"
 KINDS = {"unitree_go2": "quadruped", "agility_cassie": "biped", "berkeley_humanoid": "humanoid (legs)",
-         "wonik_allegro": "hand", "leap_hand": "hand", "kuka_iiwa_14": "arm", "universal_robots_ur5e": "arm"}
+         "wonik_allegro": "hand", "leap_hand": "hand", "kuka_iiwa_14": "arm", "universal_robots_ur5e": "arm",
+         "unitree_go1": "quadruped", "unitree_a1": "quadruped", "anybotics_anymal_b": "quadruped",
+         "anybotics_anymal_c": "quadruped", "boston_dynamics_spot": "quadruped", "google_barkour_v0": "quadruped",
+         "google_barkour_vb": "quadruped", "unitree_g1": "humanoid", "unitree_h1": "humanoid",
+         "robotis_op3": "humanoid", "booster_t1": "humanoid", "apptronik_apollo": "humanoid",
+         "fourier_n1": "humanoid", "pal_talos": "humanoid", "shadow_hand": "hand", "shadow_dexee": "hand",
+         "franka_emika_panda": "arm", "robotiq_2f85": "gripper"}
+LEGGED_OR_HAND = ("quadruped", "biped", "humanoid", "hand")
+# The model's own file where a Menagerie folder holds several (variants, MJX versions, parts).
+MAIN_FILES = {"unitree_g1": "g1.xml", "franka_emika_panda": "panda.xml", "pal_talos": "talos.xml",
+              "shadow_hand": "right_hand.xml", "wonik_allegro": "right_hand.xml", "boston_dynamics_spot": "spot.xml",
+              "anybotics_anymal_c": "anymal_c.xml", "google_barkour_v0": "barkour_v0.xml",
+              "google_barkour_vb": "barkour_vb.xml", "leap_hand": "right_hand.xml"}
 
 
 def menagerie_models(folder: Path, scenes: bool = False) -> list[tuple[str, str]]:
-    """``(label, path)`` of each model folder's main file (the ``.xml`` that is not a scene);
-    with ``scenes``, its ``scene.xml`` where there is one (it includes the main file and
-    may hold the ``home`` keyframe, as Cassie's does)."""
+    """``(label, path)`` of each model folder's main file: `MAIN_FILES`' entry, else each ``.xml``
+    that is neither a scene nor an MJX variant. With ``scenes``, the folder's scene of that file
+    where there is one (``scene.xml``, ``scene_<file>.xml`` or ``scene_<side>.xml`` that includes
+    it; it adds a floor and may hold the ``home`` keyframe, as Cassie's does)."""
     found = []
     for sub in sorted(p for p in folder.iterdir() if p.is_dir()):
-        for path in sorted(sub.glob("*.xml")):
-            if not path.name.startswith("scene"):
-                scene = sub / "scene.xml"
-                chosen = scene if scenes and scene.is_file() else path
-                found.append((f"{sub.name}/{chosen.name}", str(chosen)))
+        if sub.name in MAIN_FILES:
+            mains = [sub / MAIN_FILES[sub.name]] if (sub / MAIN_FILES[sub.name]).is_file() else []
+        else:
+            mains = [p for p in sorted(sub.glob("*.xml")) if not p.name.startswith("scene") and "mjx" not in p.name]
+        for path in mains:
+            chosen = _scene_of(path) if scenes else None
+            chosen = chosen or path
+            found.append((f"{sub.name}/{chosen.name}", str(chosen)))
     return found
+
+
+def _scene_of(path: Path) -> Path | None:
+    """The scene file beside ``path`` that includes it, or None."""
+    for name in ("scene.xml", f"scene_{path.name}", f"scene_{path.stem.split('_')[0]}.xml"):
+        scene = path.parent / name
+        if scene.is_file() and f'file="{path.name}"' in scene.read_text(errors="replace"):
+            return scene
+    return None
 
 
 def leaf_end_bodies(robot) -> list[str]:
@@ -98,6 +128,9 @@ def atlas_row(scene, point, samples: int = 8) -> dict:
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--menagerie", type=Path, default=MENAGERIE)
+    parser.add_argument("--extra", type=Path, help="a folder of downloaded Menagerie model folders")
+    parser.add_argument("--extra-source", default="downloaded",
+                        help="where the --extra models came from (e.g. 'mujoco_menagerie at commit abc1234')")
     parser.add_argument("--quick", action="store_true",
                         help="one Menagerie model and solo12, two poses each (a smoke run; give --out)")
     parser.add_argument("--samples", type=int, default=8, help="random poses of each check (default 8)")
@@ -108,6 +141,8 @@ def main(argv=None) -> None:
         args.samples = 2
 
     models = [("menagerie", label, path) for label, path in menagerie_models(args.menagerie, scenes=True)]
+    if args.extra is not None:
+        models += [("downloaded", label, path) for label, path in menagerie_models(args.extra, scenes=True)]
     models += [("example-robot-data", name, name) for name in example_robot_data_names()]
     if args.quick:
         models = [m for m in models if m[0] == "menagerie"][:1] + [m for m in models if m[1] == "solo12"]
@@ -120,11 +155,13 @@ def main(argv=None) -> None:
              "| source | model | kind | loads | feet (rule) | max coupling | worst decoupling term "
              "| worst mass-matrix term | verdict | time [s] |", "|---|---|---|---|---|---|---|---|---|---|"]
     skipped, failed = [], []
+    loaded: dict[str, tuple[str, bool]] = {}  # Menagerie folder: (kind, loaded and checked from some copy)
     for (origin, label, _), row in zip(models, result):
         kind = KINDS.get(label.split("/")[0], "quadruped" if label in QUADRUPEDS else "")
         if row.error is not None:
             message = _cell(row.error.message.replace(str(args.menagerie.resolve()), "menagerie"))
-            if origin == "menagerie":
+            if origin != "example-robot-data":
+                loaded.setdefault(label.split("/")[0], (kind, False))
                 lines.append(f"| {origin} | {label} | {kind} | no: {message} | | | | | | {row.run_time:.2f} |")
             else:
                 failed.append(f"{label} ({message})")
@@ -135,12 +172,14 @@ def main(argv=None) -> None:
             skipped.append(label)
             continue
         kind = kind or (f"legged, {len(feet)} feet" if out["floating"] else "fixed base")
+        if origin != "example-robot-data":
+            loaded[label.split("/")[0]] = (kind, True)
         coupling = "-" if out["coupling"] is None else f"{out['coupling']:.2e}"
         loads = "yes" + (f" ({_cell(out['notes'])})" if out["notes"] else "")
         lines.append(f"| {origin} | {label} | {kind} | {loads} | {out['feet']} ({out['rule']}) | {coupling} | "
                      f"{_cell(out['worst_term'])} | {_cell(out['worst_mass_term'])} | "
                      f"{_cell(out['verdict'].split(';')[0])} | {row.run_time:.2f} |")
-    lines += ["", f"Not in the table: {len(skipped)} example-robot-data robots with fewer than two feet (fixed "
+    lines += ["", _ratio(loaded), "", f"Not in the table: {len(skipped)} example-robot-data robots with fewer than two feet (fixed "
               "bases, arms, flying arms): " + ", ".join(sorted(skipped)) + "."]
     if failed:
         lines += ["", f"example-robot-data robots that do not load ({len(failed)}): " + "; ".join(failed) + "."]
@@ -149,14 +188,32 @@ def main(argv=None) -> None:
     print(f"atlas written to {args.out}")
 
 
+def _ratio(loaded: dict[str, tuple[str, bool]]) -> str:
+    """The share of Menagerie legged robots and hands that load and are checked (a model counts
+    once, loaded when one of its copies loads)."""
+    counted = {name: ok for name, (kind, ok) in loaded.items() if kind.startswith(LEGGED_OR_HAND)}
+    missed = sorted(name for name, ok in counted.items() if not ok)
+    share = sum(counted.values()) / max(len(counted), 1)
+    return (f"Menagerie legged robots and hands that load and are checked: {sum(counted.values())} of "
+            f"{len(counted)} ({100 * share:.0f} %)" + (f"; not loaded: {', '.join(missed)}." if missed else "."))
+
+
 def _header(args, wall: float) -> str:
+    extra = ""
+    command = f"python scripts/decoupling_atlas.py --samples {args.samples} --jobs {args.jobs}"
+    if args.extra is not None:
+        command += f" --extra MENAGERIE_DOWNLOAD --extra-source '{args.extra_source}'"
+        extra = (f" Rows marked *downloaded* are Menagerie models {args.extra_source}, each folder as in "
+                 "the repository (XML with its meshes, where present), in a folder outside the repository "
+                 "(MENAGERIE_DOWNLOAD in the command); rows marked *menagerie* are the XML-only copies "
+                 "beside the repository.")
     return f"""# Decoupling atlas
 
 Every MuJoCo Menagerie model beside the repository (`../shared/data/menagerie`, XML only) and every
 example-robot-data robot with feet, loaded and checked for limb decoupling
-(`contactdiff.check_decoupling`, {args.samples} random poses besides the reference). Written by
+(`contactdiff.check_decoupling`, {args.samples} random poses besides the reference).{extra} Written by
 
-    python scripts/decoupling_atlas.py --samples {args.samples} --jobs {args.jobs}
+    {command}
 
 (whole run {wall:.0f} s wall time, {args.jobs} worker process(es); the machine was shared with other
 jobs, so the times are upper bounds). Columns: *max coupling* is the largest normalised inverse-mass
