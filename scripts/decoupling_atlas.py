@@ -179,8 +179,8 @@ def main(argv=None) -> None:
         lines.append(f"| {origin} | {label} | {kind} | {loads} | {out['feet']} ({out['rule']}) | {coupling} | "
                      f"{_cell(out['worst_term'])} | {_cell(out['worst_mass_term'])} | "
                      f"{_cell(out['verdict'].split(';')[0])} | {row.run_time:.2f} |")
-    lines += ["", _ratio(loaded), "", f"Not in the table: {len(skipped)} example-robot-data robots with fewer than two feet (fixed "
-              "bases, arms, flying arms): " + ", ".join(sorted(skipped)) + "."]
+    lines += ["", _ratio(loaded), "", f"Not in the table: {len(skipped)} example-robot-data robots with fewer "
+              "than two feet (fixed bases, arms, flying arms): " + ", ".join(sorted(skipped)) + "."]
     if failed:
         lines += ["", f"example-robot-data robots that do not load ({len(failed)}): " + "; ".join(failed) + "."]
     args.out.write_text("\n".join(lines) + "\n")

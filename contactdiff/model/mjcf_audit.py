@@ -17,6 +17,7 @@ _DYNAMIC_ACTUATORS = ("cylinder", "muscle", "adhesion")  # shortcuts with activa
 _FLEX_TAGS = ("flex", "flexcomp", "composite")
 _GENERATED = ("replicate", "attach")  # MuJoCo 3's generated bodies: unknown to Pinocchio 4.1
 _PLACEMENT = {"pos", "quat", "euler", "axisangle", "xyaxes", "zaxis"}
+_PASSIVE = ("stiffness", "damping", "frictionloss")  # joint forces MuJoCo adds; the dynamics here does not
 
 
 @dataclass
@@ -113,7 +114,26 @@ def audit(root: Element, floating_base: bool | None = None) -> Audit:
     if dynamic:
         found.left_out.append(f"the activation dynamics of actuator(s) {_listed(dynamic)} "
                               "(efforts act directly)")
+    passive = _passive_forces(root)
+    if passive:
+        found.left_out.append(passive)
     return found
+
+
+def _passive_forces(root: Element) -> str | None:
+    """``joint stiffness of 'a'; damping of 'a', 'b'; ...`` for the joints with nonzero
+    ``stiffness``, ``damping`` or ``frictionloss`` (classes resolved), or None: MuJoCo adds
+    these passive forces, the loaded dynamics does not."""
+    parts = []
+    for attribute in _PASSIVE:
+        names = [_named(j, "(unnamed)") for world in root.findall("worldbody") for j in world.iter("joint")
+                 if any(x != 0 for x in numbers(j.get(attribute), (0.0,)))]
+        if names:
+            shown = ", ".join(names[:6]) + (f" and {len(names) - 6} more" if len(names) > 6 else "")
+            parts.append(f"{attribute} of {len(names)} joint(s) ({shown})")
+    if not parts:
+        return None
+    return "joint " + "; ".join(parts) + " (passive forces: give them as efforts, e.g. JointSpring)"
 
 
 def _remove(root: Element, condition) -> None:

@@ -187,6 +187,28 @@ def test_left_out_features_are_named_in_one_warning(tmp_path, extra, phrase):
     np.testing.assert_allclose(_mass_matrix(robot, np.zeros(2)), leg_mass_matrix(np.zeros(2)), rtol=RTOL)
 
 
+def test_passive_joint_forces_are_named_in_one_warning(tmp_path):
+    """MuJoCo adds joint stiffness, damping and friction loss as passive forces; the loaded
+    dynamics does not: one warning names each attribute's joints, a class's value included
+    (the knee's stiffness comes from the class ``knee``), and the mass matrix is the leg's."""
+    text = LEG_XML.replace('<joint pos="0 0 -0.1"/>', '<joint pos="0 0 -0.1" stiffness="30"/>').replace(
+        '<joint name="hip"/>', '<joint name="hip" damping="0.5" frictionloss="0.1"/>')
+    with pytest.warns(MJCFWarning) as caught:
+        robot = load_robot(write(tmp_path, "leg.xml", text))
+    (message,) = [str(w.message) for w in caught]
+    assert "\n" not in message and "left out of the dynamics: joint " in message
+    assert "stiffness of 1 joint(s) ('knee')" in message
+    assert "damping of 1 joint(s) ('hip')" in message and "frictionloss of 1 joint(s) ('hip')" in message
+    np.testing.assert_allclose(_mass_matrix(robot, np.zeros(2)), leg_mass_matrix(np.zeros(2)), rtol=RTOL)
+
+
+def test_zero_passive_joint_forces_are_not_warned_about(tmp_path):
+    text = LEG_XML.replace('<joint name="hip"/>', '<joint name="hip" damping="0" stiffness="0" frictionloss="0"/>')
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", MJCFWarning)
+        load_robot(write(tmp_path, "leg.xml", text))
+
+
 def test_flex_is_refused(tmp_path):
     flex = '<deformable><flex name="cloth" dim="2" body="thigh thigh thigh" vertex="0 0 0 1 0 0 0 1 0"/></deformable>'
     with pytest.raises(UnsupportedModelError, match=r"<flex> 'cloth'"):
@@ -264,9 +286,11 @@ def test_xml_that_is_not_mjcf_is_read_as_urdf(tmp_path):
 # -- Menagerie ------------------------------------------------------------------------------
 def test_go2_has_four_sphere_feet_and_its_home_pose():
     path = menagerie_file("unitree_go2/go2.xml")
-    with warnings.catch_warnings():
-        warnings.simplefilter("error", MJCFWarning)  # nothing of Go2 is left out
+    with pytest.warns(MJCFWarning) as caught:
         robot = load_robot(path)
+    (message,) = [str(w.message) for w in caught]  # only its joints' damping and friction loss are left out
+    assert "left out of the dynamics: joint damping of 12 joint(s)" in message
+    assert "; frictionloss of 12 joint(s)" in message and "stiffness" not in message
     assert robot.floating_base
     assert robot.feet == ("FL", "FR", "RL", "RR")
     assert robot.foot_choice.rule is FootRule.MJCF_SPHERES
