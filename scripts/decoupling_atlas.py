@@ -74,10 +74,12 @@ def menagerie_models(folder: Path, scenes: bool = False) -> list[tuple[str, str]
 
 
 def _scene_of(path: Path) -> Path | None:
-    """The scene file beside ``path`` that includes it, or None."""
+    """The scene file beside ``path`` that includes it and adds no joints (a hand's scene may
+    add a free object to hold: a second tree), or None."""
     for name in ("scene.xml", f"scene_{path.name}", f"scene_{path.stem.split('_')[0]}.xml"):
         scene = path.parent / name
-        if scene.is_file() and f'file="{path.name}"' in scene.read_text(errors="replace"):
+        text = scene.read_text(errors="replace") if scene.is_file() else ""
+        if f'file="{path.name}"' in text and "<joint" not in text and "<freejoint" not in text:
             return scene
     return None
 
@@ -107,8 +109,15 @@ def atlas_scene(source: str, hand: bool = False):
             if len(ends) >= 2:
                 robot = cd.load_robot(source, feet=ends)
     scene = cd.Scene.from_robot(robot)
-    scene.atlas_notes = [str(w.message) for w in caught if "left out" in str(w.message)]
+    notes = [_short(str(w.message)) for w in caught if "left out" in str(w.message)]
+    scene.atlas_notes = list(dict.fromkeys(notes))  # a hand loads twice (its fingertips given)
     return scene
+
+
+def _short(note: str) -> str:
+    """A load's warning without the lists of joint names and the advice (the table's cell)."""
+    note = re.sub(r"of (\d+) joint\(s\) \([^)]*\)", r"of \1 joint(s)", note)
+    return note.replace(" (passive forces: give them as efforts, e.g. JointSpring)", " (passive forces)")
 
 
 def atlas_row(scene, point, samples: int = 8) -> dict:
