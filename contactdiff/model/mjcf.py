@@ -69,7 +69,7 @@ def build_model(path: str | Path, floating_base: bool | None = None,
     path = Path(path)
     doc = mjcf_xml.read_document(path, allow_outside)
     root = mjcf_xml.resolve(doc)
-    found = audit(root, floating_base)
+    found = audit(root, floating_base, path.resolve().parent, allow_outside)
     if found.refused:
         raise UnsupportedModelError(f"MJCF {str(path)!r} cannot be loaded as given: " + "; ".join(found.refused))
     if found.left_out:
