@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import argparse
 import re
+import textwrap
 import time
 import warnings
 from pathlib import Path
@@ -165,6 +166,8 @@ def main(argv=None) -> None:
              "| worst mass-matrix term | verdict | time [s] |", "|---|---|---|---|---|---|---|---|---|---|"]
     skipped, failed = [], []
     loaded: dict[str, tuple[str, bool]] = {}  # Menagerie folder: (kind, loaded and checked from some copy)
+    slowest = max(((row.run_time, label) for (origin, label, _), row in zip(models, result)
+                   if origin != "example-robot-data"), default=(0.0, "-"))
     for (origin, label, _), row in zip(models, result):
         kind = KINDS.get(label.split("/")[0], "quadruped" if label in QUADRUPEDS else "")
         if row.error is not None:
@@ -188,7 +191,8 @@ def main(argv=None) -> None:
         lines.append(f"| {origin} | {label} | {kind} | {loads} | {out['feet']} ({out['rule']}) | {coupling} | "
                      f"{_cell(out['worst_term'])} | {_cell(out['worst_mass_term'])} | "
                      f"{_cell(out['verdict'].split(';')[0])} | {row.run_time:.2f} |")
-    lines += ["", _ratio(loaded), "", f"Not in the table: {len(skipped)} example-robot-data robots with fewer "
+    lines += ["", _ratio(loaded) + f" Slowest Menagerie check: {slowest[1]}, {slowest[0]:.2f} s (load and check, "
+              "one worker process).", "", f"Not in the table: {len(skipped)} example-robot-data robots with fewer "
               "than two feet (fixed bases, arms, flying arms): " + ", ".join(sorted(skipped)) + "."]
     if failed:
         lines += ["", f"example-robot-data robots that do not load ({len(failed)}): " + "; ".join(failed) + "."]
@@ -212,15 +216,17 @@ def _header(args, wall: float) -> str:
     command = f"python scripts/decoupling_atlas.py --samples {args.samples} --jobs {args.jobs}"
     if args.extra is not None:
         command += f" --extra MENAGERIE_DOWNLOAD --extra-source '{args.extra_source}'"
-        extra = (f" Rows marked *downloaded* are Menagerie models {args.extra_source}, each folder as in "
-                 "the repository (XML with its meshes, where present), in a folder outside the repository "
-                 "(MENAGERIE_DOWNLOAD in the command); rows marked *menagerie* are the XML-only copies "
-                 "beside the repository.")
+        extra = "\n\n" + textwrap.fill(
+            f"Rows marked *downloaded* are Menagerie models {args.extra_source}, each folder as in the "
+            "repository (its XML files and the mesh files the download had), in a folder outside the repository "
+            "(MENAGERIE_DOWNLOAD in the command); rows marked *menagerie* are the XML-only copies beside the "
+            "repository. The share of legged robots and hands below counts each model once (loaded when one of "
+            "its copies loads); arms and grippers are not counted.", 100)
     return f"""# Decoupling atlas
 
 Every MuJoCo Menagerie model beside the repository (`../shared/data/menagerie`, XML only) and every
 example-robot-data robot with feet, loaded and checked for limb decoupling
-(`contactdiff.check_decoupling`, {args.samples} random poses besides the reference).{extra} Written by
+(`contactdiff.check_decoupling`, {args.samples} random poses besides the reference). Written by
 
     {command}
 
@@ -230,7 +236,7 @@ coupling |G_ij| / sqrt(G_ii G_jj) between two feet over the sampled poses; *wors
 largest term of the limb-decoupling assumption (docs/python-api.md, `check_decoupling`); *time* the
 load and the check of the model in its worker process. Feet rules: `mjcf_spheres` (the model's
 collision spheres on leaf bodies), `lowest_end_frames` (docs/models.md), `given` (a hand's fingertips:
-the end body of each leaf limb), `fixed_base` (an arm: no feet)."""
+the end body of each leaf limb), `fixed_base` (an arm: no feet).{extra}"""
 
 
 def _cell(text: str) -> str:

@@ -18,6 +18,8 @@ what it leaves out, then builds the model with ``pinocchio.buildModelFromMJCF``.
   into ``model.armature``, which its ``crba``, ``aba`` and ``computeMinverse``
   add to the mass matrix's diagonal, as MuJoCo does.
 * **Feet.** Sphere collision geoms on leaf bodies (`contactdiff.model.mjcf_feet`).
+* **Mesh inertia.** A body without ``<inertial>`` weighed by mesh geoms gets MuJoCo's
+  volume inertia of each mesh (`contactdiff.model.mjcf_mesh`) when the files are there.
 
 **MuJoCo's free-joint velocity.** MuJoCo's free joint velocity is the body
 origin's linear velocity in the world frame and the angular velocity in the
