@@ -267,6 +267,7 @@ def _mesh_masses(root: Element, found: Audit, folder: Path | None, allow_outside
     refuse a moving body whose mesh file is missing (or cannot be weighed)."""
     meshes = {mesh_name(e): (e, path) for e, path in asset_elements(root, folder, allow_outside)
               if e.tag == "mesh"} if folder is not None else {}
+    inline = {mesh_name(e) for asset in root.findall("asset") for e in asset.findall("mesh") if not e.get("file")}
     moving = _moving_bodies(root)
     cache: dict[str, object] = {}
     missing, failed, replaced = [], [], 0
@@ -275,6 +276,11 @@ def _mesh_masses(root: Element, found: Audit, folder: Path | None, allow_outside
             if not (weighs and _is_mesh(geom)):
                 continue
             mesh, path = meshes.get(geom.get("mesh", ""), (None, None))
+            if path is None and geom.get("mesh") in inline:
+                if id(body) in moving:
+                    failed.append(f"body {_named(body)}: <mesh> {geom.get('mesh')!r} is given by its vertices in "
+                                  "the XML; only mesh files are weighed here: give the body an <inertial>")
+                continue
             if path is None or not path.is_file():
                 if id(body) in moving:
                     missing.append((_named(body), path.name if path is not None else geom.get("mesh", "?")))

@@ -266,6 +266,13 @@ def test_mesh_file_that_is_not_binary_stl_is_named(tmp_path):
         load_robot(write(tmp_path, "pendulum.xml", text))
 
 
+def test_mesh_given_by_vertices_in_the_xml_is_refused_by_name(tmp_path):
+    text = """<mujoco><asset><mesh name="m" vertex="0 0 0 1 0 0 0 1 0 0 0 1"/></asset><worldbody><body name="b">
+      <joint name="j"/><geom type="mesh" mesh="m"/></body></worldbody></mujoco>"""
+    with pytest.raises(UnsupportedModelError, match=r"body 'b': <mesh> 'm' is given by its vertices in the XML"):
+        load_robot(write(tmp_path, "mesh.xml", text))
+
+
 def test_convex_hull_mesh_inertia_is_refused(tmp_path):
     from mjcf_models import box_triangles, write_stl
 
