@@ -129,10 +129,19 @@ def atlas_row(scene, point, samples: int = 8) -> dict:
     choice = scene.foot_choice
     return {"floating": scene.robot.floating_base, "nv": scene.robot.nv,
             "feet": ", ".join(scene.robot.feet) or "-", "rule": choice.rule.name.lower() if choice else "-",
+            "feet_shown": _feet_shown(scene.robot.feet, choice.limbs if choice else {}),
             "coupling": report.max_coupling if report.pairs else None,
+            "within": max((p.max for p in report.within_limb), default=None),
             "worst_term": f"{worst.condition} ({worst.where}): {worst.value:.2e}" if worst else "-",
             "worst_mass_term": f"{mass.where}: {mass.value:.2e}" if mass else "-",
             "verdict": report.verdict or f"none: {report.reason}", "notes": "; ".join(scene.atlas_notes)}
+
+
+def _feet_shown(feet, limbs: dict) -> str:
+    """The feet, a foot of several sphere points shown once as its body with their number."""
+    limb_of = {f: limb for limb, points in limbs.items() for f in points}
+    shown = dict.fromkeys(f"{limb_of[f]} ({len(limbs[limb_of[f]])} points)" if f in limb_of else f for f in feet)
+    return ", ".join(shown) or "-"
 
 
 def main(argv=None) -> None:
@@ -162,8 +171,8 @@ def main(argv=None) -> None:
                    lambda scene, point: atlas_row(scene, point, args.samples), n_jobs=args.jobs)
     wall = time.perf_counter() - started
     lines = [_header(args, wall), "",
-             "| source | model | kind | loads | feet (rule) | max coupling | worst decoupling term "
-             "| worst mass-matrix term | verdict | time [s] |", "|---|---|---|---|---|---|---|---|---|---|"]
+             "| source | model | kind | loads | feet (rule) | max coupling | within a foot | worst decoupling term "
+             "| worst mass-matrix term | verdict | time [s] |", "|---|---|---|---|---|---|---|---|---|---|---|"]
     skipped, failed = [], []
     loaded: dict[str, tuple[str, bool]] = {}  # Menagerie folder: (kind, loaded and checked from some copy)
     slowest = max(((row.run_time, label) for (origin, label, _), row in zip(models, result)
@@ -174,7 +183,7 @@ def main(argv=None) -> None:
             message = _cell(row.error.message.replace(str(args.menagerie.resolve()), "menagerie"))
             if origin != "example-robot-data":
                 loaded.setdefault(label.split("/")[0], (kind, False))
-                lines.append(f"| {origin} | {label} | {kind} | no: {message} | | | | | | {row.run_time:.2f} |")
+                lines.append(f"| {origin} | {label} | {kind} | no: {message} | | | | | | | {row.run_time:.2f} |")
             else:
                 failed.append(f"{label} ({message})")
             continue
@@ -187,8 +196,10 @@ def main(argv=None) -> None:
         if origin != "example-robot-data":
             loaded[label.split("/")[0]] = (kind, True)
         coupling = "-" if out["coupling"] is None else f"{out['coupling']:.2e}"
+        within = "-" if out["within"] is None else f"{out['within']:.2e}"
         loads = "yes" + (f" ({_cell(out['notes'])})" if out["notes"] else "")
-        lines.append(f"| {origin} | {label} | {kind} | {loads} | {out['feet']} ({out['rule']}) | {coupling} | "
+        lines.append(f"| {origin} | {label} | {kind} | {loads} | {out['feet_shown']} ({out['rule']}) | {coupling} | "
+                     f"{within} | "
                      f"{_cell(out['worst_term'])} | {_cell(out['worst_mass_term'])} | "
                      f"{_cell(out['verdict'].split(';')[0])} | {row.run_time:.2f} |")
     lines += ["", _ratio(loaded) + f" Slowest Menagerie check: {slowest[1]}, {slowest[0]:.2f} s (load and check, "
@@ -232,7 +243,10 @@ example-robot-data robot with feet, loaded and checked for limb decoupling
 
 (whole run {wall:.0f} s wall time, {args.jobs} worker process(es); the machine was shared with other
 jobs, so the times are upper bounds). Columns: *max coupling* is the largest normalised inverse-mass
-coupling |G_ij| / sqrt(G_ii G_jj) between two feet over the sampled poses; *worst decoupling term* the
+coupling |G_ij| / sqrt(G_ii G_jj) between two limbs' contacts over the sampled poses (a foot of several
+sphere points, shown as its body with their number, is one limb); *within a foot* the largest coupling
+between two points of one such foot, reported apart (one rigid body: not limb coupling, not in the
+verdict; `-` when every foot is one point); *worst decoupling term* the
 largest term of the limb-decoupling assumption (docs/python-api.md, `check_decoupling`); *time* the
 load and the check of the model in its worker process. Feet rules: `mjcf_spheres` (the model's
 collision spheres on leaf bodies), `lowest_end_frames` (docs/models.md), `given` (a hand's fingertips:
