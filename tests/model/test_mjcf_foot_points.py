@@ -38,10 +38,10 @@ _XML = """<mujoco model="points"><worldbody><body name="pelvis" pos="0 0 0.32"><
   {left}{right}</body></worldbody></mujoco>"""
 
 
-def _biped(tmp_path, left=_TWO, right=_TWO):
+def _biped(tmp_path, left=_TWO, right=_TWO, feet=None):
     xml = _XML.format(left=_LEG.format(s="left", y=0.1, spheres=left),
                       right=_LEG.format(s="right", y=-0.1, spheres=right))
-    return load_robot(write(tmp_path, "points.xml", xml))
+    return load_robot(write(tmp_path, "points.xml", xml), feet=feet)
 
 
 def _direct_coupling(robot, q, a, b) -> float:
@@ -124,3 +124,16 @@ def test_unnamed_sphere_frames_are_named_after_their_body(tmp_path):
     hip = data.oMi[robot.joint_id("right_hip")].translation
     np.testing.assert_allclose(data.oMf[robot.frame_id("right_foot_sphere2")].translation - hip,
                                [0, 0.02, -0.3], rtol=0, atol=1e-15)  # its own pos, at the reference pose
+
+
+def test_sphere_feet_given_by_hand_on_one_body_are_one_limb(tmp_path):
+    """``feet=`` naming two spheres of the left foot and one of the right: the left two are
+    one foot of two points (``limbs``), the right one a limb of its own; all stay round."""
+    given = ["left_foot_sphere1", "left_foot_sphere2", "right_foot_sphere2"]
+    robot = _biped(tmp_path, feet=given)
+    assert robot.foot_choice.rule is FootRule.GIVEN
+    assert robot.foot_choice.limbs == {"left_foot": tuple(given[:2])}
+    assert robot.foot_choice.radii == dict.fromkeys(given, 0.02)
+    report = cd.check_decoupling(robot, samples=1)
+    assert report.limb_contacts == {"left_foot": given[:2], "right_foot_sphere2": given[2:]}
+    assert [p.contacts for p in report.within_limb] == [tuple(given[:2])]
