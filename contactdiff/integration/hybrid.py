@@ -76,6 +76,7 @@ from .event_resets import EventResets
 from .events import simultaneous_group
 from .friction_events import FrictionEvents, refuse_ambiguous_slip, settle_friction
 from .guards import GuardFinder, NearMiss
+from .held import HeldEvents, held_contacts
 from .method_choice import EXPLICIT, MethodChooser, spectral_radius
 from .mode_field import ModeField
 from .options import AUTO, OnGrazing, SimulateOptions
@@ -134,7 +135,7 @@ def simulate(scene: Scene, t_final: float, q0=None, v0=None, *, t0: float = 0.0,
     return HybridLoop(scene, t0, t_final, q0, v0, options).run()
 
 
-class HybridLoop(EventResets, FrictionEvents):
+class HybridLoop(EventResets, FrictionEvents, HeldEvents):
     """The hybrid loop of one run (module docstring); `simulate` is ``HybridLoop(...).run()``.
 
     Args:
@@ -201,8 +202,15 @@ class HybridLoop(EventResets, FrictionEvents):
         phi[:, :self.n_state] = np.eye(n, self.n_state)
         return phi
 
-    def _field(self, mode, fused: bool) -> ModeField:
-        return ModeField(self.dyn, mode, fused=fused, parameters=self.jumps.forces if self.jumps else None)
+    def _field(self, mode, fused: bool, t: float, q, v) -> ModeField:
+        """The field of ``mode`` from ``(t, q, v)``, watching the contacts it holds at zero gap."""
+        held = {}
+        if mode:
+            gaps, rates = self._gaps_and_rates(q, v)
+            held = held_contacts(self.dyn, q, v, t, tuple(mode), gaps, rates, self.gap_tol,
+                                 self.options.grazing_speed)
+        return ModeField(self.dyn, mode, fused=fused, parameters=self.jumps.forces if self.jumps else None,
+                         held=held)
 
     def _jumped(self, phi: np.ndarray, event: Event) -> np.ndarray:
         """The flow Jacobian just after ``event`` from ``phi`` just before: ``Ξ phi``, plus
@@ -296,7 +304,7 @@ class HybridLoop(EventResets, FrictionEvents):
         options, scene = self.options, self.scene
         q, v = scene.q0.copy(), scene.v0.copy()
         mode, v = self.initial_mode(q, v)
-        field = self._field(mode, fused=self.sensitive and options.method != "Radau")
+        field = self._field(mode, self.sensitive and options.method != "Radau", self.t0, q, v)
         self.chooser = MethodChooser(self._probe(mode)) if options.method == AUTO else None
         stepper = make_stepper(EXPLICIT if self.chooser else options.method, field.accel, self.group, self.t0,
                                q, v, jac=field.jac, variational=self._identity_phi() if self.sensitive else None,
@@ -386,7 +394,7 @@ class HybridLoop(EventResets, FrictionEvents):
             for event in self.events[n_before:]:
                 stop = self.on_event(event, mode_before, phi_before) or stop
             q_event = self.events[-1].q
-            field = self._field(mode, fused=self.sensitive and stepper.method != "Radau")
+            field = self._field(mode, self.sensitive and stepper.method != "Radau", t_event, q_event, v_plus)
             self.fields.append(field)
             stepper.restart(t_event, q_event, v_plus, accel=field.accel, jac=field.jac,
                             parameter_jac=field.parameter_jac if self.jumps else None,
