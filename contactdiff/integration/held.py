@@ -52,7 +52,8 @@ def held_contacts(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float, mod
         mode: the contact keys of the mode.
         gaps: gap (m) of every scene contact at ``q``.
         rates: gap rate (m/s) of every scene contact at ``(q, v)``.
-        gap_tol: m, a gap below it is closed.
+        gap_tol: m, a gap below it is closed (the loop passes the drift its projection
+            allows: a held contact's gap is a combination of the others').
         speed_tol: m/s, a gap rate within it is zero, and a slip faster than it makes a
             Coulomb contact's key sliding.
 

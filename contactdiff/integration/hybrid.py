@@ -203,12 +203,13 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
         return phi
 
     def _field(self, mode, fused: bool, t: float, q, v) -> ModeField:
-        """The field of ``mode`` from ``(t, q, v)``, watching the contacts it holds at zero gap."""
+        """The field of ``mode`` from ``(t, q, v)``, watching the contacts it holds at zero gap
+        (a gap within the drift the projection allows: a held contact's gap is the others')."""
         held = {}
         if mode:
             gaps, rates = self._gaps_and_rates(q, v)
-            held = held_contacts(self.dyn, q, v, t, tuple(mode), gaps, rates, self.gap_tol,
-                                 self.options.grazing_speed)
+            held = held_contacts(self.dyn, q, v, t, tuple(mode), gaps, rates,
+                                 max(self.gap_tol, self.options.resolved_project_tol), self.options.grazing_speed)
         return ModeField(self.dyn, mode, fused=fused, parameters=self.jumps.forces if self.jumps else None,
                          held=held)
 
