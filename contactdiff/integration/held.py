@@ -58,11 +58,14 @@ def held_contacts(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float, mod
             Coulomb contact's key sliding.
 
     Returns:
-        ``{scene index: key}``: the key sticking, or sliding along its slip (Coulomb
-        friction, slipping faster than ``speed_tol``), whose rows add no rank to the
-        mode's, and whose enlarged set ``mode + (key,)`` has a solution. A contact
-        without Coulomb friction that slips is left to its gap guard (its sticking rows
-        would add a constraint).
+        ``{scene index: key}``: the contacts whose rows (sticking, or sliding along its slip
+        for a Coulomb contact slipping faster than ``speed_tol``) add no rank to the mode's,
+        each with its key as Coulomb's law settles the enlarged set ``mode + (key,)``
+        (`settle_friction`: a held contact at rest whose sticking force there would leave
+        its cone bears sliding; the guard then watches the load it would bear with). One
+        whose enlarged set has no solution is left out, as is a contact without Coulomb
+        friction that slips (its sticking rows would add a constraint): both keep their
+        gap guard.
     """
     if not mode:
         return {}
@@ -86,11 +89,11 @@ def held_contacts(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float, mod
             key = dyn.sliding_key(i)
         if row_rank(np.vstack([A, dyn.contact(key).rows(dyn.kin)])) != rank:
             continue
-        try:
-            dyn.solve(q, v, t, enlarged(mode, key))
+        try:  # its key as Coulomb's law settles the enlarged set, the one it would bear with
+            settled, _ = settle_friction(dyn, q, v, t, enlarged(mode, key))
         except (PainleveError, SolverError):
             continue
-        held[i] = key
+        held[i] = next(k for k in settled if dyn.contact_index(k) == i)
     return held
 
 
