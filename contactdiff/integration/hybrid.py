@@ -8,7 +8,9 @@
    the gap of every inactive contact (downward through 0, including a dip
    below 0 and back within the step, found from the cubic Hermite interpolant
    of the end-point gaps and gap rates and confirmed on the dense output) and
-   the normal force of every active contact (downward through 0).
+   the normal force of every active contact (downward through 0); a contact the
+   mode holds at zero gap has its compatible load watched instead of its gap
+   (`contactdiff.integration.held`).
 3. The earliest crossing is located on the dense output with Brent's method to
    full precision in time; guards crossing within ``simultaneous_tol`` of it
    form one simultaneous event. The stepper is cut at that time.
