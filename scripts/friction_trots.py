@@ -148,7 +148,7 @@ def _profiled(scene: cd.Scene, t_final: float) -> dict:
 def table(rows: list[dict], t_final: float) -> str:
     """The rows as a table, then the failures' diagnoses."""
     short = {"touchdown": "td", "lift-off": "lo", "slip": "slip", "stick": "stick", "bounce": "bnc",
-             "grazing": "graz", "zeno": "zeno"}
+             "grazing": "graz", "zeno": "zeno", "bear": "bear"}
     head = " ".join(f"{short[k]:>5}" for k in EVENT_KINDS)
     lines = [f"scene        friction events {head}  zenoC  slip s  wall s  steps  rej   base m (start)  "
              f"tilt  upright"]
