@@ -50,7 +50,8 @@ def counts(events, segments) -> dict:
 
 @contextmanager
 def where_time_goes(record: list):
-    """Record each accepted step of the steppers as ``(t_old, t, rejected attempts, wall s)`` and each
+    """Record each accepted step of the steppers as ``(t_old, t, rejected attempts, wall s, evaluations)``
+    (evaluations: the stepper's ``accel`` calls in the step and its rejected attempts) and each
     impact as ``("impact", wall s)`` into ``record``, for this run only (timers wrapped around
     ``step`` and the loop's ``resolve_impact``)."""
     from contactdiff.integration import event_resets
@@ -62,9 +63,10 @@ def where_time_goes(record: list):
 
     def timed_step(original):
         def step(self):
-            t_old, rejected, start = self.t, self.n_rejected, time.perf_counter()
+            t_old, rejected, evals, start = self.t, self.n_rejected, self.n_accel, time.perf_counter()
             original(self)
-            record.append((t_old, self.t, self.n_rejected - rejected, time.perf_counter() - start))
+            record.append((t_old, self.t, self.n_rejected - rejected, time.perf_counter() - start,
+                           self.n_accel - evals))
         return step
 
     def timed_impact(*args, **kwargs):
@@ -86,22 +88,29 @@ def where_time_goes(record: list):
 
 def time_shares(record: list, segments, wall: float) -> dict:
     """Wall time of steps inside segments with a slipping contact, of the other steps and of
-    impacts, with the steps' counts and simulated time (s)."""
+    impacts, with the steps' counts, their evaluations of the field, the simulated time (s) and
+    the evaluations per simulated second; ``slip_to_other``: the ratio of the two parts' rates."""
     starts = [seg.t0 for seg in segments]
-    out = {part: {"wall": 0.0, "steps": 0, "rejected": 0, "sim_time": 0.0} for part in ("slipping", "other")}
+    out = {part: {"wall": 0.0, "steps": 0, "rejected": 0, "evaluations": 0, "sim_time": 0.0}
+           for part in ("slipping", "other")}
     impacts = 0.0
     for item in record:
         if item[0] == "impact":
             impacts += item[1]
             continue
-        t_old, t, rejected, seconds = item
+        t_old, t, rejected, seconds, evaluations = item
         seg = segments[max(0, bisect.bisect_right(starts, t_old) - 1)]
         part = out["slipping" if seg.sliding else "other"]
         part["wall"] += seconds
         part["steps"] += 1
         part["rejected"] += rejected
+        part["evaluations"] += evaluations
         part["sim_time"] += t - t_old
-    return out | {"impacts": {"wall": impacts}, "rest": {"wall": wall - impacts - out["slipping"]["wall"]
+    for part in out.values():
+        part["evaluations_per_s"] = part["evaluations"] / part["sim_time"] if part["sim_time"] > 0 else 0.0
+    rates = out["slipping"]["evaluations_per_s"], out["other"]["evaluations_per_s"]
+    return out | {"slip_to_other": rates[0] / rates[1] if rates[1] > 0 else float("nan"),
+                  "impacts": {"wall": impacts}, "rest": {"wall": wall - impacts - out["slipping"]["wall"]
                                                           - out["other"]["wall"]}}
 
 
@@ -174,7 +183,9 @@ def table(rows: list[dict], t_final: float) -> str:
             for part in ("slipping", "other"):
                 q = p[part]
                 lines.append(f"  steps in {part:>8} segments: {q['wall']:6.2f} s wall, {q['steps']:5d} steps "
-                             f"({q['rejected']} rejected), {q['sim_time']:.4f} s simulated")
+                             f"({q['rejected']} rejected), {q['evaluations']} evaluations, {q['sim_time']:.4f} s "
+                             f"simulated: {q['evaluations_per_s']:.4g} evaluations per simulated s")
+            lines.append(f"  evaluations per simulated s, slipping over other: {p['slip_to_other']:.3g}")
             lines.append(f"  impacts: {p['impacts']['wall']:.2f} s; "
                          f"events, guards, the rest: {p['rest']['wall']:.2f} s")
     for r in fails:
