@@ -23,6 +23,7 @@ from __future__ import annotations
 import argparse
 import bisect
 import json
+import math
 import statistics
 import sys
 import time
@@ -86,13 +87,28 @@ def where_time_goes(record: list):
         event_resets.resolve_impact = impact
 
 
-def time_shares(record: list, segments, wall: float) -> dict:
+def _decade(seconds: float) -> str:
+    """``"1e-6"`` for a time from 1e-6 to 1e-5 s."""
+    return f"1e{math.floor(math.log10(max(seconds, 1e-300)))}"
+
+
+def time_shares(record: list, segments, wall: float, events=()) -> dict:
     """Wall time of steps inside segments with a slipping contact, of the other steps and of
     impacts, with the steps' counts, their evaluations of the field, the simulated time (s) and
-    the evaluations per simulated second; ``slip_to_other``: the ratio of the two parts' rates."""
+    the evaluations per simulated second; ``slip_to_other``: the ratio of the two parts' rates.
+    ``stops``: of the slipping segments, those that end in a ``stick`` event (of ``events``): their
+    count, evaluations, and evaluations by decade of the time left to the stop at the step's start
+    (``"1e-6"``: from 1e-6 to 1e-5 s); ``onsets``: the others that begin with a ``slip`` event (a
+    contact leaving its cone), by decade of the time since the onset at the step's end."""
     starts = [seg.t0 for seg in segments]
+    stop_times = {e.t for e in events if e.kind == "stick"}
+    onset_times = {e.t for e in events if e.kind == "slip"}
     out = {part: {"wall": 0.0, "steps": 0, "rejected": 0, "evaluations": 0, "sim_time": 0.0}
            for part in ("slipping", "other")}
+    stops = {"segments": sum(bool(seg.sliding) and seg.t1 in stop_times for seg in segments),
+             "evaluations": 0, "by_time_left": Counter()}
+    onsets = {"segments": sum(bool(seg.sliding) and seg.t1 not in stop_times and seg.t0 in onset_times
+                              for seg in segments), "evaluations": 0, "by_time_since": Counter()}
     impacts = 0.0
     for item in record:
         if item[0] == "impact":
@@ -106,10 +122,19 @@ def time_shares(record: list, segments, wall: float) -> dict:
         part["rejected"] += rejected
         part["evaluations"] += evaluations
         part["sim_time"] += t - t_old
+        if seg.sliding and seg.t1 in stop_times:
+            stops["evaluations"] += evaluations
+            stops["by_time_left"][_decade(seg.t1 - t_old)] += evaluations
+        elif seg.sliding and seg.t0 in onset_times:
+            onsets["evaluations"] += evaluations
+            onsets["by_time_since"][_decade(t - seg.t0)] += evaluations
     for part in out.values():
         part["evaluations_per_s"] = part["evaluations"] / part["sim_time"] if part["sim_time"] > 0 else 0.0
     rates = out["slipping"]["evaluations_per_s"], out["other"]["evaluations_per_s"]
-    return out | {"slip_to_other": rates[0] / rates[1] if rates[1] > 0 else float("nan"),
+    for part, key in ((stops, "by_time_left"), (onsets, "by_time_since")):
+        part[key] = dict(sorted(part[key].items(), key=lambda kv: float(kv[0])))
+    return out | {"slip_to_other": rates[0] / rates[1] if rates[1] > 0 else float("nan"), "stops": stops,
+                  "onsets": onsets,
                   "impacts": {"wall": impacts}, "rest": {"wall": wall - impacts - out["slipping"]["wall"]
                                                           - out["other"]["wall"]}}
 
@@ -151,7 +176,7 @@ def _profiled(scene: cd.Scene, t_final: float) -> dict:
         start = time.perf_counter()
         traj = cd.simulate(scene, t_final)
         wall = time.perf_counter() - start
-    return {"profile": time_shares(record, traj.segments, wall) | {"total": {"wall": wall}}}
+    return {"profile": time_shares(record, traj.segments, wall, traj.events) | {"total": {"wall": wall}}}
 
 
 def table(rows: list[dict], t_final: float) -> str:
@@ -186,6 +211,14 @@ def table(rows: list[dict], t_final: float) -> str:
                              f"({q['rejected']} rejected), {q['evaluations']} evaluations, {q['sim_time']:.4f} s "
                              f"simulated: {q['evaluations_per_s']:.4g} evaluations per simulated s")
             lines.append(f"  evaluations per simulated s, slipping over other: {p['slip_to_other']:.3g}")
+            st = p["stops"]
+            lines.append(f"  of the slipping steps, in the {st['segments']} segments that end in a stop: "
+                         f"{st['evaluations']} evaluations; by the time left to the stop (s): "
+                         + ", ".join(f"{k}: {n}" for k, n in st["by_time_left"].items()))
+            on = p["onsets"]
+            lines.append(f"  in the {on['segments']} others that begin with a slip from sticking: {on['evaluations']} "
+                         "evaluations; by the time since the onset (s): "
+                         + ", ".join(f"{k}: {n}" for k, n in on["by_time_since"].items()))
             lines.append(f"  impacts: {p['impacts']['wall']:.2f} s; "
                          f"events, guards, the rest: {p['rest']['wall']:.2f} s")
     for r in fails:
