@@ -96,6 +96,8 @@ def time_shares(record: list, segments, wall: float, events=()) -> dict:
     """Wall time of steps inside segments with a slipping contact, of the other steps and of
     impacts, with the steps' counts, their evaluations of the field, the simulated time (s) and
     the evaluations per simulated second; ``slip_to_other``: the ratio of the two parts' rates.
+    ``one_step_floor``: the ratio if each slipping segment took a single step of the other steps'
+    mean cost (a floor for any method that steps through each slip).
     ``stops``: of the slipping segments, those that end in a ``stick`` event (of ``events``): their
     count, evaluations, and evaluations by decade of the time left to the stop at the step's start
     (``"1e-6"``: from 1e-6 to 1e-5 s); ``onsets``: the others that begin with a ``slip`` event (a
@@ -131,9 +133,14 @@ def time_shares(record: list, segments, wall: float, events=()) -> dict:
     for part in out.values():
         part["evaluations_per_s"] = part["evaluations"] / part["sim_time"] if part["sim_time"] > 0 else 0.0
     rates = out["slipping"]["evaluations_per_s"], out["other"]["evaluations_per_s"]
+    out["slipping"]["segments"] = sum(bool(seg.sliding) for seg in segments)
+    per_step = out["other"]["evaluations"] / max(1, out["other"]["steps"])
+    slip_time = out["slipping"]["sim_time"]
+    floor = out["slipping"]["segments"] * per_step / slip_time if slip_time > 0 else 0.0
     for part, key in ((stops, "by_time_left"), (onsets, "by_time_since")):
         part[key] = dict(sorted(part[key].items(), key=lambda kv: float(kv[0])))
     return out | {"slip_to_other": rates[0] / rates[1] if rates[1] > 0 else float("nan"), "stops": stops,
+                  "one_step_floor": floor / rates[1] if rates[1] > 0 else float("nan"),
                   "onsets": onsets,
                   "impacts": {"wall": impacts}, "rest": {"wall": wall - impacts - out["slipping"]["wall"]
                                                           - out["other"]["wall"]}}
@@ -210,7 +217,9 @@ def table(rows: list[dict], t_final: float) -> str:
                 lines.append(f"  steps in {part:>8} segments: {q['wall']:6.2f} s wall, {q['steps']:5d} steps "
                              f"({q['rejected']} rejected), {q['evaluations']} evaluations, {q['sim_time']:.4f} s "
                              f"simulated: {q['evaluations_per_s']:.4g} evaluations per simulated s")
-            lines.append(f"  evaluations per simulated s, slipping over other: {p['slip_to_other']:.3g}")
+            lines.append(f"  evaluations per simulated s, slipping over other: {p['slip_to_other']:.3g} "
+                         f"({p['slipping']['segments']} slipping segments; one step each would give "
+                         f"{p['one_step_floor']:.3g})")
             st = p["stops"]
             lines.append(f"  of the slipping steps, in the {st['segments']} segments that end in a stop: "
                          f"{st['evaluations']} evaluations; by the time left to the stop (s): "

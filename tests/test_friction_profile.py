@@ -28,7 +28,9 @@ def test_time_shares_counts(friction_trots):
     (10 + 30 evaluations over 0.5 s: 80 per s together with the stop's), ending 0.25 s and 0.5 s
     after the onset (decade 1e-1); the stop's steps starting 0.5 s and 0.005 s before it (decades
     1e-1 and 1e-3), 12 + 48 evaluations. Slipping: 100 evaluations over 1 s, so 100 per s, and
-    100 / 24 over the sticking rate. An impact's wall time is kept apart."""
+    100 / 24 over the sticking rate; one 24-evaluation step (the sticking steps' mean) in each of the
+    two slipping segments would give 48 per s, 2 times the sticking rate. An impact's wall time is
+    kept apart."""
     segments = [NS(t0=0.0, t1=1.0, sliding=()), NS(t0=1.0, t1=1.5, sliding=("a",)),
                 NS(t0=1.5, t1=2.0, sliding=("b",))]
     events = [NS(t=1.0, kind="slip"), NS(t=1.5, kind="lift-off"), NS(t=2.0, kind="stick")]
@@ -41,6 +43,7 @@ def test_time_shares_counts(friction_trots):
     assert slipping["sim_time"] == pytest.approx(1.0) and other["sim_time"] == pytest.approx(1.0)
     assert slipping["evaluations_per_s"] == pytest.approx(100.0)
     assert shares["slip_to_other"] == pytest.approx(100.0 / 24.0)
+    assert slipping["segments"] == 2 and shares["one_step_floor"] == pytest.approx(2.0)
     assert shares["stops"] == {"segments": 1, "evaluations": 60, "by_time_left": {"1e-3": 48, "1e-1": 12}}
     assert shares["onsets"] == {"segments": 1, "evaluations": 40, "by_time_since": {"1e-1": 40}}
     assert shares["impacts"]["wall"] == pytest.approx(0.05)
