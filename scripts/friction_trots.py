@@ -15,6 +15,7 @@ A run that raises is reported with its counts up to there, traceback, time reach
     python scripts/friction_trots.py                 # μ = 0.7 and 0.8, 3 s
     python scripts/friction_trots.py --mu 0.5 --repeats 3 --json
     python scripts/friction_trots.py --profile       # and where the Coulomb runs' time goes
+    python scripts/friction_trots.py --mu 0.8 --scenes solo12_trot --jacobian --profile  # with the flow Jacobian
     python scripts/friction_trots.py --quick         # solo12, μ = 0.7, 0.2 s, profiled: a smoke run
 """
 
@@ -94,7 +95,8 @@ def _decade(seconds: float) -> str:
 
 def time_shares(record: list, segments, wall: float, events=()) -> dict:
     """Wall time of steps inside segments with a slipping contact, of the other steps and of
-    impacts, with the steps' counts, their evaluations of the field, the simulated time (s) and
+    impacts, with the steps' counts, their evaluations of the field, the simulated time (s: a step
+    that crossed an event, which the loop cut back to it, counts up to the segment's end) and
     the evaluations per simulated second; ``slip_to_other``: the ratio of the two parts' rates.
     ``one_step_floor``: the ratio if each slipping segment took a single step of the other steps'
     mean cost (a floor for any method that steps through each slip).
@@ -123,13 +125,13 @@ def time_shares(record: list, segments, wall: float, events=()) -> dict:
         part["steps"] += 1
         part["rejected"] += rejected
         part["evaluations"] += evaluations
-        part["sim_time"] += t - t_old
+        part["sim_time"] += min(t, seg.t1) - t_old  # a step that crossed an event counts up to it
         if seg.sliding and seg.t1 in stop_times:
             stops["evaluations"] += evaluations
             stops["by_time_left"][_decade(seg.t1 - t_old)] += evaluations
         elif seg.sliding and seg.t0 in onset_times:
             onsets["evaluations"] += evaluations
-            onsets["by_time_since"][_decade(t - seg.t0)] += evaluations
+            onsets["by_time_since"][_decade(min(t, seg.t1) - seg.t0)] += evaluations
     for part in out.values():
         part["evaluations_per_s"] = part["evaluations"] / part["sim_time"] if part["sim_time"] > 0 else 0.0
     rates = out["slipping"]["evaluations_per_s"], out["other"]["evaluations_per_s"]
@@ -146,12 +148,12 @@ def time_shares(record: list, segments, wall: float, events=()) -> dict:
                                                           - out["other"]["wall"]}}
 
 
-def run(scene: cd.Scene, t_final: float, repeats: int, profile: bool = False) -> dict:
+def run(scene: cd.Scene, t_final: float, repeats: int, profile: bool = False, jacobian: bool = False) -> dict:
     """One scene's row: counts of the last run, median wall time; on an exception, the diagnosis;
     with ``profile`` one more run with `where_time_goes`."""
     walls, reached = [], [0.0, 0, 0]
     # what simulate(scene, t_final) runs; progress only records (t, events, accepted steps)
-    options = cd.SimulateOptions(progress=lambda *p: reached.__setitem__(slice(None), p))
+    options = cd.SimulateOptions(progress=lambda *p: reached.__setitem__(slice(None), p), jacobian=jacobian)
     for _ in range(repeats):
         loop = cd.HybridLoop(scene, 0.0, t_final, options=options)
         start = time.perf_counter()
@@ -174,14 +176,15 @@ def run(scene: cd.Scene, t_final: float, repeats: int, profile: bool = False) ->
         "wall": statistics.median(walls), "walls": walls, "steps": traj.stats.steps,
         "rejected_steps": traj.stats.rejected_steps, "termination": str(traj.termination),
         "base_height": height, "start_height": start_height, "tilt_deg": tilt,
-        "upright": height >= 0.5 * start_height and tilt < 45.0} | (_profiled(scene, t_final) if profile else {})
+        "upright": height >= 0.5 * start_height and tilt < 45.0} \
+        | (_profiled(scene, t_final, jacobian) if profile else {})
 
 
-def _profiled(scene: cd.Scene, t_final: float) -> dict:
+def _profiled(scene: cd.Scene, t_final: float, jacobian: bool = False) -> dict:
     record = []
     with where_time_goes(record):
         start = time.perf_counter()
-        traj = cd.simulate(scene, t_final)
+        traj = cd.simulate(scene, t_final, jacobian=jacobian)
         wall = time.perf_counter() - start
     return {"profile": time_shares(record, traj.segments, wall, traj.events) | {"total": {"wall": wall}}}
 
@@ -248,6 +251,8 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--profile", action="store_true",
                         help="also time, in one more run of each Coulomb case, the steps in segments with a "
                              "slipping foot, the other steps and the impacts")
+    parser.add_argument("--jacobian", action="store_true",
+                        help="carry the flow Jacobian in every run (simulate(..., jacobian=True))")
     parser.add_argument("--json", action="store_true")
     parser.add_argument("--quick", action="store_true",
                         help="a smoke run of seconds: solo12_trot, μ = 0.7, 0.2 s, one repeat, --profile")
@@ -261,7 +266,7 @@ def main(argv: list[str] | None = None) -> None:
             print(f"running {name} friction={friction} for {args.t_final:g} s x {args.repeats} ...",
                   file=sys.stderr, flush=True)
             profile = args.profile and friction != "stick"
-            row = {"scene": name, "friction": friction} | run(scene, args.t_final, args.repeats, profile)
+            row = {"scene": name, "friction": friction} | run(scene, args.t_final, args.repeats, profile, args.jacobian)
             done = row.get("error") or f"{row['events']} events, {row['wall']:.2f} s wall"
             print(f"  done: {done}", file=sys.stderr, flush=True)
             rows.append(row)

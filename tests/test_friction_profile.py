@@ -25,16 +25,16 @@ def test_time_shares_counts(friction_trots):
     """Three segments: sticking on [0, 1), a slip from sticking on [1, 1.5) ending in a lift-off,
     a slip an impact left on [1.5, 2) ending in a stop at 2. Steps (t_old, t, rejected, wall,
     evaluations): the sticking one 1 s with 24 evaluations (24 per s); the onset's two steps
-    (10 + 30 evaluations over 0.5 s: 80 per s together with the stop's), ending 0.25 s and 0.5 s
-    after the onset (decade 1e-1); the stop's steps starting 0.5 s and 0.005 s before it (decades
-    1e-1 and 1e-3), 12 + 48 evaluations. Slipping: 100 evaluations over 1 s, so 100 per s, and
-    100 / 24 over the sticking rate; one 24-evaluation step (the sticking steps' mean) in each of the
-    two slipping segments would give 48 per s, 2 times the sticking rate. An impact's wall time is
-    kept apart."""
+    (10 + 30 evaluations over 0.5 s), ending 0.25 s and 0.5 s after the onset (decade 1e-1; the
+    second crossed the lift-off, to 1.6, and counts up to it); the stop's steps starting 0.5 s and
+    0.005 s before it (decades 1e-1 and 1e-3), 12 + 48 evaluations. Slipping: 100 evaluations
+    over 1 s, so 100 per s, and 100 / 24 over the sticking rate; one 24-evaluation step (the
+    sticking steps' mean) in each of the two slipping segments would give 48 per s, 2 times the
+    sticking rate. An impact's wall time is kept apart."""
     segments = [NS(t0=0.0, t1=1.0, sliding=()), NS(t0=1.0, t1=1.5, sliding=("a",)),
                 NS(t0=1.5, t1=2.0, sliding=("b",))]
     events = [NS(t=1.0, kind="slip"), NS(t=1.5, kind="lift-off"), NS(t=2.0, kind="stick")]
-    record = [(0.0, 1.0, 0, 0.1, 24), (1.0, 1.25, 1, 0.1, 10), (1.25, 1.5, 0, 0.1, 30), ("impact", 0.05),
+    record = [(0.0, 1.0, 0, 0.1, 24), (1.0, 1.25, 1, 0.1, 10), (1.25, 1.6, 0, 0.1, 30), ("impact", 0.05),
               (1.5, 1.995, 2, 0.1, 12), (1.995, 2.0, 3, 0.1, 48)]
     shares = friction_trots.time_shares(record, segments, 1.0, events)
     slipping, other = shares["slipping"], shares["other"]
