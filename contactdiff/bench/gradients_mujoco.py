@@ -176,7 +176,8 @@ FD_STEP = 1e-5
 
 def _method(model, qpos, qvel, steps, method: str, fd: tuple, tangent: tuple, h: float):
     if method == "fd":
-        return fd_gradient(model, qpos, qvel, steps, *fd, h)
+        rows, columns = fd
+        return fd_gradient(model, qpos, qvel, steps, rows, columns, h)
     if method == "transition":
         return transition_gradient(model, qpos, qvel, steps, *tangent)
     raise InvalidInputError(f"method must be 'fd' or 'transition', got {method!r}")

@@ -54,6 +54,7 @@ run are one `SimulateOptions`.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
@@ -204,9 +205,10 @@ class HybridLoop(EventResets, FrictionEvents):
     def _field(self, mode, fused: bool) -> ModeField:
         return ModeField(self.dyn, mode, fused=fused, parameters=self.jumps.forces if self.jumps else None)
 
-    def _jumped(self, phi: np.ndarray, event: Event) -> np.ndarray:
+    def _jumped(self, phi: np.ndarray | None, event: Event) -> np.ndarray:
         """The flow Jacobian just after ``event`` from ``phi`` just before: ``Ξ phi``, plus
         ``Ξ_p`` on the parameter columns."""
+        assert phi is not None and event.saltation is not None  # called only in a sensitive run
         out = event.saltation @ phi
         if event.parameter_saltation is not None:
             out[:, self.n_state:] += event.parameter_saltation
@@ -285,7 +287,7 @@ class HybridLoop(EventResets, FrictionEvents):
     # -- the loop -------------------------------------------------------------------
     def _stepper_options(self, field: ModeField) -> dict:
         o = self.options
-        options = dict(rtol=o.rtol, atol=o.atol, max_step=o.max_step, t_bound=self.t_final)
+        options: dict[str, Any] = dict(rtol=o.rtol, atol=o.atol, max_step=o.max_step, t_bound=self.t_final)
         if self.jumps is not None:
             options.update(parameter_jac=field.parameter_jac, variational_column_scale=np.concatenate(
                 [np.ones(self.n_state), self.jumps.scale]))
@@ -448,6 +450,7 @@ class HybridLoop(EventResets, FrictionEvents):
         self.switches.append((stepper.t, method))
         # Radau evaluates the field at Newton iterates, where no derivative is wanted
         field.fused = self.sensitive and method != "Radau"
+        assert self.chooser is not None  # method "auto" switches, and it has a chooser
         rho = self.chooser.rho
         if len(self.switches) <= MAX_NOTES:
             why = ("explicit steps limited by stability" if method != EXPLICIT
@@ -518,6 +521,7 @@ class HybridLoop(EventResets, FrictionEvents):
         q, v, D = project_state(self.dyn, stepper.q, stepper.v, mode, jacobian=self.sensitive)
         phi = None if D is None else D @ stepper.phi
         if self.jumps is not None:
+            assert phi is not None  # a run with parameters is sensitive: D is computed
             phi[:, self.n_state:] += self.jumps.projection(q, mode)
         stepper.restart(stepper.t, q, v, phi=phi)
         self.n_projections += 1

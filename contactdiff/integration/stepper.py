@@ -194,6 +194,14 @@ class Stepper(VariationalAlgebra, abc.ABC):
     method: str = ""
     error_order: int = 0  # error ~ h^(error_order + 1); for the first-step heuristic
 
+    # the previous point: None until a step is accepted (and after a restart); read only
+    # after one (`dense`, `truncate` check ``t_old is None`` first)
+    t_old: float
+    q_old: np.ndarray
+    v_old: np.ndarray
+    phi_old: np.ndarray | None
+    _outside: OutsideDomainError | None
+
     def __init__(
         self,
         accel: AccelFn,
@@ -251,7 +259,7 @@ class Stepper(VariationalAlgebra, abc.ABC):
             raise InvalidInputError(f"t_bound must be >= t0 = {t0!r} (forward integration only), got {t_bound!r}")
         self.variational_error_control = bool(variational_error_control)
         if variational_atol is None:
-            self._atol_phi = self.atol if atol_arr.ndim == 0 else self.atol[:, None]
+            self._atol_phi = self.atol if atol_arr.ndim == 0 else atol_arr[:, None]
         else:
             va = np.array(variational_atol, dtype=float)
             if va.shape not in ((), (self.n,)):
@@ -272,7 +280,7 @@ class Stepper(VariationalAlgebra, abc.ABC):
 
         self.n_steps = self.n_rejected = self.n_accel = self.n_jac = 0
         self._outside = None
-        self.t_old = self.q_old = self.v_old = self.phi_old = None
+        self.t_old = self.q_old = self.v_old = self.phi_old = None  # type: ignore[assignment]  # no step yet (class doc)
         self._y = self._point_y(self.q, self.v)
         self._f = self._point_f(self.t, self.q, self.v)
         self._setup()
@@ -380,7 +388,7 @@ class Stepper(VariationalAlgebra, abc.ABC):
         if phi is not None:
             self.phi = self._check_phi(phi)
         self.t, self.q, self.v = t, q, v
-        self.t_old = self.q_old = self.v_old = self.phi_old = None
+        self.t_old = self.q_old = self.v_old = self.phi_old = None  # type: ignore[assignment]  # no step yet (class doc)
         self._y = self._point_y(q, v)
         self._f = self._point_f(t, q, v)
         self._after_restart()
@@ -435,6 +443,7 @@ class Stepper(VariationalAlgebra, abc.ABC):
         """Sizes that ``rtol`` is relative to, per component of ``y``."""
         if self._vs:
             return np.abs(y)
+        assert q is not None  # off vector spaces the caller passes the point
         return np.concatenate((self.group.magnitude(q), np.abs(y[self.nv :])))
 
     def _eval_into(self, t: float, y: np.ndarray, out: np.ndarray, qc, accel=None) -> np.ndarray:

@@ -167,7 +167,8 @@ class Event:
                 extra["time_gradient"] = self.time_gradient.tolist()
         if self.parameter_saltation is not None:
             extra["parameter_saltation"] = self.parameter_saltation.tolist()
-            extra["parameter_time_gradient"] = self.parameter_time_gradient.tolist()
+            if self.parameter_time_gradient is not None:
+                extra["parameter_time_gradient"] = self.parameter_time_gradient.tolist()
         if self.outcomes:
             extra["outcomes"] = {name: v.tolist() for name, v in self.outcomes.items()}
         if self.saltation_orders:

@@ -286,7 +286,7 @@ def _remove_point_mass(inertia: pin.Inertia, mass: float, point: np.ndarray, bod
     h = np.append(point, 1.0)
     # J may be singular (a point-mass body): then h must lie in its range (pseudo-inverse)
     J_pinv = np.linalg.pinv(J, rcond=1e-12, hermitian=True)
-    in_range = np.linalg.norm(J @ (J_pinv @ h) - h) <= 1e-9 * max(1.0, np.linalg.norm(h))
+    in_range = np.linalg.norm(J @ (J_pinv @ h) - h) <= 1e-9 * max(1.0, float(np.linalg.norm(h)))
     limit = 1.0 / float(h @ J_pinv @ h) if in_range and inertia.mass > 0 else 0.0
     if mass > limit * (1 - 1e-12):
         raise InvalidInputError(

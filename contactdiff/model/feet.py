@@ -340,7 +340,7 @@ def foot_spheres(robot, feet=None) -> dict[str, FootSphere | None]:
         return {foot: FootSphere(foot, radii[foot], (0.0, 0.0, 0.0), foot) if foot in radii else None
                 for foot in (robot.feet if feet is None else feet)}
     geometry = _collision_model(robot)
-    found = {}
+    found: dict[str, FootSphere | None] = {}
     for foot in (robot.feet if feet is None else feet):
         fid = robot.frame_id(foot)
         frame = model.frames[fid]
@@ -355,8 +355,8 @@ def foot_spheres(robot, feet=None) -> dict[str, FootSphere | None]:
             found[foot] = None
             continue
         best = min(candidates, key=lambda g: np.linalg.norm(centre(g)))
-        found[foot] = FootSphere(foot, float(best.geometry.radius), tuple(float(x) for x in centre(best)),
-                                 best.name)
+        x, y, z = (float(c) for c in centre(best))
+        found[foot] = FootSphere(foot, float(best.geometry.radius), (x, y, z), best.name)
     return found
 
 
@@ -427,10 +427,11 @@ def round_feet(scene, spheres: dict | None = None):
             f"robot {robot.name!r}: cannot round its feet: "
             + "; ".join(f"{foot} has no collision sphere (a mesh, or no collision geometry)" for foot in missing)
             + " (give Contact(radius=...) by hand)")
+    found = {foot: sphere for foot, sphere in spheres.items() if sphere is not None}  # every foot here has one
     off_centre = sorted({scene.contact_specs[i].frame for i in at_feet
-                         if not spheres[scene.contact_specs[i].frame].centred})
+                         if not found[scene.contact_specs[i].frame].centred})
     if off_centre:
-        rounded_robot, frames = _with_sphere_frames(robot, [spheres[foot] for foot in off_centre])
+        rounded_robot, frames = _with_sphere_frames(robot, [found[foot] for foot in off_centre])
         data = rounded_robot.model.createData()
         pin.framesForwardKinematics(rounded_robot.model, data, rounded_robot.q_ref)
     else:
@@ -438,7 +439,7 @@ def round_feet(scene, spheres: dict | None = None):
     contacts = list(scene.contact_specs)
     for i in at_feet:
         c = contacts[i]
-        r = spheres[c.frame].radius
+        r = found[c.frame].radius
         if c.frame not in frames:
             contacts[i] = _dc.replace(c, radius=r, offset=c.offset - r)
             continue
@@ -447,9 +448,9 @@ def round_feet(scene, spheres: dict | None = None):
         foot = data.oMf[rounded_robot.model.getFrameId(c.frame)].translation
         offset = c.offset + float(n @ centre - n @ foot) - r
         contacts[i] = _dc.replace(c, frame=frames[c.frame], radius=r, offset=offset)
-    rounded = Scene(rounded_robot, contacts, scene.effort_specs, None, scene.q0, scene.v0, scene.name)
-    rounded.foot_choice = scene.foot_choice
-    return rounded
+    rounded_scene = Scene(rounded_robot, contacts, scene.effort_specs, None, scene.q0, scene.v0, scene.name)
+    rounded_scene.foot_choice = scene.foot_choice
+    return rounded_scene
 
 
 def _with_sphere_frames(robot, spheres) -> tuple:

@@ -83,7 +83,7 @@ def audit(root: Element, floating_base: bool | None = None) -> Audit:
     frames = mjcf_tree.flatten_frames(root)
     if frames:
         found.repaired.append(f"{frames} <frame> element(s) replaced by their children, placed")
-    split = mjcf_tree.split_joints(root, {e.get("name") for e in root.iter() if e.get("name")})
+    split = mjcf_tree.split_joints(root, {name for e in root.iter() if (name := e.get("name"))})
     if split:
         found.repaired.append(f"bodies with several joints ({', '.join(split)}) split into one body per joint")
     _base_joint(root, floating_base, found)
@@ -190,15 +190,15 @@ def _base_joint(root: Element, floating_base: bool | None, found: Audit) -> None
         base.insert(0, Element("freejoint", {"name": _free_name(root, "root")}))
         pose = " ".join(map(str, numbers(base.get("pos"), (0.0, 0.0, 0.0)) + (1.0, 0.0, 0.0, 0.0)))
         for key in root.iter("key"):  # the new joint's coordinates come first: the body's position
-            if key.get("qpos") is not None:
-                key.set("qpos", pose + " " + key.get("qpos"))
+            if (qpos := key.get("qpos")) is not None:
+                key.set("qpos", pose + " " + qpos)
         found.repaired.append(f"a free joint added to body {_named(base)} (floating_base=True)")
     elif floating_base is False and free:
         for j in free:
             base.remove(j)
         for key in root.iter("key"):  # the free joint's seven coordinates come first: drop them
-            if key.get("qpos") is not None:
-                key.set("qpos", " ".join(key.get("qpos").split()[7 * len(free):]))
+            if (qpos := key.get("qpos")) is not None:
+                key.set("qpos", " ".join(qpos.split()[7 * len(free):]))
         found.repaired.append(f"the free joint of body {_named(base)} removed (floating_base=False)")
 
 

@@ -53,8 +53,8 @@ def collision_spheres(root: Element, leaves_only: bool = True) -> list[SphereGeo
                 continue
             centre = numbers(geom.get("pos"), (0.0, 0.0, 0.0))
             name = geom.get("name") or f"{body.get('name')}_sphere{k}"
-            found.append(SphereGeom(name, body.get("name", ""), float(radius),
-                                    tuple(float(x) for x in centre[:3])))
+            x, y, z = (float(c) for c in centre[:3])
+            found.append(SphereGeom(name, body.get("name", ""), float(radius), (x, y, z)))
     return found
 
 

@@ -118,6 +118,7 @@ class SweepResult(list):
         """These rows if every run succeeded; else the first failed point's error, raised
         as a `ContactDiffError` naming the point (for studies that need every row)."""
         for r in self.failed[:1]:
+            assert r.error is not None  # a failed row has its error
             raise ContactDiffError(f"{r.error.kind} at {r.point}: {r.error.message}")
         return self
 

@@ -19,9 +19,10 @@ import re
 import sys
 import time
 import warnings
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ..errors import ContactDiffError, InvalidInputError, ModelLoadError, check_number, write_failed
 from ..integration.options import SimulateOptions, field_names
@@ -31,6 +32,9 @@ from .files import Damage, ResultsFile
 from .jobs import Job
 from .points import PointSet, as_points, key
 from .rows import RESERVED, Row, RunError, SweepResult
+
+if TYPE_CHECKING:
+    from ..model.scene import Scene
 from .sources import SceneSource
 
 JOB_OWNED = ("jacobian", "parameters", "dense", "progress")
@@ -164,6 +168,7 @@ def sweep(scene, points, job="simulate", *, t_final: float | None = None,
     result = SweepResult([rows[i] for i in range(len(points))], points.names, skipped=len(points) - len(todo),
                          wall_time=time.perf_counter() - started, default_output=job.default_output())
     if lost is not None:
+        assert results is not None  # only a write to it is lost
         raise write_failed("--out", results.path, lost, result)
     return result
 
@@ -197,10 +202,11 @@ def _context(source: SceneSource, points: PointSet, job: Job, t_final, options: 
     """Check the sweep in this process (scene, names, values, settings) and describe it."""
     source.check_arguments(points.names)
     arguments = {n[4:]: v for n, v in points[0].items() if n.startswith("arg:")}
+    scene: Scene | Callable[[], Scene]
     if source.factory is None:
         scene = source.build()  # a name or file: loading it here checks it (cheap), and one worker uses it
     else:
-        def scene():  # a factory may be expensive (a trot simulated): built here only if a name needs it
+        def scene() -> Scene:  # a factory may be expensive (a trot simulated): built here only if a name needs it
             try:
                 return source.build(arguments)
             except ContactDiffError:

@@ -283,7 +283,8 @@ def find_periodic_gait(scene: Scene, foot: str, q=None, v=None, t: float = 0.0, 
         return resolutions[-1] is not None and residuals[-1] <= resolutions[-1]
 
     stride, B, r, moved = evaluate(q, v, t)
-    residuals, steps, resolutions = [float(np.linalg.norm(r))], ["start"], [None]
+    residuals, steps = [float(np.linalg.norm(r))], ["start"]
+    resolutions: list[float | None] = [None]
     for n in range(iterations + 1):
         # the resolution is measured only in a search (iterations > 0), at each iterate above tol
         if residuals[-1] <= tol or (resolution and iterations and resolved_here(stride, B, r)) or n == iterations:
@@ -383,6 +384,7 @@ def period_map(scene: Scene, q=None, v=None, t: float = 0.0, *, period: float | 
     v = scene.v0 if v is None else np.array(v, dtype=float)
     t = check_number("period map", "t", t)
     traj = simulate(scene, t + clock, q, v, t0=t, jacobian=True, rtol=rtol, atol=atol, **options)
+    assert traj.jacobian is not None  # asked for
     neutral = _check_neutral(scene, neutral, q, v, t)
     N = neutral_directions(scene, q, neutral)
     if N.shape[1]:

@@ -93,7 +93,7 @@ from ...integration.hybrid import HybridLoop
 from ...integration.options import SimulateOptions
 from ...integration.parameter_jumps import ParameterJumps
 from ...integration.sensitivity import gap_gradient, saltation, touchdown, vector_field
-from ...integration.trajectory import Trajectory
+from ...integration.trajectory import Event, Trajectory
 from ...model.scene import Scene
 from .section import (
     _IMPACT_KINDS,
@@ -187,6 +187,7 @@ class Stride:
             raise InvalidInputError("this stride was computed without parameters (stride_map(..., parameters=[...]))")
         if self.period is None:
             return self.parameter_jacobian
+        assert self.parameter_time_gradient is not None  # computed with the parameters' Jacobian
         return np.vstack([self.parameter_jacobian, self.parameter_time_gradient])
 
     def summary(self) -> dict:
@@ -197,10 +198,12 @@ class Stride:
                "events": [f"{e.t:.12g} {e.kind} {'+'.join(e.contacts)}" for e in self.trajectory.events],
                "differentiable": self.differentiable, "simultaneous": list(self.simultaneous)}
         if self.jacobian is not None:
+            assert self.time_gradient is not None and self.start_time_column is not None  # computed with it
             out |= {"jacobian": self.jacobian.tolist(), "time_gradient": self.time_gradient.tolist(),
                     "start_time_column": self.start_time_column.tolist(),
                     "start_time_derivative": self.start_time_derivative}
         if self.parameter_jacobian is not None:
+            assert self.parameter_time_gradient is not None  # computed with it
             out |= {"parameter_names": list(self.parameter_names),
                     "parameter_jacobian": self.parameter_jacobian.tolist(),
                     "parameter_time_gradient": self.parameter_time_gradient.tolist()}
@@ -226,7 +229,8 @@ class StrideLoop(HybridLoop):
         # last time the foot was on the ground (s); the start counts as such, so a
         # foot a few nanometres up after a restart does not "land" at once
         self.last_contact = t0
-        self.hit = None  # (event, mode before as keys, Φ just before)
+        # (event, mode before as keys, Φ just before)
+        self.hit: tuple[Event, tuple[int, ...], np.ndarray | None] | None = None
         self.start = None  # (mode before, F- at the start, contacts landing with the foot)
 
     def initial_mode(self, q, v):
@@ -417,6 +421,7 @@ def _run_stride(scene, i, q, v, t0, t_end, clock, jacobian, require_start, min_s
     t, q1, v1 = event.t, event.q.copy(), event.v_minus.copy()
     J = tg = col = dt = J_p = tg_p = None
     if jacobian:
+        assert phi is not None  # a run with the Jacobian records it
         dyn = run.dyn
         Dh = gap_gradient(dyn, q1, i)
         F = vector_field(dyn, q1, v1, t, mode)
