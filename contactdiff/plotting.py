@@ -6,15 +6,12 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import ContactDiffError
+from .errors import require_extra
 from .integration.trajectory import Trajectory
 
 
 def _pyplot():
-    try:
-        import matplotlib
-    except ImportError:
-        raise ContactDiffError("plotting needs matplotlib: pip install 'contactdiff[plot]'") from None
+    matplotlib = require_extra("matplotlib", "plot", "plotting")
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 

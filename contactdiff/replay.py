@@ -55,7 +55,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pinocchio as pin
 
-from .errors import ContactDiffError, InvalidInputError, check_output_file, write_failed
+from .errors import InvalidInputError, check_output_file, require_extra, write_failed
+from .errors import MissingExtraError as MissingExtraError  # its home until it moved to errors.py
 from .replay_geometry import contact_surfaces, drawn_geometry, marker_radius, model_size, visible_marker_radius
 
 if TYPE_CHECKING:
@@ -77,21 +78,12 @@ EVENT_COLOURS = {"touchdown": "#d62728", "lift-off": "#2ca02c", "slip": "#bcbd22
 _EVENT_TOL = 1e-9  # s: a grid time this close to an event time is replaced by the event's
 
 
-class MissingExtraError(ContactDiffError, ImportError):
-    """An optional dependency of the replay (meshcat) is not installed."""
-
-
 def require_meshcat():
     """The meshcat modules, or `MissingExtraError` naming the extra to install."""
-    try:
-        import meshcat
-        import meshcat.animation
-        import meshcat.geometry
-        import umsgpack
-    except ImportError as exc:
-        raise MissingExtraError(f"the browser replay needs meshcat ({exc}): "
-                                "pip install 'contactdiff[viz]'") from None
-    return meshcat, umsgpack
+    meshcat = require_extra("meshcat", "viz", "the browser replay")
+    for module in ("meshcat.animation", "meshcat.geometry"):  # meshcat's attributes once imported
+        require_extra(module, "viz", "the browser replay")
+    return meshcat, require_extra("umsgpack", "viz", "the browser replay")
 
 
 # -- frames -------------------------------------------------------------------------------
