@@ -140,8 +140,10 @@ class HybridLoop(EventResets, FrictionEvents):
 
     Args:
         scene: the `Scene`.
-        t0, t_final: start and final time (s).
-        q0, v0: initial state (arrays or joint-name mappings); None: the scene's.
+        t0: start time (s).
+        t_final: final time (s).
+        q0: initial configuration (an array or a joint-name mapping); None: the scene's.
+        v0: initial velocity (an array or a joint-name mapping); None: the scene's.
         options: the `SimulateOptions`.
 
     Extension: override `initial_mode` and `on_event` (see there). The state a

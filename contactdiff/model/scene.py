@@ -37,9 +37,11 @@ class Scene:
             `JointSpring`, `Spring`, `UserEffort`, the trot controller); gravity is
             not one: it is the model's, set by ``gravity``.
         gravity: world gravity (m/s², 3 numbers); ``None`` keeps the model's.
-        q0, v0: initial state, either full arrays (``nq`` / ``nv``) or mappings
+        q0: initial configuration, either a full array (``nq``) or a mapping
             from joint name to value (a number, or a list for multi-coordinate
-            joints); unnamed joints keep the robot's reference pose and zero velocity.
+            joints); unnamed joints keep the robot's reference pose.
+        v0: initial velocity, either a full array (``nv``) or a mapping from joint
+            name to value, as ``q0``; unnamed joints keep zero velocity.
         name: label for reports.
 
     Raises:
