@@ -48,6 +48,7 @@ import bisect
 import html
 import json
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -60,7 +61,8 @@ from .errors import MissingExtraError as MissingExtraError  # its home until it 
 from .replay_geometry import contact_surfaces, drawn_geometry, marker_radius, model_size, visible_marker_radius
 
 if TYPE_CHECKING:
-    from .integration.trajectory import Event
+    from .integration.trajectory import Event, Trajectory
+    from .model.scene import Scene
 
 DEFAULT_FPS = 30.0
 """Frames per second of simulated time."""
@@ -191,8 +193,8 @@ class _Recorder:
 
 
 # -- the page --------------------------------------------------------------------------------
-def replay_html(traj, scene, *, fps: float = DEFAULT_FPS, contact_radius: float | None = None,
-                title: str | None = None, package_dirs=()) -> str:
+def replay_html(traj: Trajectory, scene: Scene, *, fps: float = DEFAULT_FPS, contact_radius: float | None = None,
+                title: str | None = None, package_dirs: Sequence[str | Path] = ()) -> str:
     """The replay page of ``traj`` as HTML text (see the module docstring).
 
     Args:

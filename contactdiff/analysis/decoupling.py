@@ -26,11 +26,13 @@ assumption fails: continuous, not differentiable in general) and ``coupled``
 from __future__ import annotations
 
 import itertools
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
+from numpy.typing import ArrayLike
 
 from ..errors import InvalidInputError, check_count
 from ..jsonable import to_jsonable
@@ -175,7 +177,7 @@ def _table(header, rows) -> list[str]:
 # -- the checker ------------------------------------------------------------------------
 def check_decoupling(source: Scene | Robot | str | Path, *, samples: int = 20, seed: int = 0,
                      armature: float = 0.0, tol: float = 1e-9, spread: float = 0.4,
-                     states=None) -> DecouplingReport:
+                     states: Sequence[tuple[ArrayLike, ArrayLike, float]] | None = None) -> DecouplingReport:
     """Check a scene (or a robot on its feet) against the paper's assumptions.
 
     Args:

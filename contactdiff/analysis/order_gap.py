@@ -45,6 +45,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import pinocchio as pin
+from numpy.typing import ArrayLike
 
 from ..dynamics.impacts import resolve_impact
 from ..dynamics.mode import ModeDynamics
@@ -166,7 +167,7 @@ def _index(scene: Scene, contact) -> int:
     return k
 
 
-def order_gap(scene: Scene, q, v_minus, contacts: Sequence = (0, 1), *, mode: Sequence = (),
+def order_gap(scene: Scene, q: ArrayLike, v_minus: ArrayLike, contacts: Sequence = (0, 1), *, mode: Sequence = (),
               t: float = 0.0, horizon: float | None = None, jacobian: bool = False,
               simulate_options: dict | None = None) -> OrderGap:
     """Order gap of the simultaneous touchdown of two contacts at ``(q, v-)``.

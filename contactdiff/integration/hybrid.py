@@ -71,7 +71,7 @@ from ..errors import (
     TooManyStepsError,
     check_number,
 )
-from ..model.scene import Scene
+from ..model.scene import Scene, StateInput
 from ..model.scene_file import passive_note
 from .event_resets import EventResets
 from .events import simultaneous_group
@@ -96,8 +96,8 @@ GAP_TOL = 1e-12
 """m: a contact whose gap is below this is closed."""
 
 
-def simulate(scene: Scene, t_final: float, q0=None, v0=None, *, t0: float = 0.0,
-             options: SimulateOptions | None = None, **option_values) -> Trajectory:
+def simulate(scene: Scene, t_final: float, q0: StateInput | None = None, v0: StateInput | None = None, *,
+             t0: float = 0.0, options: SimulateOptions | None = None, **option_values: Any) -> Trajectory:
     """Compute the hybrid trajectory of ``scene`` from ``t0`` to ``t_final``.
 
     Args:
@@ -154,8 +154,8 @@ class HybridLoop(EventResets, FrictionEvents):
     the state's 2nv with ``jacobian``, then the parameters').
     """
 
-    def __init__(self, scene: Scene, t0: float, t_final: float, q0=None, v0=None,
-                 options: SimulateOptions | None = None):
+    def __init__(self, scene: Scene, t0: float, t_final: float, q0: StateInput | None = None,
+                 v0: StateInput | None = None, options: SimulateOptions | None = None):
         if not isinstance(scene, Scene):
             raise InvalidInputError(f"scene must be a Scene (see load_scene), got {scene!r}")
         self.options = SimulateOptions() if options is None else options
@@ -217,7 +217,7 @@ class HybridLoop(EventResets, FrictionEvents):
         return out
 
     # -- hooks ----------------------------------------------------------------------
-    def on_event(self, event: Event, mode_before: tuple[int, ...], phi_before) -> bool:
+    def on_event(self, event: Event, mode_before: tuple[int, ...], phi_before: np.ndarray | None) -> bool:
         """Called once for every event, in time order, after the loop has processed it
         (the state after the reset is ``event.q``, ``event.v_plus``).
 

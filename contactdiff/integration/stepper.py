@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import abc
 import math
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
@@ -52,6 +52,12 @@ from ..errors import (
 from .dense import DenseOutput
 from .lie import _as_group
 from .variational import VariationalAlgebra
+
+if TYPE_CHECKING:
+    import pinocchio as pin
+    from numpy.typing import ArrayLike
+
+    from .lie import LieGroup
 
 AccelFn = Callable[[float, np.ndarray, np.ndarray], np.ndarray]
 """``accel(t, q, v) -> dv/dt`` (nv,), in the joints' local frames."""
@@ -205,22 +211,22 @@ class Stepper(VariationalAlgebra, abc.ABC):
     def __init__(
         self,
         accel: AccelFn,
-        group,
+        group: LieGroup | pin.Model,
         t0: float,
-        q0,
-        v0,
+        q0: ArrayLike,
+        v0: ArrayLike,
         *,
         rtol: float = 1e-6,
-        atol=1e-9,
+        atol: ArrayLike = 1e-9,
         jac: JacFn | None = None,
         first_step: float | None = None,
         max_step: float = np.inf,
         t_bound: float = np.inf,
-        variational=None,
+        variational: ArrayLike | None = None,
         variational_error_control: bool = True,
-        variational_atol=None,
+        variational_atol: ArrayLike | None = None,
         parameter_jac: ParameterJacFn | None = None,
-        variational_column_scale=None,
+        variational_column_scale: ArrayLike | None = None,
     ) -> None:
         if not callable(accel):
             raise InvalidInputError(f"accel must be callable accel(t, q, v), got {accel!r}")
@@ -346,8 +352,9 @@ class Stepper(VariationalAlgebra, abc.ABC):
         self._f = self._point_f(t, q, v)
         self._after_truncate()
 
-    def restart(self, t: float, q, v, phi=None, *, accel: AccelFn | None = None, jac: JacFn | None = None,
-                t_bound: float | None = None, parameter_jac: ParameterJacFn | None = None) -> None:
+    def restart(self, t: float, q: ArrayLike, v: ArrayLike, phi: ArrayLike | None = None, *,
+                accel: AccelFn | None = None, jac: JacFn | None = None, t_bound: float | None = None,
+                parameter_jac: ParameterJacFn | None = None) -> None:
         """Start again from a new state (after a jump or a mode change).
 
         The step-size estimate is kept; Jacobian, LU factors and the dense

@@ -13,11 +13,15 @@ import json
 from dataclasses import asdict, dataclass, field
 from enum import Enum, StrEnum
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ..errors import ContactDiffError, InvalidInputError
 from .samples import Samples
+
+if TYPE_CHECKING:
+    from ..model.scene import Scene
 
 EVENT_KINDS = ("touchdown", "lift-off", "slip", "stick", "bounce", "grazing", "zeno")
 """``touchdown``: contacts close and stay closed (impact); ``lift-off``: an active
@@ -323,7 +327,7 @@ class Trajectory:
                  event_kind=np.array([e.kind for e in self.events], dtype=str),
                  event_contacts=np.array(["+".join(e.contacts) for e in self.events], dtype=str))
 
-    def to_html(self, path: str | Path, scene=None, **options) -> Path:
+    def to_html(self, path: str | Path, scene: Scene | None = None, **options: Any) -> Path:
         """Write a self-contained HTML page that replays this run in 3-D in a browser,
         with no network: the robot, its closed contacts and a timeline of the events
         (`contactdiff.replay`; needs meshcat, ``pip install 'contactdiff[viz]'``).

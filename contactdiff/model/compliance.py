@@ -45,6 +45,7 @@ from collections.abc import Sequence
 
 import numpy as np
 import pinocchio as pin
+from numpy.typing import ArrayLike
 
 from ..errors import InvalidInputError, check_number, unknown_name
 from .efforts import JointSpring, Spring, UserEffort
@@ -244,7 +245,8 @@ def _map_configuration(old: pin.Model, new: pin.Model, jmap: dict, q: np.ndarray
     return out
 
 
-def compliant_state(robot: Robot, compliant: Robot, q, v=None) -> tuple[np.ndarray, np.ndarray]:
+def compliant_state(robot: Robot, compliant: Robot, q: ArrayLike, v: ArrayLike | None = None
+                    ) -> tuple[np.ndarray, np.ndarray]:
     """A state ``(q, v)`` of ``robot`` as a state of ``compliant``: every joint of
     ``robot`` keeps its value (matched by name), the springs are at rest and still.
 

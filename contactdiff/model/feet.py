@@ -42,14 +42,20 @@ from __future__ import annotations
 
 import dataclasses
 import re
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from enum import Enum
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pinocchio as pin
 
 from ..errors import InvalidInputError, ModelLoadError, unknown_name
+
+if TYPE_CHECKING:
+    from .robot import Robot
+    from .scene import Scene
 
 TIE_HEIGHT = 1e-3
 """m: frames of one end this close in height count as equally low (names decide)."""
@@ -146,7 +152,7 @@ def up_direction(model: pin.Model) -> np.ndarray:
 
 
 def choose_feet(model: pin.Model, q_ref: np.ndarray, floating_base: bool,
-                given=None) -> tuple[FootChoice, np.ndarray]:
+                given: Sequence[str] | None = None) -> tuple[FootChoice, np.ndarray]:
     """Choose the feet of ``model`` at ``q_ref`` (module rule) or check the given ones.
 
     Args:
@@ -316,7 +322,7 @@ def _geometry_kind(geometry) -> str:
     return type(geometry).__name__
 
 
-def foot_spheres(robot, feet=None) -> dict[str, FootSphere | None]:
+def foot_spheres(robot: Robot, feet: Sequence[str] | None = None) -> dict[str, FootSphere | None]:
     """Each foot's collision sphere, from the robot's URDF (``pin.buildGeomFromUrdf``), or
     the MJCF sphere a foot was chosen by (``robot.foot_choice.radii``).
 
@@ -364,7 +370,7 @@ SPHERE_FRAME_SUFFIX = "_sphere"
 """A foot whose sphere is not centred on it gets the frame ``<foot>_sphere`` at the sphere's centre."""
 
 
-def round_feet(scene, spheres: dict | None = None):
+def round_feet(scene: Scene, spheres: Mapping[str, FootSphere | None] | None = None) -> Scene:
     """The scene with its ground contacts at the robot's feet made round.
 
     Each contact of a foot frame with the ground (``against`` unset) gets the
@@ -410,11 +416,11 @@ def round_feet(scene, spheres: dict | None = None):
     at_feet = [i for i, c in enumerate(scene.contact_specs) if c.frame in robot.feet and c.against is None]
     if not at_feet:
         spheres_at = {f + SPHERE_FRAME_SUFFIX for f in robot.feet}
-        done = any(c.frame in spheres_at and c.radius > 0 for c in scene.contact_specs)
+        done = any(c.frame in spheres_at and (c.radius or 0.0) > 0 for c in scene.contact_specs)  # (resolved: set)
         raise InvalidInputError(f"scene {scene.name!r}: no ground contact at a foot of robot {robot.name!r} "
                                 f"(feet: {', '.join(robot.feet) or 'none'})"
                                 + ("; its foot contacts are already round" if done else ""))
-    rounded = [scene.contact_specs[i].name for i in at_feet if scene.contact_specs[i].radius > 0]
+    rounded = [scene.contact_specs[i].name for i in at_feet if (scene.contact_specs[i].radius or 0.0) > 0]
     if rounded:  # their offsets already hold the spheres: lowering them again would sink the feet
         raise InvalidInputError(f"scene {scene.name!r}: the contacts {', '.join(rounded)} are already round "
                                 f"(radius > 0); round_feet takes a scene with point feet")

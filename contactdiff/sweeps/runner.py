@@ -19,7 +19,7 @@ import re
 import sys
 import time
 import warnings
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -32,10 +32,10 @@ from .files import Damage, ResultsFile
 from .jobs import Job
 from .points import PointSet, as_points, key
 from .rows import RESERVED, Row, RunError, SweepResult
+from .sources import SceneSource
 
 if TYPE_CHECKING:
     from ..model.scene import Scene
-from .sources import SceneSource
 
 JOB_OWNED = ("jacobian", "parameters", "dense", "progress")
 """`SimulateOptions` fields the job sets, not the sweep's options."""
@@ -93,7 +93,8 @@ def run_point(context: Context, index: int, values: tuple) -> Row:
     return Row(index, point, outputs, time.perf_counter() - started, error, context.sweep)
 
 
-def sweep(scene, points, job="simulate", *, t_final: float | None = None,
+def sweep(scene: str | Path | Callable[..., Scene], points: PointSet | Mapping | Sequence[Mapping],
+          job="simulate", *, t_final: float | None = None,
           options: SimulateOptions | Mapping | None = None, job_options: Mapping | None = None,
           fixed: Mapping | None = None, backend: str = "loky",
           n_jobs: int | None = None, scheduler: str | None = None, out: str | Path | None = None,

@@ -83,9 +83,12 @@ foot's touchdown a terminal event and keeps the flow Jacobian just before it.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ...dynamics.impacts import choose_mode
 from ...errors import InvalidInputError, StrideError, check_number
@@ -299,11 +302,11 @@ class StrideLoop(HybridLoop):
                 or name in event.mode_after)
 
 
-def stride_map(scene: Scene, foot: str, q, v, t: float = 0.0, *, t_max: float = 10.0,
+def stride_map(scene: Scene, foot: str, q: ArrayLike, v: ArrayLike, t: float = 0.0, *, t_max: float = 10.0,
                min_stride: float | None = None, min_flight: float | None = None,
-               period: float | None = None, jacobian: bool = True, parameters=(),
+               period: float | None = None, jacobian: bool = True, parameters: Sequence[str] = (),
                rtol: float = 1e-10, atol: float = 1e-12, method: str = "DOP853", max_events: int = 1000,
-               **options) -> Stride:
+               **options: Any) -> Stride:
     """The stride map of ``foot``: from just before one of its touchdowns to just before the next.
 
     Args:
