@@ -24,6 +24,7 @@ import json
 import os
 import sys
 import time
+from typing import Any
 
 from .cli_args import (
     COUNT,
@@ -354,7 +355,7 @@ class _ProgressBar:
 
     def __init__(self, label: str, span: tuple[float, float] | None):
         self.label, self.span = label, span
-        self.bar = None
+        self.bar: Any = None  # a tqdm bar while entered
         self.last = 0.0
 
     def __enter__(self):
@@ -485,7 +486,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         args = parser.parse_args(argv)
     except SystemExit as exc:  # --help, or a bad argument (its line is printed)
-        return exc.code
+        return exc.code if isinstance(exc.code, int) else int(exc.code is not None)  # sys.exit's own rule
     try:
         return args.run(args)
     except ContactDiffError as exc:

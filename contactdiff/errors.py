@@ -6,7 +6,9 @@ finite set of values is valid, lists them.
 
 from __future__ import annotations
 
+import importlib
 from pathlib import Path
+from types import ModuleType
 
 
 class ContactDiffError(Exception):
@@ -67,6 +69,11 @@ class UnsafeModelFileError(ModelLoadError):
 class UnsupportedModelError(ModelLoadError):
     """A model uses a feature the dynamics cannot represent (Pinocchio would drop it
     and give a different robot); the message names the feature and where it is."""
+
+
+class MissingExtraError(ContactDiffError, ImportError):
+    """An optional dependency is not installed: the message says what needs it and the
+    extra that installs it (``pip install 'contactdiff[EXTRA]'``; `require_extra`)."""
 
 
 class InconsistentStateError(ContactDiffError):
@@ -166,6 +173,25 @@ class PainleveError(OutsideDomainError):
     normal acceleration around, ``A_n M^-1 (A_n - μ s^T A_T)^T <= 0``;
     `contactdiff.dynamics.slip`). Met at a trial stage of a step it only shortens the
     step; raised when the trajectory itself gets there (or at an event's mode choice)."""
+
+
+def require_extra(module: str, extra: str, purpose: str) -> ModuleType:
+    """Import an optional dependency: the module, or `MissingExtraError` naming the extra.
+
+    Args:
+        module: the module's dotted name (``"matplotlib"``, ``"meshcat.geometry"``).
+        extra: the extra of contactdiff that installs it (``pyproject.toml``: ``"plot"``).
+        purpose: what needs it, the start of the message (``"plotting"``).
+
+    Raises:
+        MissingExtraError: the import failed; e.g. ``plotting needs matplotlib (No module
+            named 'matplotlib'): pip install 'contactdiff[plot]'``.
+    """
+    try:
+        return importlib.import_module(module)
+    except ImportError as exc:
+        raise MissingExtraError(f"{purpose} needs {module.split('.')[0]} ({exc}): "
+                                f"pip install 'contactdiff[{extra}]'") from None
 
 
 def check_names(owner: str, what: str, value) -> tuple[str, ...]:

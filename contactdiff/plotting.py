@@ -3,18 +3,21 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .errors import ContactDiffError
+from .errors import require_extra
 from .integration.trajectory import Trajectory
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+    from .model.scene import Scene
 
 
 def _pyplot():
-    try:
-        import matplotlib
-    except ImportError:
-        raise ContactDiffError("plotting needs matplotlib: pip install 'contactdiff[plot]'") from None
+    matplotlib = require_extra("matplotlib", "plot", "plotting")
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
@@ -26,7 +29,7 @@ _EVENT_STYLE = {"touchdown": ("tab:red", "-"), "lift-off": ("tab:green", "--"), 
                 "bear": ("tab:brown", ":")}
 
 
-def plot_gaps(traj: Trajectory, scene, path: str | Path, n_samples: int = 800) -> Path:
+def plot_gaps(traj: Trajectory, scene: Scene, path: str | Path, n_samples: int = 800) -> Path:
     """Contact gaps (m) against time with every event marked; saved as PNG.
 
     Args:
@@ -58,7 +61,7 @@ def plot_gaps(traj: Trajectory, scene, path: str | Path, n_samples: int = 800) -
     return Path(path)
 
 
-def plot_gait(traj: Trajectory, scene, path: str | Path, n_samples: int = 1500) -> Path:
+def plot_gait(traj: Trajectory, scene: Scene, path: str | Path, n_samples: int = 1500) -> Path:
     """Save `gait_figure` to ``path`` (any format matplotlib writes)."""
     plt = _pyplot()
     fig = gait_figure(traj, scene, n_samples)
@@ -67,7 +70,7 @@ def plot_gait(traj: Trajectory, scene, path: str | Path, n_samples: int = 1500) 
     return Path(path)
 
 
-def gait_figure(traj: Trajectory, scene, n_samples: int = 1500):
+def gait_figure(traj: Trajectory, scene: Scene, n_samples: int = 1500) -> Figure:
     """Gait figure of a floating-base scene: a contact timeline (one row per contact, a
     bar wherever it is active, touchdowns marked red and lift-offs green, with a
     legend), and the base height (m) and its roll and pitch (rad, Pinocchio's

@@ -48,14 +48,21 @@ import bisect
 import html
 import json
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pinocchio as pin
 
-from .errors import ContactDiffError, InvalidInputError, check_output_file, write_failed
+from .errors import InvalidInputError, check_output_file, require_extra, write_failed
+from .errors import MissingExtraError as MissingExtraError  # its home until it moved to errors.py
 from .replay_geometry import contact_surfaces, drawn_geometry, marker_radius, model_size, visible_marker_radius
+
+if TYPE_CHECKING:
+    from .integration.trajectory import Event, Trajectory
+    from .model.scene import Scene
 
 DEFAULT_FPS = 30.0
 """Frames per second of simulated time."""
@@ -73,21 +80,12 @@ EVENT_COLOURS = {"touchdown": "#d62728", "lift-off": "#2ca02c", "slip": "#bcbd22
 _EVENT_TOL = 1e-9  # s: a grid time this close to an event time is replaced by the event's
 
 
-class MissingExtraError(ContactDiffError, ImportError):
-    """An optional dependency of the replay (meshcat) is not installed."""
-
-
 def require_meshcat():
     """The meshcat modules, or `MissingExtraError` naming the extra to install."""
-    try:
-        import meshcat
-        import meshcat.animation
-        import meshcat.geometry
-        import umsgpack
-    except ImportError as exc:
-        raise MissingExtraError(f"the browser replay needs meshcat ({exc}): "
-                                "pip install 'contactdiff[viz]'") from None
-    return meshcat, umsgpack
+    meshcat = require_extra("meshcat", "viz", "the browser replay")
+    for module in ("meshcat.animation", "meshcat.geometry"):  # meshcat's attributes once imported
+        require_extra(module, "viz", "the browser replay")
+    return meshcat, require_extra("umsgpack", "viz", "the browser replay")
 
 
 # -- frames -------------------------------------------------------------------------------
@@ -138,7 +136,7 @@ def sample_frames(traj, fps: float = DEFAULT_FPS) -> Frames:
         raise InvalidInputError("replay: this run kept no dense output, so the states between events are "
                                 "gone: simulate(..., dense=True) keeps them")
     times, is_event = frame_times(traj, fps)
-    by_time = {}
+    by_time: dict[float, Event] = {}
     for e in traj.events:
         by_time.setdefault(e.t, e)  # the first event's q: q is continuous through a cascade
     starts = [s.t0 for s in traj.segments]
@@ -195,8 +193,8 @@ class _Recorder:
 
 
 # -- the page --------------------------------------------------------------------------------
-def replay_html(traj, scene, *, fps: float = DEFAULT_FPS, contact_radius: float | None = None,
-                title: str | None = None, package_dirs=()) -> str:
+def replay_html(traj: Trajectory, scene: Scene, *, fps: float = DEFAULT_FPS, contact_radius: float | None = None,
+                title: str | None = None, package_dirs: Sequence[str | Path] = ()) -> str:
     """The replay page of ``traj`` as HTML text (see the module docstring).
 
     Args:
@@ -319,7 +317,7 @@ def _record_robot(animation, viewer, viz, robot, geoms, frames: Frames, fps: flo
     a constant scale key where the mesh is scaled."""
     model, data, gdata = robot.model, robot.model.createData(), pin.GeometryData(geoms)
     keys = _frame_keys(frames, fps)
-    poses = [[] for _ in range(geoms.ngeoms)]
+    poses: list[list[pin.SE3]] = [[] for _ in range(geoms.ngeoms)]
     for q in frames.q:
         pin.forwardKinematics(model, data, q)
         pin.updateGeometryPlacements(model, data, geoms, gdata)
@@ -340,7 +338,7 @@ def _contact_points(scene, frames: Frames) -> dict[str, np.ndarray]:
     """Each contact's point at every frame (n, 3), m, world frame: the frame origin, less
     the radius along the normal for a round contact."""
     model, data = scene.robot.model, scene.robot.model.createData()
-    points = {c.name: [] for c in scene.contacts}
+    points: dict[str, list[np.ndarray]] = {c.name: [] for c in scene.contacts}
     for q in frames.q:
         pin.framesForwardKinematics(model, data, q)
         for c in scene.contacts:
@@ -365,7 +363,7 @@ def _camera_distance(robot, frames: Frames, size: float) -> float:
     reach = 0.0
     for q in frames.q[:: max(1, len(frames.q) // 50)]:
         pin.forwardKinematics(model, data, q)
-        reach = max(reach, max(np.linalg.norm(data.oMi[j].translation) for j in range(model.njoints)))
+        reach = max(reach, max(float(np.linalg.norm(data.oMi[j].translation)) for j in range(model.njoints)))
     return 2.2 * max(size, reach)
 
 

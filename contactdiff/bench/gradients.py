@@ -287,6 +287,7 @@ def contactdiff_ball(task: BallTask, velocity=None, rtol: float = 1e-12, atol: f
     traj = simulate(scene, task.horizon, v0=np.array([vx, 0.0, vz, 0.0, 0.0, 0.0]), jacobian=True,
                     rtol=rtol, atol=atol)
     seconds = time.perf_counter() - start
+    assert traj.jacobian is not None  # asked for
     world = _rotation(traj.q) @ traj.jacobian[0:3, 6:9]
     return Run(world[np.ix_([0, 2], [0, 2])], seconds, traj.differentiable, traj.q[[0, 2]].copy(),
                traj.why_not_differentiable())
@@ -309,6 +310,7 @@ def contactdiff_two_balls(task: TwoBalls = NIMBLE, rtol: float = 1e-12, atol: fl
     start = time.perf_counter()
     traj = simulate(scene, task.horizon, v0=v0, jacobian=True, rtol=rtol, atol=atol)
     seconds = time.perf_counter() - start
+    assert traj.jacobian is not None  # asked for
     return Run(traj.jacobian[np.ix_([0, 6], [0, 6, 12, 18])], seconds, traj.differentiable,
                traj.q[[0, 7]].copy(), traj.why_not_differentiable())
 
@@ -346,5 +348,6 @@ def contactdiff_brax(task: FallingBall, z0: float, rtol: float = 1e-12, atol: fl
     seconds = time.perf_counter() - start
     touching = final_contact(scene, traj)
     notes = traj.why_not_differentiable() + [f"{name} touches at T: one-sided derivatives" for name in touching]
+    assert traj.jacobian is not None  # asked for
     return Run(traj.jacobian[2:3, 2:3].copy(), seconds, traj.differentiable and not touching,
                traj.q[2:3].copy(), notes)

@@ -41,6 +41,7 @@ def contactdiff_cube(scene: Scene | None = None, rtol: float = 1e-12, atol: floa
     start = time.perf_counter()
     traj = simulate(scene, HORIZON, jacobian=False, parameters=list(PARAMETERS), rtol=rtol, atol=atol)
     seconds = time.perf_counter() - start
+    assert traj.parameter_jacobian is not None  # asked for (parameters)
     return Run(traj.parameter_jacobian[0:6].copy(), seconds, traj.differentiable, traj.q.copy(),
                traj.why_not_differentiable())
 

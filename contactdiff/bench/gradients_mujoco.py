@@ -29,7 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import ContactDiffError, InvalidInputError
+from ..errors import InvalidInputError, require_extra
 from .gradients import BallTask, FallingBall, TwoBalls
 
 SOLIMP = "0.99 0.99 0.001"
@@ -37,12 +37,8 @@ SOLIMP = "0.99 0.99 0.001"
 
 
 def mujoco():
-    """The ``mujoco`` module, or a `ContactDiffError` saying how to install it."""
-    try:
-        import mujoco as mj
-    except ImportError:
-        raise ContactDiffError("the MuJoCo baselines need mujoco: pip install 'contactdiff[mujoco]'") from None
-    return mj
+    """The ``mujoco`` module, or a `MissingExtraError` saying how to install it."""
+    return require_extra("mujoco", "mujoco", "the MuJoCo baselines")
 
 
 @dataclass(frozen=True)
@@ -176,7 +172,8 @@ FD_STEP = 1e-5
 
 def _method(model, qpos, qvel, steps, method: str, fd: tuple, tangent: tuple, h: float):
     if method == "fd":
-        return fd_gradient(model, qpos, qvel, steps, *fd, h)
+        rows, columns = fd
+        return fd_gradient(model, qpos, qvel, steps, rows, columns, h)
     if method == "transition":
         return transition_gradient(model, qpos, qvel, steps, *tangent)
     raise InvalidInputError(f"method must be 'fd' or 'transition', got {method!r}")
@@ -273,14 +270,11 @@ def mjx_gradient(model, qpos, qvel, steps: int, rows, columns) -> tuple[np.ndarr
     and a second call's (s, the run alone).
 
     Raises:
-        ContactDiffError: ``jax`` or ``mujoco.mjx`` is not installed.
+        MissingExtraError: ``jax`` or ``mujoco.mjx`` is not installed (the ``mjx`` extra).
     """
-    try:
-        import jax
-        import jax.numpy as jnp
-        from mujoco import mjx
-    except ImportError:
-        raise ContactDiffError("the MJX baseline needs jax and mujoco-mjx: pip install mujoco-mjx") from None
+    jax = require_extra("jax", "mjx", "the MJX baseline")
+    jnp = require_extra("jax.numpy", "mjx", "the MJX baseline")
+    mjx = require_extra("mujoco.mjx", "mjx", "the MJX baseline")
     jax.config.update("jax_enable_x64", True)
     start = time.perf_counter()
     mx = mjx.put_model(model)

@@ -105,6 +105,7 @@ import bisect
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, fields
+from typing import ClassVar
 
 import numpy as np
 import pinocchio as pin
@@ -178,6 +179,8 @@ class TrotController:
     feedforward: bool = True
     stance: tuple = ()
     samples: int = 240
+    KEYS: ClassVar[tuple[str, ...]]  # set below the class (module level: they list its fields)
+    NUMBERS: ClassVar[tuple[str, ...]]
 
     def __post_init__(self) -> None:
         owner = "trot controller"
@@ -350,9 +353,9 @@ class TrotControllerEvaluator(TrotParameterDerivatives):
         leg_breaks = [0.0, r, start, end, end + r, 1.0 - r] if s.feedforward else []
         if s.release_gain != 1.0:
             leg_breaks += [s.duty - s.transfer, s.duty, s.duty + s.transfer]
-        phases = list(self._knots[:-1])
-        phases += [(psi - offset) % 1.0 for offset in self._offsets for psi in leg_breaks]
-        phases = np.sort(np.mod(phases, 1.0))
+        knots = list(self._knots[:-1])
+        knots += [(psi - offset) % 1.0 for offset in self._offsets for psi in leg_breaks]
+        phases = np.sort(np.mod(knots, 1.0))
         keep = np.concatenate(([True], np.diff(phases) > 1e-12))
         return phases[keep]
 

@@ -19,6 +19,8 @@ by keyword.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any
+
 import numpy as np
 
 from ..errors import InvalidInputError, unknown_name
@@ -27,6 +29,9 @@ from ..model.kinematics import Kinematics
 from ..model.robot import QUADRUPEDS, Robot, load_robot
 from ..model.scene import Scene
 from .trot_controller import TrotController, TrotControllerEvaluator
+
+if TYPE_CHECKING:
+    from ..integration.trajectory import Trajectory
 
 GRAVITY = 9.81
 """Gravity of the trot scenes (m/s², along -z)."""
@@ -90,7 +95,7 @@ def trot_scene(robot: str | Robot, *, name: str | None = None, **overrides) -> S
         robot = load_robot(robot)
     elif not isinstance(robot, Robot):
         raise InvalidInputError(f"robot must be a quadruped name or a Robot, got {robot!r}")
-    parameters = dict(TROT_PARAMETERS.get(robot.name, {}))
+    parameters: dict[str, Any] = dict(TROT_PARAMETERS.get(robot.name, {}))
     parameters.update(overrides)
     missing = [k for k in ("period", "step_height", "kp", "kd") if k not in parameters]
     if missing:
@@ -117,7 +122,7 @@ def trot_scene(robot: str | Robot, *, name: str | None = None, **overrides) -> S
 
 
 
-def stance_intervals(traj, contact: str, min_duration: float = 2e-3) -> list[tuple[float, float]]:
+def stance_intervals(traj: Trajectory, contact: str, min_duration: float = 2e-3) -> list[tuple[float, float]]:
     """Time intervals (s) during which ``contact`` is active in ``traj``, on the scale of
     a gait: flights shorter than ``min_duration`` (a stance foot nudged off the ground
     by another foot's impact, back within microseconds) are closed, and stances
@@ -128,7 +133,7 @@ def stance_intervals(traj, contact: str, min_duration: float = 2e-3) -> list[tup
         contact: contact name.
         min_duration: shortest flight or stance kept (s), >= 0.
     """
-    raw = []
+    raw: list[list[float]] = []
     for segment in traj.segments:
         if contact in segment.mode and segment.t1 > segment.t0:
             if raw and segment.t0 - raw[-1][1] <= min_duration:

@@ -26,8 +26,13 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Iterator
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from .frictional_impact import _Eval
+    from .lcp_problem import ContactRows
 
 # Newton on the slip angles of the spatial sliding contacts of a candidate.
 _NEWTON_MAX_ITER = 40
@@ -228,6 +233,22 @@ class SlipMap:
 class SlipDirections:
     """Slip-direction search of a candidate (module doc)."""
 
+    if TYPE_CHECKING:  # the candidate's state it borrows (set by its subclass), for the type checker only
+        G: np.ndarray
+        u: np.ndarray
+        rows: ContactRows
+        e: np.ndarray
+        mu: np.ndarray
+        tol: float
+        n: int
+        m: int
+        normal: np.ndarray
+        tang: tuple[np.ndarray, ...]
+        _fp: tuple[np.ndarray, np.ndarray] | None
+
+        def evaluate(self, states, dirs, lay) -> _Eval:
+            """The candidate at the given states and slip directions (the subclass's)."""
+
     def slip_roots(self, states, dirs, spatial, lay) -> Iterator[np.ndarray]:
         """Slip angles θ with g(θ) = 0, nearest the pre-impact slip directions first
         (Euclidean distance of the wrapped angle differences).
@@ -365,7 +386,7 @@ class SlipDirections:
         if self._fp is not None:
             return self._fp
         lam = np.zeros(self.m)
-        blocks = self.rows._rows_of  # type: ignore[attr-defined]
+        blocks = self.rows._rows_of
         # each contact's rows of G, restitution term, step and cone, formed once (a sweep
         # repeats them up to _FP_SWEEPS times; the arithmetic of a sweep is unchanged)
         sweep = []
@@ -378,14 +399,14 @@ class SlipDirections:
                           t.size and mu > 0.0, dg, mu if t.size else 0.0))
         for _ in range(_FP_SWEEPS):
             old = lam.copy()
-            for r, u_r, G_r, restitution, friction, coulomb, dg, cone in sweep:
+            for at_rows, u_r, G_r, restitution, friction, coulomb, dg, cone in sweep:
                 w = u_r + G_r @ lam
                 if coulomb:
                     w[0] += restitution + (friction * np.linalg.norm(w[1:]) if friction is not None else 0.0)
                 else:
                     w[0] += restitution
-                x = lam[r] - w / dg if dg > 0.0 else lam[r]
-                lam[r] = project_cone(x, cone)
+                x = lam[at_rows] - w / dg if dg > 0.0 else lam[at_rows]
+                lam[at_rows] = project_cone(x, cone)
             if np.abs(lam - old).max() <= 1e-14 * max(np.abs(lam).max(), 1e-300):
                 break
         self._fp = (lam, self.u + self.G @ lam)

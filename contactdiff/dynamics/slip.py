@@ -60,8 +60,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from ..model.contacts import BoundContact
 
 SLIP_SPEED_EPS = 1e-10
 """m/s: a 3-D slip slower than this takes its direction from the reference (a
@@ -143,7 +147,7 @@ class SlipRow:
     direction_jacobian: np.ndarray | None
     tangent_rows: np.ndarray
     force_row: np.ndarray
-    full: object
+    full: BoundContact
 
     @classmethod
     def at(cls, dyn, key: int, row: int, kin, v: np.ndarray) -> SlipRow:

@@ -13,7 +13,9 @@ subcommand; `run` is its action.
 
 from __future__ import annotations
 
+import argparse
 import json
+from typing import TYPE_CHECKING
 
 from ..cli_args import (
     COUNT,
@@ -28,8 +30,11 @@ from ..cli_args import (
 )
 from ..errors import InvalidInputError
 
+if TYPE_CHECKING:
+    from .problem import FitResult
 
-def add_parser(sub) -> None:
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
     """Add ``fit`` to the ``contactdiff`` subcommands ``sub``."""
     from .evaluation import StateFit
     from .problem import NonDifferentiablePolicy
@@ -74,7 +79,7 @@ def add_parser(sub) -> None:
     parser.set_defaults(run=run)
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     """Run ``contactdiff fit`` from parsed ``args``; return the exit status."""
     from ..model.scene_file import load_source
     from .observation_files import load_observations
@@ -126,7 +131,7 @@ def _bounds(items: list[str]) -> dict:
     return out
 
 
-def format_result(result) -> str:
+def format_result(result: FitResult) -> str:
     """The fitted values, the cost, the iterations and each trajectory's residual and verdict."""
     lines = [result.table(), "",
              f"cost {result.start_cost:.6g} -> {result.cost:.6g} in {result.iterations} iterations "

@@ -110,7 +110,7 @@ def save_observations(observations: Observations, path: str | Path, scene) -> Pa
     columns = observations.columns(scene)
     try:
         if suffix == ".npz":
-            np.savez(p, **columns)
+            np.savez(p, **columns)  # type: ignore[arg-type]  # mypy matches the ** dict against the bool allow_pickle too
         else:
             table = np.column_stack(list(columns.values()))
             with p.open("w", newline="", encoding="utf-8") as handle:

@@ -185,7 +185,7 @@ class Observations:
             out[WEIGHT] = self.weights
         for joint in joint_columns(scene):
             if joint.name in self.joints:
-                measured_v = self.v is not None and bool(self.v_mask[joint.idx_v])
+                measured_v = self.v is not None and self.v_mask is not None and bool(self.v_mask[joint.idx_v])
                 out |= state_columns(joint, self.q, self.v if measured_v else None)
         return out
 

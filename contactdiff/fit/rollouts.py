@@ -94,7 +94,9 @@ def rollouts(scene, recordings: Sequence[Recording], values: Mapping | None = No
                 for i, r in run(_indexed, tasks):
                     out[i] = r
                     bar.update(1)
-    return out
+    rollouts = [r for r in out if r is not None]
+    assert len(rollouts) == len(recordings)  # every recording has its rollout
+    return rollouts
 
 
 def _indexed(i: int, task: tuple) -> tuple[int, Rollout]:

@@ -11,6 +11,8 @@ parameters, their blocks (`contactdiff.integration.parameter_jumps`).
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from ..dynamics.frictional_impact import ContactState
@@ -34,6 +36,13 @@ from .sensitivity import (
 )
 from .trajectory import Event, NonSmooth
 
+if TYPE_CHECKING:
+    from ..dynamics.mode import ModeDynamics
+    from ..model.contacts import BoundContact
+    from ..model.kinematics import Kinematics
+    from ..model.scene import Scene
+    from .options import SimulateOptions
+
 CREEP_FACTOR = 10.0
 """A contact that an impact leaves slipping slower than this many slip-speed floors
 (``zeno_speed``) is held and sticks or slips by its forces: in an impact cascade the
@@ -48,6 +57,27 @@ the velocities (the impact law's round-off is about 1e-15 of them) count as one.
 
 class EventResets:
     """The loop's event handling (module doc)."""
+
+    if TYPE_CHECKING:  # the state it borrows from HybridLoop (set there), for the type checker only
+        scene: Scene
+        dyn: ModeDynamics
+        kin: Kinematics
+        contacts: list[BoundContact]
+        names: list[str]
+        options: SimulateOptions
+        events: list[Event]
+        notes: list[str]
+        phi: np.ndarray | None
+        n_state: int
+        jumps: ParameterJumps | None
+        sensitive: bool
+        gap_tol: float
+
+        def _gaps_and_rates(self, q, v) -> tuple[np.ndarray, np.ndarray]: ...
+        def _mode_names(self, mode) -> tuple[str, ...]: ...
+        def _sliding_names(self, mode) -> tuple[str, ...]: ...
+        def _friction_event(self, t, q, v, mode, fired: list[Guard]): ...
+        def _bear_event(self, t, q, v, mode, bearing: list[int]): ...
 
     def _event(self, t, q, v, mode, fired: list[Guard]):
         dyn = self.dyn
@@ -364,6 +394,7 @@ class EventResets:
         n = self.n_state
         rate = float(Dh @ F_minus) + h_t
         event.saltation = xi
+        assert self.phi is not None  # set before every event of a run with derivatives
         if self.options.jacobian:
             event.time_gradient = -(Dh @ self.phi[:, :n]) / rate
         if self.jumps is not None:

@@ -37,6 +37,8 @@ stick or slip on): the paper's stick/slip threshold. Those events carry
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from ..dynamics.mode import ModeDynamics, ModeSolution
@@ -47,6 +49,10 @@ from .parameter_jumps import ParameterJumps
 from .projection import held_velocity, held_velocity_jacobian, mode_rows
 from .sensitivity import saltation, vector_field
 from .trajectory import Event, NonSmooth
+
+if TYPE_CHECKING:
+    from ..model.scene import Scene
+    from .options import SimulateOptions
 
 THRESHOLD_TOL = 1e-9
 """Relative distance to the friction cone's boundary (of ``μ λ_N``), and relative
@@ -187,6 +193,24 @@ def stop_guard(dyn: ModeDynamics, q, v, key: int) -> np.ndarray:
 class FrictionEvents:
     """The loop's stick → slip and slip → stick events (module doc)."""
 
+    if TYPE_CHECKING:  # the state it borrows from HybridLoop (set there), for the type checker only
+        scene: Scene
+        dyn: ModeDynamics
+        names: list[str]
+        options: SimulateOptions
+        events: list[Event]
+        jumps: ParameterJumps | None
+        sensitive: bool
+        gap_tol: float
+
+        def _gaps_and_rates(self, q, v) -> tuple[np.ndarray, np.ndarray]: ...
+        def _mode_names(self, mode) -> tuple[str, ...]: ...
+        def _sliding_names(self, mode) -> tuple[str, ...]: ...
+        def _note(self, text: str) -> str: ...
+        def _attach_sensitivity(self, event: Event, xi: np.ndarray, Dh: np.ndarray, F_minus: np.ndarray,
+                                h_t: float = 0.0, xi_p: np.ndarray | None = None,
+                                h_p: np.ndarray | None = None) -> None: ...
+
     def _friction_event(self, t, q, v, mode, fired: list[Guard]):
         dyn = self.dyn
         cone = [g.contact for g in fired if g.kind is GuardKind.CONE]
@@ -235,10 +259,11 @@ class FrictionEvents:
             if self.jumps:
                 if cone:
                     sol_k, der_k, rows, w = solved
-                    forces = self.jumps.forces
-                    h_p = w @ der_k.forces_dtau[rows] @ forces.mode_forces(dyn, sol_k, q, v, t)
+                    parameter_forces = self.jumps.forces
+                    h_p = w @ der_k.forces_dtau[rows] @ parameter_forces.mode_forces(dyn, sol_k, q, v, t)
                     # the cone's own size: ∂(μ λ_N)/∂μ = λ_N at fixed forces
-                    h_p[forces.friction_columns.get(dyn.contact_index(cone[0]), [])] += sol_k.forces[rows.start]
+                    columns = parameter_forces.friction_columns.get(dyn.contact_index(cone[0]), [])
+                    h_p[columns] += sol_k.forces[rows.start]
                 else:
                     h_p = np.zeros(self.jumps.p)  # the slip velocity does not depend on the parameters
                 xi_p = ParameterJumps.saltation(None, h_p, DR, F_minus, F_plus, rate)

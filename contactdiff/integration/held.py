@@ -27,6 +27,8 @@ is held.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from ..dynamics.mode import ModeDynamics
@@ -37,6 +39,10 @@ from .parameter_jumps import ParameterJumps
 from .projection import mode_rows
 from .sensitivity import liftoff_guard, saltation, vector_field
 from .trajectory import Event
+
+if TYPE_CHECKING:
+    from ..model.scene import Scene
+    from .mode_field import ModeField
 
 
 def held_contacts(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float, mode: tuple[int, ...],
@@ -127,6 +133,20 @@ class HeldEvents:
     """The loop's ``bear`` events (module doc); a mixin of
     `contactdiff.integration.hybrid.HybridLoop` (its state as for
     `contactdiff.integration.event_resets`; ``fields[-1]`` is the mode's field)."""
+
+    if TYPE_CHECKING:  # the state it borrows from HybridLoop (set there), for the type checker only
+        scene: Scene
+        dyn: ModeDynamics
+        fields: list[ModeField]
+        events: list[Event]
+        jumps: ParameterJumps | None
+        sensitive: bool
+
+        def _mode_names(self, mode) -> tuple[str, ...]: ...
+        def _sliding_names(self, mode) -> tuple[str, ...]: ...
+        def _attach_sensitivity(self, event: Event, xi: np.ndarray, Dh: np.ndarray, F_minus: np.ndarray,
+                                h_t: float = 0.0, xi_p: np.ndarray | None = None,
+                                h_p: np.ndarray | None = None) -> None: ...
 
     def _bear_event(self, t, q, v, mode, bearing: list[int]):
         """The held contacts ``bearing`` (scene indices) join ``mode`` at ``(t, q, v)``: no

@@ -56,6 +56,7 @@ run are one `SimulateOptions`.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
@@ -72,7 +73,7 @@ from ..errors import (
     TooManyStepsError,
     check_number,
 )
-from ..model.scene import Scene
+from ..model.scene import Scene, StateInput
 from ..model.scene_file import passive_note
 from .event_resets import EventResets
 from .events import simultaneous_group
@@ -98,8 +99,8 @@ GAP_TOL = 1e-12
 """m: a contact whose gap is below this is closed."""
 
 
-def simulate(scene: Scene, t_final: float, q0=None, v0=None, *, t0: float = 0.0,
-             options: SimulateOptions | None = None, **option_values) -> Trajectory:
+def simulate(scene: Scene, t_final: float, q0: StateInput | None = None, v0: StateInput | None = None, *,
+             t0: float = 0.0, options: SimulateOptions | None = None, **option_values: Any) -> Trajectory:
     """Compute the hybrid trajectory of ``scene`` from ``t0`` to ``t_final``.
 
     Args:
@@ -142,8 +143,10 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
 
     Args:
         scene: the `Scene`.
-        t0, t_final: start and final time (s).
-        q0, v0: initial state (arrays or joint-name mappings); None: the scene's.
+        t0: start time (s).
+        t_final: final time (s).
+        q0: initial configuration (an array or a joint-name mapping); None: the scene's.
+        v0: initial velocity (an array or a joint-name mapping); None: the scene's.
         options: the `SimulateOptions`.
 
     Extension: override `initial_mode` and `on_event` (see there). The state a
@@ -154,8 +157,8 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
     the state's 2nv with ``jacobian``, then the parameters').
     """
 
-    def __init__(self, scene: Scene, t0: float, t_final: float, q0=None, v0=None,
-                 options: SimulateOptions | None = None):
+    def __init__(self, scene: Scene, t0: float, t_final: float, q0: StateInput | None = None,
+                 v0: StateInput | None = None, options: SimulateOptions | None = None):
         if not isinstance(scene, Scene):
             raise InvalidInputError(f"scene must be a Scene (see load_scene), got {scene!r}")
         self.options = SimulateOptions() if options is None else options
@@ -215,16 +218,17 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
         return ModeField(self.dyn, mode, fused=fused, parameters=self.jumps.forces if self.jumps else None,
                          held=held)
 
-    def _jumped(self, phi: np.ndarray, event: Event) -> np.ndarray:
+    def _jumped(self, phi: np.ndarray | None, event: Event) -> np.ndarray:
         """The flow Jacobian just after ``event`` from ``phi`` just before: ``Ξ phi``, plus
         ``Ξ_p`` on the parameter columns."""
+        assert phi is not None and event.saltation is not None  # called only in a sensitive run
         out = event.saltation @ phi
         if event.parameter_saltation is not None:
             out[:, self.n_state:] += event.parameter_saltation
         return out
 
     # -- hooks ----------------------------------------------------------------------
-    def on_event(self, event: Event, mode_before: tuple[int, ...], phi_before) -> bool:
+    def on_event(self, event: Event, mode_before: tuple[int, ...], phi_before: np.ndarray | None) -> bool:
         """Called once for every event, in time order, after the loop has processed it
         (the state after the reset is ``event.q``, ``event.v_plus``).
 
@@ -296,7 +300,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
     # -- the loop -------------------------------------------------------------------
     def _stepper_options(self, field: ModeField) -> dict:
         o = self.options
-        options = dict(rtol=o.rtol, atol=o.atol, max_step=o.max_step, t_bound=self.t_final)
+        options: dict[str, Any] = dict(rtol=o.rtol, atol=o.atol, max_step=o.max_step, t_bound=self.t_final)
         if self.jumps is not None:
             options.update(parameter_jac=field.parameter_jac, variational_column_scale=np.concatenate(
                 [np.ones(self.n_state), self.jumps.scale]))
@@ -459,6 +463,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
         self.switches.append((stepper.t, method))
         # Radau evaluates the field at Newton iterates, where no derivative is wanted
         field.fused = self.sensitive and method != "Radau"
+        assert self.chooser is not None  # method "auto" switches, and it has a chooser
         rho = self.chooser.rho
         if len(self.switches) <= MAX_NOTES:
             why = ("explicit steps limited by stability" if method != EXPLICIT
@@ -529,6 +534,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
         q, v, D = project_state(self.dyn, stepper.q, stepper.v, mode, jacobian=self.sensitive)
         phi = None if D is None else D @ stepper.phi
         if self.jumps is not None:
+            assert phi is not None  # a run with parameters is sensitive: D is computed
             phi[:, self.n_state:] += self.jumps.projection(q, mode)
         stepper.restart(stepper.t, q, v, phi=phi)
         self.n_projections += 1

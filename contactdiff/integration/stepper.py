@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import abc
 import math
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
@@ -52,6 +52,12 @@ from ..errors import (
 from .dense import DenseOutput
 from .lie import _as_group
 from .variational import VariationalAlgebra
+
+if TYPE_CHECKING:
+    import pinocchio as pin
+    from numpy.typing import ArrayLike
+
+    from .lie import LieGroup
 
 AccelFn = Callable[[float, np.ndarray, np.ndarray], np.ndarray]
 """``accel(t, q, v) -> dv/dt`` (nv,), in the joints' local frames."""
@@ -194,25 +200,33 @@ class Stepper(VariationalAlgebra, abc.ABC):
     method: str = ""
     error_order: int = 0  # error ~ h^(error_order + 1); for the first-step heuristic
 
+    # the previous point: None until a step is accepted (and after a restart); read only
+    # after one (`dense`, `truncate` check ``t_old is None`` first)
+    t_old: float
+    q_old: np.ndarray
+    v_old: np.ndarray
+    phi_old: np.ndarray | None
+    _outside: OutsideDomainError | None
+
     def __init__(
         self,
         accel: AccelFn,
-        group,
+        group: LieGroup | pin.Model,
         t0: float,
-        q0,
-        v0,
+        q0: ArrayLike,
+        v0: ArrayLike,
         *,
         rtol: float = 1e-6,
-        atol=1e-9,
+        atol: ArrayLike = 1e-9,
         jac: JacFn | None = None,
         first_step: float | None = None,
         max_step: float = np.inf,
         t_bound: float = np.inf,
-        variational=None,
+        variational: ArrayLike | None = None,
         variational_error_control: bool = True,
-        variational_atol=None,
+        variational_atol: ArrayLike | None = None,
         parameter_jac: ParameterJacFn | None = None,
-        variational_column_scale=None,
+        variational_column_scale: ArrayLike | None = None,
     ) -> None:
         if not callable(accel):
             raise InvalidInputError(f"accel must be callable accel(t, q, v), got {accel!r}")
@@ -251,7 +265,7 @@ class Stepper(VariationalAlgebra, abc.ABC):
             raise InvalidInputError(f"t_bound must be >= t0 = {t0!r} (forward integration only), got {t_bound!r}")
         self.variational_error_control = bool(variational_error_control)
         if variational_atol is None:
-            self._atol_phi = self.atol if atol_arr.ndim == 0 else self.atol[:, None]
+            self._atol_phi = self.atol if atol_arr.ndim == 0 else atol_arr[:, None]
         else:
             va = np.array(variational_atol, dtype=float)
             if va.shape not in ((), (self.n,)):
@@ -272,7 +286,7 @@ class Stepper(VariationalAlgebra, abc.ABC):
 
         self.n_steps = self.n_rejected = self.n_accel = self.n_jac = 0
         self._outside = None
-        self.t_old = self.q_old = self.v_old = self.phi_old = None
+        self.t_old = self.q_old = self.v_old = self.phi_old = None  # type: ignore[assignment]  # no step yet (class doc)
         self._y = self._point_y(self.q, self.v)
         self._f = self._point_f(self.t, self.q, self.v)
         self._setup()
@@ -338,8 +352,9 @@ class Stepper(VariationalAlgebra, abc.ABC):
         self._f = self._point_f(t, q, v)
         self._after_truncate()
 
-    def restart(self, t: float, q, v, phi=None, *, accel: AccelFn | None = None, jac: JacFn | None = None,
-                t_bound: float | None = None, parameter_jac: ParameterJacFn | None = None) -> None:
+    def restart(self, t: float, q: ArrayLike, v: ArrayLike, phi: ArrayLike | None = None, *,
+                accel: AccelFn | None = None, jac: JacFn | None = None, t_bound: float | None = None,
+                parameter_jac: ParameterJacFn | None = None) -> None:
         """Start again from a new state (after a jump or a mode change).
 
         The step-size estimate is kept; Jacobian, LU factors and the dense
@@ -380,7 +395,7 @@ class Stepper(VariationalAlgebra, abc.ABC):
         if phi is not None:
             self.phi = self._check_phi(phi)
         self.t, self.q, self.v = t, q, v
-        self.t_old = self.q_old = self.v_old = self.phi_old = None
+        self.t_old = self.q_old = self.v_old = self.phi_old = None  # type: ignore[assignment]  # no step yet (class doc)
         self._y = self._point_y(q, v)
         self._f = self._point_f(t, q, v)
         self._after_restart()
@@ -435,6 +450,7 @@ class Stepper(VariationalAlgebra, abc.ABC):
         """Sizes that ``rtol`` is relative to, per component of ``y``."""
         if self._vs:
             return np.abs(y)
+        assert q is not None  # off vector spaces the caller passes the point
         return np.concatenate((self.group.magnitude(q), np.abs(y[self.nv :])))
 
     def _eval_into(self, t: float, y: np.ndarray, out: np.ndarray, qc, accel=None) -> np.ndarray:

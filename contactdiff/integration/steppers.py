@@ -16,12 +16,18 @@ and what a new method implements), over a configuration space of
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from ..errors import InvalidInputError
 from .dense import DenseOutput, LazyDenseOutput
 from .explicit_rk import DOP853, RK45, ExplicitRK
 from .lie import LieGroup, PinocchioGroup, VectorSpace
 from .radau import Radau
 from .stepper import AccelFn, JacFn, Stepper
+
+if TYPE_CHECKING:
+    import pinocchio as pin
+    from numpy.typing import ArrayLike
 
 __all__ = [
     "METHODS", "AccelFn", "JacFn", "LieGroup", "VectorSpace", "PinocchioGroup", "DenseOutput",
@@ -33,7 +39,8 @@ METHODS: tuple[str, ...] = tuple(_CLASSES)
 """Valid ``method`` names for `make_stepper`."""
 
 
-def make_stepper(method: str, accel: AccelFn, group, t0: float, q0, v0, **options) -> Stepper:
+def make_stepper(method: str, accel: AccelFn, group: LieGroup | pin.Model, t0: float, q0: ArrayLike, v0: ArrayLike,
+                 **options) -> Stepper:
     """Create a stepper by name.
 
     Args:

@@ -13,11 +13,15 @@ import json
 from dataclasses import asdict, dataclass, field
 from enum import Enum, StrEnum
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ..errors import ContactDiffError, InvalidInputError
 from .samples import Samples
+
+if TYPE_CHECKING:
+    from ..model.scene import Scene
 
 EVENT_KINDS = ("touchdown", "lift-off", "slip", "stick", "bounce", "grazing", "zeno", "bear")
 """``touchdown``: contacts close and stay closed (impact); ``lift-off``: an active
@@ -169,7 +173,8 @@ class Event:
                 extra["time_gradient"] = self.time_gradient.tolist()
         if self.parameter_saltation is not None:
             extra["parameter_saltation"] = self.parameter_saltation.tolist()
-            extra["parameter_time_gradient"] = self.parameter_time_gradient.tolist()
+            if self.parameter_time_gradient is not None:
+                extra["parameter_time_gradient"] = self.parameter_time_gradient.tolist()
         if self.outcomes:
             extra["outcomes"] = {name: v.tolist() for name, v in self.outcomes.items()}
         if self.saltation_orders:
@@ -324,7 +329,7 @@ class Trajectory:
                  event_kind=np.array([e.kind for e in self.events], dtype=str),
                  event_contacts=np.array(["+".join(e.contacts) for e in self.events], dtype=str))
 
-    def to_html(self, path: str | Path, scene=None, **options) -> Path:
+    def to_html(self, path: str | Path, scene: Scene | None = None, **options: Any) -> Path:
         """Write a self-contained HTML page that replays this run in 3-D in a browser,
         with no network: the robot, its closed contacts and a timeline of the events
         (`contactdiff.replay`; needs meshcat, ``pip install 'contactdiff[viz]'``).

@@ -59,7 +59,8 @@ def _unit_vector(value, *, owner: str) -> tuple[float, float, float]:
     norm = np.linalg.norm(n)
     if not np.all(np.isfinite(n)) or norm < 1e-12:
         raise InvalidInputError(f"{owner}: normal must be a finite non-zero 3-vector, got {value!r}")
-    return tuple(float(x) for x in n / norm)
+    x, y, z = (float(c) for c in n / norm)
+    return x, y, z
 
 
 def _friction(value, owner: str) -> str | float:
@@ -114,7 +115,7 @@ class Contact:
     restitution: float = 0.0
     friction: str | float = "none"
     against: str | None = None
-    name: str | None = None
+    name: str = None  # type: ignore[assignment]  # None: the frame's name (__post_init__)
     radius: float | None = None
     group: str | None = None
 
@@ -161,7 +162,9 @@ class Contact:
     @property
     def mu(self) -> float:
         """Coulomb coefficient: 0 for ``"none"``, inf for ``"stick"``."""
-        return {"none": 0.0, "stick": np.inf}.get(self.friction, self.friction)
+        if isinstance(self.friction, str):  # (__post_init__ checked it is one of the two)
+            return {"none": 0.0, "stick": np.inf}[self.friction]
+        return self.friction
 
     @property
     def coulomb(self) -> bool:
@@ -236,7 +239,7 @@ class BoundContact:
         return reach
 
     sliding = False  # a normal-only view of a sticking contact (see `sliding_view`)
-    full = None  # the contact of a sliding view, with all its rows
+    full: BoundContact | None = None  # the contact of a sliding view, with all its rows
 
     @property
     def mu(self) -> float:
@@ -257,7 +260,7 @@ class BoundContact:
     def slips(self) -> bool:
         """Whether this is a slipping view with Coulomb friction (force ``-μ λ_N s`` along its
         slip direction ``s``, `contactdiff.dynamics.slip`)."""
-        return self.sliding and self.spec.coulomb and self.full.n_rows > 1
+        return self.sliding and self.spec.coulomb and self.full is not None and self.full.n_rows > 1
 
     @property
     def sticking(self) -> bool:

@@ -172,8 +172,11 @@ class Spring:
     frame ``a`` by the opposite force.
 
     Args:
-        frame_a, frame_b: frame names.
-        stiffness: N/m, >= 0.  damping: N s/m, >= 0.  rest_length: m, >= 0.
+        frame_a: name of the first frame (``a``).
+        frame_b: name of the second frame (``b``).
+        stiffness: N/m, >= 0.
+        damping: N s/m, >= 0.
+        rest_length: m, >= 0.
         name: label of the spring (its parameters are ``spring:<name>:stiffness``, ...,
             see `contactdiff.model.parameters`); defaults to ``"<frame_a>-<frame_b>"``.
     """

@@ -42,14 +42,20 @@ from __future__ import annotations
 
 import dataclasses
 import re
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from enum import Enum
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pinocchio as pin
 
 from ..errors import InvalidInputError, ModelLoadError, unknown_name
+
+if TYPE_CHECKING:
+    from .robot import Robot
+    from .scene import Scene
 
 TIE_HEIGHT = 1e-3
 """m: frames of one end this close in height count as equally low (names decide)."""
@@ -153,7 +159,7 @@ def up_direction(model: pin.Model) -> np.ndarray:
 
 
 def choose_feet(model: pin.Model, q_ref: np.ndarray, floating_base: bool,
-                given=None) -> tuple[FootChoice, np.ndarray]:
+                given: Sequence[str] | None = None) -> tuple[FootChoice, np.ndarray]:
     """Choose the feet of ``model`` at ``q_ref`` (module rule) or check the given ones.
 
     Args:
@@ -323,7 +329,7 @@ def _geometry_kind(geometry) -> str:
     return type(geometry).__name__
 
 
-def foot_spheres(robot, feet=None) -> dict[str, FootSphere | None]:
+def foot_spheres(robot: Robot, feet: Sequence[str] | None = None) -> dict[str, FootSphere | None]:
     """Each foot's collision sphere, from the robot's URDF (``pin.buildGeomFromUrdf``), or
     the MJCF sphere a foot was chosen by (``robot.foot_choice.radii``).
 
@@ -347,7 +353,7 @@ def foot_spheres(robot, feet=None) -> dict[str, FootSphere | None]:
         return {foot: FootSphere(foot, radii[foot], (0.0, 0.0, 0.0), foot) if foot in radii else None
                 for foot in (robot.feet if feet is None else feet)}
     geometry = _collision_model(robot)
-    found = {}
+    found: dict[str, FootSphere | None] = {}
     for foot in (robot.feet if feet is None else feet):
         fid = robot.frame_id(foot)
         frame = model.frames[fid]
@@ -362,8 +368,8 @@ def foot_spheres(robot, feet=None) -> dict[str, FootSphere | None]:
             found[foot] = None
             continue
         best = min(candidates, key=lambda g: np.linalg.norm(centre(g)))
-        found[foot] = FootSphere(foot, float(best.geometry.radius), tuple(float(x) for x in centre(best)),
-                                 best.name)
+        x, y, z = (float(c) for c in centre(best))
+        found[foot] = FootSphere(foot, float(best.geometry.radius), (x, y, z), best.name)
     return found
 
 
@@ -371,7 +377,7 @@ SPHERE_FRAME_SUFFIX = "_sphere"
 """A foot whose sphere is not centred on it gets the frame ``<foot>_sphere`` at the sphere's centre."""
 
 
-def round_feet(scene, spheres: dict | None = None):
+def round_feet(scene: Scene, spheres: Mapping[str, FootSphere | None] | None = None) -> Scene:
     """The scene with its ground contacts at the robot's feet made round.
 
     Each contact of a foot frame with the ground (``against`` unset) gets the
@@ -417,11 +423,11 @@ def round_feet(scene, spheres: dict | None = None):
     at_feet = [i for i, c in enumerate(scene.contact_specs) if c.frame in robot.feet and c.against is None]
     if not at_feet:
         spheres_at = {f + SPHERE_FRAME_SUFFIX for f in robot.feet}
-        done = any(c.frame in spheres_at and c.radius > 0 for c in scene.contact_specs)
+        done = any(c.frame in spheres_at and (c.radius or 0.0) > 0 for c in scene.contact_specs)  # (resolved: set)
         raise InvalidInputError(f"scene {scene.name!r}: no ground contact at a foot of robot {robot.name!r} "
                                 f"(feet: {', '.join(robot.feet) or 'none'})"
                                 + ("; its foot contacts are already round" if done else ""))
-    rounded = [scene.contact_specs[i].name for i in at_feet if scene.contact_specs[i].radius > 0]
+    rounded = [scene.contact_specs[i].name for i in at_feet if (scene.contact_specs[i].radius or 0.0) > 0]
     if rounded:  # their offsets already hold the spheres: lowering them again would sink the feet
         raise InvalidInputError(f"scene {scene.name!r}: the contacts {', '.join(rounded)} are already round "
                                 f"(radius > 0); round_feet takes a scene with point feet")
@@ -434,10 +440,11 @@ def round_feet(scene, spheres: dict | None = None):
             f"robot {robot.name!r}: cannot round its feet: "
             + "; ".join(f"{foot} has no collision sphere (a mesh, or no collision geometry)" for foot in missing)
             + " (give Contact(radius=...) by hand)")
+    found = {foot: sphere for foot, sphere in spheres.items() if sphere is not None}  # every foot here has one
     off_centre = sorted({scene.contact_specs[i].frame for i in at_feet
-                         if not spheres[scene.contact_specs[i].frame].centred})
+                         if not found[scene.contact_specs[i].frame].centred})
     if off_centre:
-        rounded_robot, frames = _with_sphere_frames(robot, [spheres[foot] for foot in off_centre])
+        rounded_robot, frames = _with_sphere_frames(robot, [found[foot] for foot in off_centre])
         data = rounded_robot.model.createData()
         pin.framesForwardKinematics(rounded_robot.model, data, rounded_robot.q_ref)
     else:
@@ -445,7 +452,7 @@ def round_feet(scene, spheres: dict | None = None):
     contacts = list(scene.contact_specs)
     for i in at_feet:
         c = contacts[i]
-        r = spheres[c.frame].radius
+        r = found[c.frame].radius
         if c.frame not in frames:
             contacts[i] = _dc.replace(c, radius=r, offset=c.offset - r)
             continue
@@ -454,9 +461,9 @@ def round_feet(scene, spheres: dict | None = None):
         foot = data.oMf[rounded_robot.model.getFrameId(c.frame)].translation
         offset = c.offset + float(n @ centre - n @ foot) - r
         contacts[i] = _dc.replace(c, frame=frames[c.frame], radius=r, offset=offset)
-    rounded = Scene(rounded_robot, contacts, scene.effort_specs, None, scene.q0, scene.v0, scene.name)
-    rounded.foot_choice = scene.foot_choice
-    return rounded
+    rounded_scene = Scene(rounded_robot, contacts, scene.effort_specs, None, scene.q0, scene.v0, scene.name)
+    rounded_scene.foot_choice = scene.foot_choice
+    return rounded_scene
 
 
 def _with_sphere_frames(robot, spheres) -> tuple:

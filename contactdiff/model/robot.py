@@ -70,7 +70,7 @@ class Robot:
     name: str
     urdf: str = ""
     floating_base: bool = False
-    q_ref: np.ndarray | None = None
+    q_ref: np.ndarray = None  # type: ignore[assignment]  # None: the standing pose or neutral (__post_init__)
     feet: tuple[str, ...] = ()
     actuated: tuple[str, ...] = ()
     foot_choice: FootChoice | None = None
@@ -305,7 +305,7 @@ def _from_urdf(path: Path, floating_base: bool, name: str, srdf: str = "",
             else:
                 model = pin.buildModelFromUrdf(str(path))
         except (RuntimeError, ValueError) as exc:
-            error = exc
+            error: RuntimeError | ValueError | None = exc
         else:
             error = None
     if error is not None:

@@ -142,6 +142,7 @@ class Job:
         """
         settings = {**self.options, **arguments}
         if self.kind is None:
+            assert self.function is not None  # a user job (kind None) has its function
             outputs = self.function(scene, dict(point))
             if not isinstance(outputs, Mapping) or not all(isinstance(k, str) for k in outputs):
                 raise InvalidInputError(f"job {self.label} must return a dict of outputs by name, got "
@@ -176,6 +177,7 @@ def _jacobian(scene: Scene, t_final, options: dict, settings: dict) -> dict:
     names = settings.get("parameters") or ()
     names = scene.parameter_names() if names == "all" else [names] if isinstance(names, str) else list(names)
     traj = simulate(scene, t_final, **{**options, "jacobian": True, "parameters": names})
+    assert traj.jacobian is not None  # asked for
     out = trajectory_outputs(traj, scene)
     singular = np.linalg.svd(traj.jacobian, compute_uv=False)
     out["jacobian_norm"] = float(singular[0])

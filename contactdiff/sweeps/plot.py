@@ -14,11 +14,15 @@ from __future__ import annotations
 
 import numbers
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..errors import InvalidInputError, unknown_name
 from .rows import RESERVED, SweepResult
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 
 def numeric_outputs(result: SweepResult) -> list[str]:
@@ -49,7 +53,7 @@ def plot_sweep(result: SweepResult, path: str | Path, output: str | None = None)
     return Path(path)
 
 
-def sweep_figure(result: SweepResult, output: str | None = None):
+def sweep_figure(result: SweepResult, output: str | None = None) -> Figure:
     """The matplotlib ``Figure`` of `plot_sweep` (same arguments and errors)."""
     from ..plotting import _pyplot
 

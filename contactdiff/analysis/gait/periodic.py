@@ -10,9 +10,11 @@ import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
+from numpy.typing import ArrayLike
 
 from ...errors import InconsistentStateError, InvalidInputError, StrideError, check_number
 from ...integration.hybrid import simulate
@@ -176,7 +178,8 @@ def floquet_multipliers(scene: Scene, stride: Stride, neutral: Sequence[str] | N
     return _sorted_eigenvalues(B.T @ stride.extended_jacobian() @ B)
 
 
-def find_periodic_gait(scene: Scene, foot: str, q=None, v=None, t: float = 0.0, *,
+def find_periodic_gait(scene: Scene, foot: str, q: ArrayLike | None = None, v: ArrayLike | None = None,
+                       t: float = 0.0, *,
                        iterations: int = 8, tol: float = 1e-9, neutral: Sequence[str] | None = None,
                        period: float | None = None, t_max: float = 10.0, min_stride: float | None = None,
                        min_flight: float | None = None, warmup: float = 0.0,
@@ -283,7 +286,8 @@ def find_periodic_gait(scene: Scene, foot: str, q=None, v=None, t: float = 0.0, 
         return resolutions[-1] is not None and residuals[-1] <= resolutions[-1]
 
     stride, B, r, moved = evaluate(q, v, t)
-    residuals, steps, resolutions = [float(np.linalg.norm(r))], ["start"], [None]
+    residuals, steps = [float(np.linalg.norm(r))], ["start"]
+    resolutions: list[float | None] = [None]
     for n in range(iterations + 1):
         # the resolution is measured only in a search (iterations > 0), at each iterate above tol
         if residuals[-1] <= tol or (resolution and iterations and resolved_here(stride, B, r)) or n == iterations:
@@ -360,9 +364,10 @@ class PeriodMap:
     trajectory: Trajectory = field(repr=False)
 
 
-def period_map(scene: Scene, q=None, v=None, t: float = 0.0, *, period: float | None = None,
+def period_map(scene: Scene, q: ArrayLike | None = None, v: ArrayLike | None = None, t: float = 0.0, *,
+               period: float | None = None,
                neutral: Sequence[str] | None = None, rtol: float = 1e-10, atol: float = 1e-12,
-               **options) -> PeriodMap:
+               **options: Any) -> PeriodMap:
     """The state after one clock period and its Jacobian (the stroboscopic Poincaré map).
 
     Args:
@@ -383,6 +388,7 @@ def period_map(scene: Scene, q=None, v=None, t: float = 0.0, *, period: float | 
     v = scene.v0 if v is None else np.array(v, dtype=float)
     t = check_number("period map", "t", t)
     traj = simulate(scene, t + clock, q, v, t0=t, jacobian=True, rtol=rtol, atol=atol, **options)
+    assert traj.jacobian is not None  # asked for
     neutral = _check_neutral(scene, neutral, q, v, t)
     N = neutral_directions(scene, q, neutral)
     if N.shape[1]:

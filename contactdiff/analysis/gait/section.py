@@ -210,13 +210,17 @@ def align(scene: Scene, q: np.ndarray, q_ref: np.ndarray, neutral: Sequence[str]
     moved = {}
     if "yaw" in neutral:
         dpsi = math.atan2(math.sin(_yaw(q) - _yaw(q_ref)), math.cos(_yaw(q) - _yaw(q_ref)))
-        q = pin.integrate(model, q, -dpsi * _neutral_vector(scene, q, "yaw"))
+        d = _neutral_vector(scene, q, "yaw")
+        assert d is not None  # neutral holds available moves only (_check_neutral)
+        q = pin.integrate(model, q, -dpsi * d)
         moved["yaw"] = dpsi
     com, com_ref = pin.centerOfMass(model, data, q).copy(), pin.centerOfMass(model, data, q_ref).copy()
     for name, axis in (("x", 0), ("y", 1)):
         if name in neutral:
             shift = float(com[axis] - com_ref[axis])
-            q = pin.integrate(model, q, -shift * _neutral_vector(scene, q, name))
+            d = _neutral_vector(scene, q, name)
+            assert d is not None  # neutral holds available moves only (_check_neutral)
+            q = pin.integrate(model, q, -shift * d)
             moved[name] = shift
     return q, moved
 

@@ -83,9 +83,12 @@ foot's touchdown a terminal event and keeps the flow Jacobian just before it.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ...dynamics.impacts import choose_mode
 from ...errors import InvalidInputError, StrideError, check_number
@@ -93,7 +96,7 @@ from ...integration.hybrid import HybridLoop
 from ...integration.options import SimulateOptions
 from ...integration.parameter_jumps import ParameterJumps
 from ...integration.sensitivity import gap_gradient, saltation, touchdown, vector_field
-from ...integration.trajectory import Trajectory
+from ...integration.trajectory import Event, Trajectory
 from ...model.scene import Scene
 from .section import (
     _IMPACT_KINDS,
@@ -187,6 +190,7 @@ class Stride:
             raise InvalidInputError("this stride was computed without parameters (stride_map(..., parameters=[...]))")
         if self.period is None:
             return self.parameter_jacobian
+        assert self.parameter_time_gradient is not None  # computed with the parameters' Jacobian
         return np.vstack([self.parameter_jacobian, self.parameter_time_gradient])
 
     def summary(self) -> dict:
@@ -197,10 +201,12 @@ class Stride:
                "events": [f"{e.t:.12g} {e.kind} {'+'.join(e.contacts)}" for e in self.trajectory.events],
                "differentiable": self.differentiable, "simultaneous": list(self.simultaneous)}
         if self.jacobian is not None:
+            assert self.time_gradient is not None and self.start_time_column is not None  # computed with it
             out |= {"jacobian": self.jacobian.tolist(), "time_gradient": self.time_gradient.tolist(),
                     "start_time_column": self.start_time_column.tolist(),
                     "start_time_derivative": self.start_time_derivative}
         if self.parameter_jacobian is not None:
+            assert self.parameter_time_gradient is not None  # computed with it
             out |= {"parameter_names": list(self.parameter_names),
                     "parameter_jacobian": self.parameter_jacobian.tolist(),
                     "parameter_time_gradient": self.parameter_time_gradient.tolist()}
@@ -226,7 +232,8 @@ class StrideLoop(HybridLoop):
         # last time the foot was on the ground (s); the start counts as such, so a
         # foot a few nanometres up after a restart does not "land" at once
         self.last_contact = t0
-        self.hit = None  # (event, mode before as keys, Φ just before)
+        # (event, mode before as keys, Φ just before)
+        self.hit: tuple[Event, tuple[int, ...], np.ndarray | None] | None = None
         self.start = None  # (mode before, F- at the start, contacts landing with the foot)
 
     def initial_mode(self, q, v):
@@ -295,11 +302,11 @@ class StrideLoop(HybridLoop):
                 or name in event.mode_after)
 
 
-def stride_map(scene: Scene, foot: str, q, v, t: float = 0.0, *, t_max: float = 10.0,
+def stride_map(scene: Scene, foot: str, q: ArrayLike, v: ArrayLike, t: float = 0.0, *, t_max: float = 10.0,
                min_stride: float | None = None, min_flight: float | None = None,
-               period: float | None = None, jacobian: bool = True, parameters=(),
+               period: float | None = None, jacobian: bool = True, parameters: Sequence[str] = (),
                rtol: float = 1e-10, atol: float = 1e-12, method: str = "DOP853", max_events: int = 1000,
-               **options) -> Stride:
+               **options: Any) -> Stride:
     """The stride map of ``foot``: from just before one of its touchdowns to just before the next.
 
     Args:
@@ -417,6 +424,7 @@ def _run_stride(scene, i, q, v, t0, t_end, clock, jacobian, require_start, min_s
     t, q1, v1 = event.t, event.q.copy(), event.v_minus.copy()
     J = tg = col = dt = J_p = tg_p = None
     if jacobian:
+        assert phi is not None  # a run with the Jacobian records it
         dyn = run.dyn
         Dh = gap_gradient(dyn, q1, i)
         F = vector_field(dyn, q1, v1, t, mode)
