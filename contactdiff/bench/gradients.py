@@ -320,23 +320,9 @@ def falling_scene(task: FallingBall = BRAX) -> Scene:
                  name="falling_ball")
 
 
-FINAL_GAP_TOL = 1e-10
-"""m: a contact open at T within this of touching makes the outcome's derivative
-one-sided (`final_contact`); a run at rtol 1e-12 places the ball to ~1e-13 m."""
-
-
-def final_contact(scene: Scene, traj, tol: float = FINAL_GAP_TOL) -> list[str]:
-    """Contacts that touch at the final time without being held (|gap| <= ``tol``, not in
-    the last mode): a landing at T itself, where the outcome has a kink that no event of
-    the run records (`Trajectory.differentiable` looks at events only)."""
-    held = set(traj.segments[-1].mode) if traj.segments else set()
-    gaps = scene.gaps(traj.q)
-    return [spec.name for spec, gap in zip(scene.contact_specs, gaps) if abs(gap) <= tol and spec.name not in held]
-
-
 def contactdiff_brax(task: FallingBall, z0: float, rtol: float = 1e-12, atol: float = 1e-13) -> Run:
     """``dz(T)/dz0`` (1 × 1) at initial height ``z0`` from one run; ``differentiable`` is the
-    run's verdict and `final_contact`'s (noted)."""
+    run's verdict (a landing at T itself is `NonSmooth.FINAL_TIME`)."""
     scene = falling_scene(task)
     q0 = scene.q0.copy()
     q0[2] = z0
@@ -344,7 +330,5 @@ def contactdiff_brax(task: FallingBall, z0: float, rtol: float = 1e-12, atol: fl
     traj = simulate(scene, task.horizon, q0=q0, v0=np.array([0.0, 0.0, -task.speed, 0.0, 0.0, 0.0]),
                     jacobian=True, rtol=rtol, atol=atol)
     seconds = time.perf_counter() - start
-    touching = final_contact(scene, traj)
-    notes = traj.why_not_differentiable() + [f"{name} touches at T: one-sided derivatives" for name in touching]
-    return Run(traj.jacobian[2:3, 2:3].copy(), seconds, traj.differentiable and not touching,
-               traj.q[2:3].copy(), notes)
+    return Run(traj.jacobian[2:3, 2:3].copy(), seconds, traj.differentiable, traj.q[2:3].copy(),
+               traj.why_not_differentiable())
