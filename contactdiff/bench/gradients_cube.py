@@ -24,8 +24,8 @@ TOSS = "toss_000"
 
 HORIZON = 0.25
 """s: the first landing: three corner bounces (t ≈ 0.083, 0.142, 0.201 s), then bounces
-of four corners, two of them impact cascades that the Zeno rule ends (0.237 and 0.252 s):
-21 events, all differentiable. At 0.2565 s a
+of four corners, among them an impact cascade that the Zeno rule ends (0.237 s): 14
+events, all differentiable (the next cascades end at 0.252 and 0.255 s). At 0.2565 s a
 cascade ends with a corner landing against its resting neighbour (`NonSmooth`
 ``ZENO_CASCADE``, ``RESTING_CONTACT``) and from 0.276 s the opposite edge lands with
 both corners at once (``ORDER``): past them the run has no gradient, only a

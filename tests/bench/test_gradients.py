@@ -107,7 +107,7 @@ def test_brax_case_gradient_and_verdict():
 
 
 def test_cube_pose_gradient_against_central_differences():
-    """Task 5 (the first landing, 21 events to T = 0.25 s): contactdiff's d pose(T)/d(μ, e)
+    """Task 5 (the first landing, 14 events to T = 0.25 s): contactdiff's d pose(T)/d(μ, e)
     against central differences of its own runs at rtol 1e-12, atol 1e-13, h = 1e-6 (the
     impact cascades have kinks within 1e-4 of (μ, e), `REFERENCE_STEPS`). Run error: each
     final pose to ~1e-12 (atol + rtol |q|, |q| <= 1), so the quotient to 2e-12 / 2h = 1e-6
