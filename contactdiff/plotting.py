@@ -22,7 +22,8 @@ def _pyplot():
 
 
 _EVENT_STYLE = {"touchdown": ("tab:red", "-"), "lift-off": ("tab:green", "--"), "slip": ("tab:olive", "--"),
-                "bounce": ("tab:orange", ":"), "grazing": ("tab:purple", "-."), "zeno": ("black", "-")}
+                "bounce": ("tab:orange", ":"), "grazing": ("tab:purple", "-."), "zeno": ("black", "-"),
+                "bear": ("tab:brown", ":")}
 
 
 def plot_gaps(traj: Trajectory, scene, path: str | Path, n_samples: int = 800) -> Path:

@@ -67,7 +67,7 @@ ROOT = "contactdiff"
 """Name of the meshcat node under which the robot and the contacts are drawn."""
 
 EVENT_COLOURS = {"touchdown": "#d62728", "lift-off": "#2ca02c", "slip": "#bcbd22", "stick": "#17becf",
-                 "bounce": "#ff7f0e", "grazing": "#9467bd", "zeno": "#000000"}
+                 "bounce": "#ff7f0e", "grazing": "#9467bd", "zeno": "#000000", "bear": "#8c564b"}
 """Timeline colour of each event kind (CSS)."""
 
 _EVENT_TOL = 1e-9  # s: a grid time this close to an event time is replaced by the event's

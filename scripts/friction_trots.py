@@ -15,6 +15,7 @@ A run that raises is reported with its counts up to there, traceback, time reach
     python scripts/friction_trots.py                 # μ = 0.7 and 0.8, 3 s
     python scripts/friction_trots.py --mu 0.5 --repeats 3 --json
     python scripts/friction_trots.py --profile       # and where the Coulomb runs' time goes
+    python scripts/friction_trots.py --mu 0.8 --scenes solo12_trot --jacobian --profile  # with the flow Jacobian
     python scripts/friction_trots.py --quick         # solo12, μ = 0.7, 0.2 s, profiled: a smoke run
 """
 
@@ -23,6 +24,7 @@ from __future__ import annotations
 import argparse
 import bisect
 import json
+import math
 import statistics
 import sys
 import time
@@ -50,7 +52,8 @@ def counts(events, segments) -> dict:
 
 @contextmanager
 def where_time_goes(record: list):
-    """Record each accepted step of the steppers as ``(t_old, t, rejected attempts, wall s)`` and each
+    """Record each accepted step of the steppers as ``(t_old, t, rejected attempts, wall s, evaluations)``
+    (evaluations: the stepper's ``accel`` calls in the step and its rejected attempts) and each
     impact as ``("impact", wall s)`` into ``record``, for this run only (timers wrapped around
     ``step`` and the loop's ``resolve_impact``)."""
     from contactdiff.integration import event_resets
@@ -62,9 +65,10 @@ def where_time_goes(record: list):
 
     def timed_step(original):
         def step(self):
-            t_old, rejected, start = self.t, self.n_rejected, time.perf_counter()
+            t_old, rejected, evals, start = self.t, self.n_rejected, self.n_accel, time.perf_counter()
             original(self)
-            record.append((t_old, self.t, self.n_rejected - rejected, time.perf_counter() - start))
+            record.append((t_old, self.t, self.n_rejected - rejected, time.perf_counter() - start,
+                           self.n_accel - evals))
         return step
 
     def timed_impact(*args, **kwargs):
@@ -84,33 +88,72 @@ def where_time_goes(record: list):
         event_resets.resolve_impact = impact
 
 
-def time_shares(record: list, segments, wall: float) -> dict:
+def _decade(seconds: float) -> str:
+    """``"1e-6"`` for a time from 1e-6 to 1e-5 s."""
+    return f"1e{math.floor(math.log10(max(seconds, 1e-300)))}"
+
+
+def time_shares(record: list, segments, wall: float, events=()) -> dict:
     """Wall time of steps inside segments with a slipping contact, of the other steps and of
-    impacts, with the steps' counts and simulated time (s)."""
+    impacts, with the steps' counts, their evaluations of the field, the simulated time (s: a step
+    that crossed an event, which the loop cut back to it, counts up to the segment's end) and
+    the evaluations per simulated second; ``slip_to_other``: the ratio of the two parts' rates.
+    ``one_step_floor``: the ratio if each slipping segment took a single step of the other steps'
+    mean cost (a floor for any method that steps through each slip).
+    ``stops``: of the slipping segments, those that end in a ``stick`` event (of ``events``): their
+    count, evaluations, and evaluations by decade of the time left to the stop at the step's start
+    (``"1e-6"``: from 1e-6 to 1e-5 s); ``onsets``: the others that begin with a ``slip`` event (a
+    contact leaving its cone), by decade of the time since the onset at the step's end."""
     starts = [seg.t0 for seg in segments]
-    out = {part: {"wall": 0.0, "steps": 0, "rejected": 0, "sim_time": 0.0} for part in ("slipping", "other")}
+    stop_times = {e.t for e in events if e.kind == "stick"}
+    onset_times = {e.t for e in events if e.kind == "slip"}
+    out = {part: {"wall": 0.0, "steps": 0, "rejected": 0, "evaluations": 0, "sim_time": 0.0}
+           for part in ("slipping", "other")}
+    stops = {"segments": sum(bool(seg.sliding) and seg.t1 in stop_times for seg in segments),
+             "evaluations": 0, "by_time_left": Counter()}
+    onsets = {"segments": sum(bool(seg.sliding) and seg.t1 not in stop_times and seg.t0 in onset_times
+                              for seg in segments), "evaluations": 0, "by_time_since": Counter()}
     impacts = 0.0
     for item in record:
         if item[0] == "impact":
             impacts += item[1]
             continue
-        t_old, t, rejected, seconds = item
+        t_old, t, rejected, seconds, evaluations = item
         seg = segments[max(0, bisect.bisect_right(starts, t_old) - 1)]
         part = out["slipping" if seg.sliding else "other"]
         part["wall"] += seconds
         part["steps"] += 1
         part["rejected"] += rejected
-        part["sim_time"] += t - t_old
-    return out | {"impacts": {"wall": impacts}, "rest": {"wall": wall - impacts - out["slipping"]["wall"]
+        part["evaluations"] += evaluations
+        part["sim_time"] += min(t, seg.t1) - t_old  # a step that crossed an event counts up to it
+        if seg.sliding and seg.t1 in stop_times:
+            stops["evaluations"] += evaluations
+            stops["by_time_left"][_decade(seg.t1 - t_old)] += evaluations
+        elif seg.sliding and seg.t0 in onset_times:
+            onsets["evaluations"] += evaluations
+            onsets["by_time_since"][_decade(min(t, seg.t1) - seg.t0)] += evaluations
+    for part in out.values():
+        part["evaluations_per_s"] = part["evaluations"] / part["sim_time"] if part["sim_time"] > 0 else 0.0
+    rates = out["slipping"]["evaluations_per_s"], out["other"]["evaluations_per_s"]
+    out["slipping"]["segments"] = sum(bool(seg.sliding) for seg in segments)
+    per_step = out["other"]["evaluations"] / max(1, out["other"]["steps"])
+    slip_time = out["slipping"]["sim_time"]
+    floor = out["slipping"]["segments"] * per_step / slip_time if slip_time > 0 else 0.0
+    for part, key in ((stops, "by_time_left"), (onsets, "by_time_since")):
+        part[key] = dict(sorted(part[key].items(), key=lambda kv: float(kv[0])))
+    return out | {"slip_to_other": rates[0] / rates[1] if rates[1] > 0 else float("nan"), "stops": stops,
+                  "one_step_floor": floor / rates[1] if rates[1] > 0 else float("nan"),
+                  "onsets": onsets,
+                  "impacts": {"wall": impacts}, "rest": {"wall": wall - impacts - out["slipping"]["wall"]
                                                           - out["other"]["wall"]}}
 
 
-def run(scene: cd.Scene, t_final: float, repeats: int, profile: bool = False) -> dict:
+def run(scene: cd.Scene, t_final: float, repeats: int, profile: bool = False, jacobian: bool = False) -> dict:
     """One scene's row: counts of the last run, median wall time; on an exception, the diagnosis;
     with ``profile`` one more run with `where_time_goes`."""
     walls, reached = [], [0.0, 0, 0]
     # what simulate(scene, t_final) runs; progress only records (t, events, accepted steps)
-    options = cd.SimulateOptions(progress=lambda *p: reached.__setitem__(slice(None), p))
+    options = cd.SimulateOptions(progress=lambda *p: reached.__setitem__(slice(None), p), jacobian=jacobian)
     for _ in range(repeats):
         loop = cd.HybridLoop(scene, 0.0, t_final, options=options)
         start = time.perf_counter()
@@ -133,22 +176,23 @@ def run(scene: cd.Scene, t_final: float, repeats: int, profile: bool = False) ->
         "wall": statistics.median(walls), "walls": walls, "steps": traj.stats.steps,
         "rejected_steps": traj.stats.rejected_steps, "termination": str(traj.termination),
         "base_height": height, "start_height": start_height, "tilt_deg": tilt,
-        "upright": height >= 0.5 * start_height and tilt < 45.0} | (_profiled(scene, t_final) if profile else {})
+        "upright": height >= 0.5 * start_height and tilt < 45.0} \
+        | (_profiled(scene, t_final, jacobian) if profile else {})
 
 
-def _profiled(scene: cd.Scene, t_final: float) -> dict:
+def _profiled(scene: cd.Scene, t_final: float, jacobian: bool = False) -> dict:
     record = []
     with where_time_goes(record):
         start = time.perf_counter()
-        traj = cd.simulate(scene, t_final)
+        traj = cd.simulate(scene, t_final, jacobian=jacobian)
         wall = time.perf_counter() - start
-    return {"profile": time_shares(record, traj.segments, wall) | {"total": {"wall": wall}}}
+    return {"profile": time_shares(record, traj.segments, wall, traj.events) | {"total": {"wall": wall}}}
 
 
 def table(rows: list[dict], t_final: float) -> str:
     """The rows as a table, then the failures' diagnoses."""
     short = {"touchdown": "td", "lift-off": "lo", "slip": "slip", "stick": "stick", "bounce": "bnc",
-             "grazing": "graz", "zeno": "zeno"}
+             "grazing": "graz", "zeno": "zeno", "bear": "bear"}
     head = " ".join(f"{short[k]:>5}" for k in EVENT_KINDS)
     lines = [f"scene        friction events {head}  zenoC  slip s  wall s  steps  rej   base m (start)  "
              f"tilt  upright"]
@@ -174,7 +218,19 @@ def table(rows: list[dict], t_final: float) -> str:
             for part in ("slipping", "other"):
                 q = p[part]
                 lines.append(f"  steps in {part:>8} segments: {q['wall']:6.2f} s wall, {q['steps']:5d} steps "
-                             f"({q['rejected']} rejected), {q['sim_time']:.4f} s simulated")
+                             f"({q['rejected']} rejected), {q['evaluations']} evaluations, {q['sim_time']:.4f} s "
+                             f"simulated: {q['evaluations_per_s']:.4g} evaluations per simulated s")
+            lines.append(f"  evaluations per simulated s, slipping over other: {p['slip_to_other']:.3g} "
+                         f"({p['slipping']['segments']} slipping segments; one step each would give "
+                         f"{p['one_step_floor']:.3g})")
+            st = p["stops"]
+            lines.append(f"  of the slipping steps, in the {st['segments']} segments that end in a stop: "
+                         f"{st['evaluations']} evaluations; by the time left to the stop (s): "
+                         + ", ".join(f"{k}: {n}" for k, n in st["by_time_left"].items()))
+            on = p["onsets"]
+            lines.append(f"  in the {on['segments']} others that begin with a slip from sticking: {on['evaluations']} "
+                         "evaluations; by the time since the onset (s): "
+                         + ", ".join(f"{k}: {n}" for k, n in on["by_time_since"].items()))
             lines.append(f"  impacts: {p['impacts']['wall']:.2f} s; "
                          f"events, guards, the rest: {p['rest']['wall']:.2f} s")
     for r in fails:
@@ -195,6 +251,8 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--profile", action="store_true",
                         help="also time, in one more run of each Coulomb case, the steps in segments with a "
                              "slipping foot, the other steps and the impacts")
+    parser.add_argument("--jacobian", action="store_true",
+                        help="carry the flow Jacobian in every run (simulate(..., jacobian=True))")
     parser.add_argument("--json", action="store_true")
     parser.add_argument("--quick", action="store_true",
                         help="a smoke run of seconds: solo12_trot, μ = 0.7, 0.2 s, one repeat, --profile")
@@ -208,7 +266,7 @@ def main(argv: list[str] | None = None) -> None:
             print(f"running {name} friction={friction} for {args.t_final:g} s x {args.repeats} ...",
                   file=sys.stderr, flush=True)
             profile = args.profile and friction != "stick"
-            row = {"scene": name, "friction": friction} | run(scene, args.t_final, args.repeats, profile)
+            row = {"scene": name, "friction": friction} | run(scene, args.t_final, args.repeats, profile, args.jacobian)
             done = row.get("error") or f"{row['events']} events, {row['wall']:.2f} s wall"
             print(f"  done: {done}", file=sys.stderr, flush=True)
             rows.append(row)

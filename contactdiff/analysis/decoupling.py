@@ -16,6 +16,16 @@ Two conditions, each measured with numbers (docs/design.md §2, paper §3):
   limbs (zero mixed second derivatives across two limbs). Efforts here are
   ``tau - nle``: the scene's efforts minus Coriolis and gravity.
 
+**A foot of several points.** A foot that touches at several points (an MJCF
+leaf body with several collision spheres: Unitree G1's four under each ankle) is
+one limb with several contacts (``robot.foot_choice.limbs``): its limb holds the
+coordinates of all its points' chains, each of its gaps must depend on that limb
+only, and the orthogonality pairs are between contacts of different limbs. The
+couplings of two points of one foot (one rigid body: near 1 in general) are
+reported apart (``within_limb``) and do not enter the verdict, which is about
+limbs; the order in which one foot's points touch still changes outcomes, and a
+note says so when they are coupled.
+
 Every measure is relative (dimensionless) and compared with ``tol``. Verdicts:
 ``decoupled`` (all measures within tol: outcomes differentiable through
 simultaneous contact), ``orthogonal only`` (couplings within tol but the limb
@@ -90,8 +100,12 @@ class DecouplingReport:
     """Everything `check_decoupling` measured; ``to_dict()`` is the JSON form.
 
     ``verdict`` is ``None`` when there is nothing to check (fewer than two
-    contacts); ``reason`` then says why. ``feet`` says how a robot's feet were
-    chosen (empty for a scene file's contacts).
+    contacts, or fewer than two limbs); ``reason`` then says why. ``feet`` says how
+    a robot's feet were chosen (empty for a scene file's contacts). ``limbs`` maps
+    each limb (a contact's name, or the name of a foot of several points) to its
+    coordinates and ``limb_contacts`` to its contacts; ``pairs`` are the couplings
+    between limbs, ``within_limb`` those between two points of one foot (module
+    notes: not part of the verdict).
     """
 
     scene: str
@@ -108,10 +122,12 @@ class DecouplingReport:
     notes: list[str] = field(default_factory=list)
     feet: str = ""
     reason: str = ""
+    within_limb: list[PairCoupling] = field(default_factory=list)
+    limb_contacts: dict[str, list[str]] = field(default_factory=dict)
 
     @property
     def max_coupling(self) -> float:
-        """Largest pair coupling (0 with fewer than two contacts)."""
+        """Largest coupling between two limbs (0 with fewer than two limbs)."""
         return max((p.max for p in self.pairs), default=0.0)
 
     def failed_terms(self) -> list[Term]:
@@ -135,15 +151,18 @@ class DecouplingReport:
                              + [f"  note: {n}" for n in self.notes])
         lines.append(f"  body: {', '.join(self.body) or '(none)'}")
         for name, coords in self.limbs.items():
-            lines.append(f"  limb of {name}: {', '.join(coords) or '(none: its gap moves with the body)'}")
+            points = self.limb_contacts.get(name, [name])
+            of = f" (contacts {', '.join(points)})" if points != [name] else ""
+            lines.append(f"  limb of {name}{of}: {', '.join(coords) or '(none: its gap moves with the body)'}")
         lines.append("")
+        header = ("pair", "reference", "max", "median", "verdict")
         if self.pairs:
             lines.append("orthogonality  |G_ij| / sqrt(G_ii G_jj) at closed contacts "
                          f"({self.pairs[0].samples} poses)")
-            header = ("pair", "reference", "max", "median", "verdict")
-            rows = [(f"{p.contacts[0]} / {p.contacts[1]}", f"{p.reference:.3e}", f"{p.max:.3e}",
-                     f"{p.median:.3e}", p.verdict) for p in self.pairs]
-            lines += _table(header, rows)
+            lines += _table(header, _pair_rows(self.pairs))
+            if self.within_limb:
+                lines.append("within one limb (points of one foot; not part of the verdict)")
+                lines += _table(header, _pair_rows(self.within_limb))
         else:
             lines.append("orthogonality: fewer than two contacts, nothing to couple")
         lines.append("")
@@ -164,6 +183,11 @@ _VERDICT_MEANING = {
     ORTHOGONAL_ONLY: "outcomes are continuous but in general not differentiable when contact order changes",
     COUPLED: "outcomes jump when the order of contacts changes",
 }
+
+
+def _pair_rows(pairs: list[PairCoupling]) -> list[tuple[str, ...]]:
+    return [(f"{p.contacts[0]} / {p.contacts[1]}", f"{p.reference:.3e}", f"{p.max:.3e}",
+             f"{p.median:.3e}", p.verdict) for p in pairs]
 
 
 def _table(header, rows) -> list[str]:
@@ -207,12 +231,13 @@ def check_decoupling(source: Scene | Robot | str | Path, *, samples: int = 20, s
     if armature:
         scene = scene.with_armature(armature)
     feet = scene.foot_choice.describe() if scene.foot_choice else ""
-    if len(scene.contacts) < 2:
+    groups = _limb_groups(scene)
+    if len(groups) < 2:
         return DecouplingReport(
             scene=scene.name, robot=scene.robot.name, armature=float(armature), tol=float(tol),
             samples=0, seed=int(seed), body=[], limbs={}, pairs=[], terms=[], verdict=None,
-            feet=feet, reason=_nothing_to_check(scene))
-    checker = _Checker(scene, np.random.default_rng(seed), spread)
+            feet=feet, reason=_nothing_to_check(scene, groups))
+    checker = _Checker(scene, np.random.default_rng(seed), spread, groups)
     notes = []
     if states is not None:
         states = _given_states(scene, states)
@@ -221,18 +246,26 @@ def check_decoupling(source: Scene | Robot | str | Path, *, samples: int = 20, s
     if armature and not scene.robot.actuated:
         notes.append(f"robot {scene.robot.name!r} has no actuated joints: armature changes nothing")
     poses = None if states is None else [q for q, _, _ in states]
-    pairs = [checker.pair_coupling(i, j, samples, poses)
-             for i, j in itertools.combinations(range(len(scene.contacts)), 2)]
+    limb_of = checker.limb_of
+    all_pairs = [(limb_of[i] == limb_of[j], checker.pair_coupling(i, j, samples, poses))
+                 for i, j in itertools.combinations(range(len(scene.contacts)), 2)]
+    pairs = [p for within, p in all_pairs if not within]
+    within_limb = [p for within, p in all_pairs if within]
     terms = checker.assumption_terms(samples, states)
     for t in terms:
         t.ok = bool(t.value <= tol)
-    names = scene.contact_names
-    for p in pairs:
+    for p in pairs + within_limb:
         if p.max > tol:
             p.verdict = COUPLED
         else:
             involved = [t for t in terms if not t.contacts or set(t.contacts) & set(p.contacts)]
             p.verdict = DECOUPLED if all(t.ok for t in involved) else ORTHOGONAL_ONLY
+    for limb, members in groups:
+        worst = max((p.max for p in within_limb if p.contacts[0] in members), default=0.0)
+        if len(members) > 1 and worst > tol:
+            notes.append(f"the points of limb {limb} ({', '.join(members)}) are coupled to each other "
+                         f"(up to {worst:.3g}): the order in which they touch changes outcomes; "
+                         "the verdict is about limbs")
     if any(p.verdict == COUPLED for p in pairs):
         verdict = COUPLED
     elif all(t.ok for t in terms):
@@ -244,14 +277,31 @@ def check_decoupling(source: Scene | Robot | str | Path, *, samples: int = 20, s
         scene=scene.name, robot=scene.robot.name, armature=float(armature), tol=float(tol),
         samples=samples, seed=int(seed),
         body=[model.names[j] for j in checker.joints_of(checker.body)],
-        limbs={names[i]: [model.names[j] for j in checker.joints_of(limb)]
-               for i, limb in enumerate(checker.limbs)},
-        pairs=pairs, terms=terms, verdict=verdict, notes=notes, feet=feet)
+        limbs={limb: [model.names[j] for j in checker.joints_of(coords)]
+               for (limb, _), coords in zip(groups, checker.limbs)},
+        pairs=pairs, terms=terms, verdict=verdict, notes=notes, feet=feet,
+        within_limb=within_limb, limb_contacts={limb: list(members) for limb, members in groups})
 
 
-def _nothing_to_check(scene: Scene) -> str:
-    """Why a scene with fewer than two contacts has no verdict, with the way out."""
+def _limb_groups(scene: Scene) -> list[tuple[str, tuple[str, ...]]]:
+    """``(limb, contact names)`` in contact order: the ground contacts at the feet of one
+    foot of several points (``robot.foot_choice.limbs``) are one limb named after that
+    foot; every other contact is a limb of its own, named after the contact."""
+    choice = scene.robot.foot_choice
+    foot_limb = {f: limb for limb, feet in (choice.limbs if choice else {}).items() for f in feet}
+    groups: dict[str, list[str]] = {}
+    for c in scene.contact_specs:
+        limb = foot_limb.get(c.frame, c.name) if c.against is None else c.name
+        groups.setdefault(limb, []).append(c.name)
+    return [(limb, tuple(members)) for limb, members in groups.items()]
+
+
+def _nothing_to_check(scene: Scene, groups) -> str:
+    """Why a scene with fewer than two contacts (or limbs) has no verdict, with the way out."""
     names = scene.contact_names
+    if len(names) >= 2:  # several points of one foot
+        ((limb, members),) = groups
+        return f"fewer than two limbs (1: {limb}, contacts {', '.join(members)})"
     text = f"fewer than two contacts ({len(names)}{': ' + ', '.join(names) if names else ''})"
     rule = scene.foot_choice.rule if scene.foot_choice else None
     if rule is FootRule.FIXED_BASE:
@@ -300,12 +350,17 @@ def _as_scene(source) -> Scene:
 class _Checker:
     """The measurements of one check; coordinates are tangent (velocity) indices."""
 
-    def __init__(self, scene: Scene, rng: np.random.Generator, spread: float):
+    def __init__(self, scene: Scene, rng: np.random.Generator, spread: float, groups):
         self.scene, self.rng, self.spread = scene, rng, float(spread)
         self.model, self.robot = scene.model, scene.robot
         self.data = self.model.createData()
         self.kin = scene.kinematics
-        supports = [self._support(c) for c in scene.contacts]
+        # one limb per group of contacts (`_limb_groups`): its chains' coordinates, no other limb's
+        index = {name: i for i, name in enumerate(scene.contact_names)}
+        self.members = [[index[n] for n in members] for _, members in groups]
+        self.limb_names = [limb for limb, _ in groups]
+        self.limb_of = {i: g for g, members in enumerate(self.members) for i in members}
+        supports = [set().union(*(self._support(scene.contacts[i]) for i in members)) for members in self.members]
         self.limbs = [s - set().union(*(o for k, o in enumerate(supports) if k != i))
                       for i, s in enumerate(supports)]
         self.body = set(range(self.model.nv)) - set().union(*self.limbs)
@@ -386,8 +441,9 @@ class _Checker:
             all_closed = list(range(len(self.scene.contacts)))
             poses = self._poses(all_closed, samples) or [self.scene.q0]
             states = [(q, self.rng.uniform(-self.spread, self.spread, nv), 0.0) for q in poses]
-        blocks = [("body", self.body)] + [(f"limb {n}", limb) for n, limb in zip(names, self.limbs)]
-        owners = [()] + [(n,) for n in names]
+        limb_names = self.limb_names
+        blocks = [("body", self.body)] + [(f"limb {n}", limb) for n, limb in zip(limb_names, self.limbs)]
+        owners = [()] + [tuple(names[i] for i in members) for members in self.members]
         # largest relative size of each term over the poses, keyed by block/limb indices
         mass, dep, effort, additive = {}, {}, {}, {}
         gap = np.zeros(len(names))
@@ -413,7 +469,7 @@ class _Checker:
             self.kin.update(q, np.zeros(nv))
             for i, c in enumerate(self.scene.contacts):
                 row = c.rows(self.kin)[0]
-                outside = [k for k in range(nv) if k not in self.limbs[i]]
+                outside = [k for k in range(nv) if k not in self.limbs[self.limb_of[i]]]
                 if outside:
                     gap[i] = max(gap[i], float(np.max(np.abs(row[outside])) / max(np.max(np.abs(row)), 1e-300)))
             # efforts
@@ -443,10 +499,10 @@ class _Checker:
             terms.append(Term("gap", f"{names[i]} depends on coordinates outside its limb", float(value),
                               (names[i],)))
         for i, value in effort.items():
-            terms.append(Term("limb effort", f"limb {names[i]} depends on other limbs", value, (names[i],)))
+            terms.append(Term("limb effort", f"limb {limb_names[i]} depends on other limbs", value, owners[i + 1]))
         for (i, j), value in additive.items():
-            terms.append(Term("body effort", f"not additive in limbs {names[i]} and {names[j]}", value,
-                              (names[i], names[j])))
+            terms.append(Term("body effort", f"not additive in limbs {limb_names[i]} and {limb_names[j]}", value,
+                              owners[i + 1] + owners[j + 1]))
         return terms
 
     def _mass_derivative(self, q: np.ndarray) -> np.ndarray:

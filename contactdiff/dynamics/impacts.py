@@ -45,7 +45,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from ..errors import SolverError
+from ..errors import PainleveError, SolverError
 from .complementarity import ContactRows, impact_rhs, solve_contact_lcp
 from .frictional_impact import ContactState, solve_frictional_impact
 from .mode import ModeDynamics
@@ -198,9 +198,29 @@ def choose_mode(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float,
     return tuple(sorted(keys[k] for k in solution.active))
 
 
+#: A normal force above -PULL_SHARE of a mode's largest is round-off, not a pull.
+PULL_SHARE = 1e-9
+
 #: A released contact accelerating downwards by less than this share of |gravity|
 #: (round-off of the mode solve) is not sinking.
 ACCEL_TOL = 1e-9
+
+
+def _sliding_set(dyn: ModeDynamics, q, v, t, staying) -> tuple[int, ...] | None:
+    """``staying`` (sorted) where one of them slides with Coulomb friction and the set's
+    own solve, its friction included, pushes at every contact (none below `PULL_SHARE`
+    of the largest force); None otherwise. `choose_mode`'s problem holds a sliding
+    contact's normal row alone, without its friction: a sliding face whose friction
+    moment loads its trailing corners (a couple tipping a cube forward onto the corner
+    behind it) looked to it like a face that lets them go."""
+    if not any(dyn.is_sliding(k) for k in staying):
+        return None
+    mode = tuple(sorted(staying))
+    try:
+        normal = dyn.solve(q, v, t, mode).normal_forces()
+    except (PainleveError, SolverError):
+        return None
+    return mode if normal.min() >= -PULL_SHARE * max(float(normal.max()), 0.0) else None
 
 
 def liftoff_mode(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float, mode: Sequence[int],
@@ -217,7 +237,7 @@ def liftoff_mode(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float, mode
     release would let sink bears at once instead of being caught below the ground.
     """
     staying = [k for k in mode if k not in releasing] + list(resting)
-    new_mode = choose_mode(dyn, q, v, t, staying)
+    new_mode = _sliding_set(dyn, q, v, t, staying) or choose_mode(dyn, q, v, t, staying)
     released = [k for k in releasing if dyn.contact(k).sticking]
     if not released:
         return new_mode

@@ -53,6 +53,11 @@ class EventResets:
         dyn = self.dyn
         touching = [g.contact for g in fired if g.kind is GuardKind.GAP]
         releasing = [g.contact for g in fired if g.kind is GuardKind.FORCE]
+        bearing = [g.contact for g in fired if g.kind is GuardKind.BEAR]
+        if bearing and len(bearing) == len(fired):  # held contacts bear (`contactdiff.integration.held`)
+            return self._bear_event(t, q, v, mode, bearing)
+        # with other guards at once, a held contact's load is watched again in the next
+        # mode (its guard fires at that mode's start if it still pushes)
         if not touching and not releasing:  # Coulomb friction's own events
             return self._friction_event(t, q, v, mode, fired)
         if touching:

@@ -19,7 +19,8 @@ A mixin of `contactdiff.integration.hybrid.HybridLoop` (its state as for
 **Held contacts bear again at a stop.** A contact released at a lift-off whose
 rows depend on those of the contacts that stay (a face's corner whose compatible
 load would pull, `contactdiff.dynamics.redundant`) keeps a gap and a gap speed of
-exactly zero while the others hold it, so no gap guard brings it back. Where a
+exactly zero while the others hold it, so no gap guard brings it back (within a
+mode its compatible load is watched, `contactdiff.integration.held`). Where a
 slip → stick event leaves every active contact at rest, the mode after it is
 chosen again over the active contacts and such held ones, all sticking, by the
 compatible-load principle (`held_at_rest`): the held ones join when every load is

@@ -4,7 +4,9 @@ The guards of mode ``J`` are the gap of every open contact (downward through 0)
 and the normal force of every closed one (downward through 0); with Coulomb
 friction also the cone margin ``μ λ_N - ||λ_T||`` of every sticking contact
 (stick → slip) and the slip velocity along its direction of every slipping one
-(slip → stick, `contactdiff.dynamics.slip`). After each
+(slip → stick, `contactdiff.dynamics.slip`), and minus the compatible load of a
+contact the mode holds at zero gap, which has no gap guard (`contactdiff.integration.held`).
+After each
 accepted step every guard is checked over the step: a gap that ends below 0, or
 that dips below it and back within the step (found from the cubic Hermite
 interpolant of the end-point gaps and gap rates, and confirmed on the step's
@@ -49,6 +51,9 @@ class GuardKind(Enum):
     """the friction cone margin ``μ λ_N - ||λ_T||`` of a sticking contact with finite ``μ``"""
     STOP = "stop"
     """the slip velocity of a slipping contact along its slip direction"""
+    BEAR = "bear"
+    """minus the compatible load of a contact the mode holds at zero gap, in the set of the
+    mode and it (`contactdiff.integration.held`): it fires as that load turns to pushing"""
 
 
 @dataclass(frozen=True)
@@ -127,9 +132,11 @@ class GuardFinder:
         gaps1, rates1, values1 = end
         found = []
         misses = []
-        active = self.dyn.contacts_of(mode)
+        # a contact the mode holds at zero gap has no gap guard: its gap is the others'
+        # drift (its compatible load is watched instead, `contactdiff.integration.held`)
+        skipped = set(self.dyn.contacts_of(mode)) | set(getattr(field, "held", ()))
         for i, contact in enumerate(self.contacts):
-            if i in active:
+            if i in skipped:
                 continue
 
             def gap(t, i=i):

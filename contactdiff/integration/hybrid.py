@@ -8,7 +8,9 @@
    the gap of every inactive contact (downward through 0, including a dip
    below 0 and back within the step, found from the cubic Hermite interpolant
    of the end-point gaps and gap rates and confirmed on the dense output) and
-   the normal force of every active contact (downward through 0).
+   the normal force of every active contact (downward through 0); a contact the
+   mode holds at zero gap has its compatible load watched instead of its gap
+   (`contactdiff.integration.held`).
 3. The earliest crossing is located on the dense output with Brent's method to
    full precision in time; guards crossing within ``simultaneous_tol`` of it
    form one simultaneous event. The stepper is cut at that time.
@@ -77,6 +79,7 @@ from .events import simultaneous_group
 from .final_time import final_touches
 from .friction_events import FrictionEvents, refuse_ambiguous_slip, settle_friction
 from .guards import GuardFinder, NearMiss
+from .held import HeldEvents, held_contacts
 from .method_choice import EXPLICIT, MethodChooser, spectral_radius
 from .mode_field import ModeField
 from .options import AUTO, OnGrazing, SimulateOptions
@@ -135,7 +138,7 @@ def simulate(scene: Scene, t_final: float, q0=None, v0=None, *, t0: float = 0.0,
     return HybridLoop(scene, t0, t_final, q0, v0, options).run()
 
 
-class HybridLoop(EventResets, FrictionEvents):
+class HybridLoop(EventResets, FrictionEvents, HeldEvents):
     """The hybrid loop of one run (module docstring); `simulate` is ``HybridLoop(...).run()``.
 
     Args:
@@ -202,8 +205,16 @@ class HybridLoop(EventResets, FrictionEvents):
         phi[:, :self.n_state] = np.eye(n, self.n_state)
         return phi
 
-    def _field(self, mode, fused: bool) -> ModeField:
-        return ModeField(self.dyn, mode, fused=fused, parameters=self.jumps.forces if self.jumps else None)
+    def _field(self, mode, fused: bool, t: float, q, v) -> ModeField:
+        """The field of ``mode`` from ``(t, q, v)``, watching the contacts it holds at zero gap
+        (a gap within the drift the projection allows: a held contact's gap is the others')."""
+        held = {}
+        if mode:
+            gaps, rates = self._gaps_and_rates(q, v)
+            held = held_contacts(self.dyn, q, v, t, tuple(mode), gaps, rates,
+                                 max(self.gap_tol, self.options.resolved_project_tol), self.options.grazing_speed)
+        return ModeField(self.dyn, mode, fused=fused, parameters=self.jumps.forces if self.jumps else None,
+                         held=held)
 
     def _jumped(self, phi: np.ndarray, event: Event) -> np.ndarray:
         """The flow Jacobian just after ``event`` from ``phi`` just before: ``Ξ phi``, plus
@@ -297,7 +308,7 @@ class HybridLoop(EventResets, FrictionEvents):
         options, scene = self.options, self.scene
         q, v = scene.q0.copy(), scene.v0.copy()
         mode, v = self.initial_mode(q, v)
-        field = self._field(mode, fused=self.sensitive and options.method != "Radau")
+        field = self._field(mode, self.sensitive and options.method != "Radau", self.t0, q, v)
         self.chooser = MethodChooser(self._probe(mode)) if options.method == AUTO else None
         stepper = make_stepper(EXPLICIT if self.chooser else options.method, field.accel, self.group, self.t0,
                                q, v, jac=field.jac, variational=self._identity_phi() if self.sensitive else None,
@@ -387,7 +398,7 @@ class HybridLoop(EventResets, FrictionEvents):
             for event in self.events[n_before:]:
                 stop = self.on_event(event, mode_before, phi_before) or stop
             q_event = self.events[-1].q
-            field = self._field(mode, fused=self.sensitive and stepper.method != "Radau")
+            field = self._field(mode, self.sensitive and stepper.method != "Radau", t_event, q_event, v_plus)
             self.fields.append(field)
             stepper.restart(t_event, q_event, v_plus, accel=field.accel, jac=field.jac,
                             parameter_jac=field.parameter_jac if self.jumps else None,

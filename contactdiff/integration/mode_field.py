@@ -1,6 +1,7 @@
 """The vector field of one contact mode, as a stepper sees it: accelerations, their
 Jacobian, their parameter Jacobian, and the values of the mode's own guards (normal
-forces, friction cone margins, slip speeds) at the last point, with counters."""
+forces, friction cone margins, slip speeds, the loads of contacts it holds at zero gap)
+at the last point, with counters."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ import numpy as np
 from ..dynamics.mode import ModeDynamics
 from ..dynamics.parameter_forces import ParameterForces
 from .guards import Guard, GuardKind, mode_guards
+from .held import bear_value
 
 
 class ModeField:
@@ -22,21 +24,26 @@ class ModeField:
     derivatives costs less than a plain solve followed by a derivative solve.
     The derivatives of the last few points are kept for `jac` and
     `parameter_jac`. With ``parameters`` (`ParameterForces`) each derivative
-    solve also gives ``∂ddq/∂p``.
+    solve also gives ``∂ddq/∂p``. ``held`` (``{scene index: key}``,
+    `contactdiff.integration.held.held_contacts`): the contacts the mode holds at zero
+    gap, each watched by a `GuardKind.BEAR` guard.
     """
 
     _KEEP = 32  # points remembered: more than the stages of one step
 
     def __init__(self, dyn: ModeDynamics, mode: tuple[int, ...], fused: bool = False,
-                 parameters: ParameterForces | None = None):
+                 parameters: ParameterForces | None = None, held: dict[int, int] | None = None):
         self.dyn, self.mode, self.fused, self.parameters = dyn, mode, fused, parameters
+        self.held: dict[int, int] = dict(held or {})
+        """The contacts the mode holds at zero gap: scene index → key in the enlarged set."""
         self._plain = dyn.accelerator(mode)
         self.last = None  # (t, q, v) of the last accel, and its row forces' source
         self._last_forces = None
-        self.guards: list[Guard] = mode_guards(dyn, mode)
+        self.guards: list[Guard] = mode_guards(dyn, mode) + [Guard(GuardKind.BEAR, i) for i in self.held]
         """The mode's force-level and slip guards, in the order of `guard_values`."""
         self._positions = {key: k for k, key in enumerate(mode)}
-        self.slipping = any(g.kind is GuardKind.STOP for g in self.guards)
+        self.slipping = any(g.kind is GuardKind.STOP for g in self.guards) or any(
+            dyn.is_sliding(key) for key in self.held.values())
         """Whether a contact slips with Coulomb friction (its direction is followed, `advance`)."""
         self.n_solve = self.n_derivatives = 0
         self._derivatives: OrderedDict = OrderedDict()
@@ -98,12 +105,16 @@ class ModeField:
         """Value of each guard of `guards` at time ``t`` (s) and ``(q, v)``; a guard fires
         where its value crosses 0 downward: a normal force (N), a sticking contact's cone
         margin ``μ λ_N - ||λ_T||`` (N), a slipping contact's slip velocity along its
-        reference direction (m/s, `contactdiff.dynamics.slip`)."""
+        reference direction (m/s, `contactdiff.dynamics.slip`), minus a held contact's
+        load in the enlarged set (N, `contactdiff.integration.held`)."""
         if not self.guards:
             return np.zeros(0)
         forces = self.row_forces(t, q, v)
         values = np.empty(len(self.guards))
         for j, guard in enumerate(self.guards):
+            if guard.kind is GuardKind.BEAR:
+                values[j] = bear_value(self.dyn, q, v, t, self.mode, self.held[guard.contact])
+                continue
             k = self._positions[guard.contact]
             if guard.kind is GuardKind.FORCE:
                 values[j] = forces[k][0]
@@ -132,8 +143,9 @@ class ModeField:
         is in the band ``[0, 2 floor)`` where the direction depends on the reference: there
         the reference stays, so the field is the same before and after the step (the
         stepper keeps the end point's field value and Jacobian for the next step)."""
-        for guard in self.guards:
-            if guard.kind is GuardKind.STOP:
-                index, u_T, s = self._slip(guard.contact, q, v)
-                if len(u_T) == 2 and np.hypot(u_T[0], u_T[1]) >= 2.0 * self.dyn.slip_speed_floor:
-                    self.dyn.slip_reference[index] = s
+        keys = [g.contact for g in self.guards if g.kind is GuardKind.STOP]
+        keys += [key for key in self.held.values() if self.dyn.is_sliding(key)]  # a held contact's too
+        for key in keys:
+            index, u_T, s = self._slip(key, q, v)
+            if len(u_T) == 2 and np.hypot(u_T[0], u_T[1]) >= 2.0 * self.dyn.slip_speed_floor:
+                self.dyn.slip_reference[index] = s

@@ -19,7 +19,7 @@ import numpy as np
 from ..errors import ContactDiffError, InvalidInputError
 from .samples import Samples
 
-EVENT_KINDS = ("touchdown", "lift-off", "slip", "stick", "bounce", "grazing", "zeno")
+EVENT_KINDS = ("touchdown", "lift-off", "slip", "stick", "bounce", "grazing", "zeno", "bear")
 """``touchdown``: contacts close and stay closed (impact); ``lift-off``: an active
 contact's normal force reaches zero and it leaves; ``slip``: a sticking contact's
 normal force reaches zero but leaving would let it sink, so it slides (normal row
@@ -27,7 +27,9 @@ only) until a later lift-off, or a contact with Coulomb friction starts to slip
 (its tangential force reached the cone, or it stopped but friction cannot hold
 it); ``stick``: a slipping contact stopped and sticks; ``bounce``: an impact after which the
 contact leaves again; ``grazing``: a contact closes with zero normal speed;
-``zeno``: an impact below the Zeno speed, after which the contact stays closed."""
+``zeno``: an impact below the Zeno speed, after which the contact stays closed; ``bear``:
+a closed contact the others held at zero gap starts to bear (its compatible load
+turned to pushing: no impulse, `contactdiff.integration.held`)."""
 
 
 class NonSmooth(Enum):

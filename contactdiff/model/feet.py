@@ -100,6 +100,9 @@ class FootChoice:
         upright_turn: angle (rad) by which the reference pose was turned upright (rule 5).
         radii: ``{foot: radius}`` (m) of feet that are spheres centred on their frame
             (`FootRule.MJCF_SPHERES`); their contacts are round.
+        limbs: ``{limb: feet}`` for a foot touching at several points (an MJCF leaf
+            body with several sphere feet, named by the body): those feet are one limb
+            for `contactdiff.check_decoupling`. Every other foot is a limb of its own.
     """
 
     feet: tuple[str, ...]
@@ -109,6 +112,7 @@ class FootChoice:
     left_out: tuple[LeftOut, ...] = ()
     upright_turn: float = 0.0
     radii: dict[str, float] = field(default_factory=dict)
+    limbs: dict[str, tuple[str, ...]] = field(default_factory=dict)
 
     def describe(self) -> str:
         """One line: which feet, by which rule, and what was left out."""
@@ -125,6 +129,9 @@ class FootChoice:
                 shown = ", ".join(f"{x.frame} ({x.reason})" for x in self.left_out[:6])
                 more = len(self.left_out) - 6
                 text += f"; left out: {shown}" + (f" and {more} more" if more > 0 else "")
+        if self.limbs:
+            text += "; one foot of several points each: " + ", ".join(
+                f"{limb} ({len(feet)})" for limb, feet in self.limbs.items())
         return text
 
     def to_dict(self) -> dict:
@@ -132,7 +139,7 @@ class FootChoice:
         with the `describe` line."""
         return {"feet": list(self.feet), "rule": self.rule.name.lower(), "band_m": self.band,
                 "heights_m": dict(self.heights), "upright_turn_rad": self.upright_turn,
-                "radii_m": dict(self.radii),
+                "radii_m": dict(self.radii), "limbs": {k: list(v) for k, v in self.limbs.items()},
                 "left_out": [{"frame": x.frame, "height_m": x.height, "reason": x.reason}
                              for x in self.left_out],
                 "description": self.describe()}

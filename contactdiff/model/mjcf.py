@@ -18,6 +18,8 @@ what it leaves out, then builds the model with ``pinocchio.buildModelFromMJCF``.
   into ``model.armature``, which its ``crba``, ``aba`` and ``computeMinverse``
   add to the mass matrix's diagonal, as MuJoCo does.
 * **Feet.** Sphere collision geoms on leaf bodies (`contactdiff.model.mjcf_feet`).
+* **Mesh inertia.** A body without ``<inertial>`` weighed by mesh geoms gets MuJoCo's
+  volume inertia of each mesh (`contactdiff.model.mjcf_mesh`) when the files are there.
 
 **MuJoCo's free-joint velocity.** MuJoCo's free joint velocity is the body
 origin's linear velocity in the world frame and the angular velocity in the
@@ -69,7 +71,7 @@ def build_model(path: str | Path, floating_base: bool | None = None,
     path = Path(path)
     doc = mjcf_xml.read_document(path, allow_outside)
     root = mjcf_xml.resolve(doc)
-    found = audit(root, floating_base)
+    found = audit(root, floating_base, path.resolve().parent, allow_outside)
     if found.refused:
         raise UnsupportedModelError(f"MJCF {str(path)!r} cannot be loaded as given: " + "; ".join(found.refused))
     if found.left_out:
@@ -220,7 +222,7 @@ def load_mjcf(path: str | Path, floating_base: bool | None = None, feet=None, na
         floating_base: None keeps the model's own base (a free joint is a floating
             base); True adds a free joint to the top body, False removes it.
         feet: foot frames chosen by hand (a leaf body's collision sphere, by its
-            geom's name, is a round foot), or None: the model's collision spheres on
+            geom's name or, unnamed, ``<body>_sphere[k]``, is a round foot), or None: the model's collision spheres on
             leaf bodies (`contactdiff.model.mjcf_feet`), else the rule of
             `contactdiff.model.feet`.
         name: the robot's name (default: the file's stem).
@@ -235,7 +237,7 @@ def load_mjcf(path: str | Path, floating_base: bool | None = None, feet=None, na
         UnsafeModelFileError, UnsupportedModelError, ModelLoadError: see `build_model`.
     """
     from .feet import choose_feet
-    from .mjcf_feet import add_sphere_frames, collision_spheres, sphere_feet
+    from .mjcf_feet import add_sphere_frames, collision_spheres, sphere_feet, sphere_limbs
     from .robot import Robot, _check_inertias, _check_mass_matrix
 
     path = Path(path)
@@ -252,7 +254,7 @@ def load_mjcf(path: str | Path, floating_base: bool | None = None, feet=None, na
         choice, q_ref = choose_feet(model, q_ref, floating, feet)
         radii = {f: spheres[f].radius for f in choice.feet if f in spheres}
         if radii:
-            choice = dataclasses.replace(choice, radii=radii)
+            choice = dataclasses.replace(choice, radii=radii, limbs=sphere_limbs(spheres, choice.feet))
     return Robot(model, name or path.stem, str(path), floating, q_ref, choice.feet,
                  actuated_joints(model, root, floating), choice)
 

@@ -7,16 +7,19 @@ from __future__ import annotations
 
 import copy
 from dataclasses import dataclass, field
+from pathlib import Path
 from xml.etree.ElementTree import Element
 
-from ..errors import UnsupportedModelError
+from ..errors import ModelLoadError, UnsupportedModelError
 from . import mjcf_tree
-from .mjcf_xml import bodies, compiler_option, numbers
+from .mjcf_mesh import equivalent_box, mesh_inertia
+from .mjcf_xml import asset_elements, bodies, compiler_option, mesh_name, numbers
 
 _DYNAMIC_ACTUATORS = ("cylinder", "muscle", "adhesion")  # shortcuts with activation dynamics
 _FLEX_TAGS = ("flex", "flexcomp", "composite")
 _GENERATED = ("replicate", "attach")  # MuJoCo 3's generated bodies: unknown to Pinocchio 4.1
 _PLACEMENT = {"pos", "quat", "euler", "axisangle", "xyaxes", "zaxis"}
+_PASSIVE = ("stiffness", "damping", "frictionloss")  # joint forces MuJoCo adds; the dynamics here does not
 
 
 @dataclass
@@ -57,7 +60,8 @@ def _named(element: Element, fallback: str = "") -> str:
     return repr(name) if name else fallback or f"<{element.tag}> #?"
 
 
-def audit(root: Element, floating_base: bool | None = None) -> Audit:
+def audit(root: Element, floating_base: bool | None = None, folder: Path | None = None,
+          allow_outside: bool = False) -> Audit:
     """Find (and repair in ``root``, in place) what Pinocchio's MJCF parser would drop.
 
     Repairs: orientations become quaternions, ``<frame>`` elements are replaced by
@@ -68,8 +72,12 @@ def audit(root: Element, floating_base: bool | None = None) -> Audit:
     removed as ``floating_base`` asks. (The geoms Pinocchio weighs are set in a
     copy, `pinocchio_tree`.)
 
-    Refused: a mesh geom that gives mass to a moving body without ``<inertial>``
-    (no mesh is integrated here; a body welded to the world may weigh anything),
+    Repaired too: a mesh geom that weighs in a body without ``<inertial>`` becomes the box
+    MuJoCo weighs it as (`contactdiff.model.mjcf_mesh`) when its file is in ``folder``
+    (the model's folder; files outside it only with ``allow_outside``).
+
+    Refused: a mesh geom that gives mass to a moving body without ``<inertial>`` whose
+    mesh file is missing or cannot be weighed (a body welded to the world may weigh anything),
     several top-level trees with a free joint, flex and composite bodies (degrees
     of freedom Pinocchio cannot represent),
     ``<replicate>`` and ``<attach>`` (bodies Pinocchio would not create).
@@ -88,7 +96,7 @@ def audit(root: Element, floating_base: bool | None = None) -> Audit:
         found.repaired.append(f"bodies with several joints ({', '.join(split)}) split into one body per joint")
     _base_joint(root, floating_base, found)
     _top_bodies(root, found)
-    _mesh_masses(root, found)
+    _mesh_masses(root, found, folder, allow_outside)
     for tag in _FLEX_TAGS:
         for element in root.iter(tag):
             found.refused.append(f"<{tag}> {_named(element, '(unnamed)')} (deformable bodies add degrees of "
@@ -113,7 +121,26 @@ def audit(root: Element, floating_base: bool | None = None) -> Audit:
     if dynamic:
         found.left_out.append(f"the activation dynamics of actuator(s) {_listed(dynamic)} "
                               "(efforts act directly)")
+    passive = _passive_forces(root)
+    if passive:
+        found.left_out.append(passive)
     return found
+
+
+def _passive_forces(root: Element) -> str | None:
+    """``joint stiffness of 'a'; damping of 'a', 'b'; ...`` for the joints with nonzero
+    ``stiffness``, ``damping`` or ``frictionloss`` (classes resolved), or None: MuJoCo adds
+    these passive forces, the loaded dynamics does not."""
+    parts = []
+    for attribute in _PASSIVE:
+        names = [_named(j, "(unnamed)") for world in root.findall("worldbody") for j in world.iter("joint")
+                 if any(x != 0 for x in numbers(j.get(attribute), (0.0,)))]
+        if names:
+            shown = ", ".join(names[:6]) + (f" and {len(names) - 6} more" if len(names) > 6 else "")
+            parts.append(f"{attribute} of {len(names)} joint(s) ({shown})")
+    if not parts:
+        return None
+    return "joint " + "; ".join(parts) + " (passive forces: give them as efforts, e.g. JointSpring)"
 
 
 def _remove(root: Element, condition) -> None:
@@ -234,14 +261,56 @@ def _moving_bodies(root: Element) -> set[int]:
     return moving
 
 
-def _mesh_masses(root: Element, found: Audit) -> None:
+def _mesh_masses(root: Element, found: Audit, folder: Path | None, allow_outside: bool) -> None:
+    """Replace each mesh geom that weighs in a body weighed by its geoms by MuJoCo's box of
+    the same mass and inertia (`contactdiff.model.mjcf_mesh`) where its mesh file is there;
+    refuse a moving body whose mesh file is missing (or cannot be weighed)."""
+    meshes = {mesh_name(e): (e, path) for e, path in asset_elements(root, folder, allow_outside)
+              if e.tag == "mesh"} if folder is not None else {}
+    inline = {mesh_name(e) for asset in root.findall("asset") for e in asset.findall("mesh") if not e.get("file")}
     moving = _moving_bodies(root)
-    heavy_bodies = [_named(body) for body, geoms in _bodies_weighed_by_geoms(root)
-                    if id(body) in moving and any(weighs and _is_mesh(geom) for geom, weighs in geoms)]
-    if heavy_bodies:
-        shown = ", ".join(heavy_bodies[:8]) + (f" and {len(heavy_bodies) - 8} more" if len(heavy_bodies) > 8 else "")
-        found.refused.append(f"{len(heavy_bodies)} bodies without <inertial> take mass from mesh geoms ({shown}); "
-                             "meshes are not integrated here: give each such body an <inertial>")
+    cache: dict[str, object] = {}
+    missing, failed, replaced = [], [], 0
+    for body, geoms in _bodies_weighed_by_geoms(root):
+        for geom, weighs in geoms:
+            if not (weighs and _is_mesh(geom)):
+                continue
+            mesh, path = meshes.get(geom.get("mesh", ""), (None, None))
+            if path is None and geom.get("mesh") in inline:
+                if id(body) in moving:
+                    failed.append(f"body {_named(body)}: <mesh> {geom.get('mesh')!r} is given by its vertices in "
+                                  "the XML; only mesh files are weighed here: give the body an <inertial>")
+                continue
+            if path is None or not path.is_file():
+                if id(body) in moving:
+                    missing.append((_named(body), path.name if path is not None else geom.get("mesh", "?")))
+                continue
+            name = geom.get("mesh")
+            if name not in cache:
+                try:
+                    cache[name] = mesh_inertia(mesh, path)
+                except ModelLoadError as exc:
+                    cache[name] = exc
+            if isinstance(cache[name], ModelLoadError):
+                if id(body) in moving:
+                    failed.append(f"body {_named(body)}: {cache[name]}")
+                continue
+            box = equivalent_box(geom, cache[name])
+            for key in ("mesh", "density", "euler", "axisangle", "xyaxes", "zaxis", "fromto"):
+                geom.attrib.pop(key, None)
+            geom.attrib.update(box)
+            replaced += 1
+    if replaced:
+        found.repaired.append(f"{replaced} mesh geom(s) weighed as MuJoCo weighs them (a box of the mesh's "
+                              "volume inertia)")
+    if missing:
+        heavy = list(dict.fromkeys(body for body, _ in missing))
+        files = list(dict.fromkeys(file for _, file in missing))
+        shown = ", ".join(heavy[:8]) + (f" and {len(heavy) - 8} more" if len(heavy) > 8 else "")
+        found.refused.append(f"{len(heavy)} bodies without <inertial> take mass from mesh geoms ({shown}) whose "
+                             f"mesh files are missing ({', '.join(files[:4])}{' ...' if len(files) > 4 else ''}): "
+                             "put the meshes beside the model, or give each such body an <inertial>")
+    found.refused.extend(failed)
 
 
 def pinocchio_tree(root: Element) -> Element:

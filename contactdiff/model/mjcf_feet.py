@@ -4,13 +4,23 @@ MuJoCo models give a legged robot's feet as collision spheres at the ends of
 its legs (Menagerie's Go2: geoms ``FL``, ``FR``, ``RL``, ``RR`` of radius
 0.022 m on the calf bodies). `sphere_feet` takes, for a floating base, every
 sphere geom that collides (``contype`` or ``conaffinity`` non-zero) on a body
-with no child body, adds an operational frame at its centre (named after the
-geom) and keeps those whose lowest point at the reference pose lies within the
-foot band of `contactdiff.model.feet` (``max(BAND_MIN, BAND_FRACTION × robot
-height)`` above the robot's lowest point), so a hand's fingertip spheres are
-not feet. Each foot is a round contact of the sphere's radius
-(``FootChoice.radii``). Where no sphere qualifies, the rule of
-`contactdiff.model.feet` applies.
+with no child body, adds an operational frame at its centre and keeps those
+whose lowest point at the reference pose lies within the foot band of
+`contactdiff.model.feet` (``max(BAND_MIN, BAND_FRACTION × robot height)`` above
+the robot's lowest point), so a hand's fingertip spheres are not feet. Each foot
+is a round contact of the sphere's radius (``FootChoice.radii``). Where no
+sphere qualifies, the rule of `contactdiff.model.feet` applies.
+
+**Names.** A sphere's frame is named after its geom. An unnamed geom's frame is
+named after its body (the body's own frame already has the body's name):
+``<body>_sphere`` when it is the body's only unnamed colliding sphere (ANYmal's
+``LF_SHANK_sphere``), else ``<body>_sphere1``, ``<body>_sphere2``, ... in the
+order of the file (Unitree G1's four spheres under each ``ankle_roll_link``).
+
+**One foot, several points.** Spheres on one leaf body are one foot, touching
+at several points: each is a contact of its own, and ``FootChoice.limbs`` maps
+the body to its sphere frames, so that `contactdiff.check_decoupling` measures
+couplings between limbs, not between two points of one rigid foot.
 """
 
 from __future__ import annotations
@@ -41,21 +51,36 @@ def collision_spheres(root: Element, leaves_only: bool = True) -> list[SphereGeo
     for body, _ in bodies(root):
         if leaves_only and body.find("body") is not None:
             continue
-        for k, geom in enumerate(body.findall("geom")):
-            if geom.get("type", "sphere") != "sphere" or geom.get("fromto") is not None:
-                continue
-            contype = numbers(geom.get("contype"), (1.0,))[0]
-            conaffinity = numbers(geom.get("conaffinity"), (1.0,))[0]
-            if contype == 0 and conaffinity == 0:
-                continue
-            radius = numbers(geom.get("size"), (0.0,))[0]
-            if radius <= 0:
-                continue
+        geoms = [g for g in body.findall("geom") if _colliding_sphere(g)]
+        unnamed = [g for g in geoms if not g.get("name")]
+        for geom in geoms:
+            name = geom.get("name")
+            if not name:  # named after the body (module notes), indexed when it has several
+                name = f"{body.get('name')}_sphere" + (f"{unnamed.index(geom) + 1}" if len(unnamed) > 1 else "")
             centre = numbers(geom.get("pos"), (0.0, 0.0, 0.0))
-            name = geom.get("name") or f"{body.get('name')}_sphere{k}"
-            found.append(SphereGeom(name, body.get("name", ""), float(radius),
+            found.append(SphereGeom(name, body.get("name", ""), float(numbers(geom.get("size"), (0.0,))[0]),
                                     tuple(float(x) for x in centre[:3])))
     return found
+
+
+def _colliding_sphere(geom: Element) -> bool:
+    """A sphere geom (not given by ``fromto``) of positive radius with ``contype`` or
+    ``conaffinity`` non-zero."""
+    if geom.get("type", "sphere") != "sphere" or geom.get("fromto") is not None:
+        return False
+    contype = numbers(geom.get("contype"), (1.0,))[0]
+    conaffinity = numbers(geom.get("conaffinity"), (1.0,))[0]
+    return (contype != 0 or conaffinity != 0) and numbers(geom.get("size"), (0.0,))[0] > 0
+
+
+def sphere_limbs(frames: dict[str, SphereGeom], feet) -> dict[str, tuple[str, ...]]:
+    """``{body: its feet}`` for the bodies that carry several of ``feet`` (sphere frames of
+    ``frames``): one foot touching at several points (module notes)."""
+    by_body: dict[str, list[str]] = {}
+    for foot in feet:
+        if foot in frames:
+            by_body.setdefault(frames[foot].body, []).append(foot)
+    return {body: tuple(names) for body, names in by_body.items() if len(names) > 1}
 
 
 def add_sphere_frames(model: pin.Model, spheres: list[SphereGeom]) -> dict[str, SphereGeom]:
@@ -102,4 +127,4 @@ def sphere_feet(model: pin.Model, root: Element, q_ref: np.ndarray) -> FootChoic
     left_out = tuple(LeftOut(n, h - bottom, f"{h - bottom:.3g} m up") for n, h in lows.items() if n not in feet)
     add_sphere_frames(model, [frames[n] for n in feet])
     return FootChoice(tuple(feet), FootRule.MJCF_SPHERES, band, {n: lows[n] - bottom for n in feet}, left_out,
-                      radii={n: frames[n].radius for n in feet})
+                      radii={n: frames[n].radius for n in feet}, limbs=sphere_limbs(frames, feet))

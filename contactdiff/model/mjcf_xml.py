@@ -218,6 +218,11 @@ def asset_files(root: Element, folder: Path, allow_outside: bool = True) -> list
     Raises:
         UnsafeModelFileError: a path leaves ``folder`` and ``allow_outside`` is False.
     """
+    return [(element.tag, path) for element, path in asset_elements(root, folder, allow_outside)]
+
+
+def asset_elements(root: Element, folder: Path, allow_outside: bool = True) -> list[tuple[Element, Path]]:
+    """``(element, path)`` of every asset element that names a file (`asset_files`)."""
     compiler = {}
     for element in root.iter("compiler"):
         compiler.update(element.attrib)
@@ -230,8 +235,14 @@ def asset_files(root: Element, folder: Path, allow_outside: bool = True) -> list
             kind = "mesh" if element.tag in ("mesh", "skin") else "texture" if element.tag == "texture" else ""
             sub = compiler.get(f"{kind}dir") if kind else None
             sub = sub if sub is not None else compiler.get("assetdir", "")
-            files.append((element.tag, named_file(folder / sub, name, folder, allow_outside, f"<{element.tag}> file")))
+            files.append((element, named_file(folder / sub, name, folder, allow_outside, f"<{element.tag}> file")))
     return files
+
+
+def mesh_name(mesh: Element) -> str:
+    """A ``<mesh>``'s name: its ``name``, else its file's name without folder and extension
+    (MuJoCo's rule)."""
+    return mesh.get("name") or Path(mesh.get("file", "")).stem
 
 
 def _default_classes(root: Element) -> dict[str, dict[str, dict[str, str]]]:
@@ -263,6 +274,9 @@ def resolve(doc: MJCFDocument) -> Element:
     root = copy.deepcopy(doc.root)
     for world in root.findall("worldbody"):
         _inline(doc, world, "main")
+    for asset in root.findall("asset"):  # a class's mesh scale or reference frame (mesh inertia)
+        for element in asset.findall("mesh"):
+            _inline_one(doc, element, "main")
     for section in root.findall("actuator"):  # a class's dyntype on <general> (actuator dynamics)
         for element in section:
             if element.tag == "general":

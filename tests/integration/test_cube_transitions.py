@@ -2,8 +2,8 @@
 transitions between its face, an edge and a corner: tipping and falling back, rolling
 over an edge, rocking to rest, pivoting on a corner, a push that lifts the back edge,
 a slide that pitches onto the front edge, and a diagonal slide whose trailing corner
-the compatible loads release and which bears again (at the stop, or when a couple lifts
-the leading corner). Runs against closed forms.
+the compatible loads release and which bears again (at the stop, or, under a couple,
+where its compatible load turns positive). Runs against closed forms.
 
 Cube of half edge b, mass m, moment I_c about every axis through its centre (the
 scene's inertia is isotropic), gravity g; ground z = 0.
@@ -395,6 +395,10 @@ def test_flow_jacobian_through_the_diagonal_stop_matches_finite_differences():
     np.testing.assert_allclose(speed_column[:3], u0 / (mu * G) * d, atol=1e-7)
 
 
+MU_COUPLE = 0.85
+"""μ of the couple on the diagonal slide (tests below): above 1/√2, the trailing corner pulls at t = 0."""
+
+
 def couple_slide(mu, rate):
     """The cube sliding along the diagonal with the couple ``rate`` × t (N m) about
     u = (1, -1, 0)/√2 (test below)."""
@@ -408,32 +412,57 @@ def couple_slide(mu, rate):
     return cd.Scene(scene.robot, scene.contact_specs, efforts=[effort])
 
 
-def test_a_corner_held_at_zero_gap_bears_at_once_when_its_holders_let_it_sink():
+COUPLE_RATE = MU_COUPLE * B * MASS * G / 0.1
+"""k (N m/s) of the couple below: T = k t, so that T = μ b m g at t = 0.1 s."""
+
+
+def couple_times(mu=MU_COUPLE, k=COUPLE_RATE, mass=MASS):
+    """The couple's closed form (test below): the trailing corner bears at t1, the
+    leading corner lifts at t2, a side corner would lift at t3."""
+    t1 = B * mass * G * (mu - 1 / np.sqrt(2)) / k
+    t2 = B * mass * G * (mu + 1 / np.sqrt(2)) / k
+    t3 = B * mass * G * (mu + np.sqrt(2)) / k
+    return t1, t2, t3
+
+
+def test_a_held_corner_bears_when_its_compatible_load_turns_positive():
     """The diagonal slide of the tests above (μ = 0.85, u0 = 2 m/s along d), with a couple
-    T = k t about the horizontal axis u = (1, -1, 0)/√2, which presses the trailing corner
-    (-b, -b) down and lifts the leading one (b, b). The trailing corner lifts at t = 0 as
-    before. On the other three, the moment balance about the centre, Σ λ_i (y_i, -x_i) =
-    -(b μ m g (ẑ × d) + T u), gives λ_(+,+) = μ' m g - T / (√2 b) (μ' = μ/√2) and
-    λ_(+,-) = λ_(-,+) = (m g - λ_(+,+))/2: the leading corner's load reaches zero at
-    T = μ b m g, t = 0.1 s with k = μ b m g / 0.1 s. The face then rests on the two side
-    corners, whose line passes under the centre, and the couple would turn it about that
-    line, the trailing corner down: that corner, held at zero gap by the leading one until
-    now, bears at once (the lift-off's new mode is the two side corners and it, all
-    sliding), instead of sinking below the ground to be caught there. The cube then slides
-    on, level (three corners hold the face), decelerating at μ g along d: friction is
-    μ m g in all, every corner sliding at the centre's velocity (no turn)."""
-    mu, u0 = 0.85, 2.0
-    scene = couple_slide(mu, mu * B * MASS * G / 0.1)
+    T = k t about the horizontal axis u = (1, -1, 0)/√2 = -ẑ × d, which presses the
+    trailing corner (-b, -b) down and lifts the leading one (b, b); k = μ b m g / 0.1 s.
+    The face stays level and slides at μ g along d as long as three corners hold it.
+
+    Moment balance about the centre (horizontal part), corners at p_i = (x_i, y_i, -b),
+    friction -μ λ_i d: Σ λ_i (y_i, -x_i) = -(b μ m g - T)(ẑ × d). On four corners the
+    compatible loads are linear, λ_i = m g / 4 + β · p_i (`contactdiff.dynamics.redundant`),
+    Σ λ_i p_i = 4 b² β: β = (b μ m g - T) d / (4 b²), so
+    λ_trailing = (m g / 4)(1 - μ √2) + T / (2 √2 b) and
+    λ_leading = (m g / 4)(1 + μ √2) - T / (2 √2 b), the side corners m g / 4.
+    At t = 0 the trailing corner would pull (μ > 1/√2): it lifts, held at zero gap by the
+    other three. Its compatible load on the whole face turns positive at
+    T = b m g (μ - 1/√2), t1 = 0.1 (1 - 1/(μ √2)) = 0.0168 s: it bears there (event
+    ``bear``, no impulse), the face on four corners. The leading corner's load reaches
+    zero at T = b m g (μ + 1/√2), t2 = 0.1 (1 + 1/(μ √2)) = 0.183 s: it lifts, and the
+    trailing and side corners carry λ_trailing = (T - b μ m g) / (√2 b),
+    λ_side = (m g - λ_trailing) / 2 (unique on three), positive until
+    T = b m g (μ + √2), t3 = 0.1 (1 + √2/μ) = 0.266 s, after the run's end at 0.2 s
+    (the slide stops at u0 / (μ g) = 0.24 s). Throughout every corner slides at the centre's
+    velocity (no turn: the side corners' yaw moments cancel), so the velocity and position
+    are those of a slide decelerating at μ g along d."""
+    mu, u0, T = MU_COUPLE, 2.0, 0.2
+    t1, t2, t3 = couple_times()
+    assert 0.0 < t1 < t2 < T < min(t3, u0 / (mu * G))
     d = np.array([1.0, 1.0, 0.0]) / np.sqrt(2)
     q = np.r_[0.0, 0.0, B, 0.0, 0.0, 0.0, 1.0]
-    T = 0.12
-    traj = cd.simulate(scene.with_state(q, np.r_[u0 * d, 0.0, 0.0, 0.0]), T, **TIGHT)
-    first, second = traj.events
-    assert first.kind == "lift-off" and first.t == 0.0 and first.contacts == ("cube/-x-y-z",)
-    assert second.kind == "lift-off" and second.contacts == ("cube/+x+y-z",)
-    assert second.t == pytest.approx(0.1, abs=EVENT_ATOL)
-    bearing = corners(z="-") - {"cube/+x+y-z"}
-    assert set(second.mode_after) == set(second.sliding) == bearing
+    traj = cd.simulate(couple_slide(mu, COUPLE_RATE).with_state(q, np.r_[u0 * d, 0.0, 0.0, 0.0]), T, **TIGHT)
+    release, bear, lift = traj.events
+    assert release.kind == "lift-off" and release.t == 0.0 and release.contacts == ("cube/-x-y-z",)
+    assert bear.kind == "bear" and bear.contacts == ("cube/-x-y-z",)
+    assert bear.t == pytest.approx(t1, abs=EVENT_ATOL)
+    assert set(bear.mode_after) == set(bear.sliding) == corners(z="-") and not bear.impulses
+    np.testing.assert_array_equal(bear.v_plus, bear.v_minus)
+    assert lift.kind == "lift-off" and lift.contacts == ("cube/+x+y-z",)
+    assert lift.t == pytest.approx(t2, abs=EVENT_ATOL)
+    assert set(lift.mode_after) == set(lift.sliding) == corners(z="-") - {"cube/+x+y-z"}
     np.testing.assert_allclose(traj.v[:3], (u0 - mu * G * T) * d, atol=STATE_ATOL)
     np.testing.assert_allclose(traj.v[3:], 0.0, atol=STATE_ATOL)
     np.testing.assert_allclose(traj.q[:3], np.r_[(u0 * T - mu * G * T**2 / 2) * d[:2], B], atol=STATE_ATOL)
@@ -442,20 +471,22 @@ def test_a_corner_held_at_zero_gap_bears_at_once_when_its_holders_let_it_sink():
 
 def test_the_held_corners_slide_ends_where_the_closed_form_puts_it_at_default_tolerances():
     """The run of the test above at the default tolerances (rtol 1e-8, atol 1e-10): the
-    held trailing corner's gap, the others' drift, may cross the grazing band before
-    the leading corner lifts, so the corner may touch down there (a grazing landing, no
-    impulse) while the others slide. Whichever way, the face slides on at μ g along d:
-    the velocity and the position at T = 0.13 s are those of the closed form, to the
-    run's error (~1e-8 relative over the slide) and the drift the projection allows.
-    (After a grazing landing, corners that slid on at 1.3 m/s with sticking keys took
-    as slip direction the force they resisted, against their slip: their slips looked
-    stopped and the stop held the whole face still.)"""
-    mu, u0, T = 0.85, 2.0, 0.13
-    scene = couple_slide(mu, mu * B * MASS * G / 0.1)
+    held trailing corner's gap is the others' drift, and it has no gap guard while they
+    hold it (a crossing of the grazing band by that drift closed it as a grazing landing
+    before its load was watched): the events are the closed form's, release, bearing
+    and the leading corner's lift-off, at their times to the run's error (~1e-8 relative
+    of the guards' scale over the slide), and the face slides on at μ g along d to the
+    closed form's velocity and position at T = 0.2 s (to 1e-6: the run's error and the
+    drift the projection allows). (After a grazing landing, corners that slid on at
+    1.3 m/s with sticking keys took as slip direction the force they resisted, against
+    their slip: their slips looked stopped and the stop held the whole face still.)"""
+    mu, u0, T = MU_COUPLE, 2.0, 0.2
+    t1, t2, _ = couple_times()
     d = np.array([1.0, 1.0, 0.0]) / np.sqrt(2)
     q = np.r_[0.0, 0.0, B, 0.0, 0.0, 0.0, 1.0]
-    traj = cd.simulate(scene.with_state(q, np.r_[u0 * d, 0.0, 0.0, 0.0]), T)
-    assert "stick" not in [e.kind for e in traj.events]
+    traj = cd.simulate(couple_slide(mu, COUPLE_RATE).with_state(q, np.r_[u0 * d, 0.0, 0.0, 0.0]), T)
+    assert [e.kind for e in traj.events] == ["lift-off", "bear", "lift-off"]
+    np.testing.assert_allclose([e.t for e in traj.events], [0.0, t1, t2], atol=1e-6)
     np.testing.assert_allclose(traj.v[:3], (u0 - mu * G * T) * d, atol=1e-6)
     np.testing.assert_allclose(traj.q[:3], np.r_[(u0 * T - mu * G * T**2 / 2) * d[:2], B], atol=1e-6)
 
@@ -492,30 +523,36 @@ def test_an_impacts_open_neighbour_slides_on_along_its_own_slip():
     assert slip @ np.array([-1.0, 0.0]) < 0.0  # the stale direction was the other way
 
 
-@pytest.mark.xfail(strict=False, reason=(
-    "open defect: the trailing corner, released at t = 0, is held at exactly zero gap by the others and "
-    "its gap guard is not suppressed while it sits there, so round-off of one perturbed run (seen under "
-    "OpenBLAS's SkylakeX kernel, not Haswell) closes it as a 'grazing' event and the runs' event sequences "
-    "differ; watching a released corner's compatible load (docs/design.md, 'Redundant contacts') is the fix"))
 def test_flow_jacobian_through_a_held_corners_bearing_matches_finite_differences():
-    """The flow Jacobian of the couple on the diagonal slide through both lift-offs (the
-    trailing corner's at t = 0, the leading one's at 0.1 s where the trailing corner
-    bears), along horizontal position, yaw and the speed along d, against central
-    differences on the manifold. At the second lift-off the trailing corner's load in
-    the new mode is zero (the face's three-corner loads are unique, and the old mode's
-    with the leading corner at zero load solve it), so the field does not jump. ε = 1e-6
-    with rtol 1e-12: the differences' error is ~1e-12/ε plus ε² terms, so 1e-5 relative
-    to the columns' size."""
-    mu, u0, T = 0.85, 2.0, 0.12
-    scene = couple_slide(mu, mu * B * MASS * G / 0.1)
-    d = np.array([1.0, 1.0, 0.0]) / np.sqrt(2)
-    q, v = np.r_[0.0, 0.0, B, 0.0, 0.0, 0.0, 1.0], np.r_[u0 * d, 0.0, 0.0, 0.0]
+    """The flow Jacobian of the couple on the diagonal slide (test above), the cube turned
+    by 0.1 rad about the vertical (the slide still along d), to T = 0.2 s: through the
+    trailing corner's release at t = 0, its bearing and the leading corner's lift-off,
+    along horizontal position, yaw, and the speed along and across d, against central
+    differences on the manifold; and the bearing's event-time gradient
+    (``-Dh Φ / (Dh F + h_t)``, ``h`` minus the corner's load on the whole face) against
+    central differences of the bearing times. (Turned: on the exact diagonal the loads
+    are even in yaw and in the speed across d, so no state direction would move the
+    bearing at first order.) ε = 1e-6 with rtol 1e-12: the differences' error is
+    ~1e-12/ε plus ε² terms, so 1e-5 relative to the columns' size. Every perturbed run
+    has the same events: the held corner has no gap guard (round-off of its gap closed
+    it as a grazing landing on one of them, under one BLAS kernel, before its load was
+    watched)."""
+    mu, u0, T, yaw = MU_COUPLE, 2.0, 0.2, 0.1
+    scene = couple_slide(mu, COUPLE_RATE)
+    turn = pin.rpy.rpyToMatrix(0.0, 0.0, yaw)
+    d, across = np.array([1.0, 1.0, 0.0]) / np.sqrt(2), np.array([-1.0, 1.0, 0.0]) / np.sqrt(2)
+    q = np.r_[0.0, 0.0, B, pin.Quaternion(turn).coeffs()]
+    v = np.r_[turn.T @ (u0 * d), 0.0, 0.0, 0.0]  # the free flyer's velocity in the cube's frame
     opts = dict(rtol=1e-12, atol=1e-14)
     traj = cd.simulate(scene.with_state(q, v), T, jacobian=True, **opts)
     kinds = [e.kind for e in traj.events]
-    assert kinds == ["lift-off", "lift-off"]
+    assert kinds == ["lift-off", "bear", "lift-off"] and traj.differentiable
     model, eps = scene.model, 1e-6
-    directions = [(np.eye(6)[k], np.zeros(6)) for k in (0, 1, 5)] + [(np.zeros(6), np.r_[d, 0.0, 0.0, 0.0])]
+    directions = [(np.r_[turn.T @ np.eye(3)[k], 0.0, 0.0, 0.0], np.zeros(6)) for k in (0, 1)] + [
+        (np.eye(6)[5], np.zeros(6)), (np.zeros(6), np.r_[turn.T @ d, 0.0, 0.0, 0.0]),
+        (np.zeros(6), np.r_[turn.T @ across, 0.0, 0.0, 0.0])]
+    bear = traj.events[1]
+    moved = 0.0
     for dq, dv in directions:
         runs = [cd.simulate(scene.with_state(pin.integrate(model, q, s * eps * dq), v + s * eps * dv), T, **opts)
                 for s in (1.0, -1.0)]
@@ -523,3 +560,28 @@ def test_flow_jacobian_through_a_held_corners_bearing_matches_finite_differences
         fd = np.r_[pin.difference(model, runs[1].q, runs[0].q), runs[0].v - runs[1].v] / (2 * eps)
         exact = traj.jacobian @ np.r_[dq, dv]
         assert np.abs(exact - fd).max() <= 1e-5 * max(1.0, np.abs(fd).max()), (dq, dv, exact, fd)
+        fd_time = (runs[0].events[1].t - runs[1].events[1].t) / (2 * eps)
+        # the bearing is located to ~1e-14 s (Brent to full precision on a dense output good
+        # to rtol 1e-12): over 2ε, 1e-8 s per unit of perturbation
+        assert bear.time_gradient @ np.r_[dq, dv] == pytest.approx(fd_time, abs=1e-8)
+        moved = max(moved, abs(fd_time))
+    assert moved > 1e-3  # s per unit: some direction moves the bearing (the gradient is tested)
+
+
+def test_the_bearing_time_moves_with_the_mass_as_the_closed_form():
+    """With the cube's mass as a parameter (the couple's rate k held): t1 = b m g
+    (μ - 1/√2) / k and t2 = b m g (μ + 1/√2) / k (test above) are proportional to m, so
+    ∂t1/∂m = t1 / m and ∂t2/∂m = t2 / m: the bearing's and the lift-off's parameter
+    time gradients, ``-(Dh Φ_p + h_p) / rate`` with ``h_p`` the loads' mass derivative.
+    The loads of a level, sliding face balance forces and moments and do not involve
+    the inertia. To 1e-6 relative: the flow Jacobian's integration error at rtol 1e-10."""
+    mu, u0 = MU_COUPLE, 2.0
+    d = np.array([1.0, 1.0, 0.0]) / np.sqrt(2)
+    q = np.r_[0.0, 0.0, B, 0.0, 0.0, 0.0, 1.0]
+    scene = couple_slide(mu, COUPLE_RATE).with_state(q, np.r_[u0 * d, 0.0, 0.0, 0.0])
+    traj = cd.simulate(scene, 0.2, jacobian=True, parameters=["body:cube:mass"], **TIGHT)
+    _, bear, lift = traj.events
+    assert bear.kind == "bear" and lift.kind == "lift-off"
+    t1, t2, _ = couple_times()
+    assert bear.parameter_time_gradient[0] == pytest.approx(t1 / MASS, rel=1e-6)
+    assert lift.parameter_time_gradient[0] == pytest.approx(t2 / MASS, rel=1e-6)

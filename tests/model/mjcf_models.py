@@ -125,3 +125,25 @@ def write(folder: Path, name: str, text: str) -> Path:
     path = folder / name
     path.write_text(text)
     return path
+
+
+def write_stl(path: Path, triangles) -> Path:
+    """A binary STL file of ``triangles`` (``m × 3 × 3``: face, vertex, xyz; counter-clockwise
+    seen from outside), each vertex stored as a 32-bit float as the format has it."""
+    import struct
+
+    triangles = np.asarray(triangles, dtype=float)
+    records = b"".join(struct.pack("<12fH", 0, 0, 0, *t.ravel(), 0) for t in triangles)
+    path.write_bytes(b"\0" * 80 + struct.pack("<I", len(triangles)) + records)
+    return path
+
+
+BOX_CORNERS = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], dtype=float)
+BOX_QUADS = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+"""The unit cube's corners (index ``4x + 2y + z``) and its faces, counter-clockwise from outside."""
+
+
+def box_triangles(low, high) -> np.ndarray:
+    """The twelve triangles of the box between corners ``low`` and ``high`` (outward order)."""
+    corners = np.asarray(low) + BOX_CORNERS * (np.asarray(high) - np.asarray(low))
+    return np.array([corners[[a, b, c]] for a, b, c, d in BOX_QUADS] + [corners[[a, c, d]] for a, b, c, d in BOX_QUADS])

@@ -3,7 +3,8 @@
 MuJoCo cannot compile a model whose mesh files are missing (Menagerie's XML without
 its meshes): `stripped_copy` writes a copy without mesh assets, mesh geoms and
 texture files. That leaves the dynamics unchanged when every body with a mesh
-geom has an explicit ``<inertial>`` (the loader refuses other models).
+geom has an explicit ``<inertial>`` (the loader refuses other models when their
+meshes are missing; with the meshes there, compile the file as given).
 """
 
 from __future__ import annotations

@@ -187,6 +187,28 @@ def test_left_out_features_are_named_in_one_warning(tmp_path, extra, phrase):
     np.testing.assert_allclose(_mass_matrix(robot, np.zeros(2)), leg_mass_matrix(np.zeros(2)), rtol=RTOL)
 
 
+def test_passive_joint_forces_are_named_in_one_warning(tmp_path):
+    """MuJoCo adds joint stiffness, damping and friction loss as passive forces; the loaded
+    dynamics does not: one warning names each attribute's joints, a class's value included
+    (the knee's stiffness comes from the class ``knee``), and the mass matrix is the leg's."""
+    text = LEG_XML.replace('<joint pos="0 0 -0.1"/>', '<joint pos="0 0 -0.1" stiffness="30"/>').replace(
+        '<joint name="hip"/>', '<joint name="hip" damping="0.5" frictionloss="0.1"/>')
+    with pytest.warns(MJCFWarning) as caught:
+        robot = load_robot(write(tmp_path, "leg.xml", text))
+    (message,) = [str(w.message) for w in caught]
+    assert "\n" not in message and "left out of the dynamics: joint " in message
+    assert "stiffness of 1 joint(s) ('knee')" in message
+    assert "damping of 1 joint(s) ('hip')" in message and "frictionloss of 1 joint(s) ('hip')" in message
+    np.testing.assert_allclose(_mass_matrix(robot, np.zeros(2)), leg_mass_matrix(np.zeros(2)), rtol=RTOL)
+
+
+def test_zero_passive_joint_forces_are_not_warned_about(tmp_path):
+    text = LEG_XML.replace('<joint name="hip"/>', '<joint name="hip" damping="0" stiffness="0" frictionloss="0"/>')
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", MJCFWarning)
+        load_robot(write(tmp_path, "leg.xml", text))
+
+
 def test_flex_is_refused(tmp_path):
     flex = '<deformable><flex name="cloth" dim="2" body="thigh thigh thigh" vertex="0 0 0 1 0 0 0 1 0"/></deformable>'
     with pytest.raises(UnsupportedModelError, match=r"<flex> 'cloth'"):
@@ -200,11 +222,66 @@ def test_replicate_is_refused(tmp_path):
         load_robot(_with(tmp_path, "", body))
 
 
-def test_mesh_mass_without_inertial_is_refused(tmp_path):
+def test_mesh_mass_without_inertial_is_refused_when_its_file_is_missing(tmp_path):
     text = """<mujoco><asset><mesh name="m" file="m.stl"/></asset><worldbody><body name="b">
       <joint name="j"/><geom type="mesh" mesh="m"/></body></worldbody></mujoco>"""
-    with pytest.raises(UnsupportedModelError, match=r"1 bodies without <inertial> take mass from mesh geoms \('b'\)"):
+    with pytest.raises(UnsupportedModelError, match=r"1 bodies without <inertial> take mass from mesh geoms \('b'\) "
+                                                     r"whose mesh files are missing \(m.stl\)"):
         load_robot(write(tmp_path, "mesh.xml", text))
+
+
+# The mesh box: corners (0, 0, 0) and (0.125, 0.25, 0.5) in the file (binary fractions: exact as
+# 32-bit floats), then ``refpos`` 0.5 m along z and ``scale`` 2 along x: half sizes
+# (a, b, c) = (0.125, 0.125, 0.25), centre (0.125, 0.125, -0.25) in the mesh frame, and
+# (0.125, 0, -0.5) in the body after the geom's ``pos``.
+_MESH_PENDULUM = """<mujoco><compiler meshdir="assets"/>
+  <asset><mesh name="bob" file="bob.{kind}" refpos="0 0 0.5" scale="2 1 1"{inertia}/></asset>
+  <worldbody><body name="b"><joint name="j" axis="0 1 0"/>
+  <geom type="mesh" mesh="bob" pos="0 -0.125 -0.25" {weight}/></body></worldbody></mujoco>"""
+
+
+@pytest.mark.parametrize("weight, mass", [('density="500"', 500 * 0.25 * 0.25 * 0.5), ('mass="3"', 3.0)])
+def test_mesh_geom_weighs_as_a_uniform_solid(tmp_path, weight, mass):
+    """A pendulum about y whose bob is a mesh box (binary STL): ``m = ρ V`` (``V = 8 a b c``)
+    or the geom's ``mass``; about the hinge, ``M = m (a² + c²) / 3 + m (dx² + dz²)``
+    (the box's own moment about its centre's y axis, plus parallel axes), and its centre of
+    mass is the box's centre."""
+    from mjcf_models import box_triangles, write_stl
+
+    (tmp_path / "assets").mkdir()
+    write_stl(tmp_path / "assets" / "bob.stl", box_triangles([0, 0, 0], [0.125, 0.25, 0.5]))
+    robot = load_robot(write(tmp_path, "pendulum.xml", _MESH_PENDULUM.format(kind="stl", inertia="", weight=weight)))
+    a, c, dx, dz = 0.125, 0.25, 0.125, -0.5
+    expected = mass * ((a**2 + c**2) / 3 + dx**2 + dz**2)
+    assert _mass_matrix(robot, np.zeros(1))[0, 0] == pytest.approx(expected, rel=RTOL)
+    assert robot.model.inertias[1].mass == pytest.approx(mass, rel=RTOL)
+    np.testing.assert_allclose(robot.model.inertias[1].lever, [dx, 0, dz], rtol=0, atol=1e-15)  # m, round-off
+
+
+def test_mesh_file_that_is_not_binary_stl_is_named(tmp_path):
+    (tmp_path / "assets").mkdir()
+    (tmp_path / "assets" / "bob.stl").write_text("solid bob\nendsolid bob\n")
+    text = _MESH_PENDULUM.format(kind="stl", inertia="", weight='density="500"')
+    with pytest.raises(UnsupportedModelError, match=r"body 'b': mesh file .*bob.stl' is not a binary STL file"):
+        load_robot(write(tmp_path, "pendulum.xml", text))
+
+
+def test_mesh_given_by_vertices_in_the_xml_is_refused_by_name(tmp_path):
+    text = """<mujoco><asset><mesh name="m" vertex="0 0 0 1 0 0 0 1 0 0 0 1"/></asset><worldbody><body name="b">
+      <joint name="j"/><geom type="mesh" mesh="m"/></body></worldbody></mujoco>"""
+    with pytest.raises(UnsupportedModelError, match=r"body 'b': <mesh> 'm' is given by its vertices in the XML"):
+        load_robot(write(tmp_path, "mesh.xml", text))
+
+
+def test_convex_hull_mesh_inertia_is_refused(tmp_path):
+    from mjcf_models import box_triangles, write_stl
+
+    (tmp_path / "assets").mkdir()
+    write_stl(tmp_path / "assets" / "bob.stl", box_triangles([0, 0, 0], [0.125, 0.25, 0.5]))
+    text = _MESH_PENDULUM.format(kind="stl", inertia=' inertia="convex"', weight='density="500"')
+    with pytest.raises(UnsupportedModelError, match=r"inertia='convex'; the mesh inertias computed here are "
+                                                     r"'legacy' and 'exact'"):
+        load_robot(write(tmp_path, "pendulum.xml", text))
 
 
 def test_mesh_mass_of_a_body_welded_to_the_world_is_not_needed(tmp_path):
@@ -264,9 +341,11 @@ def test_xml_that_is_not_mjcf_is_read_as_urdf(tmp_path):
 # -- Menagerie ------------------------------------------------------------------------------
 def test_go2_has_four_sphere_feet_and_its_home_pose():
     path = menagerie_file("unitree_go2/go2.xml")
-    with warnings.catch_warnings():
-        warnings.simplefilter("error", MJCFWarning)  # nothing of Go2 is left out
+    with pytest.warns(MJCFWarning) as caught:
         robot = load_robot(path)
+    (message,) = [str(w.message) for w in caught]  # only its joints' damping and friction loss are left out
+    assert "left out of the dynamics: joint damping of 12 joint(s)" in message
+    assert "; frictionloss of 12 joint(s)" in message and "stiffness" not in message
     assert robot.floating_base
     assert robot.feet == ("FL", "FR", "RL", "RR")
     assert robot.foot_choice.rule is FootRule.MJCF_SPHERES

@@ -165,6 +165,60 @@ def test_inertia_from_geoms_matches_mujoco(tmp_path, case):
     _compare(load_robot(path), stripped_copy(path, tmp_path / "stripped"), count=3)
 
 
+def _tetrahedron(points) -> np.ndarray:
+    """The four faces of the tetrahedron ``points``, each ordered counter-clockwise from outside."""
+    points = np.asarray(points, dtype=float)
+    faces = []
+    for skip in range(4):
+        face = points[[i for i in range(4) if i != skip]]
+        if np.dot(np.cross(face[1] - face[0], face[2] - face[0]), points[skip] - face[0]) > 0:
+            face = face[[0, 2, 1]]
+        faces.append(face)
+    return np.array(faces)
+
+
+def _obj_box(path, low, high):
+    """An OBJ file of a box with quadrilateral faces (MuJoCo splits them into triangles)."""
+    from mjcf_models import BOX_CORNERS, BOX_QUADS
+
+    corners = np.asarray(low) + BOX_CORNERS * (np.asarray(high) - np.asarray(low))
+    lines = [f"v {x} {y} {z}" for x, y, z in corners] + ["f " + " ".join(str(i + 1) for i in q) for q in BOX_QUADS]
+    path.write_text("\n".join(lines) + "\n")
+
+
+_TETRA = [[0, 0, 0], [0.3, 0.05, 0], [0.1, 0.25, 0.02], [0.05, 0.1, 0.2]]
+MESH_CASES = {
+    "STL tetrahedron, refpos, refquat and scale": (
+        '<mesh name="t" file="t.stl" refpos="0.1 0 0.05" refquat="0.9 0.2 -0.3 0.1" scale="1.5 0.8 1.2"/>',
+        '<geom type="mesh" mesh="t" pos="0.05 0.02 -0.2" quat="0.8 0.1 0.5 0.2" density="700"/>'),
+    "exact inertia, mirrored by a negative scale": (
+        '<mesh name="t" file="t.stl" scale="-1 1 1" inertia="exact"/>',
+        '<geom type="mesh" mesh="t" pos="0 0 -0.3"/>'),
+    "OBJ box of quadrilaterals with a mass, beside a box and a visual mesh": (
+        '<mesh name="o" file="o.obj"/><mesh name="t" file="t.stl"/>',
+        '<geom type="mesh" mesh="o" mass="2" euler="10 40 -20" pos="0.1 0 -0.1"/>'
+        '<geom type="box" size="0.05 0.1 0.02" pos="0 0 -0.4"/>'
+        '<geom type="mesh" mesh="t" contype="0" conaffinity="0" group="2"/>'),
+}
+
+
+@pytest.mark.parametrize("case", list(MESH_CASES))
+def test_mesh_inertia_matches_mujoco(tmp_path, case):
+    """A body weighed by mesh geoms (files present) below a free root: the loader's box of
+    each mesh's volume inertia gives MuJoCo's M and bias, MuJoCo compiling the file as given."""
+    from mjcf_models import write_stl
+
+    assets, geoms = MESH_CASES[case]
+    write_stl(tmp_path / "t.stl", _tetrahedron(_TETRA))
+    _obj_box(tmp_path / "o.obj", [0, 0, 0], [0.2, 0.1, 0.3])
+    xml = f"""<mujoco><asset>{assets}</asset><worldbody><body name="root"><freejoint/>
+      <inertial pos="0 0 0" mass="1" diaginertia="0.1 0.1 0.1"/>
+      <body name="b" pos="0 0 -0.1" euler="10 20 30"><joint name="h" axis="0 1 0"/>{geoms}</body>
+      </body></worldbody></mujoco>"""
+    path = write(tmp_path, "meshes.xml", xml)
+    _compare(load_robot(path), path, count=3)
+
+
 _INERTIAL = '<inertial pos="0.01 0.02 -0.1" quat="0.9 0.1 0.3 0.2" mass="1" diaginertia="0.01 0.02 0.03"/>'
 TREE_CASES = {
     "joint ref in degrees": f'<body name="b" pos="0 0 -0.1"><joint name="h" axis="0 1 0" ref="30"/>{_INERTIAL}</body>',

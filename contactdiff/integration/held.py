@@ -1,0 +1,153 @@
+"""Contacts held at zero gap by a mode, and the event where one bears again.
+
+A contact outside the mode whose gap is closed and whose rows add no rank to the
+mode's (a face's corner released when its compatible load asked it to pull, while
+three others hold the face: `contactdiff.dynamics.redundant`) keeps a gap and a gap
+speed of exactly zero for as long as the mode lasts. It has no gap guard: its gap
+is the others' drift, and round-off of it (a few 1e-17 m) would otherwise close it
+as a grazing landing. It is watched instead by the principle that released it: its
+guard is the load it would carry in the *enlarged* set (the mode and it, solved by
+the compatible-load rule), fired as that load turns from pulling to pushing. There
+it **bears** (event kind ``bear``): a re-touch at zero speed, no impulse, the mode
+with it added (Coulomb's law settled again over the enlarged set).
+
+Its saltation matrix: the reset is the identity and the guard ``h = -λ_N`` of the
+held contact in the enlarged set, so ``Ξ = I + (F+ - F-) Dh / (Dh F- + h_t)`` with
+``Dh`` the gradient of that load (its derivatives by the mode's own derivative
+solve, through the slip directions of sliding rows) and ``h_t`` its explicit time
+rate under time-dependent efforts. Where the enlarged set's forces with the held
+load at zero are the mode's (the rows of the mode independent: three corners of a
+face) the field does not jump and ``Ξ = I`` up to round-off; the event time's
+derivative is what moves the flow Jacobian's later columns.
+
+Cost: one mode solve per held contact at each guard evaluation (each accepted
+step's end, and the crossing search of a step that crossed); none when no contact
+is held.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..dynamics.mode import ModeDynamics
+from ..dynamics.redundant import row_rank
+from ..errors import PainleveError, SolverError
+from .friction_events import settle_friction
+from .parameter_jumps import ParameterJumps
+from .projection import mode_rows
+from .sensitivity import liftoff_guard, saltation, vector_field
+from .trajectory import Event
+
+
+def held_contacts(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float, mode: tuple[int, ...],
+                  gaps: np.ndarray, rates: np.ndarray, gap_tol: float, speed_tol: float) -> dict[int, int]:
+    """The contacts ``mode`` holds at zero gap, each with its key in the enlarged set.
+
+    Args:
+        dyn: the scene's `ModeDynamics` (its kinematics cache is moved to ``(q, v)``;
+            the slip reference of a held contact that slips is set to its slip).
+        q: configuration (nq,).
+        v: velocity (nv,), tangent space.
+        t: time (s), for time-dependent efforts.
+        mode: the contact keys of the mode.
+        gaps: gap (m) of every scene contact at ``q``.
+        rates: gap rate (m/s) of every scene contact at ``(q, v)``.
+        gap_tol: m, a gap below it is closed (the loop passes the drift its projection
+            allows: a held contact's gap is a combination of the others').
+        speed_tol: m/s, a gap rate within it is zero, and a slip faster than it makes a
+            Coulomb contact's key sliding.
+
+    Returns:
+        ``{scene index: key}``: the contacts whose rows (sticking, or sliding along its slip
+        for a Coulomb contact slipping faster than ``speed_tol``) add no rank to the mode's,
+        each with its key as Coulomb's law settles the enlarged set ``mode + (key,)``
+        (`settle_friction`: a held contact at rest whose sticking force there would leave
+        its cone bears sliding; the guard then watches the load it would bear with). One
+        whose enlarged set has no solution is left out, as is a contact without Coulomb
+        friction that slips (its sticking rows would add a constraint): both keep their
+        gap guard.
+    """
+    if not mode:
+        return {}
+    active = dyn.contacts_of(mode)
+    closed = [i for i, (g, r) in enumerate(zip(gaps, rates))
+              if i not in active and g <= gap_tol and abs(r) <= speed_tol]
+    if not closed:
+        return {}
+    dyn.kin.update(q, v)
+    A = mode_rows(dyn, mode)
+    rank = row_rank(A)
+    held = {}
+    for i in closed:
+        contact = dyn.contact(i)
+        slip = contact.rows(dyn.kin)[1:] @ v
+        key = i
+        if len(slip) and np.max(np.abs(slip)) > speed_tol:
+            if not contact.spec.coulomb:
+                continue
+            dyn.slip_reference[i] = slip / np.linalg.norm(slip)
+            key = dyn.sliding_key(i)
+        if row_rank(np.vstack([A, dyn.contact(key).rows(dyn.kin)])) != rank:
+            continue
+        try:  # its key as Coulomb's law settles the enlarged set, the one it would bear with
+            settled, _ = settle_friction(dyn, q, v, t, enlarged(mode, key))
+        except (PainleveError, SolverError):
+            continue
+        held[i] = next(k for k in settled if dyn.contact_index(k) == i)
+    return held
+
+
+def enlarged(mode, key: int) -> tuple[int, ...]:
+    """The mode ``mode`` with the held contact key ``key`` added (sorted keys)."""
+    return tuple(sorted((*mode, key)))
+
+
+def bear_value(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float, mode, key: int) -> float:
+    """The bearing guard's value ``-λ_N`` (N) of held key ``key`` of ``mode`` at
+    ``(q, v, t)``: minus its normal force in the enlarged set, positive while it would
+    pull; +inf where that set has no solution (a sliding set Painlevé refuses), where
+    it cannot bear."""
+    full = enlarged(mode, key)
+    try:
+        sol = dyn.solve(q, v, t, full)
+    except (PainleveError, SolverError):
+        return np.inf
+    return -float(sol.forces[sol.row_slices[full.index(key)].start])
+
+
+def bear_guard(dyn: ModeDynamics, t: float, q: np.ndarray, v: np.ndarray, mode, key: int
+               ) -> tuple[np.ndarray, float]:
+    """The bearing guard ``h = -λ_N`` of held key ``key`` of ``mode`` (module doc):
+    ``(Dh, h_t)``, its gradient (2nv,) and its explicit time rate (N/s)."""
+    Dh, _, h_t = liftoff_guard(dyn, t, q, v, enlarged(mode, key), key)
+    return -Dh, -h_t
+
+
+class HeldEvents:
+    """The loop's ``bear`` events (module doc); a mixin of
+    `contactdiff.integration.hybrid.HybridLoop` (its state as for
+    `contactdiff.integration.event_resets`; ``fields[-1]`` is the mode's field)."""
+
+    def _bear_event(self, t, q, v, mode, bearing: list[int]):
+        """The held contacts ``bearing`` (scene indices) join ``mode`` at ``(t, q, v)``: no
+        jump; the mode after them settled by Coulomb's law. With several at once the
+        saltation is that of the first one's guard (their loads turn positive together)."""
+        dyn, mode = self.dyn, tuple(mode)
+        held = self.fields[-1].held
+        keys = [held[i] for i in bearing]
+        new_mode, _ = settle_friction(dyn, q, v, t, tuple(sorted((*mode, *keys))))
+        event = Event(t=t, kind="bear", contacts=self._mode_names(keys), simultaneous=len(keys) > 1,
+                      q=q.copy(), v_minus=v.copy(), v_plus=v.copy(), impulses={},
+                      mode_before=self._mode_names(mode), mode_after=self._mode_names(new_mode),
+                      sliding=self._sliding_names(new_mode))
+        if self.sensitive:
+            Dh, h_t = bear_guard(dyn, t, q, v, mode, keys[0])
+            F_minus, F_plus = vector_field(dyn, q, v, t, mode), vector_field(dyn, q, v, t, new_mode)
+            xi = saltation(np.eye(2 * self.scene.nv), Dh, F_minus, F_plus, h_t)
+            h_p = xi_p = None
+            if self.jumps:
+                h_p = -self.jumps.force_guard(q, v, t, enlarged(mode, keys[0]), keys[0])
+                xi_p = ParameterJumps.saltation(None, h_p, None, F_minus, F_plus, float(Dh @ F_minus) + h_t)
+            self._attach_sensitivity(event, xi, Dh, F_minus, h_t, xi_p=xi_p, h_p=h_p)
+        self.events.append(event)
+        return new_mode, v
