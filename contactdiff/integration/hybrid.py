@@ -373,8 +373,8 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
                     self._collapse(stepper, mode, h, watch.typical)
                 if projection := budget.after_step(h, clipped, self.t_final - stepper.t, steps):
                     self._over_budget(stepper, mode, steps, *projection)
-                # at rest: to t_final in one step (not over samples still to take: steps end on them)
-                if self.recorder.next_time >= self.t_final and rest.settle(stepper, field, mode, segment):
+                # at rest: to t_final in one step, or to the next sample time (steps end on them)
+                if rest.settle(stepper, field, mode, segment, min(self.t_final, self.recorder.next_time)):
                     self.recorder.take(stepper)
                 if self.chooser is not None and stepper.t < self.t_final:
                     switch = self.chooser.after_step(h, stepper.q, stepper.v, stepper.t)
