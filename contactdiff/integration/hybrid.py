@@ -75,21 +75,21 @@ from ..errors import (
 )
 from ..model.scene import Scene, StateInput
 from ..model.scene_file import passive_note
+from ..ode.events import simultaneous_group
+from ..ode.method_choice import EXPLICIT, MethodChooser, spectral_radius
+from ..ode.step_budget import BudgetWatch, budget_message
+from ..ode.step_collapse import COLLAPSE_RATIO, COLLAPSE_STEPS, CollapseWatch
+from ..ode.steppers import PinocchioGroup, make_stepper
 from .event_resets import EventResets
-from .events import simultaneous_group
 from .friction_events import FrictionEvents, refuse_ambiguous_slip, settle_friction
 from .guards import GuardFinder, NearMiss
 from .held import HeldEvents, held_contacts
-from .method_choice import EXPLICIT, MethodChooser, spectral_radius
 from .mode_field import ModeField
 from .options import AUTO, OnGrazing, SimulateOptions
 from .parameter_jumps import ParameterJumps
 from .projection import held_velocity, project_state
 from .rest import RestCheck
 from .samples import SampleRecorder, check_sample_times
-from .step_budget import BudgetWatch, budget_message
-from .step_collapse import COLLAPSE_RATIO, COLLAPSE_STEPS, CollapseWatch
-from .steppers import PinocchioGroup, make_stepper
 from .trajectory import Event, RunStats, Segment, Termination, Trajectory
 
 MAX_NOTES = 10

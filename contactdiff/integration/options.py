@@ -15,7 +15,7 @@ from enum import StrEnum
 import numpy as np
 
 from ..errors import InvalidInputError, check_count, check_number
-from .steppers import METHODS
+from ..ode.steppers import METHODS
 
 AUTO = "auto"
 SIMULATE_METHODS = (AUTO,) + METHODS

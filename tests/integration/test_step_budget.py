@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import contactdiff as cd
-from contactdiff.integration.step_budget import CHECK_EVERY, GROWTH, MARGIN, WINDOW, BudgetWatch
+from contactdiff.ode.step_budget import CHECK_EVERY, GROWTH, MARGIN, WINDOW, BudgetWatch
 
 OMEGA = 1e6  # rad/s: the body's pitch rate of the fast-spin runs
 

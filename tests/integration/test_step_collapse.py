@@ -12,7 +12,7 @@ from helpers import assert_fd, fd_dv
 
 import contactdiff as cd
 from contactdiff.dynamics.mode import ModeDynamics
-from contactdiff.integration.step_collapse import COLLAPSE_STEPS
+from contactdiff.ode.step_collapse import COLLAPSE_STEPS
 
 
 @pytest.fixture(scope="module")
