@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import abc
 import math
-from typing import TYPE_CHECKING, Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -50,6 +50,7 @@ from ..errors import (
     check_vector,
 )
 from .dense import DenseOutput
+from .field_types import AccelFn, JacFn, ParameterJacFn
 from .lie import _as_group
 from .variational import VariationalAlgebra
 
@@ -58,13 +59,6 @@ if TYPE_CHECKING:
     from numpy.typing import ArrayLike
 
     from .lie import LieGroup
-
-AccelFn = Callable[[float, np.ndarray, np.ndarray], np.ndarray]
-"""``accel(t, q, v) -> dv/dt`` (nv,), in the joints' local frames."""
-JacFn = Callable[[float, np.ndarray, np.ndarray], "tuple[np.ndarray, np.ndarray]"]
-"""``jac(t, q, v) -> (J_q, J_v)``: d accel / d q (tangent, ``q ⊕ δq``) and d accel / d v, nv x nv each."""
-ParameterJacFn = Callable[[float, np.ndarray, np.ndarray], np.ndarray]
-"""``parameter_jac(t, q, v) -> J_p``: d accel / d p (nv x p) at fixed state, for p parameters."""
 
 _EPS = np.finfo(float).eps
 _SAFETY = 0.9

@@ -21,9 +21,10 @@ from typing import TYPE_CHECKING
 from ..errors import InvalidInputError
 from .dense import DenseOutput, LazyDenseOutput
 from .explicit_rk import DOP853, RK45, ExplicitRK
+from .field_types import AccelFn, JacFn
 from .lie import LieGroup, PinocchioGroup, VectorSpace
 from .radau import Radau
-from .stepper import AccelFn, JacFn, Stepper
+from .stepper import Stepper
 
 if TYPE_CHECKING:
     import pinocchio as pin

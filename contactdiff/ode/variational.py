@@ -17,8 +17,8 @@ import numpy as np
 from ..errors import IntegrationError, InvalidInputError
 
 if TYPE_CHECKING:
+    from .field_types import AccelFn, JacFn, ParameterJacFn
     from .lie import LieGroup
-    from .stepper import AccelFn, JacFn, ParameterJacFn
 
 _EPS = np.finfo(float).eps
 
