@@ -26,7 +26,7 @@ with the state's (``variational_error_control``). Integration runs forward in ti
 only. Callbacks receive arrays that a stepper never modifies afterwards, so they may
 keep references to them (e.g. for caching).
 
-**What a stepper provides** (every method, on the `stepper.Stepper` base), driven one
+**What a stepper provides** (every method, on the `base.Stepper` base), driven one
 accepted step at a time::
 
     st = make_stepper("DOP853", accel, PinocchioGroup(model), t0, q0, v0,
@@ -48,13 +48,24 @@ accepted step at a time::
 * the attributes ``t, q, v, phi``, ``t_old, q_old, v_old, phi_old``, ``h_next`` and
   the counts ``n_steps, n_rejected, n_accel, n_jac``.
 
-What a new method implements is in `stepper.Stepper`'s docstring.
+What a new method implements is in `base.Stepper`'s docstring.
 
 **The modules.** The explicit Runge–Kutta pairs DOP853 and RK45 (`explicit_rk`, their
-coefficients in `tableaus`) and Radau IIA (`radau`) on the `stepper` base, with the
+coefficients in `tableaus`) and Radau IIA (`radau`) on the `base` class, with the
 step-size control they share (`step_control`) and the flow Jacobian's linear algebra
-(`variational`); the factory (`steppers`); dense output (`dense`); guard crossings over
-one step, their location and grouping (`events`); the choice between an explicit and
-an implicit stepper (`method_choice`); the watches of a run's step sizes
-(`step_collapse`, `step_budget`).
+(`variational`); the factory (`factory`: `make_stepper`, `METHODS`); dense output
+(`dense`); guard crossings over one step, their location and grouping (`crossings`);
+the choice between an explicit and an implicit stepper (`method_choice`); the watches
+of a run's step sizes (`step_collapse`, `step_budget`).
 """
+
+from .base import Stepper
+from .dense import DenseOutput
+from .factory import DOP853, METHODS, RK45, ExplicitRK, Radau, make_stepper
+from .field_types import AccelFn, JacFn, ParameterJacFn
+from .lie import LieGroup, PinocchioGroup, VectorSpace
+
+__all__ = [
+    "METHODS", "make_stepper", "Stepper", "ExplicitRK", "DOP853", "RK45", "Radau", "DenseOutput",
+    "LieGroup", "VectorSpace", "PinocchioGroup", "AccelFn", "JacFn", "ParameterJacFn",
+]

@@ -22,8 +22,8 @@ from contactdiff.errors import GrazingError
 from contactdiff.integration.hybrid import simulate
 from contactdiff.model.robot import ROBOTS_DIR
 from contactdiff.ode import method_choice
+from contactdiff.ode.factory import PinocchioGroup
 from contactdiff.ode.method_choice import spectral_radius
-from contactdiff.ode.steppers import PinocchioGroup
 
 TIGHT = dict(rtol=1e-12, atol=1e-14)
 

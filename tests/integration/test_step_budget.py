@@ -1,6 +1,6 @@
 """Step budget: a run that cannot reach its final time within max_steps stops early.
 
-`contactdiff.integration.step_budget`: after WINDOW steady steps (no event, no growth)
+`contactdiff.ode.step_budget`: after WINDOW steady steps (no event, no growth)
 the steps still needed are projected at a high percentile of the recent steps; a run
 that would need more than MARGIN times the steps it has left stops with
 `StepBudgetError`, a `TooManyStepsError` with the run so far, its time, mode and step.

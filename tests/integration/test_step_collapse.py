@@ -1,4 +1,4 @@
-"""Step collapse (`contactdiff.integration.step_collapse`), redundant contact rows, and
+"""Step collapse (`contactdiff.ode.step_collapse`), redundant contact rows, and
 the step budget's edge cases."""
 
 from __future__ import annotations

@@ -84,7 +84,7 @@ class Stepper(VariationalAlgebra, abc.ABC):
     (buffers, after the base's ``__init__`` has set the point),
     ``_after_truncate()`` and ``_after_restart()`` (drop caches that belong to
     the abandoned step). States are ``y = (xi, v)`` in the chart at ``q`` of the
-    step's start (``y = (q, v)`` on a vector space; see `contactdiff.integration.lie`).
+    step's start (``y = (q, v)`` on a vector space; see `contactdiff.ode.lie`).
 
     Args:
         accel: ``accel(t, q, v) -> dv/dt`` (nv,); it may raise `OutsideDomainError`

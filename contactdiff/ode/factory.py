@@ -1,10 +1,10 @@
 """Error-controlled one-step integrators with dense output: the factory and the names.
 
-The methods: `DOP853` and `RK45` (`contactdiff.integration.explicit_rk`), `Radau`
-(`contactdiff.integration.radau`), all on the `Stepper` base
-(`contactdiff.integration.stepper`: the state, units, frames, the flow Jacobian
-and what a new method implements), over a configuration space of
-`contactdiff.integration.lie`. A stepper is driven one accepted step at a time::
+The methods: `DOP853` and `RK45` (`contactdiff.ode.explicit_rk`), `Radau`
+(`contactdiff.ode.radau`), all on the `Stepper` base
+(`contactdiff.ode.base`: what a new method implements; the state, units, frames and
+the flow Jacobian are the package's contract, `contactdiff.ode`), over a configuration
+space of `contactdiff.ode.lie`. A stepper is driven one accepted step at a time::
 
     st = make_stepper("DOP853", accel, PinocchioGroup(model), t0, q0, v0,
                       rtol=1e-10, atol=1e-12)
@@ -19,12 +19,12 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from ..errors import InvalidInputError
+from .base import Stepper
 from .dense import DenseOutput, LazyDenseOutput
 from .explicit_rk import DOP853, RK45, ExplicitRK
 from .field_types import AccelFn, JacFn
 from .lie import LieGroup, PinocchioGroup, VectorSpace
 from .radau import Radau
-from .stepper import Stepper
 
 if TYPE_CHECKING:
     import pinocchio as pin
