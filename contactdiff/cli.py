@@ -455,7 +455,8 @@ def _format_jacobian(traj, scene) -> list[str]:
         verdict = "differentiable" if e.differentiable else "NOT differentiable (piecewise-linear derivative)"
         lines.append(f"    t = {e.t:.12f}  {e.kind:<9} {', '.join(e.contacts):<24} {verdict}")
     lines.append("  the trajectory is " + ("differentiable" if traj.differentiable else
-                                          "NOT differentiable at some event (see notes)"))
+                                          "NOT differentiable at some event (see notes)" if not traj.final_nonsmooth
+                                          else "NOT differentiable: a contact touches at the final time (see notes)"))
     return lines
 
 

@@ -81,6 +81,7 @@ from ..ode.method_choice import EXPLICIT, MethodChooser, spectral_radius
 from ..ode.step_budget import BudgetWatch, budget_message
 from ..ode.step_collapse import COLLAPSE_RATIO, COLLAPSE_STEPS, CollapseWatch
 from .event_resets import EventResets
+from .final_time import final_touches
 from .friction_events import FrictionEvents, refuse_ambiguous_slip, settle_friction
 from .guards import GuardFinder, NearMiss
 from .held import HeldEvents, held_contacts
@@ -90,7 +91,7 @@ from .parameter_jumps import ParameterJumps
 from .projection import held_velocity, project_state
 from .rest import RestCheck
 from .samples import SampleRecorder, check_sample_times
-from .trajectory import Event, RunStats, Segment, Termination, Trajectory
+from .trajectory import Event, NonSmooth, RunStats, Segment, Termination, Trajectory
 
 MAX_NOTES = 10
 """Notes written for the first method switches of ``method="auto"`` and the first
@@ -417,7 +418,12 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
             forces = field.guard_values(stepper.t, stepper.q, stepper.v)
             if stop:
                 return self._trajectory(stepper, Termination.STOPPED)
-        return self._trajectory(stepper, Termination.T_FINAL)
+        traj = self._trajectory(stepper, Termination.T_FINAL)
+        if touches := final_touches(self.names, *self._gaps_and_rates(traj.q, traj.v),
+                                    set(self.dyn.contacts_of(mode)), self.events, traj.t, options):
+            traj.final_nonsmooth[NonSmooth.FINAL_TIME] = "; ".join(touches)
+            self.notes.extend(touches)
+        return traj
 
     def _collapse(self, stepper, mode, h: float, typical: float, underflow: str | None = None):
         """Raise `StepCollapseError` (`contactdiff.ode.step_collapse`) at the stepper's

@@ -170,7 +170,9 @@ def field_names() -> list[str]:
 
 
 def _sample_times(times) -> tuple[float, ...]:
-    """``sample_times`` as a tuple of finite, non-decreasing floats (s)."""
+    """``sample_times`` as a tuple of finite, non-decreasing floats (s); None: none."""
+    if times is None:
+        return ()
     try:
         values = np.asarray(times, dtype=float)
     except (TypeError, ValueError):

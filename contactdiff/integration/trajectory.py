@@ -48,6 +48,9 @@ class NonSmooth(Enum):
                        "outcome (`Event.outcomes`)")
     FRICTION_THRESHOLD = ("the tangential force sits on the friction cone's boundary without crossing it "
                           "(neighbouring runs stick or slip: the stick/slip threshold)")
+    FINAL_TIME = ("a contact touches at the final time with nonzero normal speed (neighbouring runs land "
+                  "before or after it: the final state has one-sided derivatives; "
+                  "`Trajectory.final_nonsmooth`, `contactdiff.integration.final_time`)")
 
 
 class Termination(StrEnum):
@@ -231,6 +234,8 @@ class Trajectory:
             projection, over the run (m).
         termination: why the run ended (a `Termination`; ``"t_final"`` normally).
         notes: human-readable remarks (Zeno ends, grazing, ...).
+        final_nonsmooth: `NonSmooth.FINAL_TIME` with its remark where a contact touches
+            at the final time itself, which no event records (empty otherwise).
         jacobian: ``d x(t) / d x0`` (2nv × 2nv, tangent space) if it was asked for.
         parameter_jacobian: ``d x(t) / d p`` (2nv × p, tangent space, per unit of each
             parameter) if parameters were asked for (``simulate(..., parameters=[...])``).
@@ -254,6 +259,7 @@ class Trajectory:
     max_drift: float = 0.0
     termination: Termination = Termination.T_FINAL
     notes: list[str] = field(default_factory=list)
+    final_nonsmooth: dict[NonSmooth, str] = field(default_factory=dict)
     jacobian: np.ndarray | None = None
     dense: bool = True
     parameter_jacobian: np.ndarray | None = None
@@ -262,8 +268,9 @@ class Trajectory:
 
     @property
     def differentiable(self) -> bool:
-        """True unless some event has only a piecewise-linear derivative."""
-        return all(e.differentiable for e in self.events)
+        """True unless some event has only a piecewise-linear derivative, or a contact
+        touches at the final time (``final_nonsmooth``)."""
+        return not self.final_nonsmooth and all(e.differentiable for e in self.events)
 
     @property
     def modes(self) -> list[tuple[str, ...]]:
@@ -298,8 +305,9 @@ class Trajectory:
         return np.array([s[0] for s in states]), np.array([s[1] for s in states])
 
     def why_not_differentiable(self) -> list[str]:
-        """The remarks of the events where the flow is not differentiable, in time order."""
-        return [remark for e in self.events for remark in e.nonsmooth.values()]
+        """The remarks of the events where the flow is not differentiable, in time order,
+        then ``final_nonsmooth``'s."""
+        return [remark for e in self.events for remark in e.nonsmooth.values()] + list(self.final_nonsmooth.values())
 
     def summary(self) -> dict:
         """Final state, events and statistics (what ``--json`` prints, without dense data)."""
@@ -312,6 +320,7 @@ class Trajectory:
             "stats": self.stats.to_dict(), "max_drift": self.max_drift,
             "termination": str(self.termination), "notes": list(self.notes),
             "differentiable": self.differentiable,
+            "final_nonsmooth": {reason.name.lower(): remark for reason, remark in self.final_nonsmooth.items()},
         } | ({"jacobian": self.jacobian.tolist()} if self.jacobian is not None else {}) | (
             {"parameter_names": list(self.parameter_names), "parameter_jacobian": self.parameter_jacobian.tolist()}
             if self.parameter_jacobian is not None else {})
