@@ -85,7 +85,7 @@ def build_parser() -> argparse.ArgumentParser:
     check.set_defaults(run=_run_check)
 
     from .integration.options import ATOL_MAX, MAX_STEPS, RTOL_MAX, RTOL_MIN, OnGrazing, SimulateOptions
-    from .integration.steppers import METHODS
+    from .ode.factory import METHODS
     from .replay import DEFAULT_FPS
 
     sim = sub.add_parser(

@@ -110,7 +110,7 @@ class TooManyStepsError(StoppedRunError):
 
 class StepBudgetError(TooManyStepsError):
     """The run cannot reach its final time within ``max_steps``: its steady recent steps
-    project far more steps than the budget has left (`contactdiff.integration.step_budget`),
+    project far more steps than the budget has left (`contactdiff.ode.step_budget`),
     and it stopped early rather than spend the budget. ``.trajectory`` holds the run so
     far; ``.t`` (s), ``.mode`` (the names of the active contacts), ``.step`` (s, the
     reference step of the projection) and ``.steps_needed`` say where and how far."""
@@ -123,7 +123,7 @@ class StepBudgetError(TooManyStepsError):
 
 class StepCollapseError(StoppedRunError):
     """The step size collapsed with no event in sight: many accepted steps in a row, each
-    far shorter than the mode's own steps (`contactdiff.integration.step_collapse`), as
+    far shorter than the mode's own steps (`contactdiff.ode.step_collapse`), as
     where the vector field is singular (a mechanism reaching a singular pose, e.g. a leg
     folded flat with its foot held). ``.trajectory`` holds the run so far; ``.t`` (s),
     ``.mode`` (the names of the active contacts) and ``.step`` (s, the last step) say

@@ -2,7 +2,7 @@
 
 `simulate` integrates a `Scene` event by event:
 
-1. In mode ``J`` the stepper (`contactdiff.integration.steppers`) integrates the KKT flow of
+1. In mode ``J`` the stepper (`contactdiff.ode`) integrates the KKT flow of
    `contactdiff.dynamics.mode`.
 2. After every accepted step each guard of the mode is checked over the step:
    the gap of every inactive contact (downward through 0, including a dip
@@ -29,7 +29,7 @@
 
 With ``method="auto"`` the stepper is DOP853 while its steps are limited by
 accuracy and Radau IIA while they would be limited by stability
-(`contactdiff.integration.method_choice`); a switch restarts the stepper at the current point
+(`contactdiff.ode.method_choice`); a switch restarts the stepper at the current point
 (no jump; the flow Jacobian carries over).
 
 Admissibility: a penetrating initial state is an error; closed contacts at the
@@ -41,9 +41,9 @@ the integration error cannot tell a touch from a miss); a bounce slower than
 ``zeno_speed`` ends the bounce sequence (the contact stays closed, event kind
 ``zeno``); more than ``max_events`` events raise `TooManyEventsError`, more
 than ``max_steps`` steps `TooManyStepsError` (early, as `StepBudgetError`, when steady
-steps project far more than the budget: `contactdiff.integration.step_budget`), and steps
+steps project far more than the budget: `contactdiff.ode.step_budget`), and steps
 that collapse by orders of magnitude with no event `StepCollapseError`
-(`contactdiff.integration.step_collapse`).
+(`contactdiff.ode.step_collapse`).
 
 `HybridLoop` is the loop itself, public and meant to be extended: a subclass
 may override `HybridLoop.initial_mode` (the consistent start) and
@@ -75,22 +75,22 @@ from ..errors import (
 )
 from ..model.scene import Scene, StateInput
 from ..model.scene_file import passive_note
+from ..ode.crossings import simultaneous_group
+from ..ode.factory import PinocchioGroup, make_stepper
+from ..ode.method_choice import EXPLICIT, MethodChooser, spectral_radius
+from ..ode.step_budget import BudgetWatch, budget_message
+from ..ode.step_collapse import COLLAPSE_RATIO, COLLAPSE_STEPS, CollapseWatch
 from .event_resets import EventResets
-from .events import simultaneous_group
 from .final_time import final_touches
 from .friction_events import FrictionEvents, refuse_ambiguous_slip, settle_friction
 from .guards import GuardFinder, NearMiss
 from .held import HeldEvents, held_contacts
-from .method_choice import EXPLICIT, MethodChooser, spectral_radius
 from .mode_field import ModeField
 from .options import AUTO, OnGrazing, SimulateOptions
 from .parameter_jumps import ParameterJumps
 from .projection import held_velocity, project_state
 from .rest import RestCheck
 from .samples import SampleRecorder, check_sample_times
-from .step_budget import BudgetWatch, budget_message
-from .step_collapse import COLLAPSE_RATIO, COLLAPSE_STEPS, CollapseWatch
-from .steppers import PinocchioGroup, make_stepper
 from .trajectory import Event, NonSmooth, RunStats, Segment, Termination, Trajectory
 
 MAX_NOTES = 10
@@ -426,7 +426,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
         return traj
 
     def _collapse(self, stepper, mode, h: float, typical: float, underflow: str | None = None):
-        """Raise `StepCollapseError` (`contactdiff.integration.step_collapse`) at the stepper's
+        """Raise `StepCollapseError` (`contactdiff.ode.step_collapse`) at the stepper's
         point; ``underflow``: the stepper's own underflow message, where the steps shrank to
         the resolution of time before the count of short steps was reached."""
         names = self._mode_names(mode)
@@ -441,7 +441,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
             self._trajectory(stepper, Termination.STEP_COLLAPSE), stepper.t, names, h)
 
     def _over_budget(self, stepper, mode, steps: int, needed: float, reference: float):
-        """Raise `StepBudgetError` (`contactdiff.integration.step_budget`) at the stepper's point."""
+        """Raise `StepBudgetError` (`contactdiff.ode.step_budget`) at the stepper's point."""
         names = self._mode_names(mode)
         raise StepBudgetError(budget_message(self.options.max_steps, self.t_final, stepper.t, names, steps, needed,
                                              reference), self._trajectory(stepper, Termination.MAX_STEPS),

@@ -50,7 +50,7 @@ import numpy as np
 import pinocchio as pin
 from scipy.linalg import expm
 
-from .dense import DenseOutput
+from ..ode.dense import DenseOutput
 from .guards import GuardKind
 from .projection import held_velocity, projection_jacobian
 

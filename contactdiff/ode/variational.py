@@ -2,7 +2,7 @@
 user's callbacks (or forward differences), applied to the variational columns, with the
 parameters' forcing, and the columns' error scale.
 
-A mixin of `contactdiff.integration.stepper.Stepper` (its state: ``nv``, ``n``,
+A mixin of `contactdiff.ode.base.Stepper` (its state: ``nv``, ``n``,
 ``_vs``, ``group``, ``accel``, ``jac``, ``parameter_jac``, ``phi``, ``rtol``,
 ``_atol_phi``, ``n_jac``, ``n_accel``); the conventions are in its docstring.
 """
@@ -17,8 +17,8 @@ import numpy as np
 from ..errors import IntegrationError, InvalidInputError
 
 if TYPE_CHECKING:
+    from .field_types import AccelFn, JacFn, ParameterJacFn
     from .lie import LieGroup
-    from .stepper import AccelFn, JacFn, ParameterJacFn
 
 _EPS = np.finfo(float).eps
 

@@ -9,8 +9,9 @@ import numpy as np
 from scipy.linalg.lapack import dgetrf, dgetrs, zgetrf, zgetrs
 
 from ..errors import IntegrationError, InvalidInputError, OutsideDomainError
+from .base import Stepper
 from .dense import DenseOutput
-from .stepper import _EPS, _MAX_FACTOR, _MIN_FACTOR, Stepper, _rms, _rms_cols
+from .step_control import _EPS, _MAX_FACTOR, _MIN_FACTOR, _rms, _rms_cols
 from .variational import StageDF
 
 _S6 = 6**0.5

@@ -8,8 +8,9 @@ import numpy as np
 
 from ..errors import InvalidInputError, OutsideDomainError
 from . import tableaus
+from .base import Stepper, _combine
 from .dense import DenseOutput, LazyDenseOutput
-from .stepper import _MAX_FACTOR, _MIN_FACTOR, _SAFETY, Stepper, _combine, _rms, _rms_cols
+from .step_control import _MAX_FACTOR, _MIN_FACTOR, _SAFETY, _rms, _rms_cols
 from .variational import StageDF
 
 
