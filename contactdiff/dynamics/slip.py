@@ -121,6 +121,30 @@ def slip_direction(slip_velocity: np.ndarray, reference: np.ndarray | None, floo
     return blended, (np.eye(2) - np.outer(blended, blended)) / norm @ db_dw
 
 
+
+def reference_turn(slip_velocity: np.ndarray, reference: np.ndarray, floor: float) -> np.ndarray | None:
+    """``∂s/∂θ`` (2,) of a 3-D slip direction (`slip_direction`) at fixed ``u_T`` when its
+    reference ``r`` turns by the angle ``θ`` (rad) in the tangent plane, ``∂r/∂θ = r⊥``
+    (``r`` turned by +90°); None where ``s`` does not depend on ``r`` (above ``2 floor``,
+    where ``s`` is the slip's own direction).
+
+    Below ``floor`` and past a stop ``s = r``: ``r⊥``. In the band ``s = b / ||b||``,
+    ``b = a ŵ + (1 - a) r``: ``(1 - a) (I - s sᵀ) r⊥ / ||b||``.
+    """
+    u = np.asarray(slip_velocity, dtype=float)
+    r = np.asarray(reference, dtype=float)
+    turned = np.array([-r[1], r[0]])
+    speed = float(np.hypot(u[0], u[1]))
+    if speed <= floor or u @ r < 0.0:
+        return turned
+    if speed >= 2.0 * floor:
+        return None
+    a, _ = _turn(speed / floor - 1.0)
+    b = a * (u / speed) + (1.0 - a) * r
+    norm = float(np.linalg.norm(b))
+    s = b / norm
+    return (1.0 - a) * (turned - s * (s @ turned)) / norm
+
 @dataclass
 class SlipRow:
     """The force row of one slipping contact at one state (module doc).

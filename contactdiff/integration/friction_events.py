@@ -242,9 +242,49 @@ class FrictionEvents:
                 else:
                     h_p = np.zeros(self.jumps.p)  # the slip velocity does not depend on the parameters
                 xi_p = ParameterJumps.saltation(None, h_p, DR, F_minus, F_plus, rate)
+            if cone:
+                self._onset_columns(t, q, v, mode, new_mode, cone, solved, Dh, F_minus, h_t, h_p)
             self._attach_sensitivity(event, xi, Dh, F_minus, h_t, xi_p=xi_p, h_p=h_p)
         self.events.append(event)
         return new_mode, v_plus
+
+    def _onset_columns(self, t, q, v, mode, new_mode, cone, solved, Dh, F_minus, h_t, h_p) -> None:
+        """Set ``self.onsets`` (`contactdiff.integration.mode_field.ModeField`) for the 3-D
+        contacts of ``cone`` that slip from rest along ``r = -λ_T/||λ_T||``, the sticking force's
+        direction in ``mode`` at the event: ``w = ∂θ/∂`` of the flow Jacobian's columns, ``θ``
+        the angle of ``r`` (``δθ = r⊥ · δr = -r⊥ · δλ_T / ||λ_T||``). The event's state moves
+        with its time, ``δx_e = φ δ + F- δt``, ``δt = -(Dh φ δ + ∂h/∂p δp) / (Dh F- + h_t)``
+        (as the parameters' saltation), and ``λ_T`` also moves with the parameters at fixed
+        state and with time through the efforts. ``solved`` is `cone_guard`'s (in ``mode``)."""
+        dyn, phi = self.dyn, self.phi
+        sol, der, _, _ = solved
+        rate = float(Dh @ F_minus) + h_t
+        dt = -(Dh @ phi)  # ∂t/∂ of the columns, times the rate
+        if h_p is not None:
+            dt[self.n_state:] -= h_p
+        dt /= rate
+        tau_t = None
+        dyn.kin.update(q, v)
+        if np.any(dyn.scene.tau_time_derivative(dyn.kin, t)):
+            tau_t = dyn.scene.tau(dyn.kin, t) + dyn.scene.tau_time_derivative(dyn.kin, t)
+        mode = tuple(mode)
+        for key in cone:
+            index = dyn.contact_index(key)
+            rows = sol.row_slices[mode.index(key)]
+            lam_T = sol.forces[rows][1:]
+            if len(lam_T) != 2 or dyn.sliding_key(index) not in new_mode:
+                continue
+            r = dyn.slip_reference[index]
+            turn = -np.array([-r[1], r[0]]) / float(np.linalg.norm(lam_T))  # ∂θ/∂λ_T
+            g = np.concatenate([turn @ der.forces_dq[rows][1:], turn @ der.forces_dv[rows][1:]])
+            g_t = 0.0
+            if tau_t is not None:  # the forces are affine in the efforts
+                g_t = float(turn @ (dyn.solve(q, v, t, mode, tau=tau_t).forces[rows][1:] - lam_T))
+            w = g @ phi + (float(g @ F_minus) + g_t) * dt
+            if self.jumps:
+                dyn.kin.update(q, v)
+                w[self.n_state:] += turn @ der.forces_dtau[rows][1:] @ self.jumps.forces.mode_forces(dyn, sol, q, v, t)
+            self.onsets[index] = w
 
     def _threshold_note(self, event: Event, t, cone, stuck, rate, cone_size, settled: ModeSolution) -> None:
         """Mark an event on the stick/slip threshold as not differentiable (module doc);

@@ -187,6 +187,9 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
         self.phi = None  # flow Jacobian just before the event being processed
         self.initial_saltation = None
         self.jumps = None  # the parameters' blocks at events, with options.parameters
+        # the slips from rest that follow the reference set at the last event: scene index ->
+        # ∂θ/∂ of phi's columns (`ModeField`; set by `FrictionEvents`, cleared at every event)
+        self.onsets: dict[int, np.ndarray] = {}
         # phi's columns: the state's 2nv (with options.jacobian), then the parameters'
         self.sensitive = self.options.jacobian or bool(self.options.parameters)
         self.n_state = 2 * self.scene.nv if self.options.jacobian else 0
@@ -213,7 +216,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
             held = held_contacts(self.dyn, q, v, t, tuple(mode), gaps, rates,
                                  max(self.gap_tol, self.options.resolved_project_tol), self.options.grazing_speed)
         return ModeField(self.dyn, mode, fused=fused, parameters=self.jumps.forces if self.jumps else None,
-                         held=held)
+                         held=held, onsets=self.onsets)
 
     def _jumped(self, phi: np.ndarray, event: Event) -> np.ndarray:
         """The flow Jacobian just after ``event`` from ``phi`` just before: ``Ξ phi``, plus
@@ -297,9 +300,10 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
     def _stepper_options(self, field: ModeField) -> dict:
         o = self.options
         options = dict(rtol=o.rtol, atol=o.atol, max_step=o.max_step, t_bound=self.t_final)
+        if self.sensitive:  # the parameters' forcing, and a slip onset's (`ModeField`)
+            options.update(parameter_jac=field.parameter_jac)
         if self.jumps is not None:
-            options.update(parameter_jac=field.parameter_jac, variational_column_scale=np.concatenate(
-                [np.ones(self.n_state), self.jumps.scale]))
+            options.update(variational_column_scale=np.concatenate([np.ones(self.n_state), self.jumps.scale]))
         return options
 
     def run(self) -> Trajectory:
@@ -385,6 +389,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
             dense.t = segment.t1 = t_event
             self.phi = stepper.phi
             n_before, mode_before = len(self.events), tuple(mode)
+            self.onsets = {}  # an onset's term ends at the next event (docs/design.md, Coulomb friction)
             mode, v_plus = self._event(t_event, stepper.q, stepper.v, mode, fired)
             self.guards.restart_from_rest(mode_before, mode, fired)
             if len(self.events) > options.max_events:
@@ -400,7 +405,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
             field = self._field(mode, self.sensitive and stepper.method != "Radau", t_event, q_event, v_plus)
             self.fields.append(field)
             stepper.restart(t_event, q_event, v_plus, accel=field.accel, jac=field.jac,
-                            parameter_jac=field.parameter_jac if self.jumps else None,
+                            parameter_jac=field.parameter_jac if self.sensitive else None,
                             phi=None if self.events[-1].saltation is None else self._jumped(stepper.phi,
                                                                                              self.events[-1]))
             if self.chooser is not None:
