@@ -389,7 +389,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
             dense.t = segment.t1 = t_event
             self.phi = stepper.phi
             n_before, mode_before = len(self.events), tuple(mode)
-            self.onsets = {}  # an onset's term ends at the next event (docs/design.md, Coulomb friction)
+            self._end_onsets(field, t_event, stepper.q, stepper.v)
             mode, v_plus = self._event(t_event, stepper.q, stepper.v, mode, fired)
             self.guards.restart_from_rest(mode_before, mode, fired)
             if len(self.events) > options.max_events:
@@ -419,6 +419,18 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
             if stop:
                 return self._trajectory(stepper, Termination.STOPPED)
         return self._trajectory(stepper, Termination.T_FINAL)
+
+    def _end_onsets(self, field: ModeField, t: float, q, v) -> None:
+        """At an event: the slips from rest stop carrying their onset's term (`ModeField`; the
+        event's own dependence on the reference is not formed), noted where one is still
+        below ``2 zeno_speed`` at ``(q, v)``, so its field still depends on the reference there
+        (docs/design.md, Coulomb friction)."""
+        if self.onsets:
+            for index in field.onsets_in_band(q, v):
+                self.notes.append(f"flow Jacobian: from t = {t:.12g} it holds the reference direction of "
+                                  f"{self.names[index]}'s slip from rest fixed (an event before the slip "
+                                  f"reached 2 zeno_speed = {2.0 * self.dyn.slip_speed_floor:.3g} m/s)")
+        self.onsets = {}
 
     def _collapse(self, stepper, mode, h: float, typical: float, underflow: str | None = None):
         """Raise `StepCollapseError` (`contactdiff.integration.step_collapse`) at the stepper's

@@ -175,6 +175,13 @@ class ModeField:
         _, u_T, s = self._slip(key, q, v)
         return float(s @ u_T)
 
+    def onsets_in_band(self, q, v) -> list[int]:
+        """Scene indices of the `onsets` whose slip at ``(q, v)`` is still below ``2 floor``,
+        where the field depends on the onset's reference (class doc)."""
+        band = 2.0 * self.dyn.slip_speed_floor
+        return [index for index in self.onsets
+                if np.linalg.norm(self._slip(self.dyn.sliding_key(index), q, v)[1]) < band]
+
     def advance(self, q, v) -> None:
         """After an accepted step ending at ``(q, v)``: each 3-D slip continues along its
         direction there (the reference of `contactdiff.dynamics.slip`), unless its speed

@@ -165,3 +165,19 @@ def test_mass_derivative_through_the_onset_matches_free_runs(onset, monkeypatch)
     held = cd.simulate(scene, T, parameters=["body:cube:mass"], **OPTS)
     monkeypatch.undo()
     assert np.abs(held.parameter_jacobian[:, 0] - fd).max() > 2 * FD_RTOL * np.abs(fd).max()
+
+
+def test_an_event_inside_the_band_ends_the_onset_term_with_a_note():
+    """The onset's term is carried up to the next event (docs/design.md, Coulomb friction): an
+    event while the slip is still below 2ε says that the flow Jacobian holds the reference from
+    there. With ε = 0.2 m/s the corner slips slower than 0.4 m/s when the next corner lands
+    (t ≈ 0.052 s, the cube falling onto its bottom face); at the default floor it left the band
+    long before (|u_T| > 1e-3 m/s by T, the first test), so no note."""
+    scene = corner_scene()
+    options = dict(jacobian=True, **OPTS)
+    slow = cd.simulate(scene, 0.054, zeno_speed=0.2, **options)
+    assert [e.kind for e in slow.events] == ["slip", "touchdown"]
+    assert any(CORNER in n and "holds the reference direction" in n for n in slow.notes), slow.notes
+    usual = cd.simulate(scene, 0.054, **options)
+    assert [e.kind for e in usual.events] == ["slip", "touchdown"]
+    assert not any("reference direction" in n for n in usual.notes), usual.notes
