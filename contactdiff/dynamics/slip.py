@@ -49,6 +49,9 @@ the flow Jacobian's error controlled its estimate did not shrink with the step
 (``ds/du_T`` is of order ``|ŵ - r| / ε`` there): a slip that started from
 rest at an angle to its reference collapsed the steps, and the flow Jacobian
 ignored how ``r`` depended on the steps.
+The reference of a slip from rest is a function of the onset's state, held: the
+flow Jacobian carries ``∂s/∂r`` (`reference_turn`) times ``r``'s derivative at the
+onset (`contactdiff.integration.mode_field.ModeField`, docs/design.md).
 
 **Painlevé's paradox.** With one slipping contact the normal force solves
 ``g λ_N = -b`` with ``g = A_n M^-1 F^T``: where ``g <= 0`` a normal force
