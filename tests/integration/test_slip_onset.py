@@ -27,10 +27,12 @@ floor ε = 1e-6 m/s and 2.2e-3 at ε = 1e-5 (from a cone crossing the slip grows
 
 from __future__ import annotations
 
+import coulomb_models
 import numpy as np
 import pinocchio as pin
 import pytest
 from scipy.linalg import null_space
+from test_anisotropic_stop import ANISO_URDF
 
 import contactdiff as cd
 from contactdiff.integration.friction_events import FrictionEvents
@@ -181,3 +183,39 @@ def test_an_event_inside_the_band_ends_the_onset_term_with_a_note():
     usual = cd.simulate(scene, 0.054, **options)
     assert [e.kind for e in usual.events] == ["slip", "touchdown"]
     assert not any("reference direction" in n for n in usual.notes), usual.notes
+
+
+def test_a_start_at_rest_outside_the_cone_carries_its_reference_term(tmp_path_factory, monkeypatch):
+    """A slip from rest at the start (Coulomb's law settled at t0, no event): the anisotropic point
+    mass of ``test_anisotropic_stop`` (``M = diag(3, 2, 2)`` kg on sliders x, y, z, μ = 0.5) held
+    by a spring ``f = -k (x, y)`` (k = 100 N/m) at rest at (0.12, 0.1) m: the spring's pull,
+    15.6 N, exceeds ``μ m g`` = 9.81 N, so it slips from rest along ``r = -λ_T/|λ_T|``, the
+    pull's direction, a function of q0, and grows along ``W r`` (W = diag(1/3, 1/2)). With
+    ε = 1e-3 m/s the band lasts long enough for the term to be ~1e-4 of a column. Columns along
+    x0 and y0 against central differences (`coulomb_models`: rtol = atol = 1e-12, step 1e-6,
+    ``FD_RTOL`` = 1e-5 of the Jacobian's scale); without the term they miss by more than
+    4 ``FD_RTOL`` (measured 6.3e-5 and 8.7e-5 of the columns)."""
+    robot = coulomb_models.load(tmp_path_factory, "aniso", ANISO_URDF)
+    k = 100.0  # N/m
+    spring = cd.UserEffort(lambda q, v, t: np.array([-k * q[0], -k * q[1], 0.0]),
+                           lambda q, v, t: (np.diag([-k, -k, 0.0]), np.zeros((3, 3))), name="spring",
+                           time_derivative=lambda q, v, t: np.zeros(3))
+    scene = cd.Scene(robot, [cd.Contact("block", friction=coulomb_models.MU)], [spring],
+                     gravity=[0, 0, -coulomb_models.G],
+                     q0=np.array([0.12, 0.1, 0.0]), v0=np.zeros(3))
+    options = dict(zeno_speed=1e-3, **coulomb_models.TOL)
+    step, rtol = coulomb_models.EPS, coulomb_models.FD_RTOL
+    t_final = 0.3  # s: before its first stop (~0.5 s)
+    traj = cd.simulate(scene, t_final, jacobian=True, **options)
+    assert traj.events == [] and traj.segments[0].sliding == ("block",)
+    _without_the_onset_term(monkeypatch)
+    held = cd.simulate(scene, t_final, jacobian=True, **options)
+    monkeypatch.undo()
+    for d in np.eye(6)[:2]:
+        runs = [cd.simulate(scene.with_state(robot.integrate(scene.q0, s * step * d[:3]), scene.v0), t_final,
+                            **options) for s in (1.0, -1.0)]
+        assert all(r.events == [] for r in runs)
+        fd = np.r_[robot.difference(runs[1].q, runs[0].q), runs[0].v - runs[1].v] / (2 * step)
+        scale = max(1.0, np.abs(fd).max())
+        assert np.abs(traj.jacobian @ d - fd).max() <= rtol * scale
+        assert np.abs(held.jacobian @ d - fd).max() > 4 * rtol * scale
