@@ -124,7 +124,6 @@ def slip_direction(slip_velocity: np.ndarray, reference: np.ndarray | None, floo
     return blended, (np.eye(2) - np.outer(blended, blended)) / norm @ db_dw
 
 
-
 def reference_turn(slip_velocity: np.ndarray, reference: np.ndarray, floor: float) -> np.ndarray | None:
     """``∂s/∂θ`` (2,) of a 3-D slip direction (`slip_direction`) at fixed ``u_T`` when its
     reference ``r`` turns by the angle ``θ`` (rad) in the tangent plane, ``∂r/∂θ = r⊥``
@@ -147,6 +146,7 @@ def reference_turn(slip_velocity: np.ndarray, reference: np.ndarray, floor: floa
     norm = float(np.linalg.norm(b))
     s = b / norm
     return (1.0 - a) * (turned - s * (s @ turned)) / norm
+
 
 @dataclass
 class SlipRow:

@@ -296,9 +296,9 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
             from_rest: list = []
             mode, _ = settle_friction(self.dyn, q, v, self.t0, mode, from_rest)
             if self.sensitive and from_rest:  # no guard at t0: the start's own perturbations
-                n = len(self._identity_phi()[0])
-                self.phi = self._identity_phi()
-                self._onset_columns(self.t0, q, [(i, m, v) for i, m in from_rest], self.phi, np.zeros(n), mode)
+                start = self._identity_phi()
+                self._onset_columns(self.t0, q, [(i, m, v) for i, m in from_rest], start,
+                                    np.zeros(start.shape[1]), mode)
         return mode, held_velocity(self.dyn, q, v, mode)
 
     # -- the loop -------------------------------------------------------------------
