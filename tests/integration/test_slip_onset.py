@@ -35,6 +35,7 @@ from scipy.linalg import null_space
 from test_anisotropic_stop import ANISO_URDF
 
 import contactdiff as cd
+from contactdiff.integration import friction_events, hybrid
 from contactdiff.integration.friction_events import FrictionEvents
 from contactdiff.model.objects import SceneObject, add_objects, empty_robot
 
@@ -219,3 +220,54 @@ def test_a_start_at_rest_outside_the_cone_carries_its_reference_term(tmp_path_fa
         scale = max(1.0, np.abs(fd).max())
         assert np.abs(traj.jacobian @ d - fd).max() <= rtol * scale
         assert np.abs(held.jacobian @ d - fd).max() > 4 * rtol * scale
+
+
+def test_a_start_whose_second_corner_slips_once_the_first_does(monkeypatch):
+    """Two slips from rest at the start, the second set by the first (a later round of
+    `settle_friction`): the cube (as `corner_scene`, μ = 0.5) at rest on its edge -x, -z (corners
+    ``-x±y-z``), pitched by -0.3 rad about y about that edge, under gravity tilted by 0.3 rad
+    towards +y. Corner ``-x-y-z`` leaves its cone first; slipping, its friction is ``μ λ_N``
+    along its reference, and the loads it leaves push ``-x+y-z`` out of its cone too, so that
+    corner's reference depends on the first one's angle as well as on the state and the mass.
+    With ε = 1e-3 m/s (a long band) the mass derivative at 5 ms against central differences
+    (tolerance ``FD_RTOL``, module doc); without the second reference's dependence on the first
+    (the chain term) it misses by 9.8e-4, without any onset term by 5.7e-3 (measured), asserted
+    above 4 ``FD_RTOL``."""
+    cube = SceneObject("cube", shape="box", size=(2 * B,) * 3, mass=MASS, position=(0.0, 0.0, B))
+    corners = [f"cube/{sx}x{sy}y-z" for sx in "+-" for sy in "+-"]
+    side = 0.3  # rad
+    scene = cd.Scene(add_objects(empty_robot(), [cube]), [cd.Contact(n, friction=0.5) for n in corners],
+                     gravity=(0.0, G * np.sin(side), -G * np.cos(side)))
+    rotation = pin.rpy.rpyToMatrix(0.0, -0.3, 0.0)
+    scene = scene.with_state(np.r_[-rotation @ np.array([-B, 0.0, -B]), pin.Quaternion(rotation).coeffs()],
+                             np.zeros(6))
+    options = dict(zeno_speed=1e-3, **OPTS)
+    t_final = 0.005  # s: no event before
+    rounds = []
+    settle = hybrid.settle_friction
+
+    def spy(dyn, q, v, t, mode, from_rest=None):
+        out = settle(dyn, q, v, t, mode, from_rest)
+        rounds.extend(from_rest or [])
+        return out
+
+    monkeypatch.setattr(hybrid, "settle_friction", spy)
+    traj = cd.simulate(scene, t_final, parameters=["body:cube:mass"], **options)
+    monkeypatch.undo()
+    names = scene.contact_names
+    assert [names[i] for i, _ in rounds] == ["cube/-x-y-z", "cube/-x+y-z"] and rounds[0][1] != rounds[1][1]
+    assert traj.events == [] and traj.segments[0].sliding == ("cube/-x+y-z", "cube/-x-y-z")
+    h = EPS * MASS
+    runs = [cd.simulate(scene.with_parameters({"body:cube:mass": MASS + s * h}), t_final, **options)
+            for s in (1.0, -1.0)]
+    assert all(r.events == [] for r in runs)
+    fd = np.r_[pin.difference(scene.model, runs[1].q, runs[0].q), runs[0].v - runs[1].v] / (2 * h)
+    scale = np.abs(fd).max()
+    assert np.abs(traj.parameter_jacobian[:, 0] - fd).max() <= FD_RTOL * scale
+    monkeypatch.setattr(friction_events, "reference_turn", lambda *args: None)  # no chain term
+    unchained = cd.simulate(scene, t_final, parameters=["body:cube:mass"], **options)
+    _without_the_onset_term(monkeypatch)
+    held = cd.simulate(scene, t_final, parameters=["body:cube:mass"], **options)
+    monkeypatch.undo()
+    for run in (unchained, held):
+        assert np.abs(run.parameter_jacobian[:, 0] - fd).max() > 4 * FD_RTOL * scale
