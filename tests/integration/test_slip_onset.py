@@ -35,7 +35,7 @@ from scipy.linalg import null_space
 from test_anisotropic_stop import ANISO_URDF
 
 import contactdiff as cd
-from contactdiff.integration import friction_events, hybrid
+from contactdiff.integration import event_resets, friction_events, hybrid
 from contactdiff.integration.friction_events import FrictionEvents
 from contactdiff.model.objects import SceneObject, add_objects, empty_robot
 
@@ -271,3 +271,59 @@ def test_a_start_whose_second_corner_slips_once_the_first_does(monkeypatch):
     monkeypatch.undo()
     for run in (unchained, held):
         assert np.abs(run.parameter_jacobian[:, 0] - fd).max() > 4 * FD_RTOL * scale
+
+
+def test_a_corner_that_slips_from_rest_after_its_landing(monkeypatch):
+    """A slip from rest that Coulomb's law settles after an impact: the cube (as `corner_scene`,
+    μ = 0.3, restitution 0) dropped from 2 mm above its corner ``-x+y-z``, at rest, under gravity
+    tilted by 0.2 rad towards +y. That corner lands and slides (t ≈ 0.0204 s); then ``-x-y-z``
+    lands (t ≈ 0.0283 s), the impact stops its slip, and its sticking force there leaves the cone:
+    it slips from rest along that force's direction, a function of the state after the impact
+    (its reset Jacobian, the landing's time). With ε = 1e-3 m/s (a long band), at 31 ms, the
+    velocity columns along v_x0 and ω_z0 and the mass derivative against central differences
+    (tolerance ``FD_RTOL``, module doc); without the onset term the mass derivative misses by
+    1.65e-4 (measured), asserted above 4 ``FD_RTOL``."""
+    cube = SceneObject("cube", shape="box", size=(2 * B,) * 3, mass=MASS, position=(0.0, 0.0, B))
+    corners = [f"cube/{sx}x{sy}y-z" for sx in "+-" for sy in "+-"]
+    side = 0.2  # rad
+    scene = cd.Scene(add_objects(empty_robot(), [cube]), [cd.Contact(n, friction=0.3, restitution=0.0)
+                                                          for n in corners],
+                     gravity=(0.0, G * np.sin(side), -G * np.cos(side)))
+    rotation = pin.rpy.rpyToMatrix(-0.02, -0.6, 0.0)
+    centre = -rotation @ np.array([-B, B, -B]) + np.array([0.0, 0.0, 0.002])
+    scene = scene.with_state(np.r_[centre, pin.Quaternion(rotation).coeffs()], np.zeros(6))
+    options = dict(zeno_speed=1e-3, **OPTS)
+    t_final = 0.031  # s
+    rounds = []
+    settle = friction_events.settle_friction
+
+    def spy(dyn, q, v, t, mode, from_rest=None):
+        out = settle(dyn, q, v, t, mode, from_rest)
+        rounds.extend((t, i) for i, _ in from_rest or [])
+        return out
+
+    monkeypatch.setattr(event_resets, "settle_friction", spy)
+    traj = cd.simulate(scene, t_final, jacobian=True, parameters=["body:cube:mass"], **options)
+    monkeypatch.undo()
+    kinds = _events(traj)
+    assert kinds == [("touchdown", ("cube/-x+y-z",)), ("touchdown", ("cube/-x-y-z",))]
+    assert [(t, scene.contact_names[i]) for t, i in rounds] == [(traj.events[1].t, "cube/-x-y-z")]
+    assert traj.events[1].sliding == ("cube/-x+y-z", "cube/-x-y-z")
+    for k in (6, 11):  # v_x0 and ω_z0: the cube starts in the air, any perturbation is admissible
+        d = np.eye(2 * scene.nv)[k]
+        runs = [cd.simulate(scene.with_state(scene.q0, scene.v0 + s * EPS * d[scene.nv:]), t_final, **options)
+                for s in (1.0, -1.0)]
+        assert all(_events(r) == kinds for r in runs)
+        fd = _fd(scene, runs)
+        assert np.abs(traj.jacobian @ d - fd).max() <= FD_RTOL * np.abs(fd).max()
+    h = EPS * MASS
+    runs = [cd.simulate(scene.with_parameters({"body:cube:mass": MASS + s * h}), t_final, **options)
+            for s in (1.0, -1.0)]
+    assert all(_events(r) == kinds for r in runs)
+    fd = np.r_[pin.difference(scene.model, runs[1].q, runs[0].q), runs[0].v - runs[1].v] / (2 * h)
+    scale = np.abs(fd).max()
+    assert np.abs(traj.parameter_jacobian[:, 0] - fd).max() <= FD_RTOL * scale
+    _without_the_onset_term(monkeypatch)
+    held = cd.simulate(scene, t_final, parameters=["body:cube:mass"], **options)
+    monkeypatch.undo()
+    assert np.abs(held.parameter_jacobian[:, 0] - fd).max() > 4 * FD_RTOL * scale
