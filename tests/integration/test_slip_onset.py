@@ -273,6 +273,20 @@ def test_a_start_whose_second_corner_slips_once_the_first_does(monkeypatch):
         assert np.abs(run.parameter_jacobian[:, 0] - fd).max() > 4 * FD_RTOL * scale
 
 
+def _landing_scene():
+    """The cube of `corner_scene` with μ = 0.3 and restitution 0, at rest 2 mm above its corner
+    ``-x+y-z``, under gravity tilted by 0.2 rad towards +y (the next two tests)."""
+    cube = SceneObject("cube", shape="box", size=(2 * B,) * 3, mass=MASS, position=(0.0, 0.0, B))
+    corners = [f"cube/{sx}x{sy}y-z" for sx in "+-" for sy in "+-"]
+    side = 0.2  # rad
+    scene = cd.Scene(add_objects(empty_robot(), [cube]), [cd.Contact(n, friction=0.3, restitution=0.0)
+                                                          for n in corners],
+                     gravity=(0.0, G * np.sin(side), -G * np.cos(side)))
+    rotation = pin.rpy.rpyToMatrix(-0.02, -0.6, 0.0)
+    centre = -rotation @ np.array([-B, B, -B]) + np.array([0.0, 0.0, 0.002])
+    return scene.with_state(np.r_[centre, pin.Quaternion(rotation).coeffs()], np.zeros(6))
+
+
 def test_a_corner_that_slips_from_rest_after_its_landing(monkeypatch):
     """A slip from rest that Coulomb's law settles after an impact: the cube (as `corner_scene`,
     μ = 0.3, restitution 0) dropped from 2 mm above its corner ``-x+y-z``, at rest, under gravity
@@ -283,15 +297,7 @@ def test_a_corner_that_slips_from_rest_after_its_landing(monkeypatch):
     velocity columns along v_x0 and ω_z0 and the mass derivative against central differences
     (tolerance ``FD_RTOL``, module doc); without the onset term the mass derivative misses by
     1.65e-4 (measured), asserted above 4 ``FD_RTOL``."""
-    cube = SceneObject("cube", shape="box", size=(2 * B,) * 3, mass=MASS, position=(0.0, 0.0, B))
-    corners = [f"cube/{sx}x{sy}y-z" for sx in "+-" for sy in "+-"]
-    side = 0.2  # rad
-    scene = cd.Scene(add_objects(empty_robot(), [cube]), [cd.Contact(n, friction=0.3, restitution=0.0)
-                                                          for n in corners],
-                     gravity=(0.0, G * np.sin(side), -G * np.cos(side)))
-    rotation = pin.rpy.rpyToMatrix(-0.02, -0.6, 0.0)
-    centre = -rotation @ np.array([-B, B, -B]) + np.array([0.0, 0.0, 0.002])
-    scene = scene.with_state(np.r_[centre, pin.Quaternion(rotation).coeffs()], np.zeros(6))
+    scene = _landing_scene()
     options = dict(zeno_speed=1e-3, **OPTS)
     t_final = 0.031  # s
     rounds = []
@@ -316,6 +322,44 @@ def test_a_corner_that_slips_from_rest_after_its_landing(monkeypatch):
         assert all(_events(r) == kinds for r in runs)
         fd = _fd(scene, runs)
         assert np.abs(traj.jacobian @ d - fd).max() <= FD_RTOL * np.abs(fd).max()
+    h = EPS * MASS
+    runs = [cd.simulate(scene.with_parameters({"body:cube:mass": MASS + s * h}), t_final, **options)
+            for s in (1.0, -1.0)]
+    assert all(_events(r) == kinds for r in runs)
+    fd = np.r_[pin.difference(scene.model, runs[1].q, runs[0].q), runs[0].v - runs[1].v] / (2 * h)
+    scale = np.abs(fd).max()
+    assert np.abs(traj.parameter_jacobian[:, 0] - fd).max() <= FD_RTOL * scale
+    _without_the_onset_term(monkeypatch)
+    held = cd.simulate(scene, t_final, parameters=["body:cube:mass"], **options)
+    monkeypatch.undo()
+    assert np.abs(held.parameter_jacobian[:, 0] - fd).max() > 4 * FD_RTOL * scale
+
+
+def test_a_start_on_a_landing_whose_corner_slips_from_rest_after_it(monkeypatch):
+    """The start's impact (no guard, its reset alone) followed by a slip from rest: the previous
+    test's run started at its second landing (the state just before it, from the run itself),
+    where ``-x+y-z`` slides and ``-x-y-z`` closes at t0. Velocity columns along the directions
+    that keep ``-x+y-z`` on the ground (the null space of its normal row: a perturbation off it
+    would start it leaving) and the mass derivative at 3 ms against central differences
+    (tolerance ``FD_RTOL``, module doc); without the onset term the mass derivative misses by
+    1.48e-4 (measured), asserted above 4 ``FD_RTOL``."""
+    options = dict(zeno_speed=1e-3, **OPTS)
+    landing = _landing_scene()
+    second = cd.simulate(landing, 0.031, **options).events[1]
+    scene = landing.with_state(second.q, second.v_minus)
+    t_final = 0.003  # s
+    traj = cd.simulate(scene, t_final, jacobian=True, parameters=["body:cube:mass"], **options)
+    kinds = [("touchdown", ("cube/-x+y-z", "cube/-x-y-z"))]
+    assert _events(traj) == kinds and traj.events[0].t == 0.0
+    assert traj.events[0].sliding == ("cube/-x+y-z", "cube/-x-y-z")
+    kin = scene.kinematics
+    kin.update(scene.q0, scene.v0)
+    for d in null_space(scene.contacts[scene.contact_names.index("cube/-x+y-z")].rows(kin)[:1]).T:
+        runs = [cd.simulate(scene.with_state(scene.q0, scene.v0 + s * EPS * d), t_final, **options)
+                for s in (1.0, -1.0)]
+        assert all(_events(r) == kinds for r in runs)
+        fd = _fd(scene, runs)
+        assert np.abs(traj.jacobian[:, scene.nv:] @ d - fd).max() <= FD_RTOL * np.abs(fd).max()
     h = EPS * MASS
     runs = [cd.simulate(scene.with_parameters({"body:cube:mass": MASS + s * h}), t_final, **options)
             for s in (1.0, -1.0)]
