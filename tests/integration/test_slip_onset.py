@@ -23,6 +23,12 @@ code before it was carried) the Jacobian missed it by 4.5e-4 of a column at the 
 floor ε = 1e-6 m/s and 2.2e-3 at ε = 1e-5 (from a cone crossing the slip grows as
 ``|u_T| ≈ c (t - t_s)²``, below 2ε for ``τ = (2ε/c)^½``), and the mass derivative by
 1.1e-4: 23x, 110x and 5.5x the tolerance of the differences (``FD_RTOL``).
+
+The other slips from rest, whose references Coulomb's law sets as it settles a mode: at
+the start (a spring-held point mass; a cube on its edge whose second corner leaves its
+cone once the first slips, its reference then moving with the first one's angle), after
+an impact, and after the start's impact; and an event inside the band, which ends the
+term with a note.
 """
 
 from __future__ import annotations
@@ -50,7 +56,7 @@ EVENT_ATOL = 1e-8  # s
 # Central differences with ε = 1e-5 (m/s; and 1e-5 |m| for the mass): two runs each
 # within ~1e-10 |x| (|x| ~ 1) of their flows differ by at most 2e-10, over 2ε: 1e-5 of a
 # column of size ~1; truncation ε² |x'''| ~ 1e-10. 2e-5 of the column's size keeps a 2x
-# margin; the omitted reference term (free runs) is 4x-20x above it here.
+# margin; the reference term the Jacobian omitted before is 5x-110x above it (module doc).
 EPS, FD_RTOL = 1e-5, 2e-5
 
 
