@@ -247,9 +247,11 @@ class EventResets:
                     if SPEED_TOL * scale < s < self.options.zeno_speed and dyn.contact_index(k) not in leaving
                     and (dyn.contact_index(k) not in touching or e_k == 0.0)]
         new_mode = choose_mode(dyn, q, v_plus, t, staying + settling)
+        from_rest: list = []  # the contacts that slip from rest after the impact (`_onset_columns`)
         if impact.states is not None:
             refuse_ambiguous_slip(dyn, q, v_plus, t, staying + settling, new_mode)
-            new_mode, _ = settle_friction(dyn, q, v_plus, t, new_mode)
+            new_mode, _ = settle_friction(dyn, q, v_plus, t, new_mode, from_rest)
+            from_rest = [(i, m, v_plus) for i, m in from_rest]
         settled = [i for i in dyn.contacts_of(settling) if i in dyn.contacts_of(new_mode)]
         nonsmooth = {}  # the cascade rule's cut-off and a grazing touchdown are not smooth
         if settled:
@@ -305,6 +307,9 @@ class EventResets:
             if self.jumps:
                 event.parameter_saltation = reset_parameters()
                 event.parameter_time_gradient = np.zeros(self.jumps.p)
+            if from_rest:
+                self._onset_columns(t, q, from_rest, self._jumped(self.phi, event), np.zeros(self.phi.shape[1]),
+                                    new_mode)
         elif self.sensitive:
             F_minus = vector_field(self.dyn, q, v_minus, t, mode)
             guard = min(touching, key=lambda i: speeds[i])
@@ -324,9 +329,18 @@ class EventResets:
                 DR = reset_jacobian()
                 F_plus = vector_field(self.dyn, q, v_plus, t, new_mode)
                 xi = saltation(DR, Dh, F_minus, F_plus)
+                R_p = reset_parameters() if self.jumps else None
                 if self.jumps:
-                    xi_p = ParameterJumps.saltation(reset_parameters(), h_p, DR, F_minus, F_plus,
-                                                    float(Dh @ F_minus))
+                    xi_p = ParameterJumps.saltation(R_p, h_p, DR, F_minus, F_plus, float(Dh @ F_minus))
+                if from_rest:  # the state after the reset, moved with the event's time
+                    dt = -(Dh @ self.phi)
+                    if h_p is not None:
+                        dt[self.n_state:] -= h_p
+                    dt /= float(Dh @ F_minus)
+                    moved = DR @ (self.phi + np.outer(F_minus, dt))
+                    if R_p is not None:
+                        moved[:, self.n_state:] += R_p
+                    self._onset_columns(t, q, from_rest, moved, dt, new_mode)
             self._attach_sensitivity(event, xi, Dh, F_minus, xi_p=xi_p, h_p=h_p)
         elif len(touching) > 1 and not initial:  # the verdict must not depend on what was asked for
             self._landing_orders(event, t, q, v_minus, mode, touching, closed, e, verdict_only=True)

@@ -191,6 +191,9 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
         self.phi = None  # flow Jacobian just before the event being processed
         self.initial_saltation = None
         self.jumps = None  # the parameters' blocks at events, with options.parameters
+        # the slips from rest that follow the reference set at the last event: scene index ->
+        # ∂θ/∂ of phi's columns (`ModeField`; set by `FrictionEvents`, cleared at every event)
+        self.onsets: dict[int, np.ndarray] = {}
         # phi's columns: the state's 2nv (with options.jacobian), then the parameters'
         self.sensitive = self.options.jacobian or bool(self.options.parameters)
         self.n_state = 2 * self.scene.nv if self.options.jacobian else 0
@@ -217,7 +220,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
             held = held_contacts(self.dyn, q, v, t, tuple(mode), gaps, rates,
                                  max(self.gap_tol, self.options.resolved_project_tol), self.options.grazing_speed)
         return ModeField(self.dyn, mode, fused=fused, parameters=self.jumps.forces if self.jumps else None,
-                         held=held)
+                         held=held, onsets=self.onsets)
 
     def _jumped(self, phi: np.ndarray | None, event: Event) -> np.ndarray:
         """The flow Jacobian just after ``event`` from ``phi`` just before: ``Ξ phi``, plus
@@ -295,16 +298,22 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
         mode = choose_mode(self.dyn, q, v, self.t0, candidates)
         refuse_ambiguous_slip(self.dyn, q, v, self.t0, candidates, mode)
         if any(self.contacts[self.dyn.contact_index(k)].spec.coulomb for k in mode):
-            mode, _ = settle_friction(self.dyn, q, v, self.t0, mode)
+            from_rest: list = []
+            mode, _ = settle_friction(self.dyn, q, v, self.t0, mode, from_rest)
+            if self.sensitive and from_rest:  # no guard at t0: the start's own perturbations
+                start = self._identity_phi()
+                self._onset_columns(self.t0, q, [(i, m, v) for i, m in from_rest], start,
+                                    np.zeros(start.shape[1]), mode)
         return mode, held_velocity(self.dyn, q, v, mode)
 
     # -- the loop -------------------------------------------------------------------
     def _stepper_options(self, field: ModeField) -> dict:
         o = self.options
         options: dict[str, Any] = dict(rtol=o.rtol, atol=o.atol, max_step=o.max_step, t_bound=self.t_final)
+        if self.sensitive:  # the parameters' forcing, and a slip onset's (`ModeField`)
+            options.update(parameter_jac=field.parameter_jac)
         if self.jumps is not None:
-            options.update(parameter_jac=field.parameter_jac, variational_column_scale=np.concatenate(
-                [np.ones(self.n_state), self.jumps.scale]))
+            options.update(variational_column_scale=np.concatenate([np.ones(self.n_state), self.jumps.scale]))
         return options
 
     def run(self) -> Trajectory:
@@ -390,6 +399,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
             dense.t = segment.t1 = t_event
             self.phi = stepper.phi
             n_before, mode_before = len(self.events), tuple(mode)
+            self._end_onsets(field, t_event, stepper.q, stepper.v)
             mode, v_plus = self._event(t_event, stepper.q, stepper.v, mode, fired)
             self.guards.restart_from_rest(mode_before, mode, fired)
             if len(self.events) > options.max_events:
@@ -405,7 +415,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
             field = self._field(mode, self.sensitive and stepper.method != "Radau", t_event, q_event, v_plus)
             self.fields.append(field)
             stepper.restart(t_event, q_event, v_plus, accel=field.accel, jac=field.jac,
-                            parameter_jac=field.parameter_jac if self.jumps else None,
+                            parameter_jac=field.parameter_jac if self.sensitive else None,
                             phi=None if self.events[-1].saltation is None else self._jumped(stepper.phi,
                                                                                              self.events[-1]))
             if self.chooser is not None:
@@ -424,6 +434,18 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
             traj.final_nonsmooth[NonSmooth.FINAL_TIME] = "; ".join(touches)
             self.notes.extend(touches)
         return traj
+
+    def _end_onsets(self, field: ModeField, t: float, q, v) -> None:
+        """At an event: the slips from rest stop carrying their onset's term (`ModeField`; the
+        event's own dependence on the reference is not formed), noted where one is still
+        below ``2 zeno_speed`` at ``(q, v)``, so its field still depends on the reference there
+        (docs/design.md, Coulomb friction)."""
+        if self.onsets:
+            for index in field.onsets_in_band(q, v):
+                self.notes.append(f"flow Jacobian: from t = {t:.12g} it holds the reference direction of "
+                                  f"{self.names[index]}'s slip from rest fixed (an event before the slip "
+                                  f"reached 2 zeno_speed = {2.0 * self.dyn.slip_speed_floor:.3g} m/s)")
+        self.onsets = {}
 
     def _collapse(self, stepper, mode, h: float, typical: float, underflow: str | None = None):
         """Raise `StepCollapseError` (`contactdiff.ode.step_collapse`) at the stepper's
