@@ -27,7 +27,8 @@ is held.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
@@ -42,7 +43,6 @@ from .trajectory import Event
 
 if TYPE_CHECKING:
     from ..model.scene import Scene
-    from .mode_field import ModeField
 
 
 def held_contacts(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float, mode: tuple[int, ...],
@@ -129,6 +129,14 @@ def bear_guard(dyn: ModeDynamics, t: float, q: np.ndarray, v: np.ndarray, mode, 
     return -Dh, -h_t
 
 
+class HoldingField(Protocol):
+    """What the bearing event reads of a mode's field (`contactdiff.integration.mode_field.ModeField`,
+    which evaluates the bearing guards with `bear_value`): the contacts it holds."""
+
+    held: dict[int, int]
+    """``{scene index: key}`` of the held contacts (`held_contacts`)."""
+
+
 class HeldEvents:
     """The loop's ``bear`` events (module doc); a mixin of
     `contactdiff.integration.hybrid.HybridLoop` (its state as for
@@ -137,7 +145,7 @@ class HeldEvents:
     if TYPE_CHECKING:  # the state it borrows from HybridLoop (set there), for the type checker only
         scene: Scene
         dyn: ModeDynamics
-        fields: list[ModeField]
+        fields: Sequence[HoldingField]  # the loop's ModeField objects
         events: list[Event]
         jumps: ParameterJumps | None
         sensitive: bool
