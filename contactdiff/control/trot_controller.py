@@ -111,7 +111,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import InvalidInputError, check_number
-from ..model.efforts import central_time_difference
+from ..model.efforts import EffortParameters, central_time_difference
 from ..model.kinematics import Kinematics
 from ..model.robot import Robot
 from .foot_paths import SWING_RISE, foot_offset, reference_spline, smooth_step
@@ -226,6 +226,10 @@ class TrotController:
             bad(f"stance must map joint names to angles (rad), got {self.stance!r}")
         set_(self, "stance", tuple((name, check_number(owner, f"stance angle of {name!r}", value))
                                    for name, value in pairs))
+
+    def named_parameters(self) -> EffortParameters:
+        """``trot:<field>`` for each of `NUMBERS`."""
+        return EffortParameters("trot", "", self.NUMBERS)
 
     def bind(self, robot: Robot) -> TrotControllerEvaluator:
         """The evaluator of this controller on ``robot`` (its legs found, the schedule precomputed)."""
