@@ -51,7 +51,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 import pinocchio as pin
@@ -61,8 +61,72 @@ from .errors import MissingExtraError as MissingExtraError  # its home until it 
 from .replay_geometry import contact_surfaces, drawn_geometry, marker_radius, model_size, visible_marker_radius
 
 if TYPE_CHECKING:
-    from .integration.trajectory import Event, Trajectory
     from .model.scene import Scene
+
+
+class ReplayedEvent(Protocol):
+    """What a replay reads of an event (`contactdiff.integration.trajectory.Event`)."""
+
+    @property
+    def t(self) -> float:
+        """Time (s)."""
+
+    @property
+    def kind(self) -> str:
+        """The event's kind (a timeline mark's colour, `EVENT_COLOURS`)."""
+
+    @property
+    def contacts(self) -> tuple[str, ...]:
+        """Names of the contacts whose guard fired."""
+
+    @property
+    def q(self) -> np.ndarray:
+        """Configuration at the event (nq,)."""
+
+
+class ReplayedSegment(Protocol):
+    """What a replay reads of a segment (`contactdiff.integration.trajectory.Segment`)."""
+
+    @property
+    def t0(self) -> float:
+        """Start time (s)."""
+
+    @property
+    def mode(self) -> tuple[str, ...]:
+        """Names of the active contacts (drawn closed)."""
+
+
+class ReplayedRun(Protocol):
+    """What a replay reads of a run (`contactdiff.integration.trajectory.Trajectory`,
+    whose ``to_html`` calls `write_html`)."""
+
+    @property
+    def t0(self) -> float:
+        """Initial time (s)."""
+
+    @property
+    def t(self) -> float:
+        """Final time (s)."""
+
+    @property
+    def q0(self) -> np.ndarray:
+        """Initial configuration (nq,)."""
+
+    @property
+    def dense(self) -> bool:
+        """Whether the run kept its dense output (the states between events)."""
+
+    @property
+    def events(self) -> Sequence[ReplayedEvent]:
+        """The events in time order."""
+
+    @property
+    def segments(self) -> Sequence[ReplayedSegment]:
+        """The segments in time order."""
+
+    def at(self, t: float, side: str = "right") -> tuple[np.ndarray, np.ndarray]:
+        """The state ``(q, v)`` at time ``t`` (s) from the dense output."""
+
 
 DEFAULT_FPS = 30.0
 """Frames per second of simulated time."""
@@ -106,7 +170,7 @@ class Frames:
     event: np.ndarray
 
 
-def frame_times(traj, fps: float = DEFAULT_FPS) -> tuple[np.ndarray, np.ndarray]:
+def frame_times(traj: ReplayedRun, fps: float = DEFAULT_FPS) -> tuple[np.ndarray, np.ndarray]:
     """Times of the frames (s) and whether each is an event time.
 
     A uniform grid ``t0 + k / fps`` up to ``traj.t`` (which is added if the grid
@@ -130,13 +194,13 @@ def frame_times(traj, fps: float = DEFAULT_FPS) -> tuple[np.ndarray, np.ndarray]
     return times[order], is_event[order]
 
 
-def sample_frames(traj, fps: float = DEFAULT_FPS) -> Frames:
+def sample_frames(traj: ReplayedRun, fps: float = DEFAULT_FPS) -> Frames:
     """The states and contact modes at the `frame_times` of ``traj`` (needs its dense output)."""
     if not traj.dense:
         raise InvalidInputError("replay: this run kept no dense output, so the states between events are "
                                 "gone: simulate(..., dense=True) keeps them")
     times, is_event = frame_times(traj, fps)
-    by_time: dict[float, Event] = {}
+    by_time: dict[float, ReplayedEvent] = {}
     for e in traj.events:
         by_time.setdefault(e.t, e)  # the first event's q: q is continuous through a cascade
     starts = [s.t0 for s in traj.segments]
@@ -193,7 +257,7 @@ class _Recorder:
 
 
 # -- the page --------------------------------------------------------------------------------
-def replay_html(traj: Trajectory, scene: Scene, *, fps: float = DEFAULT_FPS, contact_radius: float | None = None,
+def replay_html(traj: ReplayedRun, scene: Scene, *, fps: float = DEFAULT_FPS, contact_radius: float | None = None,
                 title: str | None = None, package_dirs: Sequence[str | Path] = ()) -> str:
     """The replay page of ``traj`` as HTML text (see the module docstring).
 
@@ -251,7 +315,7 @@ def replay_html(traj: Trajectory, scene: Scene, *, fps: float = DEFAULT_FPS, con
     return _page(recorder.commands(), info, title or f"contactdiff replay: {scene.name}", meshcat)
 
 
-def write_html(traj, scene, path: str | Path, **options) -> Path:
+def write_html(traj: ReplayedRun, scene: Scene, path: str | Path, **options) -> Path:
     """Write `replay_html` to ``path`` (UTF-8) and return the path.
 
     ``options`` are those of `replay_html`; a folder that is missing or takes no file
