@@ -60,8 +60,8 @@ from .model.efforts import Effort, JointSpring, Spring, UserEffort
 from .model.objects import RobotFrame, SceneObject, add_objects
 from .model.robot import QUADRUPEDS, Robot, load_robot
 from .model.scene import Scene
-from .model.scene_file import load_scene, load_source
 from .paper import trot_touchdown
+from .scenes.scene_file import load_scene, load_source
 from .sweeps import sweep
 
 __version__ = "0.1.0"

@@ -273,7 +273,7 @@ def _check_html_path(path: str) -> None:
 def _scene_from_args(args):
     """The scene of ``args.source`` (with ``--feet``, ``--floating-base``) with the
     initial state changed by ``--q`` / ``--v``."""
-    from .model.scene_file import load_source
+    from .scenes.scene_file import load_source
 
     scene = load_source(args.source, floating_base=args.floating_base, feet=args.feet)
     q0, v0 = _assignments(getattr(args, "q", []), "--q"), _assignments(getattr(args, "v", []), "--v")

@@ -74,7 +74,7 @@ from ..errors import (
     check_number,
 )
 from ..model.scene import Scene, StateInput
-from ..model.scene_file import passive_note
+from ..scenes.scene_file import passive_note
 from .event_resets import EventResets
 from .events import simultaneous_group
 from .friction_events import FrictionEvents, refuse_ambiguous_slip, settle_friction

@@ -354,7 +354,7 @@ class Trajectory:
         from ..replay import write_html
 
         if scene is None:
-            from ..model.scene_file import load_source
+            from ..scenes.scene_file import load_source
 
             try:
                 scene = load_source(self.scene_name)

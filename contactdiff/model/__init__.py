@@ -5,6 +5,6 @@ helpers (`robot`), choosing a legged robot's feet (`feet`), unilateral contacts
 with their gaps, Jacobian rows, drifts and derivatives (`contacts`), the
 generalised forces of a scene and their derivatives (`efforts`), the per-state
 kinematics cache they share (`kinematics`), series-compliant feet
-(`compliance`), and scenes built in Python or read from TOML files (`scene`,
-`scene_file`).
+(`compliance`), and scenes built in Python (`scene`; read from TOML files by
+`contactdiff.scenes.scene_file`).
 """

@@ -371,7 +371,7 @@ def test_cli_checks_an_mjcf_file(capsys):
 
 
 def test_scene_file_names_an_mjcf_robot(tmp_path):
-    from contactdiff.model.scene_file import load_scene
+    from contactdiff.scenes.scene_file import load_scene
 
     write(tmp_path, "free.xml", FREE_XML)
     scene_path = write(tmp_path, "scene.toml", 'robot = "free.xml"\n')

@@ -43,7 +43,7 @@ from contactdiff.errors import InvalidInputError
 from contactdiff.model.contacts import Contact
 from contactdiff.model.feet import foot_spheres, round_feet
 from contactdiff.model.kinematics import Kinematics
-from contactdiff.model.scene_file import load_scene
+from contactdiff.scenes.scene_file import load_scene
 
 MASS, RADIUS, G = 2.0, 0.1, 9.81
 INERTIA = 0.4 * MASS * RADIUS**2  # solid sphere
