@@ -256,6 +256,8 @@ class TrotControllerEvaluator(TrotParameterDerivatives):
         load_scale: the scale ``s`` of the scheduled loads (see the module notes).
     """
 
+    spec: TrotController
+
     def __init__(self, spec: TrotController, robot: Robot):
         self.spec, self.robot, self.nv = spec, robot, robot.nv
         check_quadruped(robot)
