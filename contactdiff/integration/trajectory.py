@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..errors import ContactDiffError, InvalidInputError
+from ..model.parameters import parameter_table
 from .samples import Samples
 
 if TYPE_CHECKING:
@@ -315,6 +316,75 @@ class Trajectory:
         } | ({"jacobian": self.jacobian.tolist()} if self.jacobian is not None else {}) | (
             {"parameter_names": list(self.parameter_names), "parameter_jacobian": self.parameter_jacobian.tolist()}
             if self.parameter_jacobian is not None else {})
+
+    def format(self, scene: Scene) -> str:
+        """The run as text (what ``contactdiff simulate`` prints without ``--json``): the
+        events (the first 200), the final state by coordinate name, the counters and
+        notes, and the flow and parameter Jacobians' summaries when they were asked for.
+
+        Args:
+            scene: the `Scene` simulated (its robot names the coordinates; its parameters'
+                values head the parameter Jacobian's rows).
+        """
+        lines = [f"simulation of {self.scene_name} from t = {self.t0:g} to {self.t:g} s",
+                 f"{len(self.events)} events", ""]
+        if self.events:
+            lines.append(f"  {'t (s)':>18}  {'kind':<9}  {'contacts':<28}  {'simult.':<7}  mode after")
+            for e in self.events[:200]:
+                lines.append(f"  {e.t:18.12f}  {e.kind:<9}  {', '.join(e.contacts):<28}  "
+                             f"{'yes' if e.simultaneous else 'no':<7}  {', '.join(e.mode_after) or '(flight)'}")
+            if len(self.events) > 200:
+                lines.append(f"  ... {len(self.events) - 200} more (see --json)")
+            lines.append("")
+        lines.append("final state")
+        names = scene.robot.tangent_names()
+        for label, x in zip(scene.robot.configuration_names(), self.q):
+            lines.append(f"  q {label:<24} {x: .12g}")
+        for label, x in zip(names, self.v):
+            lines.append(f"  v {label:<24} {x: .12g}")
+        lines.append("")
+        s = self.stats
+        lines.append(f"steps {s.steps} (rejected {s.rejected_steps}), dynamics evaluations "
+                     f"{s.dynamics_evaluations}, largest active-gap drift {self.max_drift:.2e} m")
+        if s.steps_by_method:
+            lines.append(f"method {s.method}: " + ", ".join(f"{m} {n} steps" for m, n in s.steps_by_method.items()))
+        lines += [f"note: {n}" for n in self.notes]
+        labels = [f"dq[{n}]" for n in names] + [f"dv[{n}]" for n in names]
+        if self.jacobian is not None:
+            lines += [""] + self._jacobian_lines(self.jacobian, labels)
+        if self.parameter_jacobian is not None:
+            lines += [""] + self._parameter_jacobian_lines(self.parameter_jacobian, scene, labels)
+        return "\n".join(lines)
+
+    def _parameter_jacobian_lines(self, P: np.ndarray, scene: Scene, labels: list[str]) -> list[str]:
+        """Per parameter: its value, the largest entry of its column and where."""
+        values = {row["name"]: row["value"] for row in parameter_table(scene)}  # None: a group whose members differ
+        lines = [f"parameter Jacobian d x({self.t:g}) / d p: {P.shape[0]} x {P.shape[1]}, tangent space, "
+                 "per unit of each parameter", f"  {'parameter':<40} {'value':>12}  {'largest entry':>14}  of"]
+        for k, name in enumerate(self.parameter_names):
+            i = int(np.argmax(np.abs(P[:, k])))
+            value = values[name]
+            shown = f"{'(differ)':>12}" if value is None else f"{value:12.6g}"
+            lines.append(f"  {name:<40} {shown}  {P[i, k]:14.6g}  {labels[i]}")
+        return lines
+
+    def _jacobian_lines(self, J: np.ndarray, labels: list[str]) -> list[str]:
+        """Its norm and condition number, its largest entries, each event's verdict."""
+        sv = np.linalg.svd(J, compute_uv=False)
+        lines = [f"flow Jacobian d x({self.t:g}) / d x({self.t0:g}): {J.shape[0]} x {J.shape[1]}, tangent space",
+                 f"  2-norm {sv[0]:.6g}, condition number {sv[0] / sv[-1] if sv[-1] > 0 else float('inf'):.6g}",
+                 "  largest entries:"]
+        order = np.argsort(-np.abs(J), axis=None)[:6]
+        for flat in order:
+            i, j = divmod(int(flat), J.shape[1])
+            lines.append(f"    d {labels[i]:<28} / d {labels[j]:<28} = {J[i, j]: .6g}")
+        lines.append("  events:")
+        for e in self.events:
+            verdict = "differentiable" if e.differentiable else "NOT differentiable (piecewise-linear derivative)"
+            lines.append(f"    t = {e.t:.12f}  {e.kind:<9} {', '.join(e.contacts):<24} {verdict}")
+        lines.append("  the trajectory is " + ("differentiable" if self.differentiable else
+                                              "NOT differentiable at some event (see notes)"))
+        return lines
 
     def save_json(self, path: str | Path) -> None:
         """Write `summary` as JSON."""
