@@ -84,7 +84,8 @@ def build_parser() -> argparse.ArgumentParser:
     check.add_argument("--json", action="store_true", help="print the report as JSON")
     check.set_defaults(run=_run_check)
 
-    from .integration.options import ATOL_MAX, MAX_STEPS, RTOL_MAX, RTOL_MIN, OnGrazing, SimulateOptions
+    from .analysis.gait.stride import STRIDE_ATOL, STRIDE_METHOD, STRIDE_RTOL
+    from .integration.options import ATOL_MAX, AUTO, RTOL_MAX, RTOL_MIN, SIMULATE_METHODS, OnGrazing, SimulateOptions
     from .integration.steppers import METHODS
     from .replay import DEFAULT_FPS
 
@@ -98,17 +99,17 @@ def build_parser() -> argparse.ArgumentParser:
                      help="initial joint coordinate (repeatable); comma-separated for multi-dof joints")
     sim.add_argument("--v", action="append", default=[], metavar="JOINT=VALUE",
                      help="initial joint velocity (repeatable)")
-    sim.add_argument("--method", default="auto", choices=("auto",) + tuple(METHODS),
-                     help="stepper: auto (DOP853, switching to Radau while stiff; the default), "
+    defaults = SimulateOptions()  # every default below is the options' own
+    sim.add_argument("--method", default=defaults.method, choices=SIMULATE_METHODS,
+                     help=f"stepper: {AUTO} (DOP853, switching to Radau while stiff; the default), "
                           "or one used throughout")
-    sim.add_argument("--rtol", type=FINITE, default=1e-8,
-                     help=f"relative tolerance in [{RTOL_MIN:.3g}, {RTOL_MAX:g}] (default 1e-8)")
-    sim.add_argument("--atol", type=FINITE, default=1e-10,
-                     help=f"absolute tolerance in (0, {ATOL_MAX:g}] (m, rad, m/s; default 1e-10)")
-    sim.add_argument("--max-steps", type=COUNT, default=MAX_STEPS,
+    sim.add_argument("--rtol", type=FINITE, default=defaults.rtol,
+                     help=f"relative tolerance in [{RTOL_MIN:.3g}, {RTOL_MAX:g}] (default {defaults.rtol:g})")
+    sim.add_argument("--atol", type=FINITE, default=defaults.atol,
+                     help=f"absolute tolerance in (0, {ATOL_MAX:g}] (m, rad, m/s; default {defaults.atol:g})")
+    sim.add_argument("--max-steps", type=COUNT, default=defaults.max_steps,
                      help="step budget: a run needing more accepted steps stops with an error "
-                          f"(default {MAX_STEPS}, at least 1)")
-    defaults = SimulateOptions()
+                          f"(default {defaults.max_steps}, at least 1)")
     sim.add_argument("--max-events", type=COUNT, default=defaults.max_events,
                      help=f"event budget: a run with more events stops with an error (default {defaults.max_events})")
     sim.add_argument("--zeno-speed", type=FINITE, default=defaults.zeno_speed,
@@ -205,9 +206,12 @@ def build_parser() -> argparse.ArgumentParser:
                         help="initial joint coordinate (repeatable)")
     stride.add_argument("--v", action="append", default=[], metavar="JOINT=VALUE",
                         help="initial joint velocity (repeatable)")
-    stride.add_argument("--method", default="DOP853", choices=METHODS, help="stepper (default DOP853)")
-    stride.add_argument("--rtol", type=FINITE, default=1e-10, help="relative tolerance (default 1e-10)")
-    stride.add_argument("--atol", type=FINITE, default=1e-12, help="absolute tolerance (default 1e-12)")
+    stride.add_argument("--method", default=STRIDE_METHOD, choices=METHODS,
+                        help=f"stepper (default {STRIDE_METHOD})")
+    stride.add_argument("--rtol", type=FINITE, default=STRIDE_RTOL,
+                        help=f"relative tolerance (default {STRIDE_RTOL:g})")
+    stride.add_argument("--atol", type=FINITE, default=STRIDE_ATOL,
+                        help=f"absolute tolerance (default {STRIDE_ATOL:g})")
     stride.add_argument("--json", action="store_true", help="print the result as JSON")
     stride.set_defaults(run=_run_stride)
 
