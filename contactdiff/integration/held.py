@@ -39,7 +39,7 @@ from .friction_events import settle_friction
 from .parameter_jumps import ParameterJumps
 from .projection import mode_rows
 from .sensitivity import liftoff_guard, saltation, vector_field
-from .trajectory import Event
+from .trajectory import Event, EventKind
 
 if TYPE_CHECKING:
     from ..model.scene import Scene
@@ -164,7 +164,7 @@ class HeldEvents:
         held = self.fields[-1].held
         keys = [held[i] for i in bearing]
         new_mode, _ = settle_friction(dyn, q, v, t, tuple(sorted((*mode, *keys))))
-        event = Event(t=t, kind="bear", contacts=self._mode_names(keys), simultaneous=len(keys) > 1,
+        event = Event(t=t, kind=EventKind.BEAR, contacts=self._mode_names(keys), simultaneous=len(keys) > 1,
                       q=q.copy(), v_minus=v.copy(), v_plus=v.copy(), impulses={},
                       mode_before=self._mode_names(mode), mode_after=self._mode_names(new_mode),
                       sliding=self._sliding_names(new_mode))

@@ -17,24 +17,41 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..errors import ContactDiffError, InvalidInputError
+from ..errors import ContactDiffError, InvalidInputError, unknown_name
 from ..model.parameters import parameter_table
 from .samples import Samples
 
 if TYPE_CHECKING:
     from ..model.scene import Scene
 
-EVENT_KINDS = ("touchdown", "lift-off", "slip", "stick", "bounce", "grazing", "zeno", "bear")
-"""``touchdown``: contacts close and stay closed (impact); ``lift-off``: an active
-contact's normal force reaches zero and it leaves; ``slip``: a sticking contact's
-normal force reaches zero but leaving would let it sink, so it slides (normal row
-only) until a later lift-off, or a contact with Coulomb friction starts to slip
-(its tangential force reached the cone, or it stopped but friction cannot hold
-it); ``stick``: a slipping contact stopped and sticks; ``bounce``: an impact after which the
-contact leaves again; ``grazing``: a contact closes with zero normal speed;
-``zeno``: an impact below the Zeno speed, after which the contact stays closed; ``bear``:
-a closed contact the others held at zero gap starts to bear (its compatible load
-turned to pushing: no impulse, `contactdiff.integration.held`)."""
+class EventKind(StrEnum):
+    """What happened at an event. A `StrEnum`: each kind compares equal to its value
+    (``event.kind == "touchdown"``), and prints, formats and writes to JSON as it."""
+
+    TOUCHDOWN = "touchdown"
+    """contacts close and stay closed (impact)"""
+    LIFT_OFF = "lift-off"
+    """an active contact's normal force reaches zero and it leaves"""
+    SLIP = "slip"
+    """a sticking contact's normal force reaches zero but leaving would let it sink, so it
+    slides (normal row only) until a later lift-off, or a contact with Coulomb friction
+    starts to slip (its tangential force reached the cone, or it stopped but friction
+    cannot hold it)"""
+    STICK = "stick"
+    """a slipping contact stopped and sticks"""
+    BOUNCE = "bounce"
+    """an impact after which the contact leaves again"""
+    GRAZING = "grazing"
+    """a contact closes with zero normal speed"""
+    ZENO = "zeno"
+    """an impact below the Zeno speed, after which the contact stays closed"""
+    BEAR = "bear"
+    """a closed contact the others held at zero gap starts to bear (its compatible load
+    turned to pushing: no impulse, `contactdiff.integration.held`)"""
+
+
+EVENT_KINDS = tuple(EventKind)
+"""Every `EventKind`, in the order of the sweeps' ``events:<kind>`` columns."""
 
 
 class NonSmooth(Enum):
@@ -109,7 +126,7 @@ class Event:
 
     Attributes:
         t: time (s).
-        kind: one of `EVENT_KINDS`.
+        kind: an `EventKind` (a string given is turned into one).
         contacts: names of the contacts whose guard fired.
         simultaneous: several guards fired within the simultaneity tolerance.
         q: configuration at the event.
@@ -137,7 +154,7 @@ class Event:
     """
 
     t: float
-    kind: str
+    kind: EventKind
     contacts: tuple[str, ...]
     simultaneous: bool
     q: np.ndarray
@@ -155,6 +172,11 @@ class Event:
     parameter_saltation: np.ndarray | None = None
     parameter_time_gradient: np.ndarray | None = None
     outcomes: dict[str, np.ndarray] | None = None
+
+    def __post_init__(self) -> None:
+        if self.kind not in EVENT_KINDS:
+            raise unknown_name("event kind", self.kind, EVENT_KINDS)
+        self.kind = EventKind(self.kind)
 
     @property
     def differentiable(self) -> bool:
@@ -181,7 +203,7 @@ class Event:
         if self.saltation_orders:
             extra["saltation_orders"] = {" > ".join(k): m.tolist() for k, m in self.saltation_orders.items()}
         return extra | {
-            "t": self.t, "kind": self.kind, "contacts": list(self.contacts),
+            "t": self.t, "kind": str(self.kind), "contacts": list(self.contacts),
             "simultaneous": self.simultaneous, "q": self.q.tolist(),
             "v_minus": self.v_minus.tolist(), "v_plus": self.v_plus.tolist(),
             "impulses": dict(self.impulses), "mode_before": list(self.mode_before),

@@ -96,7 +96,7 @@ from ...integration.hybrid import HybridLoop
 from ...integration.options import SimulateOptions
 from ...integration.parameter_jumps import ParameterJumps
 from ...integration.sensitivity import gap_gradient, saltation, touchdown, vector_field
-from ...integration.trajectory import Event, Trajectory
+from ...integration.trajectory import Event, EventKind, Trajectory
 from ...model.scene import Scene
 from .section import (
     _IMPACT_KINDS,
@@ -294,7 +294,7 @@ class StrideLoop(HybridLoop):
         """The foot's touchdown that ends the stride is terminal; every event where the
         foot is on the ground moves the start of its flight."""
         stop = False
-        if (self.names[self.foot] in event.contacts and event.kind not in ("lift-off", "slip")
+        if (self.names[self.foot] in event.contacts and event.kind not in (EventKind.LIFT_OFF, EventKind.SLIP)
                 and event.t >= self.t_earliest and event.t - self.last_contact >= self.min_flight
                 and self.hit is None):
             self.hit = (event, tuple(mode_before), phi_before)
