@@ -492,7 +492,7 @@ def test_round_feet_of_an_mjcf_robot_without_sphere_feet_is_a_named_error(tmp_pa
     """The two-link leg on a floating pelvis, its foot chosen by hand as the shank's body: no
     sphere there, and no URDF to look in."""
     from contactdiff.errors import InvalidInputError
-    from contactdiff.model.feet import foot_spheres
+    from contactdiff.model.round_feet import foot_spheres
 
     robot = load_robot(write(tmp_path, "leg.xml", LEG_XML), feet=["shank"])
     with pytest.raises(InvalidInputError, match="is an MJCF model: its round feet are the collision spheres"):
