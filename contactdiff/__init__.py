@@ -58,7 +58,8 @@ from .integration.trajectory import Event, EventKind, NonSmooth, RunStats, Segme
 from .model.contacts import Contact, FrictionLaw
 from .model.efforts import Effort, JointSpring, Spring, UserEffort
 from .model.objects import RobotFrame, SceneObject, add_objects
-from .model.robot import QUADRUPEDS, Robot, load_robot
+from .model.robot import Robot
+from .model.robot_files import QUADRUPEDS, load_robot
 from .model.scene import Scene
 from .paper import trot_touchdown
 from .scenes.scene_file import load_scene, load_source

@@ -38,7 +38,7 @@ from ..dynamics.mode import ModeDynamics
 from ..integration.hybrid import simulate
 from ..model.efforts import Spring
 from ..model.kinematics import Kinematics
-from ..model.robot import load_robot
+from ..model.robot_files import load_robot
 from ..model.scene import Scene
 from ..scenes.scene_file import load_scene
 

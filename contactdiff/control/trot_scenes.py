@@ -26,7 +26,8 @@ import numpy as np
 from ..errors import InvalidInputError, unknown_name
 from ..model.contacts import Contact
 from ..model.kinematics import Kinematics
-from ..model.robot import QUADRUPEDS, Robot, load_robot
+from ..model.robot import Robot
+from ..model.robot_files import QUADRUPEDS, load_robot
 from ..model.scene import Scene
 from .trot_controller import TrotController, TrotControllerEvaluator
 

@@ -19,7 +19,7 @@ from ..errors import InvalidInputError, ModelLoadError, UnknownRobotError, unkno
 from ..model.contacts import Contact
 from ..model.efforts import JointSpring, Spring
 from ..model.objects import RobotFrame, SceneObject, add_objects, empty_robot
-from ..model.robot import ROBOTS_DIR, example_robot_data_names, load_robot, own_robot_names
+from ..model.robot_files import ROBOTS_DIR, example_robot_data_names, load_robot, own_robot_names
 from ..model.scene import Scene
 
 _TOP_KEYS = ("robot", "floating_base", "gravity", "name", "description", "frame", "object", "contact",

@@ -135,7 +135,7 @@ def _stamp(label: str):
     """A scene file's modification time and size (an edited file is loaded again); None otherwise."""
     path = Path(label)
     if path.suffix != ".toml":
-        from ..model.robot import ROBOTS_DIR
+        from ..model.robot_files import ROBOTS_DIR
 
         path = ROBOTS_DIR / f"{label}.toml"
     try:

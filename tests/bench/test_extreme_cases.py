@@ -23,7 +23,7 @@ from contactdiff.integration import method_choice
 from contactdiff.integration.hybrid import simulate
 from contactdiff.integration.method_choice import spectral_radius
 from contactdiff.integration.steppers import PinocchioGroup
-from contactdiff.model.robot import ROBOTS_DIR
+from contactdiff.model.robot_files import ROBOTS_DIR
 
 TIGHT = dict(rtol=1e-12, atol=1e-14)
 

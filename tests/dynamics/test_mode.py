@@ -20,7 +20,8 @@ from contactdiff.model.contacts import Contact
 from contactdiff.model.efforts import JointSpring, Spring
 from contactdiff.model.kinematics import Kinematics
 from contactdiff.model.objects import RobotFrame, add_objects
-from contactdiff.model.robot import Robot, load_robot
+from contactdiff.model.robot import Robot
+from contactdiff.model.robot_files import load_robot
 from contactdiff.model.scene import Scene
 from contactdiff.scenes.scene_file import load_source
 

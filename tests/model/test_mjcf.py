@@ -34,7 +34,7 @@ from mjcf_models import (
 from contactdiff.errors import ModelLoadError, UnsupportedModelError
 from contactdiff.model.feet import FootRule
 from contactdiff.model.mjcf import MJCFWarning, load_mjcf, mujoco_velocity_map
-from contactdiff.model.robot import load_robot
+from contactdiff.model.robot_files import load_robot
 
 RTOL = 1e-12
 

@@ -18,7 +18,7 @@ from contactdiff.dynamics.mode import ModeDynamics
 from contactdiff.model.contacts import Contact
 from contactdiff.model.efforts import JointSpring, Spring, UserEffort
 from contactdiff.model.kinematics import Kinematics
-from contactdiff.model.robot import load_robot
+from contactdiff.model.robot_files import load_robot
 from contactdiff.model.scene import Scene
 from contactdiff.scenes.scene_file import load_source
 

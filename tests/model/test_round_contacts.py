@@ -41,8 +41,8 @@ from contactdiff.dynamics.constraint_dynamics import eligible
 from contactdiff.dynamics.mode import ModeDynamics
 from contactdiff.errors import InvalidInputError
 from contactdiff.model.contacts import Contact
-from contactdiff.model.round_feet import foot_spheres, round_feet
 from contactdiff.model.kinematics import Kinematics
+from contactdiff.model.round_feet import foot_spheres, round_feet
 from contactdiff.scenes.scene_file import load_scene
 
 MASS, RADIUS, G = 2.0, 0.1, 9.81
