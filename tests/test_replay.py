@@ -14,7 +14,8 @@ import pytest
 
 from contactdiff.cli import main
 from contactdiff.integration.hybrid import simulate
-from contactdiff.replay import MissingExtraError, frame_times, sample_frames
+from contactdiff.replay import MissingExtraError
+from contactdiff.replay_frames import frame_times, sample_frames
 from contactdiff.scenes.scene_file import load_source
 
 ROOT = Path(__file__).resolve().parents[1]

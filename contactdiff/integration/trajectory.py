@@ -431,7 +431,7 @@ class Trajectory:
             scene: the `Scene` simulated; default the scene named ``scene_name``
                 (a scene or robot name, or a file path).
             **options: ``fps`` (frames per second of simulated time, default
-                `contactdiff.replay.DEFAULT_FPS`; every event time is a frame too),
+                `contactdiff.replay_frames.DEFAULT_FPS`; every event time is a frame too),
                 ``contact_radius`` (m), ``title``, ``package_dirs`` (folders in which the URDF's
                 ``package://`` meshes are found; see `contactdiff.replay.replay_html`).
 
