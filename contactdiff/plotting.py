@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .errors import require_extra
-from .integration.trajectory import Trajectory
+from .integration.trajectory import EventKind, Trajectory
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -24,9 +24,10 @@ def _pyplot():
     return plt
 
 
-_EVENT_STYLE = {"touchdown": ("tab:red", "-"), "lift-off": ("tab:green", "--"), "slip": ("tab:olive", "--"),
-                "bounce": ("tab:orange", ":"), "grazing": ("tab:purple", "-."), "zeno": ("black", "-"),
-                "bear": ("tab:brown", ":")}
+_EVENT_STYLE = {EventKind.TOUCHDOWN: ("tab:red", "-"), EventKind.LIFT_OFF: ("tab:green", "--"),
+                EventKind.SLIP: ("tab:olive", "--"), EventKind.BOUNCE: ("tab:orange", ":"),
+                EventKind.GRAZING: ("tab:purple", "-."), EventKind.ZENO: ("black", "-"),
+                EventKind.BEAR: ("tab:brown", ":")}
 
 
 def plot_gaps(traj: Trajectory, scene: Scene, path: str | Path, n_samples: int = 800) -> Path:
@@ -100,7 +101,7 @@ def gait_figure(traj: Trajectory, scene: Scene, n_samples: int = 1500) -> Figure
     ax_c.set_yticks(range(len(names)), names)
     ax_c.set_ylim(len(names) - 0.5, -0.5)
     ax_c.set_title(f"{traj.scene_name}: feet on the ground, base height and attitude")
-    for kind, color in (("touchdown", "tab:red"), ("lift-off", "tab:green")):
+    for kind, color in ((EventKind.TOUCHDOWN, "tab:red"), (EventKind.LIFT_OFF, "tab:green")):
         marks = [(e.t, names.index(c)) for e in traj.events if e.kind == kind for c in e.contacts]
         if marks:
             ax_c.plot(*zip(*marks), "|", color=color, ms=9, label=kind)

@@ -49,7 +49,7 @@ from ..jsonable import to_jsonable
 from ..model.feet import FootRule
 from ..model.robot import Robot
 from ..model.scene import Scene
-from ..model.scene_file import load_source
+from ..scenes.scene_file import load_source
 
 DECOUPLED, ORTHOGONAL_ONLY, COUPLED = "decoupled", "orthogonal only", "coupled"
 VERDICTS = (DECOUPLED, ORTHOGONAL_ONLY, COUPLED)

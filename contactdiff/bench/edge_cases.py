@@ -19,8 +19,8 @@ from ..integration.options import SimulateOptions
 from ..model.contacts import Contact
 from ..model.efforts import JointSpring, Spring
 from ..model.scene import Scene
-from ..model.scene_file import load_scene
 from ..paper import trot_touchdown
+from ..scenes.scene_file import load_scene
 from .study_rows import DEFAULT_TOL, SQ2, TIGHT_TOL, StudyRow, _counts, _error_name, _failed, _run
 
 GRAZING_SPEED = SimulateOptions().grazing_speed  # m/s, the default the studies run with

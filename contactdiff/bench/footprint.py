@@ -38,9 +38,9 @@ from ..dynamics.mode import ModeDynamics
 from ..integration.hybrid import simulate
 from ..model.efforts import Spring
 from ..model.kinematics import Kinematics
-from ..model.robot import load_robot
+from ..model.robot_files import load_robot
 from ..model.scene import Scene
-from ..model.scene_file import load_scene
+from ..scenes.scene_file import load_scene
 
 DERIVATIVE_FUNCTIONS = (
     "computeABADerivatives", "computeRNEADerivatives", "computeGeneralizedGravityDerivatives",

@@ -45,8 +45,8 @@ from ..errors import ContactDiffError, InvalidInputError, unknown_name
 from ..integration.hybrid import simulate
 from ..jsonable import to_jsonable
 from ..model.scene import Scene
-from ..model.scene_file import load_scene
 from ..paper import trot_touchdown
+from ..scenes.scene_file import load_scene
 from .baselines import solve_ivp_baseline, time_stepping_baseline
 from .methods import METHODS
 from .metrics import event_error, state_error, time_at_error

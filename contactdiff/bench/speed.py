@@ -34,7 +34,7 @@ import pinocchio as pin
 from ..dynamics.constraint_dynamics import RigidContactMode
 from ..errors import InvalidInputError, check_count, check_number
 from ..integration.hybrid import simulate
-from ..model.scene_file import load_scene
+from ..scenes.scene_file import load_scene
 
 TROTS = ("solo12_trot", "anymal_trot")
 CALLS = 2000  # Pinocchio calls per timing of its own cost

@@ -111,7 +111,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import InvalidInputError, check_number
-from ..model.efforts import central_time_difference
+from ..model.efforts import EffortParameters, central_time_difference
 from ..model.kinematics import Kinematics
 from ..model.robot import Robot
 from .foot_paths import SWING_RISE, foot_offset, reference_spline, smooth_step
@@ -227,6 +227,10 @@ class TrotController:
         set_(self, "stance", tuple((name, check_number(owner, f"stance angle of {name!r}", value))
                                    for name, value in pairs))
 
+    def named_parameters(self) -> EffortParameters:
+        """``trot:<field>`` for each of `NUMBERS`."""
+        return EffortParameters("trot", "", self.NUMBERS)
+
     def bind(self, robot: Robot) -> TrotControllerEvaluator:
         """The evaluator of this controller on ``robot`` (its legs found, the schedule precomputed)."""
         return TrotControllerEvaluator(self, robot)
@@ -251,6 +255,8 @@ class TrotControllerEvaluator(TrotParameterDerivatives):
         shares: fraction of the weight each leg carries when its pair stands alone.
         load_scale: the scale ``s`` of the scheduled loads (see the module notes).
     """
+
+    spec: TrotController
 
     def __init__(self, spec: TrotController, robot: Robot):
         self.spec, self.robot, self.nv = spec, robot, robot.nv

@@ -11,7 +11,7 @@ computed from the model when the controller is bound.
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 
 import numpy as np
 
@@ -23,7 +23,21 @@ if TYPE_CHECKING:
     import pinocchio as pin
 
     from ..model.robot import Robot
-    from .trot_controller import TrotController
+
+
+class TrotSpec(Protocol):
+    """What the derivatives read of the controller's spec
+    (`contactdiff.control.trot_controller.TrotController`, a frozen dataclass)."""
+
+    NUMBERS: ClassVar[tuple[str, ...]]
+    """Its real numbers, the parameters ``trot:<field>``."""
+
+    @property
+    def feedforward(self) -> bool:
+        """Whether the torques carry the feed-forward (leg gravity, scheduled load)."""
+
+    def bind(self, robot: Robot) -> Any:
+        """The evaluator of the spec on ``robot`` (a controller bound anew)."""
 
 
 class TrotParameterDerivatives:
@@ -32,7 +46,7 @@ class TrotParameterDerivatives:
     ``_static_terms``)."""
 
     if TYPE_CHECKING:  # the evaluator's state it borrows (set there), for the type checker only
-        spec: TrotController
+        spec: TrotSpec
         robot: Robot
         nv: int
         iq: np.ndarray
@@ -126,7 +140,7 @@ class TrotParameterDerivatives:
 
         def bound(x):
             try:
-                return type(self)(replace(self.spec, **{field: x}), self.robot)
+                return replace(self.spec, **{field: x}).bind(self.robot)
             except InvalidInputError:
                 return None
         plus, minus = bound(value + h), bound(value - h)

@@ -26,12 +26,12 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Iterator
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 if TYPE_CHECKING:
-    from .frictional_impact import _Eval
     from .lcp_problem import ContactRows
 
 # Newton on the slip angles of the spatial sliding contacts of a candidate.
@@ -228,6 +228,18 @@ class SlipMap:
             w = up[:, pr.normal[self.open_k]] + pr.e[self.open_k] * pr.u[pr.normal[self.open_k]]
             ok &= (w >= -rel * vscale[:, None]).all(axis=1)
         return ok
+
+
+@dataclass
+class _Eval:
+    """One candidate of a frictional impact at given slip states and directions: its
+    impulses ``lam`` (N s) and post-impact velocity ``up``, the unknowns ``z`` of its
+    linear system (``lam = B z``) and that system's matrix ``K`` (None without unknowns)."""
+
+    lam: np.ndarray
+    up: np.ndarray
+    z: np.ndarray
+    K: np.ndarray | None
 
 
 class SlipDirections:

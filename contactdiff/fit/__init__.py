@@ -2,6 +2,7 @@
 
     observations       Observations, toss_observations (a measured trajectory of a scene)
     observation_files  load_observations, save_observations (CSV and .npz; docs/observations.md)
+    column_files       write_columns (named columns as a CSV or .npz file)
     recordings         Recording (a measured trajectory and its rollout's start)
     residuals          PoseResidual, ResidualWeights (residuals on the configuration manifold)
     parameters         FitPlan, Scaled (the unknowns and the scene parameters they set)

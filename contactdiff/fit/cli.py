@@ -81,7 +81,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``contactdiff fit`` from parsed ``args``; return the exit status."""
-    from ..model.scene_file import load_source
+    from ..scenes.scene_file import load_source
     from .observation_files import load_observations
     from .problem import fit
     from .recordings import Recording

@@ -36,6 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InvalidInputError, ObservationFileError
+from .column_files import write_columns
 
 QUATERNION_TOLERANCE = 0.1
 """A quaternion whose norm differs from 1 by at most this is normalised; farther, refused."""
@@ -191,9 +192,7 @@ class Observations:
 
     def save(self, path: str | Path, scene) -> Path:
         """Write these observations as CSV or ``.npz`` (by the suffix of ``path``)."""
-        from .observation_files import save_observations
-
-        return save_observations(self, path, scene)
+        return write_columns(self.columns(scene), path)
 
 
 # -- quaternion algebra (scalar first, [w x y z]) -------------------------------------

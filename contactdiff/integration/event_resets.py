@@ -34,7 +34,7 @@ from .sensitivity import (
     simultaneous_saltation,
     vector_field,
 )
-from .trajectory import Event, NonSmooth
+from .trajectory import Event, EventKind, NonSmooth
 
 if TYPE_CHECKING:
     from ..dynamics.mode import ModeDynamics
@@ -103,7 +103,8 @@ class EventResets:
         # pressed it down) slides instead: normal row only, until its force vanishes
         unheld = self._unheld(q, v, mode, releasing)
         new_mode = liftoff_mode(dyn, q, v, t, mode, releasing, unheld)
-        kind = "slip" if any(dyn.is_sliding(k) and k not in mode and k not in unheld for k in new_mode) else "lift-off"
+        kind = (EventKind.SLIP if any(dyn.is_sliding(k) and k not in mode and k not in unheld for k in new_mode)
+                else EventKind.LIFT_OFF)
         event = Event(t=t, kind=kind, contacts=self._mode_names(releasing), simultaneous=len(releasing) > 1,
                       q=q.copy(), v_minus=v.copy(), v_plus=v.copy(), impulses={},
                       mode_before=self._mode_names(mode), mode_after=self._mode_names(new_mode),
@@ -263,17 +264,17 @@ class EventResets:
         # zero, or, lifted by the impact law, kept closed by the rule above
         ended = sorted(set(zeno) | {i for i in settled if i in touching and abs(speeds[i]) < self.options.zeno_speed})
         if grazing:
-            kind = "grazing"
+            kind = EventKind.GRAZING
             nonsmooth[NonSmooth.GRAZING] = self._note(
                 f"grazing touchdown of {', '.join(self.names[i] for i in grazing)} at t = {t:.12g}")
         elif ended:
-            kind = "zeno"
+            kind = EventKind.ZENO
             self.notes.append(f"Zeno: bounces of {', '.join(self.names[i] for i in ended)} ended at t = {t:.12g} "
                               f"(impact speed below zeno_speed = {self.options.zeno_speed:g} m/s); contact kept closed")
         elif any(i in dyn.contacts_of(new_mode) for i in touching):
-            kind = "touchdown"
+            kind = EventKind.TOUCHDOWN
         else:
-            kind = "bounce"
+            kind = EventKind.BOUNCE
         outcomes = None if initial else self._resting_outcomes(t, q, v_minus, v_plus, mode, impact_keys, touching,
                                                                 nonsmooth)
         impulses = {self.names[dyn.contact_index(k)]: float(x) for k, x in zip(closed, impact.impulses)}

@@ -49,7 +49,7 @@ from .guards import Guard, GuardKind
 from .parameter_jumps import ParameterJumps
 from .projection import held_velocity, held_velocity_jacobian, mode_rows
 from .sensitivity import saltation, vector_field
-from .trajectory import Event, NonSmooth
+from .trajectory import Event, EventKind, NonSmooth
 
 if TYPE_CHECKING:
     from ..model.scene import Scene
@@ -246,7 +246,7 @@ class FrictionEvents:
             if bearing is not None:
                 new_mode, settled = bearing
         stuck = [dyn.contact_index(k) for k in stops if dyn.contact_index(k) in new_mode]
-        kind = "stick" if stuck and not cone else "slip"
+        kind = EventKind.STICK if stuck and not cone else EventKind.SLIP
         fired_names = self._mode_names(cone + stops)
         event = Event(t=t, kind=kind, contacts=fired_names, simultaneous=len(fired) > 1,
                       q=q.copy(), v_minus=v.copy(), v_plus=v_plus.copy(), impulses={},

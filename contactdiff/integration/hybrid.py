@@ -74,12 +74,12 @@ from ..errors import (
     check_number,
 )
 from ..model.scene import Scene, StateInput
-from ..model.scene_file import passive_note
 from ..ode.crossings import simultaneous_group
 from ..ode.factory import PinocchioGroup, make_stepper
 from ..ode.method_choice import EXPLICIT, MethodChooser, spectral_radius
 from ..ode.step_budget import BudgetWatch, budget_message
 from ..ode.step_collapse import COLLAPSE_RATIO, COLLAPSE_STEPS, CollapseWatch
+from ..scenes.scene_file import passive_note
 from .event_resets import EventResets
 from .final_time import final_touches
 from .friction_events import FrictionEvents, refuse_ambiguous_slip, settle_friction

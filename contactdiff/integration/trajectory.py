@@ -17,23 +17,41 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..errors import ContactDiffError, InvalidInputError
+from ..errors import ContactDiffError, InvalidInputError, unknown_name
+from ..model.parameters import parameter_table
 from .samples import Samples
 
 if TYPE_CHECKING:
     from ..model.scene import Scene
 
-EVENT_KINDS = ("touchdown", "lift-off", "slip", "stick", "bounce", "grazing", "zeno", "bear")
-"""``touchdown``: contacts close and stay closed (impact); ``lift-off``: an active
-contact's normal force reaches zero and it leaves; ``slip``: a sticking contact's
-normal force reaches zero but leaving would let it sink, so it slides (normal row
-only) until a later lift-off, or a contact with Coulomb friction starts to slip
-(its tangential force reached the cone, or it stopped but friction cannot hold
-it); ``stick``: a slipping contact stopped and sticks; ``bounce``: an impact after which the
-contact leaves again; ``grazing``: a contact closes with zero normal speed;
-``zeno``: an impact below the Zeno speed, after which the contact stays closed; ``bear``:
-a closed contact the others held at zero gap starts to bear (its compatible load
-turned to pushing: no impulse, `contactdiff.integration.held`)."""
+class EventKind(StrEnum):
+    """What happened at an event. A `StrEnum`: each kind compares equal to its value
+    (``event.kind == "touchdown"``), and prints, formats and writes to JSON as it."""
+
+    TOUCHDOWN = "touchdown"
+    """contacts close and stay closed (impact)"""
+    LIFT_OFF = "lift-off"
+    """an active contact's normal force reaches zero and it leaves"""
+    SLIP = "slip"
+    """a sticking contact's normal force reaches zero but leaving would let it sink, so it
+    slides (normal row only) until a later lift-off, or a contact with Coulomb friction
+    starts to slip (its tangential force reached the cone, or it stopped but friction
+    cannot hold it)"""
+    STICK = "stick"
+    """a slipping contact stopped and sticks"""
+    BOUNCE = "bounce"
+    """an impact after which the contact leaves again"""
+    GRAZING = "grazing"
+    """a contact closes with zero normal speed"""
+    ZENO = "zeno"
+    """an impact below the Zeno speed, after which the contact stays closed"""
+    BEAR = "bear"
+    """a closed contact the others held at zero gap starts to bear (its compatible load
+    turned to pushing: no impulse, `contactdiff.integration.held`)"""
+
+
+EVENT_KINDS = tuple(EventKind)
+"""Every `EventKind`, in the order of the sweeps' ``events:<kind>`` columns."""
 
 
 class NonSmooth(Enum):
@@ -111,7 +129,7 @@ class Event:
 
     Attributes:
         t: time (s).
-        kind: one of `EVENT_KINDS`.
+        kind: an `EventKind` (a string given is turned into one).
         contacts: names of the contacts whose guard fired.
         simultaneous: several guards fired within the simultaneity tolerance.
         q: configuration at the event.
@@ -139,7 +157,7 @@ class Event:
     """
 
     t: float
-    kind: str
+    kind: EventKind
     contacts: tuple[str, ...]
     simultaneous: bool
     q: np.ndarray
@@ -157,6 +175,11 @@ class Event:
     parameter_saltation: np.ndarray | None = None
     parameter_time_gradient: np.ndarray | None = None
     outcomes: dict[str, np.ndarray] | None = None
+
+    def __post_init__(self) -> None:
+        if self.kind not in EVENT_KINDS:
+            raise unknown_name("event kind", self.kind, EVENT_KINDS)
+        self.kind = EventKind(self.kind)
 
     @property
     def differentiable(self) -> bool:
@@ -183,7 +206,7 @@ class Event:
         if self.saltation_orders:
             extra["saltation_orders"] = {" > ".join(k): m.tolist() for k, m in self.saltation_orders.items()}
         return extra | {
-            "t": self.t, "kind": self.kind, "contacts": list(self.contacts),
+            "t": self.t, "kind": str(self.kind), "contacts": list(self.contacts),
             "simultaneous": self.simultaneous, "q": self.q.tolist(),
             "v_minus": self.v_minus.tolist(), "v_plus": self.v_plus.tolist(),
             "impulses": dict(self.impulses), "mode_before": list(self.mode_before),
@@ -325,6 +348,77 @@ class Trajectory:
             {"parameter_names": list(self.parameter_names), "parameter_jacobian": self.parameter_jacobian.tolist()}
             if self.parameter_jacobian is not None else {})
 
+    def format(self, scene: Scene) -> str:
+        """The run as text (what ``contactdiff simulate`` prints without ``--json``): the
+        events (the first 200), the final state by coordinate name, the counters and
+        notes, and the flow and parameter Jacobians' summaries when they were asked for.
+
+        Args:
+            scene: the `Scene` simulated (its robot names the coordinates; its parameters'
+                values head the parameter Jacobian's rows).
+        """
+        lines = [f"simulation of {self.scene_name} from t = {self.t0:g} to {self.t:g} s",
+                 f"{len(self.events)} events", ""]
+        if self.events:
+            lines.append(f"  {'t (s)':>18}  {'kind':<9}  {'contacts':<28}  {'simult.':<7}  mode after")
+            for e in self.events[:200]:
+                lines.append(f"  {e.t:18.12f}  {e.kind:<9}  {', '.join(e.contacts):<28}  "
+                             f"{'yes' if e.simultaneous else 'no':<7}  {', '.join(e.mode_after) or '(flight)'}")
+            if len(self.events) > 200:
+                lines.append(f"  ... {len(self.events) - 200} more (see --json)")
+            lines.append("")
+        lines.append("final state")
+        names = scene.robot.tangent_names()
+        for label, x in zip(scene.robot.configuration_names(), self.q):
+            lines.append(f"  q {label:<24} {x: .12g}")
+        for label, x in zip(names, self.v):
+            lines.append(f"  v {label:<24} {x: .12g}")
+        lines.append("")
+        s = self.stats
+        lines.append(f"steps {s.steps} (rejected {s.rejected_steps}), dynamics evaluations "
+                     f"{s.dynamics_evaluations}, largest active-gap drift {self.max_drift:.2e} m")
+        if s.steps_by_method:
+            lines.append(f"method {s.method}: " + ", ".join(f"{m} {n} steps" for m, n in s.steps_by_method.items()))
+        lines += [f"note: {n}" for n in self.notes]
+        labels = [f"dq[{n}]" for n in names] + [f"dv[{n}]" for n in names]
+        if self.jacobian is not None:
+            lines += [""] + self._jacobian_lines(self.jacobian, labels)
+        if self.parameter_jacobian is not None:
+            lines += [""] + self._parameter_jacobian_lines(self.parameter_jacobian, scene, labels)
+        return "\n".join(lines)
+
+    def _parameter_jacobian_lines(self, P: np.ndarray, scene: Scene, labels: list[str]) -> list[str]:
+        """Per parameter: its value, the largest entry of its column and where."""
+        values = {row["name"]: row["value"] for row in parameter_table(scene)}  # None: a group whose members differ
+        lines = [f"parameter Jacobian d x({self.t:g}) / d p: {P.shape[0]} x {P.shape[1]}, tangent space, "
+                 "per unit of each parameter", f"  {'parameter':<40} {'value':>12}  {'largest entry':>14}  of"]
+        for k, name in enumerate(self.parameter_names):
+            i = int(np.argmax(np.abs(P[:, k])))
+            value = values[name]
+            shown = f"{'(differ)':>12}" if value is None else f"{value:12.6g}"
+            lines.append(f"  {name:<40} {shown}  {P[i, k]:14.6g}  {labels[i]}")
+        return lines
+
+    def _jacobian_lines(self, J: np.ndarray, labels: list[str]) -> list[str]:
+        """Its norm and condition number, its largest entries, each event's verdict."""
+        sv = np.linalg.svd(J, compute_uv=False)
+        lines = [f"flow Jacobian d x({self.t:g}) / d x({self.t0:g}): {J.shape[0]} x {J.shape[1]}, tangent space",
+                 f"  2-norm {sv[0]:.6g}, condition number {sv[0] / sv[-1] if sv[-1] > 0 else float('inf'):.6g}",
+                 "  largest entries:"]
+        order = np.argsort(-np.abs(J), axis=None)[:6]
+        for flat in order:
+            i, j = divmod(int(flat), J.shape[1])
+            lines.append(f"    d {labels[i]:<28} / d {labels[j]:<28} = {J[i, j]: .6g}")
+        lines.append("  events:")
+        for e in self.events:
+            verdict = "differentiable" if e.differentiable else "NOT differentiable (piecewise-linear derivative)"
+            lines.append(f"    t = {e.t:.12f}  {e.kind:<9} {', '.join(e.contacts):<24} {verdict}")
+        verdict = ("differentiable" if self.differentiable
+                   else "NOT differentiable at some event (see notes)" if not self.final_nonsmooth
+                   else "NOT differentiable: a contact touches at the final time (see notes)")
+        lines.append(f"  the trajectory is {verdict}")
+        return lines
+
     def save_json(self, path: str | Path) -> None:
         """Write `summary` as JSON."""
         Path(path).write_text(json.dumps(self.summary(), indent=2))
@@ -348,7 +442,7 @@ class Trajectory:
             scene: the `Scene` simulated; default the scene named ``scene_name``
                 (a scene or robot name, or a file path).
             **options: ``fps`` (frames per second of simulated time, default
-                `contactdiff.replay.DEFAULT_FPS`; every event time is a frame too),
+                `contactdiff.replay_frames.DEFAULT_FPS`; every event time is a frame too),
                 ``contact_radius`` (m), ``title``, ``package_dirs`` (folders in which the URDF's
                 ``package://`` meshes are found; see `contactdiff.replay.replay_html`).
 
@@ -363,7 +457,7 @@ class Trajectory:
         from ..replay import write_html
 
         if scene is None:
-            from ..model.scene_file import load_source
+            from ..scenes.scene_file import load_source
 
             try:
                 scene = load_source(self.scene_name)

@@ -33,7 +33,8 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import InvalidInputError, check_number, check_vector, unknown_name
-from .robot import Robot, load_robot
+from .robot import Robot
+from .robot_files import load_robot
 
 SHAPES = ("box", "sphere", "cylinder")
 """Shapes an object may have without a URDF: a box (``size``: three edge lengths, m),

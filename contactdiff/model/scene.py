@@ -1,7 +1,7 @@
 """Scenes: a robot, its contacts, its efforts, gravity and an initial state.
 
 A scene is built in Python (`Scene`, `Scene.from_robot`) or read from a TOML
-file (`contactdiff.model.scene_file`).
+file (`contactdiff.scenes.scene_file`).
 """
 
 from __future__ import annotations

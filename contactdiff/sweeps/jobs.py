@@ -40,7 +40,7 @@ from enum import StrEnum
 import numpy as np
 
 from ..errors import InvalidInputError, unknown_name
-from ..integration.trajectory import EVENT_KINDS, Trajectory
+from ..integration.trajectory import EVENT_KINDS, EventKind, Trajectory
 from ..jsonable import to_jsonable
 from ..model.scene import Scene
 from .callables import import_callable, reference
@@ -209,7 +209,7 @@ def _order_gap(scene: Scene, t_final, options: dict, settings: dict) -> dict:
     sliding = set(traj.segments[0].sliding) if traj.segments else set()
     for event in traj.events:  # an event's mode_after says which of its contacts slide
         sliding_before, sliding = sliding, set(event.sliding)
-        if event.kind != "touchdown" or len(event.contacts) < 2:
+        if event.kind != EventKind.TOUCHDOWN or len(event.contacts) < 2:
             continue
         if sliding_before & set(event.mode_before):  # order_gap takes sticking modes
             skipped += 1

@@ -15,6 +15,7 @@ whatever the backend and the number of workers.
 
 from __future__ import annotations
 
+import numbers
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -129,6 +130,15 @@ class SweepResult(list):
     def column(self, name: str) -> list:
         """One column over the rows (None where a row has no such value, e.g. a failed run)."""
         return [r.to_dict().get(name) for r in self]
+
+    def numeric_outputs(self) -> list[str]:
+        """Output columns holding numbers (or true/false) in some row, in column order."""
+        names: dict[str, None] = {}
+        for row in self:
+            for name, value in row.outputs.items():
+                if isinstance(value, (numbers.Real, bool)) and name not in RESERVED:
+                    names.setdefault(name)
+        return list(names)
 
     def to_pandas(self):
         """The rows as a `pandas.DataFrame`, one column per name (needs pandas).

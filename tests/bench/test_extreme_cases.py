@@ -20,7 +20,7 @@ import contactdiff as cd
 from contactdiff.bench import extreme_cases as studies
 from contactdiff.errors import GrazingError
 from contactdiff.integration.hybrid import simulate
-from contactdiff.model.robot import ROBOTS_DIR
+from contactdiff.model.robot_files import ROBOTS_DIR
 from contactdiff.ode import method_choice
 from contactdiff.ode.factory import PinocchioGroup
 from contactdiff.ode.method_choice import spectral_radius

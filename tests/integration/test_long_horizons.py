@@ -22,7 +22,7 @@ import contactdiff as cd
 from contactdiff.dynamics.impacts import choose_mode
 from contactdiff.dynamics.mode import ModeDynamics
 from contactdiff.integration.rest import RestCheck
-from contactdiff.model.robot import load_robot
+from contactdiff.model.robot_files import load_robot
 
 E = 0.8  # the ball's restitution (robots/ball.toml; h = 1 m, g = 1 m/s²)
 ZENO_SPEED = 1e-6  # SimulateOptions.zeno_speed's default (m/s)

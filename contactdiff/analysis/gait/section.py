@@ -16,6 +16,7 @@ import pinocchio as pin
 from ...dynamics.mode import ModeDynamics
 from ...errors import InvalidInputError, check_number
 from ...integration.sensitivity import gap_gradient
+from ...integration.trajectory import EventKind
 from ...model.scene import Scene
 
 NEUTRAL_NAMES = ("x", "y", "yaw")
@@ -33,7 +34,7 @@ RESOLUTION_TIGHTENING = 10.0
 integration error: DOP853's shrinks about 7.7 times, 10^(8/9))."""
 
 _SYMMETRY_TOL = 1e-9  # relative change of gaps and accelerations under a neutral move that counts as none
-_IMPACT_KINDS = ("touchdown", "bounce")
+_IMPACT_KINDS = (EventKind.TOUCHDOWN, EventKind.BOUNCE)
 
 def _positive_duration(owner: str, name: str, value) -> float:
     x = check_number(owner, name, value, minimum=0.0)

@@ -96,7 +96,7 @@ from ...integration.hybrid import HybridLoop
 from ...integration.options import SimulateOptions
 from ...integration.parameter_jumps import ParameterJumps
 from ...integration.sensitivity import gap_gradient, saltation, touchdown, vector_field
-from ...integration.trajectory import Event, Trajectory
+from ...integration.trajectory import Event, EventKind, Trajectory
 from ...model.scene import Scene
 from .section import (
     _IMPACT_KINDS,
@@ -108,6 +108,14 @@ from .section import (
     onto_section,
     scene_period,
 )
+
+STRIDE_RTOL = 1e-10
+"""Default relative tolerance of the runs of a stride (`stride_map`, `first_touchdown`,
+`contactdiff.analysis.gait.periodic`); ``contactdiff stride --rtol``'s too."""
+STRIDE_ATOL = 1e-12
+"""Default absolute tolerance of those runs (m, rad, m/s)."""
+STRIDE_METHOD = "DOP853"
+"""Default stepper of those runs."""
 
 
 # ----------------------------------------------------------------------------------
@@ -286,7 +294,7 @@ class StrideLoop(HybridLoop):
         """The foot's touchdown that ends the stride is terminal; every event where the
         foot is on the ground moves the start of its flight."""
         stop = False
-        if (self.names[self.foot] in event.contacts and event.kind not in ("lift-off", "slip")
+        if (self.names[self.foot] in event.contacts and event.kind not in (EventKind.LIFT_OFF, EventKind.SLIP)
                 and event.t >= self.t_earliest and event.t - self.last_contact >= self.min_flight
                 and self.hit is None):
             self.hit = (event, tuple(mode_before), phi_before)
@@ -305,8 +313,8 @@ class StrideLoop(HybridLoop):
 def stride_map(scene: Scene, foot: str, q: ArrayLike, v: ArrayLike, t: float = 0.0, *, t_max: float = 10.0,
                min_stride: float | None = None, min_flight: float | None = None,
                period: float | None = None, jacobian: bool = True, parameters: Sequence[str] = (),
-               rtol: float = 1e-10, atol: float = 1e-12, method: str = "DOP853", max_events: int = 1000,
-               **options: Any) -> Stride:
+               rtol: float = STRIDE_RTOL, atol: float = STRIDE_ATOL, method: str = STRIDE_METHOD,
+               max_events: int = 1000, **options: Any) -> Stride:
     """The stride map of ``foot``: from just before one of its touchdowns to just before the next.
 
     Args:
@@ -384,8 +392,8 @@ def _min_flight(value, clock: float | None, where: str) -> float:
 
 
 def first_touchdown(scene: Scene, foot: str, q=None, v=None, t: float = 0.0, *, t_max: float = 10.0,
-                    min_flight: float | None = None, rtol: float = 1e-10, atol: float = 1e-12,
-                    method: str = "DOP853", max_events: int = 1000,
+                    min_flight: float | None = None, rtol: float = STRIDE_RTOL, atol: float = STRIDE_ATOL,
+                    method: str = STRIDE_METHOD, max_events: int = 1000,
                     **options) -> tuple[float, np.ndarray, np.ndarray]:
     """Simulate from ``(q, v, t)`` (default the scene's initial state) to the first
     touchdown of ``foot`` after ``t`` that follows a flight of at least ``min_flight``
