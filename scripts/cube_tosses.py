@@ -24,17 +24,27 @@ velocity fitted with the parameters.
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import statistics
 import sys
 import time
 from collections import Counter
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
 import contactdiff as cd
-from contactdiff.data.cube_recordings import Start, split, toss_errors, toss_recording, toss_windows
+from contactdiff.data.cube_recordings import (
+    WINDOW_CLEARANCE,
+    Start,
+    lowest_corner,
+    split,
+    toss_errors,
+    toss_recording,
+    toss_windows,
+)
 from contactdiff.data.cube_tosses import NOMINAL, load_tosses
 from contactdiff.fit import ResidualWeights, Scaled, Windows, fit
 from contactdiff.fit.evaluation import StateFit, Task, evaluate
@@ -48,12 +58,12 @@ STEPPING_COST = {"MuJoCo": (3.4e-3, 21.9), "Drake": (9e-3, 13.1)}
 """Quoted wall time per toss (s) at a 0.68 ms step and position error (%) of the time-stepping simulators."""
 
 
-def unknowns(scene, gravity: bool = True) -> list:
-    """μ, e and the board height shared by the eight corners, a scale of the three moments, and
-    (unless ``gravity`` is False) gravity."""
+def unknowns(scene, gravity: bool = True, offset: bool = True) -> list:
+    """μ and e shared by the eight corners, (unless ``offset`` is False) the board height, a scale
+    of the three moments, and (unless ``gravity`` is False) gravity."""
     moments = {f"body:cube:i{a}{a}": NOMINAL.moment for a in "xyz"}
-    return ["group:cube:friction", "group:cube:restitution", "group:cube:offset",
-            Scaled("inertia_scale", moments)] + (["scene:gravity_z"] if gravity else [])
+    return (["group:cube:friction", "group:cube:restitution"] + (["group:cube:offset"] if offset else [])
+            + [Scaled("inertia_scale", moments)] + (["scene:gravity_z"] if gravity else []))
 
 
 def training_recordings(tosses, names, args, scene) -> list:
@@ -61,7 +71,8 @@ def training_recordings(tosses, names, args, scene) -> list:
     that start in free flight ``--lead`` samples before a touch (`toss_windows`)."""
     if not args.window:
         return [toss_recording(tosses[n], Start.BEFORE_TOUCH) for n in names]
-    return [w for n in names for w in toss_windows(tosses[n], Windows(args.window), lead=args.lead,
+    base = base_parameters(args)
+    return [w for n in names for w in toss_windows(tosses[n], Windows(args.window), base, lead=args.lead,
                                                    model=scene.model)]
 
 
@@ -75,12 +86,18 @@ def summary(errors: list[tuple[float, float]]) -> dict:
             "rotation_std": statistics.pstdev(rot), "rotation_median": statistics.median(rot)}
 
 
-def evaluate_held_out(tosses, names, values, jobs, label, options) -> dict:
+def base_parameters(args):
+    """The cube's parameters the fit starts from: the board at --ground, lengths and g scaled by --length-scale."""
+    return replace(NOMINAL, ground=args.ground, edge=NOMINAL.edge * args.length_scale,
+                   gravity=NOMINAL.gravity * args.length_scale)
+
+
+def evaluate_held_out(tosses, names, values, jobs, label, options, source=cd.cube_scene) -> dict:
     """Both starts' rollouts of the held-out ``names`` at ``values``: metrics, failures, worst tosses."""
     out = {}
     for start in Start:
         recs = [toss_recording(tosses[n], start) for n in names]
-        runs = rollouts(cd.cube_scene, recs, values, jobs=jobs, options=options, progress=None)
+        runs = rollouts(source, recs, values, jobs=jobs, options=options, progress=None)
         errors, failed, rows = [], [], []
         for rec, run in zip(recs, runs):
             if not run.complete:
@@ -105,6 +122,24 @@ def _line(s: dict) -> str:
     return (f"{s['tosses']} tosses: position {s['position_mean']:.1f} ± {s['position_std']:.1f} % "
             f"(median {s['position_median']:.1f}), rotation {s['rotation_mean']:.1f} ± {s['rotation_std']:.1f} deg "
             f"(median {s['rotation_median']:.1f}); {len(s['failed'])} failed")
+
+
+def length_check(tosses) -> dict:
+    """The data's gravity and the cube's rest height, each against the model's: a parabola z(t) through
+    each toss's first flight (at least 8 samples whose lowest corner clears the board by
+    WINDOW_CLEARANCE) gives g; the centre's mean height over each toss's last 20 samples (at rest
+    on a face) the rest height. Medians over tosses, and each as a ratio to 9.81 m/s² and edge / 2."""
+    g, rest = [], []
+    for toss in tosses.values():
+        free = lowest_corner(toss) > WINDOW_CLEARANCE
+        k = int(np.argmin(free)) if not free.all() else len(toss)
+        if k >= 8:
+            g.append(-2.0 * np.polyfit(toss.t[:k], toss.position[:k, 2], 2)[0])
+        rest.append(float(np.mean(toss.position[-20:, 2])))
+    g_median, rest_median = statistics.median(g), statistics.median(rest)
+    return {"flights": len(g), "g_median": g_median, "g_quartiles": list(np.percentile(g, [25, 75])),
+            "g_ratio": g_median / NOMINAL.gravity, "rest_median": rest_median,
+            "rest_ratio": rest_median / (NOMINAL.edge / 2.0), "tosses": len(rest)}
 
 
 def jacobian_cost(recordings, scene, options, parameters, state: StateFit = StateFit.NONE) -> dict:
@@ -147,48 +182,66 @@ def main(argv=None) -> int:
     parser.add_argument("--policy", default="keep", choices=["keep", "exclude"],
                         help="recordings not differentiable at the start: keep or exclude (default keep)")
     parser.add_argument("--no-gravity", action="store_true", help="keep g at 9.81 m/s² (do not fit it)")
+    parser.add_argument("--ground", type=float, default=0.0,
+                        help="the board's height (m) the fit starts from, or keeps with --no-offset (default 0)")
+    parser.add_argument("--length-scale", type=float, default=1.0,
+                        help="the model's edge and g times this (the data's lengths in units this much too "
+                             "small: 0.98 makes edge 0.1027 m and g 9.61 m/s²; default 1)")
+    parser.add_argument("--no-offset", action="store_true", help="keep the board's height at --ground (do not fit it)")
+    parser.add_argument("--length-check", action="store_true",
+                        help="only compare the data's free-flight g and rest height with the model's, and stop")
     parser.add_argument("--quick", action="store_true", help="2 shipped tosses to fit, 2 held out, 1 evaluation")
     parser.add_argument("--plot-dir", help="write plots of held-out tosses and the error distribution here")
     parser.add_argument("--json", action="store_true", help="print the report as JSON")
     args = parser.parse_args(argv)
     tosses = load_tosses(args.tosses)
+    if args.length_check:
+        c = length_check(tosses)
+        print(json.dumps(c, indent=2) if args.json else
+              f"free-flight g: median {c['g_median']:.3f} m/s² over {c['flights']} first flights (quartiles "
+              f"{c['g_quartiles'][0]:.3f}, {c['g_quartiles'][1]:.3f}), {c['g_ratio']:.4f} of 9.81; rest height: "
+              f"median {c['rest_median']:.5f} m over {c['tosses']} tosses, {c['rest_ratio']:.4f} of edge / 2")
+        return 0
     if args.quick:
         args.train, args.test, args.max_evaluations = 2, 2, 1
     jobs = args.jobs or 2
     train, held_out = split(tosses, args.train, args.seed)
     held_out = held_out[:args.test] if args.test else held_out
-    scene = cd.cube_scene()
-    report = {"train": len(train), "held_out": len(held_out), "seed": args.seed}
+    base = base_parameters(args)
+    build = functools.partial(cd.cube_scene, base)
+    scene = build()
+    report = {"train": len(train), "held_out": len(held_out), "seed": args.seed,
+              "base": {"edge": base.edge, "gravity": base.gravity, "ground": base.ground}}
 
     recs = training_recordings(tosses, train, args, scene)
-    parameters = unknowns(scene, gravity=not args.no_gravity)
+    parameters = unknowns(scene, gravity=not args.no_gravity, offset=not args.no_offset)
     state = StateFit.VELOCITY if args.window else StateFit.NONE
     report |= {"window": args.window, "lead": args.lead if args.window else None, "recordings": len(recs)}
     weights = ResidualWeights(position=1.0, orientation=NOMINAL.edge / 2)  # a radian counts as a corner's travel
     started = time.perf_counter()
     options = {"rtol": args.rtol, "atol": args.atol}
-    result = fit(cd.cube_scene if jobs > 1 else scene, recs, parameters, weights=weights, jobs=jobs,
+    result = fit(build if jobs > 1 else scene, recs, parameters, weights=weights, jobs=jobs,
                  state=state, policy=args.policy,
                  max_evaluations=args.max_evaluations, options=options)
     report["fit"] = result.to_dict() | {"wall_time": time.perf_counter() - started}
     print(result.table(), file=sys.stderr, flush=True)
-    fitted = FitPlan(scene, parameters).values(result.values)
+    fitted = {"group:cube:offset": args.ground} | FitPlan(scene, parameters).values(result.values)
     report["fitted_scene_values"] = fitted
 
     report["options"] = options
     report["nominal"] = evaluate_held_out(tosses, held_out, None, jobs, "nominal", options)
-    report["fitted"] = evaluate_held_out(tosses, held_out, fitted, jobs, "fitted", options)
+    report["fitted"] = evaluate_held_out(tosses, held_out, fitted, jobs, "fitted", options, build)
     probe = recs[:5] if args.window else [toss_recording(tosses[n], Start.BEFORE_TOUCH) for n in train[:5]]
     report["jacobian_cost"] = jacobian_cost(probe, scene, options, parameters, state)
     report["anchors"] = ANCHORS
     report["stepping_cost"] = STEPPING_COST
     if args.plot_dir:
-        plot_report(report, tosses, fitted, Path(args.plot_dir))
+        plot_report(report, tosses, fitted, Path(args.plot_dir), build())
     print(json.dumps(report, indent=2) if args.json else format_report(report))
     return 0
 
 
-def plot_report(report: dict, tosses, fitted: dict, folder: Path) -> None:
+def plot_report(report: dict, tosses, fitted: dict, folder: Path, scene) -> None:
     """``cube_toss_errors.png``: the held-out position errors (nominal and fitted, from before
     touch) with the anchors' means; ``cube_toss_rollouts.png``: measured against fitted
     centre positions of the two best and two worst held-out tosses."""
@@ -214,7 +267,6 @@ def plot_report(report: dict, tosses, fitted: dict, folder: Path) -> None:
 
     rows = report["fitted"][start]["per_toss"]  # sorted worst first
     chosen = [r[0] for r in rows[-2:][::-1]] + [r[0] for r in rows[:2]]
-    scene = cd.cube_scene()
     fig, axes = plt.subplots(len(chosen), 1, figsize=(7, 2.3 * len(chosen)), squeeze=False)
     for ax, name in zip(axes[:, 0], chosen):
         rec = toss_recording(tosses[name], Start.BEFORE_TOUCH)
