@@ -141,3 +141,20 @@ def test_bad_window_starts_are_refused_with_names():
         cut(short, Windows(5), model)
     with pytest.raises(InvalidInputError, match="sample 1 needs two samples before it"):
         start_velocity(model, rec.t, rec.q, 1)
+
+
+def test_a_rollout_that_fails_inside_the_integrator_is_reported_not_raised(monkeypatch):
+    """A run that raises ValueError (a root finder's bracket lost inside the integrator) becomes
+    that rollout's failure, named with its type, so an evaluation of many recordings goes on."""
+    import importlib
+
+    module = importlib.import_module("contactdiff.fit.rollouts")
+
+    scene, rec = _ball(seed=0, noise=0.0, t_end=0.2)
+
+    def broken(*args, **kwargs):
+        raise ValueError("f(a) and f(b) must have different signs")
+
+    monkeypatch.setattr(module, "simulate", broken)
+    run = module.rollout(scene, rec)
+    assert not run.complete and run.error == "ValueError: f(a) and f(b) must have different signs"
