@@ -79,7 +79,17 @@ def locate_crossing(guard: Callable[[float], float], t_a: float, t_b: float,
     if not (g_a > 0.0 > g_b):
         raise InvalidInputError(f"no bracket: guard({t_a!r}) = {g_a!r}, guard({t_b!r}) = {g_b!r}")
     xtol = 4 * _EPS * max(1.0, abs(t_a), abs(t_b))
-    return float(brentq(guard, t_a, t_b, xtol=xtol, rtol=4 * _EPS, maxiter=200))
+    # the values given may be the step's own (its ends' states), the guard's the dense
+    # output's, which differ from them by round-off: where they do not bracket, the
+    # crossing is at the end whose value round-off put on the other side
+    f_a, f_b = guard(t_a), guard(t_b)
+    if f_a <= 0.0:
+        return t_a
+    if f_b >= 0.0:
+        return t_b
+    ends = {t_a: f_a, t_b: f_b}  # (brentq evaluates the ends again)
+    return float(brentq(lambda t: ends[t] if t in ends else guard(t), t_a, t_b, xtol=xtol, rtol=4 * _EPS,
+                        maxiter=200))
 
 
 def simultaneous_group(roots: Sequence[tuple[float, object]], tol: float) -> tuple[float, list]:

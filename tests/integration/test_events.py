@@ -53,6 +53,17 @@ def test_locate_crossing_to_full_precision():
     assert abs(t - np.pi / 2) <= 4 * np.finfo(float).eps * 3
 
 
+@pytest.mark.parametrize("shift, expected", [(0.1, 1.0), (-0.1, 0.0)])
+def test_locate_crossing_where_round_off_moved_the_bracket(shift, expected):
+    """The step's values bracket a crossing (1e-16 above zero at the start, below at the end)
+    but the guard as evaluated does not: shifted up, it stays positive over the step, so the
+    crossing is at the end; shifted down, it is already at or below zero at the start."""
+    def guard(t):
+        return 1e-16 - 2e-16 * t + shift
+
+    assert locate_crossing(guard, 0.0, 1.0, g_a=1e-16, g_b=-1e-16) == expected
+
+
 def test_locate_crossing_needs_a_bracket():
     with pytest.raises(ValueError, match="no bracket"):
         locate_crossing(lambda t: 1.0 + t, 0.0, 1.0)
