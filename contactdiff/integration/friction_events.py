@@ -254,7 +254,8 @@ class FrictionEvents:
             keys[keys.index(k)] = dyn.contact_index(k)
         new_mode = tuple(sorted(keys))
         v_plus = held_velocity(dyn, q, v, new_mode) if stops else v
-        while stops and (resting := resting_slips(dyn, q, v_plus, new_mode)):
+        starting = {dyn.sliding_key(k) for k in cone}  # slipping from rest at this event
+        while stops and (resting := [k for k in resting_slips(dyn, q, v_plus, new_mode) if k not in starting]):
             # they stop with the fired ones, as crossings of the same instant (module doc)
             fired.extend(Guard(GuardKind.STOP, k) for k in resting)
             stops += resting
