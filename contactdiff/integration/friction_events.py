@@ -16,6 +16,23 @@ A mixin of `contactdiff.integration.hybrid.HybridLoop` (its state as for
   (`held_velocity`, removing the slip velocity left by the integration error),
   so ``Ξ = DR + (F+ - DR F-) Dh / (Dh F-)``.
 
+**Slips at rest stop together.** Holding the stopped contact moves the slip velocity
+of every contact coupled to it (a face's corners share one body). A contact that
+slips on slower than the slip-speed floor ``ε`` (``zeno_speed``) is at rest within
+the integration's noise: its direction is then its reference ``r``, not its own
+(`contactdiff.dynamics.slip`), and ``r``, set before the reset, may point along the
+slip as well as against it. Its friction ``-μ λ_N r`` then drives the slip instead of
+stopping it, and its stop guard, which fires only past ``-ε`` for a slip that starts
+at noise, does not see it: the slip creeps through the band ``[ε, 2ε]`` where the
+direction turns, at steps of microseconds, while real friction would stop it in
+``|u_T| / (μ g)`` (below a microsecond). So every such slip stops with the fired one
+(`resting_slips`, repeated until the hold leaves none), as a crossing of the same
+instant, and the mode choice below decides, from the sticking forces, which of them
+slip on (from rest, along ``-λ_T / ||λ_T||``). The event's saltation is that of the
+fired guard with the reset holding every stopped contact; the others' stops, within
+``ε / (μ g)`` of it, are merged into it (as the Zeno rule merges bounces below
+``zeno_speed``).
+
 **Held contacts bear again at a stop.** A contact released at a lift-off whose
 rows depend on those of the contacts that stay (a face's corner whose compatible
 load would pull, `contactdiff.dynamics.redundant`) keeps a gap and a gap speed of
@@ -107,6 +124,16 @@ def settle_friction(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float,
             keys[keys.index(key)] = dyn.sliding_key(index)
         mode = tuple(sorted(keys))
     raise SolverError(f"no mode satisfies Coulomb's law for contacts {mode} at t = {t!r}")
+
+
+def resting_slips(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, mode: tuple[int, ...]) -> list[int]:
+    """The slipping keys of ``mode`` whose slip speed ``||A_T v||`` at ``(q, v)`` (``v``
+    after a slip → stick event's reset) is at most the slip-speed floor
+    (``dyn.slip_speed_floor``, m/s): slips at rest within the integration's noise, which
+    stop with the event (module doc)."""
+    dyn.kin.update(q, v)
+    return [key for key in mode if dyn.contact(key).slips
+            and float(np.linalg.norm(dyn.contact(key).full.rows(dyn.kin)[1:] @ v)) <= dyn.slip_speed_floor]
 
 
 def held_at_rest(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float, mode: tuple[int, ...],
@@ -235,6 +262,13 @@ class FrictionEvents:
             keys[keys.index(k)] = dyn.contact_index(k)
         new_mode = tuple(sorted(keys))
         v_plus = held_velocity(dyn, q, v, new_mode) if stops else v
+        starting = {dyn.sliding_key(k) for k in cone}  # slipping from rest at this event
+        while stops and (resting := [k for k in resting_slips(dyn, q, v_plus, new_mode) if k not in starting]):
+            # they stop with the fired ones, as crossings of the same instant (module doc)
+            fired.extend(Guard(GuardKind.STOP, k) for k in resting)
+            stops += resting
+            new_mode = tuple(sorted(dyn.contact_index(k) if k in resting else k for k in new_mode))
+            v_plus = held_velocity(dyn, q, v, new_mode)
         from_rest: list = []
         new_mode, settled = settle_friction(dyn, q, v_plus, t, new_mode, from_rest)
         if stops:
