@@ -25,6 +25,7 @@ evaluation methods).
 from __future__ import annotations
 
 import functools
+import math
 from collections.abc import Iterator
 
 import numpy as np
@@ -45,6 +46,9 @@ _GRID_STARTS = 48
 _FP_SWEEPS = 1000  # until a relative change of 1e-14; a cap, most touchdowns converge in far fewer
 _POLE_GAP = 1e-9  # rad: scan points beside a pole of one slider's Λ_N
 _DUPLICATE = 1e-8  # rad: two roots closer than this are one
+# OpenBLAS's gemm runs on one thread up to this many multiply-adds (its SMP_THRESHOLD_MIN
+# 65536 times GEMM_MULTITHREAD_THRESHOLD 4)
+_ONE_THREAD = 65536 * 4
 
 # A post-impact slip below this share of the velocity scale has no direction.
 SLIP_ZERO = 1e-14
@@ -90,6 +94,45 @@ def _run_starts(mask: np.ndarray) -> np.ndarray:
         starts = np.zeros_like(mask)
         starts[0] = True
     return starts
+
+
+def _thin_matmul(X: np.ndarray, Y: np.ndarray) -> np.ndarray:
+    """``X @ Y`` (2-D) in blocks of rows of ``X`` (or columns of ``Y``, whichever is
+    longer) of at most `_ONE_THREAD` multiply-adds each: the slip search's products are
+    thin (a few columns) and long (a grid of thousands of angles), and OpenBLAS runs a
+    larger product on every core, whose start-up costs more than the product (the
+    search ran 1.6 times slower with it on two busy cores). Each element is the same
+    sum as in the whole product. Blocks have at least two rows (columns): numpy takes
+    a vector kernel for one."""
+    m, k = X.shape
+    n = Y.shape[1]
+    if m * k * n <= _ONE_THREAD or min(m, k, n) < 2:
+        return X @ Y
+    if m >= n:
+        step = max(2, _ONE_THREAD // (k * n))
+        cuts = list(range(0, m, step))
+        if m - cuts[-1] < 2:
+            cuts.pop()
+        return np.concatenate([X[a:b] @ Y for a, b in zip(cuts, cuts[1:] + [m])], axis=0)
+    step = max(2, _ONE_THREAD // (k * m))
+    cuts = list(range(0, n, step))
+    if n - cuts[-1] < 2:
+        cuts.pop()
+    return np.concatenate([X @ Y[:, a:b] for a, b in zip(cuts, cuts[1:] + [n])], axis=1)
+
+
+def _congruence(U: np.ndarray, K: np.ndarray) -> np.ndarray:
+    """``Uᵀ K[i] U`` for a stack ``K`` (P, p, p), ``U`` (p, r): the stacked product
+    computed as two products of all P matrices at once (one BLAS call each, not one
+    per matrix), each element the same sum over the same terms; with ``r = 1`` (where
+    numpy takes vector kernels) or one matrix, the stacked product itself."""
+    P, p, _ = K.shape
+    r = U.shape[1]
+    if r < 2 or P < 2:
+        return U.T @ K @ U
+    left = _thin_matmul(K.transpose(0, 2, 1).reshape(P * p, p), U).reshape(P, p, r)  # (Uᵀ K[i])ᵀ
+    left = np.ascontiguousarray(left.transpose(0, 2, 1))
+    return _thin_matmul(left.reshape(P * r, p), U).reshape(P, r, r)
 
 
 def _solve_stack(K: np.ndarray, rhs: np.ndarray) -> np.ndarray:
@@ -138,7 +181,16 @@ class SlipMap:
         U = self.U
         if U is None:
             return _solve_stack(K, rhs)
-        return U @ _solve_stack(U.T @ K @ U, U.T @ rhs)
+        return U @ _solve_stack(_congruence(U, K), U.T @ rhs)
+
+    def _solve_r(self, K: np.ndarray) -> np.ndarray:
+        """``K[i] z[i] = r`` for a stack (P, p, p) with one right-hand side: `_solve`
+        with ``Uᵀ r`` formed once for all matrices (P, p, 1)."""
+        U, P = self.U, K.shape[0]
+        if U is None:
+            return _solve_stack(K, np.broadcast_to(self.r, (P, self.r.size))[..., None])
+        Ur = U.T @ self.r[:, None]
+        return U @ _solve_stack(_congruence(U, K), np.broadcast_to(Ur, (P,) + Ur.shape))
 
     def __call__(self, theta: np.ndarray, jac: bool = True):
         """For angles ``theta`` of shape (P, ns): the residual f (P, ns), its
@@ -148,13 +200,13 @@ class SlipMap:
         (smooth; scale: the velocity scale), else ``f_k = g_k`` (scale 1)."""
         P, ns = theta.shape
         cs, sn = np.cos(theta), np.sin(theta)
-        a = [self.GT[j] @ np.stack([cs[:, j], sn[:, j]]) for j in range(ns)]  # (m, P) each
+        a = [_thin_matmul(self.GT[j], np.stack([cs[:, j], sn[:, j]])) for j in range(ns)]  # (m, P) each
         K = np.repeat(self.K0[None], P, axis=0)
         for j in range(ns):
             K[:, :, self.c[j]] += a[j][self.eq].T
-        z = self._solve(K, np.broadcast_to(self.r, (P, self.r.size))[..., None])[..., 0]
+        z = self._solve_r(K)[..., 0]
         zc = z[:, self.c]
-        up = self.prob.u + z @ self.GB0.T
+        up = self.prob.u + _thin_matmul(z, self.GB0.T)
         for j in range(ns):
             up += a[j].T * zc[:, j, None]
         lam_max = np.maximum(np.abs(z).max(axis=1, initial=0.0), (np.abs(zc) * self.mu_s).max(axis=1))
@@ -179,7 +231,7 @@ class SlipMap:
         rhs = np.empty((P, self.r.size, ns))
         da = []
         for j in range(ns):
-            da.append(self.GT[j] @ np.stack([-sn[:, j], cs[:, j]]))
+            da.append(_thin_matmul(self.GT[j], np.stack([-sn[:, j], cs[:, j]])))
             rhs[:, :, j] = da[j][self.eq].T * zc[:, j, None]
         dup = GB @ -self._solve(K, rhs)
         for j in range(ns):
@@ -381,11 +433,26 @@ class SlipDirections:
             for r, u_r, G_r, restitution, friction, coulomb, dg, cone in sweep:
                 w = u_r + G_r @ lam
                 if coulomb:
-                    w[0] += restitution + (friction * np.linalg.norm(w[1:]) if friction is not None else 0.0)
+                    wt = w[1:]  # the norm as np.linalg.norm forms it (the BLAS dot, then sqrt)
+                    w[0] += restitution + (friction * math.sqrt(wt.dot(wt)) if friction is not None else 0.0)
                 else:
                     w[0] += restitution
                 x = lam[r] - w / dg if dg > 0.0 else lam[r]
-                lam[r] = project_cone(x, cone)
+                if cone == np.inf:
+                    lam[r] = project_cone(x, cone)
+                    continue
+                # `project_cone` inlined, its arithmetic unchanged (a sweep is mostly call overhead)
+                xt = x[1:]
+                n, t = float(x[0]), math.sqrt(xt.dot(xt))
+                if n >= 0.0 and t <= cone * n:
+                    lam[r] = x
+                elif cone * t <= -n:
+                    lam[r] = 0.0
+                else:
+                    n2 = (n + cone * t) / (1.0 + cone * cone)
+                    xt *= cone * n2 / t
+                    x[0] = n2
+                    lam[r] = x
             if np.abs(lam - old).max() <= 1e-14 * max(np.abs(lam).max(), 1e-300):
                 break
         self._fp = (lam, self.u + self.G @ lam)

@@ -445,7 +445,7 @@ class _Impact(SlipDirections):
             if states[k] is ContactState.SLIDE and k in dirs:
                 B[self.tang[k], c] = -self.mu[k] * dirs[k]
         for k, cs in cols_t.items():
-            B[np.ix_(self.tang[k], cs)] = np.eye(cs.size)
+            B[self.tang[k], cs] = 1.0  # the identity block of a sticking contact's tangential rows
         return B
 
     def evaluate(self, states, dirs, lay) -> _Eval:
