@@ -192,15 +192,24 @@ class SlipMap:
         Ur = U.T @ self.r[:, None]
         return U @ _solve_stack(_congruence(U, K), np.broadcast_to(Ur, (P,) + Ur.shape))
 
-    def __call__(self, theta: np.ndarray, jac: bool = True):
+    def turns(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
+        """``cos θ``, ``sin θ`` (P, ns) and the friction columns ``a_k(θ)`` (m, P) of
+        each slider at angles ``theta`` (P, ns): what `__call__` forms first. They
+        depend on the sliders and the angles only, not on the rest of the candidate, so
+        a problem forms them once per set of sliders for its grid (`grid_turns`)."""
+        cs, sn = np.cos(theta), np.sin(theta)
+        a = [_thin_matmul(self.GT[j], np.stack([cs[:, j], sn[:, j]])) for j in range(theta.shape[1])]
+        return cs, sn, a
+
+    def __call__(self, theta: np.ndarray, jac: bool = True, turns=None):
         """For angles ``theta`` of shape (P, ns): the residual f (P, ns), its
         Jacobian (P, ns, ns) or None, the feasibility of the law's other
         conditions (P,), whether every slip is along (not against) its ``s``
         (P,) and the scale of f (P,). With ``cross``, ``f_k = s_k x u+_T,k``
-        (smooth; scale: the velocity scale), else ``f_k = g_k`` (scale 1)."""
+        (smooth; scale: the velocity scale), else ``f_k = g_k`` (scale 1).
+        ``turns``: `turns` of ``theta`` if already formed."""
         P, ns = theta.shape
-        cs, sn = np.cos(theta), np.sin(theta)
-        a = [_thin_matmul(self.GT[j], np.stack([cs[:, j], sn[:, j]])) for j in range(ns)]  # (m, P) each
+        cs, sn, a = self.turns(theta) if turns is None else turns  # a: (m, P) each
         K = np.repeat(self.K0[None], P, axis=0)
         for j in range(ns):
             K[:, :, self.c[j]] += a[j][self.eq].T
@@ -338,10 +347,9 @@ class SlipDirections:
         free = self.evaluate(states, dirs, lay)  # sliders without their friction columns
         starts.append(np.array([np.arctan2(free.up[self.tang[k][1]], free.up[self.tang[k][0]])
                                 for k in spatial]))
+        per_axis, grid, turns = self.grid_turns(fmap, spatial, pre)
         ns = len(spatial)
-        per_axis, offsets = _torus_grid(ns)
-        grid = pre + offsets
-        f, _, feas, _, vscale = fmap(grid, jac=False)
+        f, _, feas, _, vscale = fmap(grid, jac=False, turns=turns)
         merit = np.abs(f).max(axis=1) / vscale + np.where(feas, 0.0, 1.0)
         merit = np.where(np.isfinite(merit), merit, np.inf).reshape((per_axis,) * ns)
         local = np.isfinite(merit)
@@ -352,6 +360,18 @@ class SlipDirections:
         idx = idx[np.argsort(merit.ravel()[idx], kind="stable")][:_GRID_STARTS]
         starts.extend(grid[idx])
         return self.newton(fmap, np.array(starts))
+
+    def grid_turns(self, fmap, spatial, pre) -> tuple[int, np.ndarray, tuple]:
+        """The torus grid of the sliders ``spatial`` from their pre-impact slip angles
+        ``pre`` (points per axis, the angles) and its `SlipMap.turns`, formed once per
+        set of sliders in a problem: its candidates with the same sliders (a face's
+        corners sticking or open around them) share them."""
+        key = tuple(spatial)
+        if key not in self._grids:
+            per_axis, offsets = _torus_grid(len(spatial))
+            grid = pre + offsets
+            self._grids[key] = (per_axis, grid, fmap.turns(grid))
+        return self._grids[key]
 
     def cross_roots(self, fmap, pre: float) -> list[tuple[np.ndarray, float]]:
         """One spatial slider: the sign changes of the cross form ``s × u+_T`` over the
