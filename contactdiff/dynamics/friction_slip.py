@@ -44,7 +44,7 @@ _GRID_POINTS = {2: 48, 3: 20}  # per axis; more sliders: _GRID_BUDGET in all
 _GRID_BUDGET = 20000
 _GRID_STARTS = 48
 _FP_SWEEPS = 1000  # until a relative change of 1e-14; a cap, most touchdowns converge in far fewer
-_FP_CYCLE = 8  # iterates kept to recognise a cycle in round-off (periods 2 and 3 seen on face landings)
+_FP_CYCLE = 8  # iterates kept to recognise a cycle in round-off (periods 2 to 5 seen on face landings)
 _POLE_GAP = 1e-9  # rad: scan points beside a pole of one slider's Λ_N
 _DUPLICATE = 1e-8  # rad: two roots closer than this are one
 # OpenBLAS's gemm runs on one thread up to this many multiply-adds (its SMP_THRESHOLD_MIN
@@ -435,8 +435,8 @@ class SlipDirections:
         solutions of the law; it need not converge (at most _FP_SWEEPS sweeps: on the
         ANYmal trot's touchdowns 100 left sticking feet with a residual slip, 1000 do not).
         Where the iterates fall into a cycle in round-off (an iterate equal, bit for bit,
-        to one of the last _FP_CYCLE: a face's corners, 89 of 493 real toss impacts), the
-        sweeps stop there with the iterate they would have reached at the cap.
+        to one of the last _FP_CYCLE: often, on a face's corners), the sweeps stop there
+        with the iterate they would have reached at the cap.
         """
         if self._fp is not None:
             return self._fp
