@@ -24,6 +24,7 @@ import json
 import os
 import sys
 import time
+from typing import Any
 
 from .cli_args import (
     COUNT,
@@ -83,8 +84,9 @@ def build_parser() -> argparse.ArgumentParser:
     check.add_argument("--json", action="store_true", help="print the report as JSON")
     check.set_defaults(run=_run_check)
 
-    from .integration.options import ATOL_MAX, MAX_STEPS, RTOL_MAX, RTOL_MIN, OnGrazing, SimulateOptions
-    from .integration.steppers import METHODS
+    from .analysis.gait.stride import STRIDE_ATOL, STRIDE_METHOD, STRIDE_RTOL
+    from .integration.options import ATOL_MAX, AUTO, RTOL_MAX, RTOL_MIN, SIMULATE_METHODS, OnGrazing, SimulateOptions
+    from .ode.factory import METHODS
     from .replay import DEFAULT_FPS
 
     sim = sub.add_parser(
@@ -97,17 +99,17 @@ def build_parser() -> argparse.ArgumentParser:
                      help="initial joint coordinate (repeatable); comma-separated for multi-dof joints")
     sim.add_argument("--v", action="append", default=[], metavar="JOINT=VALUE",
                      help="initial joint velocity (repeatable)")
-    sim.add_argument("--method", default="auto", choices=("auto",) + tuple(METHODS),
-                     help="stepper: auto (DOP853, switching to Radau while stiff; the default), "
+    defaults = SimulateOptions()  # every default below is the options' own
+    sim.add_argument("--method", default=defaults.method, choices=SIMULATE_METHODS,
+                     help=f"stepper: {AUTO} (DOP853, switching to Radau while stiff; the default), "
                           "or one used throughout")
-    sim.add_argument("--rtol", type=FINITE, default=1e-8,
-                     help=f"relative tolerance in [{RTOL_MIN:.3g}, {RTOL_MAX:g}] (default 1e-8)")
-    sim.add_argument("--atol", type=FINITE, default=1e-10,
-                     help=f"absolute tolerance in (0, {ATOL_MAX:g}] (m, rad, m/s; default 1e-10)")
-    sim.add_argument("--max-steps", type=COUNT, default=MAX_STEPS,
+    sim.add_argument("--rtol", type=FINITE, default=defaults.rtol,
+                     help=f"relative tolerance in [{RTOL_MIN:.3g}, {RTOL_MAX:g}] (default {defaults.rtol:g})")
+    sim.add_argument("--atol", type=FINITE, default=defaults.atol,
+                     help=f"absolute tolerance in (0, {ATOL_MAX:g}] (m, rad, m/s; default {defaults.atol:g})")
+    sim.add_argument("--max-steps", type=COUNT, default=defaults.max_steps,
                      help="step budget: a run needing more accepted steps stops with an error "
-                          f"(default {MAX_STEPS}, at least 1)")
-    defaults = SimulateOptions()
+                          f"(default {defaults.max_steps}, at least 1)")
     sim.add_argument("--max-events", type=COUNT, default=defaults.max_events,
                      help=f"event budget: a run with more events stops with an error (default {defaults.max_events})")
     sim.add_argument("--zeno-speed", type=FINITE, default=defaults.zeno_speed,
@@ -204,9 +206,12 @@ def build_parser() -> argparse.ArgumentParser:
                         help="initial joint coordinate (repeatable)")
     stride.add_argument("--v", action="append", default=[], metavar="JOINT=VALUE",
                         help="initial joint velocity (repeatable)")
-    stride.add_argument("--method", default="DOP853", choices=METHODS, help="stepper (default DOP853)")
-    stride.add_argument("--rtol", type=FINITE, default=1e-10, help="relative tolerance (default 1e-10)")
-    stride.add_argument("--atol", type=FINITE, default=1e-12, help="absolute tolerance (default 1e-12)")
+    stride.add_argument("--method", default=STRIDE_METHOD, choices=METHODS,
+                        help=f"stepper (default {STRIDE_METHOD})")
+    stride.add_argument("--rtol", type=FINITE, default=STRIDE_RTOL,
+                        help=f"relative tolerance (default {STRIDE_RTOL:g})")
+    stride.add_argument("--atol", type=FINITE, default=STRIDE_ATOL,
+                        help=f"absolute tolerance (default {STRIDE_ATOL:g})")
     stride.add_argument("--json", action="store_true", help="print the result as JSON")
     stride.set_defaults(run=_run_stride)
 
@@ -272,7 +277,7 @@ def _check_html_path(path: str) -> None:
 def _scene_from_args(args):
     """The scene of ``args.source`` (with ``--feet``, ``--floating-base``) with the
     initial state changed by ``--q`` / ``--v``."""
-    from .model.scene_file import load_source
+    from .scenes.scene_file import load_source
 
     scene = load_source(args.source, floating_base=args.floating_base, feet=args.feet)
     q0, v0 = _assignments(getattr(args, "q", []), "--q"), _assignments(getattr(args, "v", []), "--v")
@@ -335,7 +340,7 @@ def _run_simulate(args) -> int:
     if args.json:
         _print(json.dumps(traj.summary(), indent=2))
     else:
-        _print(_format_trajectory(traj, scene))
+        _print(traj.format(scene))
         if args.plot and not plotted:
             _print(f"plot written to {args.plot}")
         if args.html and not replayed:
@@ -354,7 +359,7 @@ class _ProgressBar:
 
     def __init__(self, label: str, span: tuple[float, float] | None):
         self.label, self.span = label, span
-        self.bar = None
+        self.bar: Any = None  # a tqdm bar while entered
         self.last = 0.0
 
     def __enter__(self):
@@ -384,80 +389,6 @@ class _ProgressBar:
         self.bar.close()
 
 
-def _format_trajectory(traj, scene) -> str:
-    lines = [f"simulation of {traj.scene_name} from t = {traj.t0:g} to {traj.t:g} s",
-             f"{len(traj.events)} events", ""]
-    if traj.events:
-        lines.append(f"  {'t (s)':>18}  {'kind':<9}  {'contacts':<28}  {'simult.':<7}  mode after")
-        for e in traj.events[:200]:
-            lines.append(f"  {e.t:18.12f}  {e.kind:<9}  {', '.join(e.contacts):<28}  "
-                         f"{'yes' if e.simultaneous else 'no':<7}  {', '.join(e.mode_after) or '(flight)'}")
-        if len(traj.events) > 200:
-            lines.append(f"  ... {len(traj.events) - 200} more (see --json)")
-        lines.append("")
-    lines.append("final state")
-    names = scene.robot.tangent_names()
-    for label, x in zip(scene.robot.configuration_names(), traj.q):
-        lines.append(f"  q {label:<24} {x: .12g}")
-    for label, x in zip(names, traj.v):
-        lines.append(f"  v {label:<24} {x: .12g}")
-    lines.append("")
-    s = traj.stats
-    lines.append(f"steps {s.steps} (rejected {s.rejected_steps}), dynamics evaluations "
-                 f"{s.dynamics_evaluations}, largest active-gap drift {traj.max_drift:.2e} m")
-    if s.steps_by_method:
-        lines.append(f"method {s.method}: " + ", ".join(f"{m} {n} steps" for m, n in s.steps_by_method.items()))
-    lines += [f"note: {n}" for n in traj.notes]
-    if traj.jacobian is not None:
-        lines += [""] + _format_jacobian(traj, scene)
-    if traj.parameter_jacobian is not None:
-        lines += [""] + _format_parameter_jacobian(traj, scene)
-    return "\n".join(lines)
-
-
-def _format_parameter_jacobian(traj, scene) -> list[str]:
-    """Per parameter: its value, the largest entry of its column and where."""
-    import numpy as np
-
-    P = traj.parameter_jacobian
-    names = scene.robot.tangent_names()
-    labels = [f"dq[{n}]" for n in names] + [f"dv[{n}]" for n in names]
-    from .model.parameters import parameter_table
-
-    values = {row["name"]: row["value"] for row in parameter_table(scene)}  # None: a group whose members differ
-    lines = [f"parameter Jacobian d x({traj.t:g}) / d p: {P.shape[0]} x {P.shape[1]}, tangent space, "
-             "per unit of each parameter", f"  {'parameter':<40} {'value':>12}  {'largest entry':>14}  of"]
-    for k, name in enumerate(traj.parameter_names):
-        i = int(np.argmax(np.abs(P[:, k])))
-        value = values[name]
-        shown = f"{'(differ)':>12}" if value is None else f"{value:12.6g}"
-        lines.append(f"  {name:<40} {shown}  {P[i, k]:14.6g}  {labels[i]}")
-    return lines
-
-
-def _format_jacobian(traj, scene) -> list[str]:
-    import numpy as np
-
-    J = traj.jacobian
-    names = scene.robot.tangent_names()
-    labels = [f"dq[{n}]" for n in names] + [f"dv[{n}]" for n in names]
-    sv = np.linalg.svd(J, compute_uv=False)
-    lines = [f"flow Jacobian d x({traj.t:g}) / d x({traj.t0:g}): {J.shape[0]} x {J.shape[1]}, tangent space",
-             f"  2-norm {sv[0]:.6g}, condition number {sv[0] / sv[-1] if sv[-1] > 0 else float('inf'):.6g}",
-             "  largest entries:"]
-    order = np.argsort(-np.abs(J), axis=None)[:6]
-    for flat in order:
-        i, j = divmod(int(flat), J.shape[1])
-        lines.append(f"    d {labels[i]:<28} / d {labels[j]:<28} = {J[i, j]: .6g}")
-    lines.append("  events:")
-    for e in traj.events:
-        verdict = "differentiable" if e.differentiable else "NOT differentiable (piecewise-linear derivative)"
-        lines.append(f"    t = {e.t:.12f}  {e.kind:<9} {', '.join(e.contacts):<24} {verdict}")
-    lines.append("  the trajectory is " + ("differentiable" if traj.differentiable else
-                                          "NOT differentiable at some event (see notes)"))
-    return lines
-
-
 def _run_check(args) -> int:
     from .analysis.decoupling import check_decoupling
 
@@ -485,7 +416,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         args = parser.parse_args(argv)
     except SystemExit as exc:  # --help, or a bad argument (its line is printed)
-        return exc.code
+        return exc.code if isinstance(exc.code, int) else int(exc.code is not None)  # sys.exit's own rule
     try:
         return args.run(args)
     except ContactDiffError as exc:

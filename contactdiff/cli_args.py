@@ -7,7 +7,14 @@ from __future__ import annotations
 
 import argparse
 
-from .errors import ContactDiffError, InvalidInputError, OutputFileError, check_output_file, write_failed
+from .errors import (
+    ContactDiffError,
+    InvalidInputError,
+    OutputFileError,
+    check_output_file,
+    require_extra,
+    write_failed,
+)
 
 
 class Number:
@@ -52,10 +59,7 @@ def add_plot(parser: argparse.ArgumentParser, help_text: str) -> None:
 def check_plot_path(path: str) -> None:
     """Refuse a plot file that cannot be written, before any work is done: no
     matplotlib, a folder that does not exist, or a format matplotlib cannot write."""
-    try:
-        from matplotlib.figure import Figure
-    except ImportError:
-        raise InvalidInputError("--plot needs matplotlib: pip install 'contactdiff[plot]'") from None
+    Figure = require_extra("matplotlib.figure", "plot", "--plot").Figure
     target = check_output_file("--plot", path, "plot.png")
     formats = Figure().canvas.get_supported_filetypes()
     suffix = target.suffix.lower().lstrip(".")

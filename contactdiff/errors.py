@@ -6,7 +6,9 @@ finite set of values is valid, lists them.
 
 from __future__ import annotations
 
+import importlib
 from pathlib import Path
+from types import ModuleType
 
 
 class ContactDiffError(Exception):
@@ -69,6 +71,11 @@ class UnsupportedModelError(ModelLoadError):
     and give a different robot); the message names the feature and where it is."""
 
 
+class MissingExtraError(ContactDiffError, ImportError):
+    """An optional dependency is not installed: the message says what needs it and the
+    extra that installs it (``pip install 'contactdiff[EXTRA]'``; `require_extra`)."""
+
+
 class InconsistentStateError(ContactDiffError):
     """An initial state violates a unilateral constraint (penetration)."""
 
@@ -103,7 +110,7 @@ class TooManyStepsError(StoppedRunError):
 
 class StepBudgetError(TooManyStepsError):
     """The run cannot reach its final time within ``max_steps``: its steady recent steps
-    project far more steps than the budget has left (`contactdiff.integration.step_budget`),
+    project far more steps than the budget has left (`contactdiff.ode.step_budget`),
     and it stopped early rather than spend the budget. ``.trajectory`` holds the run so
     far; ``.t`` (s), ``.mode`` (the names of the active contacts), ``.step`` (s, the
     reference step of the projection) and ``.steps_needed`` say where and how far."""
@@ -116,7 +123,7 @@ class StepBudgetError(TooManyStepsError):
 
 class StepCollapseError(StoppedRunError):
     """The step size collapsed with no event in sight: many accepted steps in a row, each
-    far shorter than the mode's own steps (`contactdiff.integration.step_collapse`), as
+    far shorter than the mode's own steps (`contactdiff.ode.step_collapse`), as
     where the vector field is singular (a mechanism reaching a singular pose, e.g. a leg
     folded flat with its foot held). ``.trajectory`` holds the run so far; ``.t`` (s),
     ``.mode`` (the names of the active contacts) and ``.step`` (s, the last step) say
@@ -166,6 +173,25 @@ class PainleveError(OutsideDomainError):
     normal acceleration around, ``A_n M^-1 (A_n - μ s^T A_T)^T <= 0``;
     `contactdiff.dynamics.slip`). Met at a trial stage of a step it only shortens the
     step; raised when the trajectory itself gets there (or at an event's mode choice)."""
+
+
+def require_extra(module: str, extra: str, purpose: str) -> ModuleType:
+    """Import an optional dependency: the module, or `MissingExtraError` naming the extra.
+
+    Args:
+        module: the module's dotted name (``"matplotlib"``, ``"meshcat.geometry"``).
+        extra: the extra of contactdiff that installs it (``pyproject.toml``: ``"plot"``).
+        purpose: what needs it, the start of the message (``"plotting"``).
+
+    Raises:
+        MissingExtraError: the import failed; e.g. ``plotting needs matplotlib (No module
+            named 'matplotlib'): pip install 'contactdiff[plot]'``.
+    """
+    try:
+        return importlib.import_module(module)
+    except ImportError as exc:
+        raise MissingExtraError(f"{purpose} needs {module.split('.')[0]} ({exc}): "
+                                f"pip install 'contactdiff[{extra}]'") from None
 
 
 def check_names(owner: str, what: str, value) -> tuple[str, ...]:

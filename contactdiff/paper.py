@@ -16,7 +16,7 @@ import pinocchio as pin
 
 from .errors import InvalidInputError
 from .model.scene import Scene
-from .model.scene_file import load_scene
+from .scenes.scene_file import load_scene
 
 TROT_MODELS = ("soft", "rigid")
 

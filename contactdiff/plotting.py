@@ -3,30 +3,34 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .errors import ContactDiffError
-from .integration.trajectory import Trajectory
+from .errors import require_extra
+from .integration.trajectory import EventKind, Trajectory
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+    from .model.scene import Scene
 
 
 def _pyplot():
-    try:
-        import matplotlib
-    except ImportError:
-        raise ContactDiffError("plotting needs matplotlib: pip install 'contactdiff[plot]'") from None
+    matplotlib = require_extra("matplotlib", "plot", "plotting")
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     return plt
 
 
-_EVENT_STYLE = {"touchdown": ("tab:red", "-"), "lift-off": ("tab:green", "--"), "slip": ("tab:olive", "--"),
-                "bounce": ("tab:orange", ":"), "grazing": ("tab:purple", "-."), "zeno": ("black", "-"),
-                "bear": ("tab:brown", ":")}
+_EVENT_STYLE = {EventKind.TOUCHDOWN: ("tab:red", "-"), EventKind.LIFT_OFF: ("tab:green", "--"),
+                EventKind.SLIP: ("tab:olive", "--"), EventKind.BOUNCE: ("tab:orange", ":"),
+                EventKind.GRAZING: ("tab:purple", "-."), EventKind.ZENO: ("black", "-"),
+                EventKind.BEAR: ("tab:brown", ":")}
 
 
-def plot_gaps(traj: Trajectory, scene, path: str | Path, n_samples: int = 800) -> Path:
+def plot_gaps(traj: Trajectory, scene: Scene, path: str | Path, n_samples: int = 800) -> Path:
     """Contact gaps (m) against time with every event marked; saved as PNG.
 
     Args:
@@ -58,7 +62,7 @@ def plot_gaps(traj: Trajectory, scene, path: str | Path, n_samples: int = 800) -
     return Path(path)
 
 
-def plot_gait(traj: Trajectory, scene, path: str | Path, n_samples: int = 1500) -> Path:
+def plot_gait(traj: Trajectory, scene: Scene, path: str | Path, n_samples: int = 1500) -> Path:
     """Save `gait_figure` to ``path`` (any format matplotlib writes)."""
     plt = _pyplot()
     fig = gait_figure(traj, scene, n_samples)
@@ -67,7 +71,7 @@ def plot_gait(traj: Trajectory, scene, path: str | Path, n_samples: int = 1500) 
     return Path(path)
 
 
-def gait_figure(traj: Trajectory, scene, n_samples: int = 1500):
+def gait_figure(traj: Trajectory, scene: Scene, n_samples: int = 1500) -> Figure:
     """Gait figure of a floating-base scene: a contact timeline (one row per contact, a
     bar wherever it is active, touchdowns marked red and lift-offs green, with a
     legend), and the base height (m) and its roll and pitch (rad, Pinocchio's
@@ -97,7 +101,7 @@ def gait_figure(traj: Trajectory, scene, n_samples: int = 1500):
     ax_c.set_yticks(range(len(names)), names)
     ax_c.set_ylim(len(names) - 0.5, -0.5)
     ax_c.set_title(f"{traj.scene_name}: feet on the ground, base height and attitude")
-    for kind, color in (("touchdown", "tab:red"), ("lift-off", "tab:green")):
+    for kind, color in ((EventKind.TOUCHDOWN, "tab:red"), (EventKind.LIFT_OFF, "tab:green")):
         marks = [(e.t, names.index(c)) for e in traj.events if e.kind == kind for c in e.contacts]
         if marks:
             ax_c.plot(*zip(*marks), "|", color=color, ms=9, label=kind)

@@ -44,24 +44,23 @@ process is started and no port is opened.
 from __future__ import annotations
 
 import base64
-import bisect
 import html
 import json
-import math
-from dataclasses import dataclass
+from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pinocchio as pin
 
-from .errors import ContactDiffError, InvalidInputError, check_output_file, write_failed
+from .errors import InvalidInputError, check_output_file, require_extra, write_failed
+from .errors import MissingExtraError as MissingExtraError  # its home until it moved to errors.py
+from .replay_frames import DEFAULT_FPS, Frames, ReplayedRun, _positive, sample_frames
 from .replay_geometry import contact_surfaces, drawn_geometry, marker_radius, model_size, visible_marker_radius
 
-DEFAULT_FPS = 30.0
-"""Frames per second of simulated time."""
+if TYPE_CHECKING:
+    from .model.scene import Scene
 
-MAX_FRAMES = 200_000
-"""Refuse pages with more frames than this (a long run at a high ``fps``)."""
 
 ROOT = "contactdiff"
 """Name of the meshcat node under which the robot and the contacts are drawn."""
@@ -70,85 +69,13 @@ EVENT_COLOURS = {"touchdown": "#d62728", "lift-off": "#2ca02c", "slip": "#bcbd22
                  "bounce": "#ff7f0e", "grazing": "#9467bd", "zeno": "#000000", "bear": "#8c564b"}
 """Timeline colour of each event kind (CSS)."""
 
-_EVENT_TOL = 1e-9  # s: a grid time this close to an event time is replaced by the event's
-
-
-class MissingExtraError(ContactDiffError, ImportError):
-    """An optional dependency of the replay (meshcat) is not installed."""
-
 
 def require_meshcat():
     """The meshcat modules, or `MissingExtraError` naming the extra to install."""
-    try:
-        import meshcat
-        import meshcat.animation
-        import meshcat.geometry
-        import umsgpack
-    except ImportError as exc:
-        raise MissingExtraError(f"the browser replay needs meshcat ({exc}): "
-                                "pip install 'contactdiff[viz]'") from None
-    return meshcat, umsgpack
-
-
-# -- frames -------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class Frames:
-    """The sampled animation.
-
-    Attributes:
-        times: frame times (s), increasing, from ``t0`` to ``t``.
-        q: configurations (n, nq).
-        modes: names of the closed contacts at each frame (right limit at events).
-        event: True where the frame is an event time.
-    """
-
-    times: np.ndarray
-    q: np.ndarray
-    modes: list[tuple[str, ...]]
-    event: np.ndarray
-
-
-def frame_times(traj, fps: float = DEFAULT_FPS) -> tuple[np.ndarray, np.ndarray]:
-    """Times of the frames (s) and whether each is an event time.
-
-    A uniform grid ``t0 + k / fps`` up to ``traj.t`` (which is added if the grid
-    misses it), merged with the event times; a grid time within 1e-9 s of an event
-    is dropped for it.
-    """
-    fps = _positive(fps, "fps", "frames per second")
-    span = traj.t - traj.t0
-    n = int(math.floor(span * fps + 1e-9)) + 1
-    if n > MAX_FRAMES:
-        raise InvalidInputError(f"replay: {span:g} s at fps = {fps:g} gives {n} frames, more than "
-                                f"{MAX_FRAMES}; lower fps")
-    grid = traj.t0 + np.arange(n) / fps
-    if traj.t - grid[-1] > _EVENT_TOL:
-        grid = np.append(grid, traj.t)
-    events = np.unique([e.t for e in traj.events if traj.t0 <= e.t <= traj.t])
-    keep = np.array([not events.size or np.min(np.abs(events - t)) > _EVENT_TOL for t in grid], dtype=bool)
-    times = np.concatenate([grid[keep], events])
-    is_event = np.concatenate([np.zeros(keep.sum(), bool), np.ones(events.size, bool)])
-    order = np.argsort(times, kind="stable")
-    return times[order], is_event[order]
-
-
-def sample_frames(traj, fps: float = DEFAULT_FPS) -> Frames:
-    """The states and contact modes at the `frame_times` of ``traj`` (needs its dense output)."""
-    if not traj.dense:
-        raise InvalidInputError("replay: this run kept no dense output, so the states between events are "
-                                "gone: simulate(..., dense=True) keeps them")
-    times, is_event = frame_times(traj, fps)
-    by_time = {}
-    for e in traj.events:
-        by_time.setdefault(e.t, e)  # the first event's q: q is continuous through a cascade
-    starts = [s.t0 for s in traj.segments]
-    qs, modes = [], []
-    for t, at_event in zip(times, is_event):
-        t = float(t)
-        qs.append(by_time[t].q.copy() if at_event else traj.at(t)[0])
-        i = bisect.bisect_right(starts, t) - 1  # the last segment starting at or before t
-        modes.append(tuple(traj.segments[i].mode) if i >= 0 else ())
-    return Frames(times, np.array(qs), modes, is_event)
+    meshcat = require_extra("meshcat", "viz", "the browser replay")
+    for module in ("meshcat.animation", "meshcat.geometry"):  # meshcat's attributes once imported
+        require_extra(module, "viz", "the browser replay")
+    return meshcat, require_extra("umsgpack", "viz", "the browser replay")
 
 
 # -- recording meshcat's commands --------------------------------------------------------
@@ -195,8 +122,8 @@ class _Recorder:
 
 
 # -- the page --------------------------------------------------------------------------------
-def replay_html(traj, scene, *, fps: float = DEFAULT_FPS, contact_radius: float | None = None,
-                title: str | None = None, package_dirs=()) -> str:
+def replay_html(traj: ReplayedRun, scene: Scene, *, fps: float = DEFAULT_FPS, contact_radius: float | None = None,
+                title: str | None = None, package_dirs: Sequence[str | Path] = ()) -> str:
     """The replay page of ``traj`` as HTML text (see the module docstring).
 
     Args:
@@ -253,7 +180,7 @@ def replay_html(traj, scene, *, fps: float = DEFAULT_FPS, contact_radius: float 
     return _page(recorder.commands(), info, title or f"contactdiff replay: {scene.name}", meshcat)
 
 
-def write_html(traj, scene, path: str | Path, **options) -> Path:
+def write_html(traj: ReplayedRun, scene: Scene, path: str | Path, **options) -> Path:
     """Write `replay_html` to ``path`` (UTF-8) and return the path.
 
     ``options`` are those of `replay_html`; a folder that is missing or takes no file
@@ -267,17 +194,6 @@ def write_html(traj, scene, path: str | Path, **options) -> Path:
     except OSError as exc:
         raise write_failed("replay: file", path, exc) from None
     return target
-
-
-def _positive(value, name: str, unit: str = "m") -> float:
-    """``value`` as a finite float > 0, else `InvalidInputError` naming it and its unit."""
-    try:
-        out = float(value)
-    except (TypeError, ValueError):
-        raise InvalidInputError(f"replay: {name} must be a number, got {value!r}") from None
-    if not math.isfinite(out) or out <= 0:
-        raise InvalidInputError(f"replay: {name} must be finite and > 0 ({unit}), got {value!r}")
-    return out
 
 
 def _load_surfaces(viewer, surfaces, meshcat) -> None:
@@ -319,7 +235,7 @@ def _record_robot(animation, viewer, viz, robot, geoms, frames: Frames, fps: flo
     a constant scale key where the mesh is scaled."""
     model, data, gdata = robot.model, robot.model.createData(), pin.GeometryData(geoms)
     keys = _frame_keys(frames, fps)
-    poses = [[] for _ in range(geoms.ngeoms)]
+    poses: list[list[pin.SE3]] = [[] for _ in range(geoms.ngeoms)]
     for q in frames.q:
         pin.forwardKinematics(model, data, q)
         pin.updateGeometryPlacements(model, data, geoms, gdata)
@@ -340,7 +256,7 @@ def _contact_points(scene, frames: Frames) -> dict[str, np.ndarray]:
     """Each contact's point at every frame (n, 3), m, world frame: the frame origin, less
     the radius along the normal for a round contact."""
     model, data = scene.robot.model, scene.robot.model.createData()
-    points = {c.name: [] for c in scene.contacts}
+    points: dict[str, list[np.ndarray]] = {c.name: [] for c in scene.contacts}
     for q in frames.q:
         pin.framesForwardKinematics(model, data, q)
         for c in scene.contacts:
@@ -365,7 +281,7 @@ def _camera_distance(robot, frames: Frames, size: float) -> float:
     reach = 0.0
     for q in frames.q[:: max(1, len(frames.q) // 50)]:
         pin.forwardKinematics(model, data, q)
-        reach = max(reach, max(np.linalg.norm(data.oMi[j].translation) for j in range(model.njoints)))
+        reach = max(reach, max(float(np.linalg.norm(data.oMi[j].translation)) for j in range(model.njoints)))
     return 2.2 * max(size, reach)
 
 

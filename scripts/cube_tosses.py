@@ -13,25 +13,40 @@ against finite differences of the same residuals, the wall time per toss, the
 tosses whose outcome is not differentiable, and the worst held-out tosses.
 
     python scripts/cube_tosses.py --tosses ../shared/data/cube_tosses/tosses.npz --train 100
+    python scripts/cube_tosses.py --tosses ../shared/data/cube_tosses/tosses.npz --train 100 --window 15
     python scripts/cube_tosses.py --quick          # 2 shipped tosses to fit, 2 held out, 1 evaluation
+
+``--window N`` fits on short windows (multiple shooting, `contactdiff.fit.windows`) instead of
+whole tosses: N samples from a free-flight start before each touch, each window's start
+velocity fitted with the parameters.
 """
 
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import statistics
 import sys
 import time
 from collections import Counter
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
 import contactdiff as cd
-from contactdiff.data.cube_recordings import Start, split, toss_errors, toss_recording
+from contactdiff.data.cube_recordings import (
+    WINDOW_CLEARANCE,
+    Start,
+    lowest_corner,
+    split,
+    toss_errors,
+    toss_recording,
+    toss_windows,
+)
 from contactdiff.data.cube_tosses import NOMINAL, load_tosses
-from contactdiff.fit import ResidualWeights, Scaled, fit
+from contactdiff.fit import ResidualWeights, Scaled, Windows, fit
 from contactdiff.fit.evaluation import StateFit, Task, evaluate
 from contactdiff.fit.parameters import FitPlan
 from contactdiff.fit.rollouts import rollout, rollouts
@@ -43,11 +58,22 @@ STEPPING_COST = {"MuJoCo": (3.4e-3, 21.9), "Drake": (9e-3, 13.1)}
 """Quoted wall time per toss (s) at a 0.68 ms step and position error (%) of the time-stepping simulators."""
 
 
-def unknowns(scene) -> list:
-    """μ, e and the board height shared by the eight corners, a scale of the three moments, and gravity."""
+def unknowns(scene, gravity: bool = True, offset: bool = True) -> list:
+    """μ and e shared by the eight corners, (unless ``offset`` is False) the board height, a scale
+    of the three moments, and (unless ``gravity`` is False) gravity."""
     moments = {f"body:cube:i{a}{a}": NOMINAL.moment for a in "xyz"}
-    return ["group:cube:friction", "group:cube:restitution", "group:cube:offset",
-            Scaled("inertia_scale", moments), "scene:gravity_z"]
+    return (["group:cube:friction", "group:cube:restitution"] + (["group:cube:offset"] if offset else [])
+            + [Scaled("inertia_scale", moments)] + (["scene:gravity_z"] if gravity else []))
+
+
+def training_recordings(tosses, names, args, scene) -> list:
+    """Whole tosses from three samples before touch, or (``--window N``) each toss's windows
+    that start in free flight ``--lead`` samples before a touch (`toss_windows`)."""
+    if not args.window:
+        return [toss_recording(tosses[n], Start.BEFORE_TOUCH) for n in names]
+    base = base_parameters(args)
+    return [w for n in names for w in toss_windows(tosses[n], Windows(args.window), base, lead=args.lead,
+                                                   model=scene.model)]
 
 
 def summary(errors: list[tuple[float, float]]) -> dict:
@@ -60,12 +86,18 @@ def summary(errors: list[tuple[float, float]]) -> dict:
             "rotation_std": statistics.pstdev(rot), "rotation_median": statistics.median(rot)}
 
 
-def evaluate_held_out(tosses, names, values, jobs, label, options) -> dict:
+def base_parameters(args):
+    """The cube's parameters the fit starts from: the board at --ground, lengths and g scaled by --length-scale."""
+    return replace(NOMINAL, ground=args.ground, edge=NOMINAL.edge * args.length_scale,
+                   gravity=NOMINAL.gravity * args.length_scale)
+
+
+def evaluate_held_out(tosses, names, values, jobs, label, options, source=cd.cube_scene) -> dict:
     """Both starts' rollouts of the held-out ``names`` at ``values``: metrics, failures, worst tosses."""
     out = {}
     for start in Start:
         recs = [toss_recording(tosses[n], start) for n in names]
-        runs = rollouts(cd.cube_scene, recs, values, jobs=jobs, options=options, progress=None)
+        runs = rollouts(source, recs, values, jobs=jobs, options=options, progress=None)
         errors, failed, rows = [], [], []
         for rec, run in zip(recs, runs):
             if not run.complete:
@@ -92,20 +124,39 @@ def _line(s: dict) -> str:
             f"(median {s['rotation_median']:.1f}); {len(s['failed'])} failed")
 
 
-def jacobian_cost(tosses, names, scene, options) -> dict:
-    """One toss's residuals with their exact Jacobian against the plain run that finite differences
-    repeat (forward: n + 1 runs, central: 2n), medians over ``names`` (run in this process)."""
-    plan = FitPlan(scene, unknowns(scene))
+def length_check(tosses) -> dict:
+    """The data's gravity and the cube's rest height, each against the model's: a parabola z(t) through
+    each toss's first flight (at least 8 samples whose lowest corner clears the board by
+    WINDOW_CLEARANCE) gives g; the centre's mean height over each toss's last 20 samples (at rest
+    on a face) the rest height. Medians over tosses, and each as a ratio to 9.81 m/s² and edge / 2."""
+    g, rest = [], []
+    for toss in tosses.values():
+        free = lowest_corner(toss) > WINDOW_CLEARANCE
+        k = int(np.argmin(free)) if not free.all() else len(toss)
+        if k >= 8:
+            g.append(-2.0 * np.polyfit(toss.t[:k], toss.position[:k, 2], 2)[0])
+        rest.append(float(np.mean(toss.position[-20:, 2])))
+    g_median, rest_median = statistics.median(g), statistics.median(rest)
+    return {"flights": len(g), "g_median": g_median, "g_quartiles": list(np.percentile(g, [25, 75])),
+            "g_ratio": g_median / NOMINAL.gravity, "rest_median": rest_median,
+            "rest_ratio": rest_median / (NOMINAL.edge / 2.0), "tosses": len(rest)}
+
+
+def jacobian_cost(recordings, scene, options, parameters, state: StateFit = StateFit.NONE) -> dict:
+    """One recording's residuals with their exact Jacobian against the plain run that finite differences
+    repeat (forward: n + 1 runs, central: 2n, n the fitted parameters and initial-state offsets of a
+    recording), medians over ``recordings`` (run in this process)."""
+    plan = FitPlan(scene, parameters)
     values = plan.values(plan.start(scene))
+    s = len(state.columns(scene.nv))
     exact, plain = [], []
-    for n in names:
-        rec = toss_recording(tosses[n], Start.BEFORE_TOUCH)
-        task = Task(0, rec, values, np.zeros(0), StateFit.NONE, ResidualWeights(), options)
+    for rec in recordings:
+        task = Task(0, rec, values, np.zeros(s), state, ResidualWeights(), options)
         t0 = time.perf_counter()
         evaluate(scene, plan.parameters, task)
         exact.append(time.perf_counter() - t0)
         plain.append(rollout(scene, rec, values, options).wall)
-    k = len(plan.names)
+    k = len(plan.names) + s
     ratio = statistics.median(e / p for e, p in zip(exact, plain))
     return {"unknowns": k, "exact_over_plain": ratio, "forward_fd_over_plain": k + 1, "central_fd_over_plain": 2 * k,
             "exact_median": statistics.median(exact), "plain_median": statistics.median(plain)}
@@ -122,43 +173,75 @@ def main(argv=None) -> int:
     parser.add_argument("--rtol", type=float, default=1e-6,
                         help="the runs' relative tolerance (default 1e-6: the data's noise is ~1e-3 m on 0.1 m)")
     parser.add_argument("--atol", type=float, default=1e-8, help="the runs' absolute tolerance (default 1e-8)")
+    parser.add_argument("--window", type=int, default=0, metavar="N",
+                        help="fit on windows of N samples that start in free flight before each touch, each "
+                             "window's start velocity fitted too (default 0: whole tosses)")
+    parser.add_argument("--lead", type=int, default=4,
+                        help="with --window: start each window this many free-flight samples before the last "
+                             "one before a touch (default 4)")
+    parser.add_argument("--policy", default="keep", choices=["keep", "exclude"],
+                        help="recordings not differentiable at the start: keep or exclude (default keep)")
+    parser.add_argument("--no-gravity", action="store_true", help="keep g at 9.81 m/s² (do not fit it)")
+    parser.add_argument("--ground", type=float, default=0.0,
+                        help="the board's height (m) the fit starts from, or keeps with --no-offset (default 0)")
+    parser.add_argument("--length-scale", type=float, default=1.0,
+                        help="the model's edge and g times this (the data's lengths in units this much too "
+                             "small: 0.98 makes edge 0.1027 m and g 9.61 m/s²; default 1)")
+    parser.add_argument("--no-offset", action="store_true", help="keep the board's height at --ground (do not fit it)")
+    parser.add_argument("--length-check", action="store_true",
+                        help="only compare the data's free-flight g and rest height with the model's, and stop")
     parser.add_argument("--quick", action="store_true", help="2 shipped tosses to fit, 2 held out, 1 evaluation")
     parser.add_argument("--plot-dir", help="write plots of held-out tosses and the error distribution here")
     parser.add_argument("--json", action="store_true", help="print the report as JSON")
     args = parser.parse_args(argv)
     tosses = load_tosses(args.tosses)
+    if args.length_check:
+        c = length_check(tosses)
+        print(json.dumps(c, indent=2) if args.json else
+              f"free-flight g: median {c['g_median']:.3f} m/s² over {c['flights']} first flights (quartiles "
+              f"{c['g_quartiles'][0]:.3f}, {c['g_quartiles'][1]:.3f}), {c['g_ratio']:.4f} of 9.81; rest height: "
+              f"median {c['rest_median']:.5f} m over {c['tosses']} tosses, {c['rest_ratio']:.4f} of edge / 2")
+        return 0
     if args.quick:
         args.train, args.test, args.max_evaluations = 2, 2, 1
     jobs = args.jobs or 2
     train, held_out = split(tosses, args.train, args.seed)
     held_out = held_out[:args.test] if args.test else held_out
-    scene = cd.cube_scene()
-    report = {"train": len(train), "held_out": len(held_out), "seed": args.seed}
+    base = base_parameters(args)
+    build = functools.partial(cd.cube_scene, base)
+    scene = build()
+    report = {"train": len(train), "held_out": len(held_out), "seed": args.seed,
+              "base": {"edge": base.edge, "gravity": base.gravity, "ground": base.ground}}
 
-    recs = [toss_recording(tosses[n], Start.BEFORE_TOUCH) for n in train]
+    recs = training_recordings(tosses, train, args, scene)
+    parameters = unknowns(scene, gravity=not args.no_gravity, offset=not args.no_offset)
+    state = StateFit.VELOCITY if args.window else StateFit.NONE
+    report |= {"window": args.window, "lead": args.lead if args.window else None, "recordings": len(recs)}
     weights = ResidualWeights(position=1.0, orientation=NOMINAL.edge / 2)  # a radian counts as a corner's travel
     started = time.perf_counter()
     options = {"rtol": args.rtol, "atol": args.atol}
-    result = fit(cd.cube_scene if jobs > 1 else scene, recs, unknowns(scene), weights=weights, jobs=jobs,
+    result = fit(build if jobs > 1 else scene, recs, parameters, weights=weights, jobs=jobs,
+                 state=state, policy=args.policy,
                  max_evaluations=args.max_evaluations, options=options)
     report["fit"] = result.to_dict() | {"wall_time": time.perf_counter() - started}
     print(result.table(), file=sys.stderr, flush=True)
-    fitted = FitPlan(scene, unknowns(scene)).values(result.values)
+    fitted = {"group:cube:offset": args.ground} | FitPlan(scene, parameters).values(result.values)
     report["fitted_scene_values"] = fitted
 
     report["options"] = options
     report["nominal"] = evaluate_held_out(tosses, held_out, None, jobs, "nominal", options)
-    report["fitted"] = evaluate_held_out(tosses, held_out, fitted, jobs, "fitted", options)
-    report["jacobian_cost"] = jacobian_cost(tosses, train[:min(5, len(train))], scene, options)
+    report["fitted"] = evaluate_held_out(tosses, held_out, fitted, jobs, "fitted", options, build)
+    probe = recs[:5] if args.window else [toss_recording(tosses[n], Start.BEFORE_TOUCH) for n in train[:5]]
+    report["jacobian_cost"] = jacobian_cost(probe, scene, options, parameters, state)
     report["anchors"] = ANCHORS
     report["stepping_cost"] = STEPPING_COST
     if args.plot_dir:
-        plot_report(report, tosses, fitted, Path(args.plot_dir))
+        plot_report(report, tosses, fitted, Path(args.plot_dir), build())
     print(json.dumps(report, indent=2) if args.json else format_report(report))
     return 0
 
 
-def plot_report(report: dict, tosses, fitted: dict, folder: Path) -> None:
+def plot_report(report: dict, tosses, fitted: dict, folder: Path, scene) -> None:
     """``cube_toss_errors.png``: the held-out position errors (nominal and fitted, from before
     touch) with the anchors' means; ``cube_toss_rollouts.png``: measured against fitted
     centre positions of the two best and two worst held-out tosses."""
@@ -184,7 +267,6 @@ def plot_report(report: dict, tosses, fitted: dict, folder: Path) -> None:
 
     rows = report["fitted"][start]["per_toss"]  # sorted worst first
     chosen = [r[0] for r in rows[-2:][::-1]] + [r[0] for r in rows[:2]]
-    scene = cd.cube_scene()
     fig, axes = plt.subplots(len(chosen), 1, figsize=(7, 2.3 * len(chosen)), squeeze=False)
     for ax, name in zip(axes[:, 0], chosen):
         rec = toss_recording(tosses[name], Start.BEFORE_TOUCH)
@@ -205,7 +287,10 @@ def plot_report(report: dict, tosses, fitted: dict, folder: Path) -> None:
 
 def format_report(report: dict) -> str:
     fit_ = report["fit"]
-    lines = [f"fit on {report['train']} tosses ({fit_['iterations']} iterations, {fit_['evaluations']} evaluations, "
+    shape = (f"{report['recordings']} windows of {report['window']} samples, lead {report['lead']}"
+             if report.get("window") else "whole tosses")
+    lines = [f"fit on {report['train']} tosses, {shape} ({fit_['iterations']} iterations, "
+             f"{fit_['evaluations']} evaluations, "
              f"{fit_['wall_time']:.0f} s; not differentiable per evaluation: {fit_['nondifferentiable']}):"]
     for name, p in fit_["parameters"].items():
         lines.append(f"  {name:<26} {p['start']:>10.5g} -> {p['value']:>10.5g} ± {p['standard_error']:.2g}")
@@ -218,7 +303,7 @@ def format_report(report: dict) -> str:
     c = report["jacobian_cost"]
     lines.append(f"exact Jacobian of {c['unknowns']} unknowns: {c['exact_over_plain']:.2f} plain runs "
                  f"(forward FD {c['forward_fd_over_plain']}, central {c['central_fd_over_plain']}); plain run "
-                 f"median {c['plain_median'] * 1e3:.0f} ms per toss")
+                 f"median {c['plain_median'] * 1e3:.0f} ms per fitted recording")
     worst = report["fitted"][Start.BEFORE_TOUCH.value]["worst"]
     lines.append("worst held-out tosses (fitted, from before touch): " + "; ".join(
         f"{w['toss']} {w['position']:.0f} % {w['rotation']:.0f} deg {dict(Counter(w['events']))}" for w in worst[:5]))

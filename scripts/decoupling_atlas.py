@@ -35,7 +35,7 @@ from pathlib import Path
 import pinocchio as pin
 
 import contactdiff as cd
-from contactdiff.model.robot import QUADRUPEDS, example_robot_data_names
+from contactdiff.model.robot_files import QUADRUPEDS, example_robot_data_names
 from contactdiff.sweeps import sweep
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -57,8 +57,8 @@ def where_time_goes(record: list):
     impact as ``("impact", wall s)`` into ``record``, for this run only (timers wrapped around
     ``step`` and the loop's ``resolve_impact``)."""
     from contactdiff.integration import event_resets
-    from contactdiff.integration.explicit_rk import ExplicitRK
-    from contactdiff.integration.radau import Radau
+    from contactdiff.ode.explicit_rk import ExplicitRK
+    from contactdiff.ode.radau import Radau
 
     steps = {cls: cls.step for cls in (ExplicitRK, Radau)}
     impact = event_resets.resolve_impact

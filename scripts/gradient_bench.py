@@ -1,12 +1,14 @@
 """Gradients through contact: contactdiff against MuJoCo (and MJX) on five tasks.
 
-    python scripts/gradient_bench.py [--quick] [--json out.json] [--plots DIR] [--no-mjx]
+    python scripts/gradient_bench.py [--quick] [--json out.json] [--plots DIR] [--no-mjx] [--repeats N]
 
 For each task (`contactdiff.bench.gradients`) and method, the gradient's relative
 error against the exact one (Frobenius norm of the difference over that of the
-exact gradient) and the wall time of computing it, measured in this one run;
+exact gradient) and the wall and CPU time of computing it, measured in this one
+run: contactdiff's as the median of ``--repeats`` runs (of every point on task 4),
+MuJoCo's once (on task 4 the median over its 20 points);
 task 2's gradient descent (iterations, reached distance); task 4's verdicts;
-one work-precision plot per task (error against wall time, log-log) in ``--plots``
+one work-precision plot per task (error against CPU time, log-log) in ``--plots``
 (default docs/gradients/). ``--quick``: one MuJoCo variant and one tolerance per
 task, no MJX, seconds. Needs the ``mujoco`` extra; MJX needs ``jax`` and
 ``mujoco-mjx`` (left out, with a note, when absent).
@@ -34,21 +36,34 @@ QUICK_VARIANTS = [mj.Variant(1e-3, 0.02)]
 FD_STEPS = (1e-2, 1e-5)
 TRANSITION_MIN_DT = 1e-4  # the product of 1/dt Jacobians in a Python loop: slower below
 TARGET = 1e-3
+"""A baseline's relative gradient error that counts as reaching the target."""
+OWN_TARGET = 1e-8
+"""contactdiff's: its cost is that of its cheapest tolerance within it."""
+REPEATS = 5
 
 
 def relative(gradient, exact) -> float:
     return float(np.linalg.norm(np.asarray(gradient) - exact) / np.linalg.norm(exact))
 
 
-def row(task, method, variant, error, seconds, **extra) -> dict:
-    return {"task": task, "method": method, "variant": variant, "error": error, "seconds": seconds, **extra}
+def row(task, method, variant, error, cost: g.Cost, **extra) -> dict:
+    return {"task": task, "method": method, "variant": variant, "error": error, "seconds": cost.wall,
+            "cpu_seconds": cost.cpu, **extra}
 
 
-def contactdiff_rows(task: str, exact, run, tolerances) -> list[dict]:
+def repeated(run, repeats: int):
+    """``run()`` (a `g.Run`) ``repeats`` times: the last run, with the median `g.Cost`."""
+    runs = [run() for _ in range(repeats)]
+    last = runs[-1]
+    last.cost = g.median_cost(r.cost for r in runs)
+    return last
+
+
+def contactdiff_rows(task: str, exact, run, tolerances, repeats: int) -> list[dict]:
     rows = []
     for rtol in tolerances:
-        r = run(rtol, rtol / 10)
-        rows.append(row(task, "contactdiff", f"rtol {rtol:g}", relative(r.gradient, exact), r.seconds,
+        r = repeated(lambda: run(rtol, rtol / 10), repeats)
+        rows.append(row(task, "contactdiff", f"rtol {rtol:g}", relative(r.gradient, exact), r.cost,
                         differentiable=r.differentiable))
     return rows
 
@@ -72,13 +87,14 @@ def mjx_row(task: str, exact, model, qpos, qvel, steps, rows_, columns, label) -
     try:
         G, first, second = mj.mjx_gradient(model, qpos, qvel, steps, rows_, columns)
     except ContactDiffError as exc:
-        return [row(task, "mjx jacfwd", f"left out: {exc}", math.nan, math.nan)]
+        return [row(task, "mjx jacfwd", f"left out: {exc}", math.nan, g.Cost(math.nan, math.nan))]
     return [row(task, "mjx jacfwd", label, relative(G, exact), second, compile_seconds=first)]
 
 
-def ball_task(name: str, task: g.BallTask, variants, tolerances, quick: bool, mjx: bool) -> list[dict]:
+def ball_task(name: str, task: g.BallTask, variants, tolerances, quick: bool, mjx: bool, repeats: int) -> list[dict]:
     exact = g.ball_gradient(task)
-    rows = contactdiff_rows(name, exact, lambda rt, at: g.contactdiff_ball(task, rtol=rt, atol=at), tolerances)
+    rows = contactdiff_rows(name, exact, lambda rt, at: g.contactdiff_ball(task, rtol=rt, atol=at), tolerances,
+                            repeats)
     rows += mujoco_rows(name, exact, lambda v, m, h: mj.mujoco_ball(task, v, m, h=h or mj.FD_STEP), variants, quick)
     if mjx:
         v = mj.Variant(1e-3, 0.02)
@@ -119,19 +135,24 @@ def descent_rows(name: str, task: g.BallTask, variant: mj.Variant, h: float, ite
     return out
 
 
-def brax_rows(quick: bool, variants) -> tuple[list[dict], list[dict]]:
+def brax_rows(quick: bool, variants, tolerances, repeats: int) -> tuple[list[dict], list[dict]]:
+    """Task 4: a row per method and variant (error: the largest over the differentiable
+    points; cost: the median over the points, each contactdiff point's the median of
+    ``repeats`` runs), and the verdicts of the runs at the tightest tolerance."""
     task = g.BRAX
     points = [task.kink + 0.05 * k for k in range(-10, 11, 5 if quick else 1)]
     verdicts, rows = [], []
-    runs = [(z0, g.contactdiff_brax(task, z0), g.brax_outcome(task, z0)) for z0 in points]
+    for rtol in tolerances:
+        runs = [(z0, repeated(lambda: g.contactdiff_brax(task, z0, rtol, rtol / 10), repeats),
+                 g.brax_outcome(task, z0)) for z0 in points]
+        errors = [abs(r.gradient[0, 0] - d) for _, r, (_, d) in runs if d is not None]
+        rows.append(row("4 brax", "contactdiff", f"rtol {rtol:g}", max(errors),
+                        g.median_cost(r.cost for _, r, _ in runs)))
     for z0, r, (z_exact, d_exact) in runs:
         verdicts.append({"z0": z0, "z_T": float(r.outcome[0]), "z_T_exact": z_exact,
                          "gradient": float(r.gradient[0, 0]), "exact": d_exact,
                          "differentiable": r.differentiable, "notes": r.notes})
     smooth = [(z0, d) for z0, _, (_, d) in runs if d is not None]
-    errors = [abs(r.gradient[0, 0] - d) for _, r, (_, d) in runs if d is not None]
-    rows.append(row("4 brax", "contactdiff", "rtol 1e-12", max(errors),
-                    float(np.mean([r.seconds for _, r, _ in runs]))))
     for v in variants:
         if v.timeconst < 4 * v.timestep:
             continue
@@ -141,17 +162,22 @@ def brax_rows(quick: bool, variants) -> tuple[list[dict], list[dict]]:
             results = [mj.mujoco_brax(task, v, z0, method, h or mj.FD_STEP) for z0, _ in smooth]
             rows.append(row("4 brax", f"mujoco {'fd' if h else 'transitionFD'}", v.label,
                             max(abs(G[0, 0] - d) for (G, _, _), (_, d) in zip(results, smooth)),
-                            float(np.mean([s for _, s, _ in results]))))
+                            g.median_cost(s for _, s, _ in results)))
     return rows, verdicts
 
 
-def cube_rows(variants, tolerances, quick: bool) -> tuple[list[dict], dict]:
-    coarse, fine = cube.cube_reference(1e-4), cube.cube_reference(1e-5)
-    exact = (100.0 * fine[0] - coarse[0]) / 99.0       # Richardson: the O(h²) terms cancel
-    info = {"reference_steps": [1e-4, 1e-5], "fd_1e-5_vs_extrapolated": relative(fine[0], exact),
-            "reference_seconds": coarse[1] + fine[1], "gradient": exact.tolist()}
-    rows = contactdiff_rows("5 cube", exact, lambda rt, at: cube.contactdiff_cube(rtol=rt, atol=at), tolerances)
-    rows.append(row("5 cube", "contactdiff central FD", "rtol 1e-12, h 1e-5", info["fd_1e-5_vs_extrapolated"],
+def cube_rows(variants, tolerances, quick: bool, repeats: int) -> tuple[list[dict], dict]:
+    steps = cube.REFERENCE_STEPS
+    coarse, fine = (cube.cube_reference(h) for h in steps)
+    exact = cube.extrapolated(coarse[0], fine[0], steps[0] / steps[1])
+    info = {"horizon": cube.HORIZON, "reference_steps": list(steps), "fine_vs_extrapolated": relative(fine[0], exact),
+            "coarse_vs_extrapolated": relative(coarse[0], exact),
+            "reference_seconds": coarse[1].wall + fine[1].wall, "gradient": exact.tolist()}
+    rows = contactdiff_rows("5 cube", exact, lambda rt, at: cube.contactdiff_cube(rtol=rt, atol=at), tolerances,
+                            repeats)
+    rows.append(row("5 cube", "contactdiff central FD", f"rtol 1e-12, h {steps[0]:g}", info["coarse_vs_extrapolated"],
+                    coarse[1]))
+    rows.append(row("5 cube", "contactdiff central FD", f"rtol 1e-12, h {steps[1]:g}", info["fine_vs_extrapolated"],
                     fine[1]))
     cube_variants = variants if quick else [mj.Variant(dt, tau) for tau in (0.02, 0.005, 0.002) for dt in (1e-3, 1e-4)]
     for v in cube_variants:
@@ -163,23 +189,44 @@ def cube_rows(variants, tolerances, quick: bool) -> tuple[list[dict], dict]:
     return rows, info
 
 
+def cube_study(horizons, json_path) -> None:
+    """Print (and with ``--json`` write) `cube.horizon_study` over ``horizons``."""
+    study = cube.horizon_study(horizons)
+    steps = [f"h {h:g}" for h in cube.REFERENCE_STEPS] + ["extrapolated"]
+    print(f"{'T (s)':>6} {'events':>6} {'differentiable':<14} {'|J|':>9}  " + "  ".join(f"{s:>12}" for s in steps)
+          + "  reasons")
+    for r in study:
+        print(f"{r['horizon']:>6g} {r['events']:>6} {str(r['differentiable']):<14} {r['jacobian_norm']:>9.3g}  "
+              + "  ".join(f"{e:>12.2g}" for e in r["errors"].values()) + "  " + ", ".join(r["reasons"]))
+    if json_path:
+        Path(json_path).write_text(json.dumps(study, indent=2))
+
+
 def summary(rows: list[dict]) -> list[str]:
+    """Per task: contactdiff's cheapest (CPU) tolerance within `OWN_TARGET` (else its best),
+    and the cheapest (CPU) MuJoCo variant within `TARGET` with the time ratios (CPU, wall),
+    or the best variant where none reaches it."""
     lines = []
     for task in dict.fromkeys(r["task"] for r in rows):
         mine = [r for r in rows if r["task"] == task and r["method"] == "contactdiff"]
-        best = min(mine, key=lambda r: r["error"])
+        within = [r for r in mine if r["error"] <= OWN_TARGET]
+        best = min(within, key=lambda r: r["cpu_seconds"]) if within else min(mine, key=lambda r: r["error"])
         others = [r for r in rows if r["task"] == task and r["method"].startswith("mujoco") and
                   np.isfinite(r["error"])]
         reaching = [r for r in others if r["error"] <= TARGET]
-        line = f"{task}: contactdiff {best['error']:.2g} in {best['seconds']:.3g} s ({best['variant']})"
+        line = (f"{task}: contactdiff {best['error']:.2g} in {best['cpu_seconds']:.3g} s CPU, "
+                f"{best['seconds']:.3g} s wall ({best['variant']})")
         if reaching:
-            cheap = min(reaching, key=lambda r: r["seconds"])
-            line += (f"; cheapest MuJoCo at <= {TARGET:g}: {cheap['method']} {cheap['variant']}, "
-                     f"{cheap['seconds']:.3g} s, ratio {cheap['seconds'] / best['seconds']:.3g}")
+            cheap = min(reaching, key=lambda r: r["cpu_seconds"])
+            line += (f"; cheapest MuJoCo at <= {TARGET:g}: {cheap['method']} {cheap['variant']} "
+                     f"({cheap['error']:.2g}), {cheap['cpu_seconds']:.3g} s CPU, {cheap['seconds']:.3g} s wall: "
+                     f"ratio {cheap['cpu_seconds'] / best['cpu_seconds']:.3g} (CPU), "
+                     f"{cheap['seconds'] / best['seconds']:.3g} (wall)")
         elif others:
             top = min(others, key=lambda r: r["error"])
             line += (f"; no MuJoCo variant reaches {TARGET:g}: best {top['error']:.2g} "
-                     f"({top['method']} {top['variant']}, {top['seconds']:.3g} s)")
+                     f"({top['method']} {top['variant']}, {top['cpu_seconds']:.3g} s CPU, "
+                     f"{top['seconds']:.3g} s wall)")
         lines.append(line)
     return lines
 
@@ -195,12 +242,12 @@ def plot(rows: list[dict], folder: Path) -> list[Path]:
     for task in dict.fromkeys(r["task"] for r in rows):
         fig, ax = plt.subplots(figsize=(5.5, 4))
         for method, marker in markers.items():
-            pts = [(r["seconds"], max(r["error"], 1e-17)) for r in rows
+            pts = [(r["cpu_seconds"], max(r["error"], 1e-17)) for r in rows
                    if r["task"] == task and r["method"] == method and np.isfinite(r["error"])]
             if pts:
                 ax.loglog(*zip(*pts), marker, label=method, alpha=0.8)
         ax.axhline(TARGET, color="grey", lw=0.8, ls="--")
-        ax.set_xlabel("wall time of one gradient (s)")
+        ax.set_xlabel("CPU time of one gradient (s)")
         ax.set_ylabel("relative error of the gradient")
         ax.set_title(f"task {task}")
         ax.legend(fontsize=7)
@@ -218,16 +265,29 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--json", metavar="PATH", help="also write every row as JSON")
     parser.add_argument("--plots", type=Path, default=ROOT / "docs" / "gradients", help="folder of the plots")
     parser.add_argument("--no-mjx", action="store_true", help="leave MJX out")
+    parser.add_argument("--cube-horizons", type=float, nargs="+", metavar="T",
+                        help="only the cube's study over horizons T (s): verdict, Jacobian against central FD")
+    parser.add_argument("--repeats", type=int, default=None,
+                        help=f"runs of each contactdiff gradient whose median time is taken (default {REPEATS}; "
+                        "--quick: 1)")
     args = parser.parse_args(argv)
+    repeats = args.repeats if args.repeats is not None else 1 if args.quick else REPEATS
+    if repeats < 1:
+        parser.error(f"--repeats must be >= 1, got {repeats}")
+    if args.cube_horizons:
+        if min(args.cube_horizons) <= 0:
+            parser.error(f"--cube-horizons must be positive, got {args.cube_horizons}")
+        cube_study(args.cube_horizons, args.json)
+        return
     variants = QUICK_VARIANTS if args.quick else VARIANTS
     tolerances = QUICK_TOLERANCES if args.quick else TOLERANCES
     mjx = not (args.quick or args.no_mjx)
-    rows = ball_task("1 bounce", g.BOUNCE, variants, tolerances, args.quick, mjx)
-    rows += ball_task("2 wall", g.WALL, variants, tolerances, args.quick, mjx)
-    rows += ball_task("2 wall+friction", g.WALL_FRICTION, variants, tolerances, args.quick, False)
+    rows = ball_task("1 bounce", g.BOUNCE, variants, tolerances, args.quick, mjx, repeats)
+    rows += ball_task("2 wall", g.WALL, variants, tolerances, args.quick, mjx, repeats)
+    rows += ball_task("2 wall+friction", g.WALL_FRICTION, variants, tolerances, args.quick, False, repeats)
     exact = g.two_ball_gradient()
     rows += contactdiff_rows("3 two balls", exact, lambda rt, at: g.contactdiff_two_balls(rtol=rt, atol=at),
-                             tolerances)
+                             tolerances, repeats)
     rows += mujoco_rows("3 two balls", exact, lambda v, m, h: mj.mujoco_two_balls(g.NIMBLE, v, m, h or mj.FD_STEP),
                         variants, args.quick)
     if mjx:
@@ -237,18 +297,19 @@ def main(argv: list[str] | None = None) -> None:
         qvel[0], qvel[6] = t.v1, t.v2
         rows += mjx_row("3 two balls", exact, mj.two_ball_model(t, v), qpos, qvel, 1000, (0, 7), (0, 7, 14, 20),
                         v.label)
-    brax, verdicts = brax_rows(args.quick, variants)
+    brax, verdicts = brax_rows(args.quick, variants, tolerances, repeats)
     rows += brax
-    cube_part, cube_info = cube_rows(variants, tolerances, args.quick)
+    cube_part, cube_info = cube_rows(variants, tolerances, args.quick, repeats)
     rows += cube_part
     best = max(variants, key=lambda v: v.timestep) if args.quick else mj.Variant(1e-4, 0.005)
     descent = []
     for name, task in (("2 wall", g.WALL), ("2 wall+friction", g.WALL_FRICTION)):
         descent += descent_rows(name, task, best, 1e-2, 20 if args.quick else 200)
 
-    print(f"{'task':<16} {'method':<24} {'variant':<34} {'rel. error':>10} {'wall s':>9}")
+    print(f"{'task':<16} {'method':<24} {'variant':<34} {'rel. error':>10} {'CPU s':>9} {'wall s':>9}")
     for r in rows:
-        print(f"{r['task']:<16} {r['method']:<24} {r['variant'][:34]:<34} {r['error']:>10.2g} {r['seconds']:>9.3g}")
+        print(f"{r['task']:<16} {r['method']:<24} {r['variant'][:34]:<34} {r['error']:>10.2g} "
+              f"{r['cpu_seconds']:>9.3g} {r['seconds']:>9.3g}")
     print("\ngradient descent to the target (exact: the closed form's distance at the final velocity):")
     for d in descent:
         print(f"  {d['task']:<16} {d['method']:<44} iterations {d['iterations']:>4}  own distance "
@@ -258,7 +319,9 @@ def main(argv: list[str] | None = None) -> None:
         print(f"  {v['z0']:.3f}  {v['z_T']:.6f}  {v['gradient']:+.1f}  {v['exact']}  {v['differentiable']}")
     wrong = [v for v in verdicts if v["differentiable"] != (v["exact"] is not None)]
     print(f"  verdicts wrong: {len(wrong)} of {len(verdicts)}")
-    print(f"\ntask 5 reference: central FD at h 1e-5 vs extrapolated {cube_info['fd_1e-5_vs_extrapolated']:.2g}")
+    print(f"\ntask 5 (T = {cube.HORIZON:g} s) reference: central FD at h {cube.REFERENCE_STEPS[0]:g}, "
+          f"{cube.REFERENCE_STEPS[1]:g} vs extrapolated {cube_info['coarse_vs_extrapolated']:.2g}, "
+          f"{cube_info['fine_vs_extrapolated']:.2g}")
     print("\ntargets (times measured in this one run):")
     for line in summary(rows):
         print("  " + line)

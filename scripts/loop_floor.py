@@ -41,11 +41,11 @@ import pinocchio as pin
 import contactdiff as cd
 from contactdiff.bench.speed import trot_speed
 from contactdiff.dynamics.mode import ModeDynamics
-from contactdiff.integration import tableaus
-from contactdiff.integration.explicit_rk import DOP853, ExplicitRK
 from contactdiff.integration.guards import GuardFinder
 from contactdiff.integration.hybrid import HybridLoop
-from contactdiff.integration.lie import PinocchioGroup
+from contactdiff.ode import tableaus
+from contactdiff.ode.explicit_rk import DOP853, ExplicitRK
+from contactdiff.ode.lie import PinocchioGroup
 
 STAGES = tableaus.N_STAGES
 A = tableaus.A[:STAGES, :STAGES]

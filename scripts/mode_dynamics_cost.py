@@ -18,7 +18,7 @@ import numpy as np
 import pinocchio as pin
 
 from contactdiff.dynamics.mode import ModeDynamics
-from contactdiff.model.scene_file import load_scene
+from contactdiff.scenes.scene_file import load_scene
 
 
 def _us(fn, number: int = 300, repeat: int = 3) -> float:

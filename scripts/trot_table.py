@@ -24,7 +24,8 @@ import numpy as np
 import pinocchio as pin
 
 import contactdiff as cd
-from contactdiff.control.trot_scenes import stance_intervals, trot_scene
+from contactdiff.analysis.gait.stances import stance_intervals
+from contactdiff.control.trot_scenes import trot_scene
 
 
 def row(name: str, t_final: float) -> dict:

@@ -25,7 +25,7 @@ import pytest
 
 import contactdiff as cd
 from contactdiff.cli import main
-from contactdiff.model.robot import ROBOTS_DIR
+from contactdiff.model.robot_files import ROBOTS_DIR
 
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]

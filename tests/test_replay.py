@@ -14,8 +14,9 @@ import pytest
 
 from contactdiff.cli import main
 from contactdiff.integration.hybrid import simulate
-from contactdiff.model.scene_file import load_source
-from contactdiff.replay import MissingExtraError, frame_times, sample_frames
+from contactdiff.replay import MissingExtraError
+from contactdiff.replay_frames import frame_times, sample_frames
+from contactdiff.scenes.scene_file import load_source
 
 ROOT = Path(__file__).resolve().parents[1]
 FPS = 20.0

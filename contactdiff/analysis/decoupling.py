@@ -36,18 +36,20 @@ assumption fails: continuous, not differentiable in general) and ``coupled``
 from __future__ import annotations
 
 import itertools
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
+from numpy.typing import ArrayLike
 
 from ..errors import InvalidInputError, check_count
 from ..jsonable import to_jsonable
 from ..model.feet import FootRule
 from ..model.robot import Robot
 from ..model.scene import Scene
-from ..model.scene_file import load_source
+from ..scenes.scene_file import load_source
 
 DECOUPLED, ORTHOGONAL_ONLY, COUPLED = "decoupled", "orthogonal only", "coupled"
 VERDICTS = (DECOUPLED, ORTHOGONAL_ONLY, COUPLED)
@@ -199,7 +201,7 @@ def _table(header, rows) -> list[str]:
 # -- the checker ------------------------------------------------------------------------
 def check_decoupling(source: Scene | Robot | str | Path, *, samples: int = 20, seed: int = 0,
                      armature: float = 0.0, tol: float = 1e-9, spread: float = 0.4,
-                     states=None) -> DecouplingReport:
+                     states: Sequence[tuple[ArrayLike, ArrayLike, float]] | None = None) -> DecouplingReport:
     """Check a scene (or a robot on its feet) against the paper's assumptions.
 
     Args:
@@ -375,7 +377,7 @@ class _Checker:
 
     def _support(self, contact) -> set[int]:
         """Tangent coordinates on the kinematic chain(s) of a contact's frame(s)."""
-        coords = set()
+        coords: set[int] = set()
         for fid in (contact.fid, contact.against_fid):
             if fid is None:
                 continue
@@ -445,7 +447,10 @@ class _Checker:
         blocks = [("body", self.body)] + [(f"limb {n}", limb) for n, limb in zip(limb_names, self.limbs)]
         owners = [()] + [tuple(names[i] for i in members) for members in self.members]
         # largest relative size of each term over the poses, keyed by block/limb indices
-        mass, dep, effort, additive = {}, {}, {}, {}
+        mass: dict[tuple[int, int], float] = {}  # by pair of limbs
+        dep: dict[int, float] = {}
+        effort: dict[int, float] = {}
+        additive: dict[tuple[int, int], float] = {}  # by pair of limbs
         gap = np.zeros(len(names))
         for q, v, t in states:
             M = pin.crba(self.model, self.data, q)
@@ -467,8 +472,8 @@ class _Checker:
                     dep[ib] = max(dep.get(ib, 0.0), float(value))
             # each gap depends on its limb only
             self.kin.update(q, np.zeros(nv))
-            for i, c in enumerate(self.scene.contacts):
-                row = c.rows(self.kin)[0]
+            for i, contact in enumerate(self.scene.contacts):
+                row = contact.rows(self.kin)[0]
                 outside = [k for k in range(nv) if k not in self.limbs[self.limb_of[i]]]
                 if outside:
                     gap[i] = max(gap[i], float(np.max(np.abs(row[outside])) / max(np.max(np.abs(row)), 1e-300)))
@@ -526,8 +531,8 @@ class _Checker:
         for k in sorted(limb_j):
             e = np.zeros(nv)
             e[k] = _FD_STEP
-            for plus, minus in (((self.robot.integrate(q, e), v), (self.robot.integrate(q, -e), v)),
-                                ((q, v + e), (q, v - e))):
-                diff = self._effort_jacobian(*plus, t) - self._effort_jacobian(*minus, t)
+            for (q_plus, v_plus), (q_minus, v_minus) in (
+                    ((self.robot.integrate(q, e), v), (self.robot.integrate(q, -e), v)), ((q, v + e), (q, v - e))):
+                diff = self._effort_jacobian(q_plus, v_plus, t) - self._effort_jacobian(q_minus, v_minus, t)
                 worst = max(worst, float(np.max(np.abs(diff[np.ix_(body, cols)]))) / (2 * _FD_STEP))
         return worst

@@ -45,6 +45,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import pinocchio as pin
+from numpy.typing import ArrayLike
 
 from ..dynamics.impacts import resolve_impact
 from ..dynamics.mode import ModeDynamics
@@ -70,7 +71,8 @@ class OrderGap:
             contact names (nv,) each.
         mode_after: contacts active after each order (names; a sliding one marked "(sliding)").
         saltation_orders: saltation matrix of each order (2nv × 2nv, tangent space).
-        saltation_paper: the paper's ``DR_K + Σ_k S_k`` (2nv × 2nv).
+        saltation_paper: the paper's ``DR_K + Σ_k S_k`` (2nv × 2nv); None when a contact's
+            single landing has no solution (`SimultaneousSaltation.unresolved`).
         impact_jump: ``‖v_sim - v-‖_M`` (sqrt(kg) m/s for a metric in kg; the scale
             of the relative numbers).
         outcome, outcome_vs_simultaneous, saltation, saltation_spread: the
@@ -97,7 +99,7 @@ class OrderGap:
     v_after: dict
     mode_after: dict
     saltation_orders: dict
-    saltation_paper: np.ndarray
+    saltation_paper: np.ndarray | None
     impact_jump: float
     outcome: float
     outcome_vs_simultaneous: float
@@ -147,7 +149,7 @@ class OrderGap:
             d["v_later"] = {(k if isinstance(k, str) else key(k)): v.tolist() for k, v in self.v_later.items()}
         if matrices:
             d["saltation_orders"] = {key(k): m.tolist() for k, m in self.saltation_orders.items()}
-            d["saltation_paper"] = self.saltation_paper.tolist()
+            d["saltation_paper"] = None if self.saltation_paper is None else self.saltation_paper.tolist()
         return d
 
 
@@ -165,7 +167,7 @@ def _index(scene: Scene, contact) -> int:
     return k
 
 
-def order_gap(scene: Scene, q, v_minus, contacts: Sequence = (0, 1), *, mode: Sequence = (),
+def order_gap(scene: Scene, q: ArrayLike, v_minus: ArrayLike, contacts: Sequence = (0, 1), *, mode: Sequence = (),
               t: float = 0.0, horizon: float | None = None, jacobian: bool = False,
               simulate_options: dict | None = None) -> OrderGap:
     """Order gap of the simultaneous touchdown of two contacts at ``(q, v-)``.

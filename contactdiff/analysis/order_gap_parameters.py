@@ -26,6 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
+from numpy.typing import ArrayLike
 
 from ..dynamics.impacts import resolve_impact
 from ..dynamics.mode import ModeDynamics
@@ -67,8 +68,8 @@ class OrderGapGradient:
                 "d_v_simultaneous": self.v_simultaneous.tolist()}
 
 
-def order_gap_gradient(scene: Scene, q, v_minus, contacts: Sequence = (0, 1), parameters: Sequence[str] = (), *,
-                       mode: Sequence = (), t: float = 0.0) -> OrderGapGradient:
+def order_gap_gradient(scene: Scene, q: ArrayLike, v_minus: ArrayLike, contacts: Sequence = (0, 1),
+                       parameters: Sequence[str] = (), *, mode: Sequence = (), t: float = 0.0) -> OrderGapGradient:
     """`order_gap` at ``(q, v-)`` and the derivatives of its outcome with respect to
     ``parameters`` (module doc). Arguments as `order_gap` (no horizon).
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 import time
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -18,8 +19,8 @@ from ..integration.options import SimulateOptions
 from ..model.contacts import Contact
 from ..model.efforts import JointSpring, Spring
 from ..model.scene import Scene
-from ..model.scene_file import load_scene
 from ..paper import trot_touchdown
+from ..scenes.scene_file import load_scene
 from .study_rows import DEFAULT_TOL, SQ2, TIGHT_TOL, StudyRow, _counts, _error_name, _failed, _run
 
 GRAZING_SPEED = SimulateOptions().grazing_speed  # m/s, the default the studies run with
@@ -89,7 +90,7 @@ def grazing_study(speeds=(1e-3, 1e-5, 1e-7, 1e-9, 1e-10, 1e-12),
             expected = set(outcomes.values())
         else:
             expected = {outcomes[u < GRAZING_SPEED]}
-        base = dict(study="grazing", case="slow drop from 1e-6 m", parameter=f"u = {u:g} m/s",
+        base: dict[str, Any] = dict(study="grazing", case="slow drop from 1e-6 m", parameter=f"u = {u:g} m/s",
                     method="auto", reference="event time 2h/u (relative)")
         if isinstance(traj, ContactDiffError):
             rows.append(_failed(base, traj, elapsed))
@@ -98,7 +99,7 @@ def grazing_study(speeds=(1e-3, 1e-5, 1e-7, 1e-9, 1e-10, 1e-12),
         err = abs(ev.t - t_c) / t_c if ev else None
         kind = ev.kind if ev else "no event"
         raise_outcome = _error_name(raised)
-        ok = ev is not None and err <= 1e-9 and (kind, raise_outcome) in expected
+        ok = ev is not None and err is not None and err <= 1e-9 and (kind, raise_outcome) in expected
         steps, evals = _counts(traj)
         rows.append(StudyRow(**base, error=err, time=elapsed, steps=steps, evaluations=evals,
                              outcome=f"{kind}; on_grazing=raise: {raise_outcome}", ok=ok))
@@ -178,7 +179,8 @@ def simultaneous_study(gaps=(1e-2, 1e-4, 1e-6, 1e-8, 1e-10, 1e-12, 1e-14), t_fin
     points = point_list([{"arg:model": model, "arg:pitch": pitch_for_gap_time(model, dt) if dt else 0.0}
                          for model, dt in cases])
     result = sweep(trot_touchdown, points, job=gap_run, t_final=t_final, options=tol, n_jobs=n_jobs, progress=False)
-    runs = {case: {k: np.asarray(v) if isinstance(v, list) else v for k, v in row.outputs.items()}
+    runs: dict[tuple[str, float], dict[str, Any]] = {
+        case: {k: np.asarray(v) if isinstance(v, list) else v for k, v in row.outputs.items()}
             for case, row in zip(cases, result.raise_failure())}
     rows = []
     for model in models:

@@ -38,9 +38,9 @@ from ..dynamics.mode import ModeDynamics
 from ..integration.hybrid import simulate
 from ..model.efforts import Spring
 from ..model.kinematics import Kinematics
-from ..model.robot import load_robot
+from ..model.robot_files import load_robot
 from ..model.scene import Scene
-from ..model.scene_file import load_scene
+from ..scenes.scene_file import load_scene
 
 DERIVATIVE_FUNCTIONS = (
     "computeABADerivatives", "computeRNEADerivatives", "computeGeneralizedGravityDerivatives",
@@ -156,6 +156,7 @@ def loading(robot: str = "solo12", repeats: int = 5) -> dict:
         start = time.perf_counter()
         loaded = example_robot_data.load(robot)
         theirs.append(time.perf_counter() - start)
+    assert loaded is not None  # one repeat at least
     geometry = sum(1 for a in ("visual_model", "collision_model") if getattr(mine, a, None) is not None)
     return {"robot": robot, "repeats": max(1, repeats), "load_robot": statistics.median(ours),
             "example_robot_data": statistics.median(theirs), "geometry_objects_ours": geometry,

@@ -262,16 +262,49 @@ def _rotation(q: np.ndarray) -> np.ndarray:
                      [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
 
 
+@dataclass(frozen=True)
+class Cost:
+    """Wall-clock and CPU time of one computation (s). On a shared machine the wall time
+    also counts the time the process waited for a core (whole scheduler slices, ~4 ms
+    each, on a run of a few ms); the CPU time (`time.process_time`: every thread of
+    the process) counts its own work only."""
+
+    wall: float
+    cpu: float
+
+
+class Stopwatch:
+    """Started on creation; `read` gives the `Cost` since."""
+
+    def __init__(self):
+        self._wall, self._cpu = time.perf_counter(), time.process_time()
+
+    def read(self) -> Cost:
+        """The wall and CPU time since the start (s)."""
+        return Cost(time.perf_counter() - self._wall, time.process_time() - self._cpu)
+
+
+def median_cost(costs) -> Cost:
+    """The median wall and the median CPU time of several `Cost`s."""
+    costs = list(costs)
+    return Cost(float(np.median([c.wall for c in costs])), float(np.median([c.cpu for c in costs])))
+
+
 @dataclass
 class Run:
-    """contactdiff's gradient of a task: ``gradient`` (the task's block), ``seconds`` (wall
-    time of the one run), ``differentiable`` (its verdict), ``outcome`` (the task's outputs)."""
+    """contactdiff's gradient of a task: ``gradient`` (the task's block), ``cost`` (of the one
+    run, `Cost`), ``differentiable`` (its verdict), ``outcome`` (the task's outputs)."""
 
     gradient: np.ndarray
-    seconds: float
+    cost: Cost
     differentiable: bool
     outcome: np.ndarray
     notes: list[str] = field(default_factory=list)
+
+    @property
+    def seconds(self) -> float:
+        """Wall time of the run (s)."""
+        return self.cost.wall
 
 
 def contactdiff_ball(task: BallTask, velocity=None, rtol: float = 1e-12, atol: float = 1e-13) -> Run:
@@ -283,12 +316,13 @@ def contactdiff_ball(task: BallTask, velocity=None, rtol: float = 1e-12, atol: f
     """
     vx, vz = task.velocity if velocity is None else velocity
     scene = ball_scene(task)
-    start = time.perf_counter()
+    watch = Stopwatch()
     traj = simulate(scene, task.horizon, v0=np.array([vx, 0.0, vz, 0.0, 0.0, 0.0]), jacobian=True,
                     rtol=rtol, atol=atol)
-    seconds = time.perf_counter() - start
+    cost = watch.read()
+    assert traj.jacobian is not None  # asked for
     world = _rotation(traj.q) @ traj.jacobian[0:3, 6:9]
-    return Run(world[np.ix_([0, 2], [0, 2])], seconds, traj.differentiable, traj.q[[0, 2]].copy(),
+    return Run(world[np.ix_([0, 2], [0, 2])], cost, traj.differentiable, traj.q[[0, 2]].copy(),
                traj.why_not_differentiable())
 
 
@@ -306,10 +340,11 @@ def contactdiff_two_balls(task: TwoBalls = NIMBLE, rtol: float = 1e-12, atol: fl
     scene = two_ball_scene(task)
     v0 = np.zeros(12)
     v0[0], v0[6] = task.v1, task.v2
-    start = time.perf_counter()
+    watch = Stopwatch()
     traj = simulate(scene, task.horizon, v0=v0, jacobian=True, rtol=rtol, atol=atol)
-    seconds = time.perf_counter() - start
-    return Run(traj.jacobian[np.ix_([0, 6], [0, 6, 12, 18])], seconds, traj.differentiable,
+    cost = watch.read()
+    assert traj.jacobian is not None  # asked for
+    return Run(traj.jacobian[np.ix_([0, 6], [0, 6, 12, 18])], cost, traj.differentiable,
                traj.q[[0, 7]].copy(), traj.why_not_differentiable())
 
 
@@ -320,31 +355,16 @@ def falling_scene(task: FallingBall = BRAX) -> Scene:
                  name="falling_ball")
 
 
-FINAL_GAP_TOL = 1e-10
-"""m: a contact open at T within this of touching makes the outcome's derivative
-one-sided (`final_contact`); a run at rtol 1e-12 places the ball to ~1e-13 m."""
-
-
-def final_contact(scene: Scene, traj, tol: float = FINAL_GAP_TOL) -> list[str]:
-    """Contacts that touch at the final time without being held (|gap| <= ``tol``, not in
-    the last mode): a landing at T itself, where the outcome has a kink that no event of
-    the run records (`Trajectory.differentiable` looks at events only)."""
-    held = set(traj.segments[-1].mode) if traj.segments else set()
-    gaps = scene.gaps(traj.q)
-    return [spec.name for spec, gap in zip(scene.contact_specs, gaps) if abs(gap) <= tol and spec.name not in held]
-
-
 def contactdiff_brax(task: FallingBall, z0: float, rtol: float = 1e-12, atol: float = 1e-13) -> Run:
     """``dz(T)/dz0`` (1 × 1) at initial height ``z0`` from one run; ``differentiable`` is the
-    run's verdict and `final_contact`'s (noted)."""
+    run's verdict (a landing at T itself is `NonSmooth.FINAL_TIME`)."""
     scene = falling_scene(task)
     q0 = scene.q0.copy()
     q0[2] = z0
-    start = time.perf_counter()
+    watch = Stopwatch()
     traj = simulate(scene, task.horizon, q0=q0, v0=np.array([0.0, 0.0, -task.speed, 0.0, 0.0, 0.0]),
                     jacobian=True, rtol=rtol, atol=atol)
-    seconds = time.perf_counter() - start
-    touching = final_contact(scene, traj)
-    notes = traj.why_not_differentiable() + [f"{name} touches at T: one-sided derivatives" for name in touching]
-    return Run(traj.jacobian[2:3, 2:3].copy(), seconds, traj.differentiable and not touching,
-               traj.q[2:3].copy(), notes)
+    cost = watch.read()
+    assert traj.jacobian is not None  # asked for
+    return Run(traj.jacobian[2:3, 2:3].copy(), cost, traj.differentiable, traj.q[2:3].copy(),
+               traj.why_not_differentiable())

@@ -29,20 +29,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import ContactDiffError, InvalidInputError
-from .gradients import BallTask, FallingBall, TwoBalls
+from ..errors import InvalidInputError, require_extra
+from .gradients import BallTask, Cost, FallingBall, Stopwatch, TwoBalls
 
 SOLIMP = "0.99 0.99 0.001"
 """MuJoCo's impedance (``solimp``) of every contact: near 1, so the force follows the spring."""
 
 
 def mujoco():
-    """The ``mujoco`` module, or a `ContactDiffError` saying how to install it."""
-    try:
-        import mujoco as mj
-    except ImportError:
-        raise ContactDiffError("the MuJoCo baselines need mujoco: pip install 'contactdiff[mujoco]'") from None
-    return mj
+    """The ``mujoco`` module, or a `MissingExtraError` saying how to install it."""
+    return require_extra("mujoco", "mujoco", "the MuJoCo baselines")
 
 
 @dataclass(frozen=True)
@@ -131,14 +127,14 @@ def rollout(model, qpos: np.ndarray, qvel: np.ndarray, steps: int) -> np.ndarray
     return data.qpos.copy()
 
 
-def fd_gradient(model, qpos, qvel, steps: int, rows, columns, h: float) -> tuple[np.ndarray, float]:
-    """Central differences of rollouts: ``d qpos_N[rows] / d x0[columns]`` and the wall time (s).
+def fd_gradient(model, qpos, qvel, steps: int, rows, columns, h: float) -> tuple[np.ndarray, Cost]:
+    """Central differences of rollouts: ``d qpos_N[rows] / d x0[columns]`` and their `Cost`.
 
     ``columns`` index MuJoCo's state ``(qpos, qvel)`` as ``k < nq`` (a position
     coordinate) or ``nq + j`` (velocity ``j``); ``rows`` index ``qpos`` (translation
     coordinates only: they are their own tangent).
     """
-    start = time.perf_counter()
+    watch = Stopwatch()
     base = np.concatenate([qpos, qvel])
     out = []
     for k in columns:
@@ -148,15 +144,16 @@ def fd_gradient(model, qpos, qvel, steps: int, rows, columns, h: float) -> tuple
             x[k] += sign * h
             ends.append(rollout(model, x[:model.nq], x[model.nq:], steps)[list(rows)])
         out.append((ends[0] - ends[1]) / (2.0 * h))
-    return np.array(out).T, time.perf_counter() - start
+    return np.array(out).T, watch.read()
 
 
-def transition_gradient(model, qpos, qvel, steps: int, rows, columns, eps: float = 1e-6) -> tuple[np.ndarray, float]:
+def transition_gradient(model, qpos, qvel, steps: int, rows, columns,
+                        eps: float = 1e-6) -> tuple[np.ndarray, Cost]:
     """The product of ``mjd_transitionFD``'s centred one-step Jacobians along the rollout:
     ``d x_N[rows] / d x_0[columns]`` on MuJoCo's tangent state ``(dqpos, qvel)`` (indices
-    ``< nv`` positions, ``nv + j`` velocities), and the wall time (s)."""
+    ``< nv`` positions, ``nv + j`` velocities), and its `Cost`."""
     mj = mujoco()
-    start = time.perf_counter()
+    watch = Stopwatch()
     data = mj.MjData(model)
     data.qpos[:] = qpos
     data.qvel[:] = qvel
@@ -167,7 +164,7 @@ def transition_gradient(model, qpos, qvel, steps: int, rows, columns, eps: float
         mj.mjd_transitionFD(model, data, eps, True, a, None, None, None)
         product = a @ product
         mj.mj_step(model, data)
-    return product[np.ix_(list(rows), list(columns))], time.perf_counter() - start
+    return product[np.ix_(list(rows), list(columns))], watch.read()
 
 
 FD_STEP = 1e-5
@@ -176,16 +173,17 @@ FD_STEP = 1e-5
 
 def _method(model, qpos, qvel, steps, method: str, fd: tuple, tangent: tuple, h: float):
     if method == "fd":
-        return fd_gradient(model, qpos, qvel, steps, *fd, h)
+        rows, columns = fd
+        return fd_gradient(model, qpos, qvel, steps, rows, columns, h)
     if method == "transition":
         return transition_gradient(model, qpos, qvel, steps, *tangent)
     raise InvalidInputError(f"method must be 'fd' or 'transition', got {method!r}")
 
 
 def mujoco_ball(task: BallTask, variant: Variant, method: str, velocity=None,
-                h: float = FD_STEP) -> tuple[np.ndarray, float]:
+                h: float = FD_STEP) -> tuple[np.ndarray, Cost]:
     """MuJoCo's ``d(x, z)(T)/d(vx, vz)`` (2 × 2) by ``method`` (``"fd"`` or ``"transition"``)
-    and its wall time (s)."""
+    and its `Cost`."""
     vx, vz = task.velocity if velocity is None else velocity
     model = ball_model(task, variant)
     qpos = np.array([task.position[0], 0.0, task.position[1], 1.0, 0.0, 0.0, 0.0])
@@ -202,8 +200,8 @@ def mujoco_ball_position(task: BallTask, variant: Variant, velocity) -> np.ndarr
     return rollout(model, qpos, qvel, steps_of(task.horizon, variant.timestep))[[0, 2]]
 
 
-def mujoco_two_balls(task: TwoBalls, variant: Variant, method: str, h: float = FD_STEP) -> tuple[np.ndarray, float]:
-    """MuJoCo's ``d(x1, x2)(T)/d(x1, x2, v1, v2)`` (2 × 4) and its wall time (s)."""
+def mujoco_two_balls(task: TwoBalls, variant: Variant, method: str, h: float = FD_STEP) -> tuple[np.ndarray, Cost]:
+    """MuJoCo's ``d(x1, x2)(T)/d(x1, x2, v1, v2)`` (2 × 4) and its `Cost`."""
     model = two_ball_model(task, variant)
     unit = [1.0, 0.0, 0.0, 0.0]
     qpos = np.array([task.x1, 0.0, 0.0, *unit, task.x2, 0.0, 0.0, *unit])
@@ -214,14 +212,14 @@ def mujoco_two_balls(task: TwoBalls, variant: Variant, method: str, h: float = F
 
 
 def mujoco_brax(task: FallingBall, variant: Variant, z0: float, method: str,
-                h: float = FD_STEP) -> tuple[np.ndarray, float, float]:
-    """MuJoCo's ``dz(T)/dz0`` (1 × 1), its wall time (s) and ``z(T)`` (m) at initial height ``z0``."""
+                h: float = FD_STEP) -> tuple[np.ndarray, Cost, float]:
+    """MuJoCo's ``dz(T)/dz0`` (1 × 1), its `Cost` and ``z(T)`` (m) at initial height ``z0``."""
     model = falling_model(task, variant)
     qpos = np.array([0.0, 0.0, z0, 1.0, 0.0, 0.0, 0.0])
     qvel = np.array([0.0, 0.0, -task.speed, 0.0, 0.0, 0.0])
     steps = steps_of(task.horizon, variant.timestep)
-    gradient, seconds = _method(model, qpos, qvel, steps, method, ((2,), (2,)), ((2,), (2,)), h)
-    return gradient, seconds, float(rollout(model, qpos, qvel, steps)[2])
+    gradient, cost = _method(model, qpos, qvel, steps, method, ((2,), (2,)), ((2,), (2,)), h)
+    return gradient, cost, float(rollout(model, qpos, qvel, steps)[2])
 
 
 def cube_model(variant: Variant, friction: float, restitution: float):
@@ -243,9 +241,9 @@ def _quaternion_matrix(w, x, y, z) -> np.ndarray:
                      [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
 
 
-def mujoco_cube(variant: Variant, h: float = 1e-4) -> tuple[np.ndarray, float]:
+def mujoco_cube(variant: Variant, h: float = 1e-4) -> tuple[np.ndarray, Cost]:
     """MuJoCo's ``d pose(T) / d(μ, e)`` (6 × 2, the pose's tangent at T as contactdiff's, from
-    central differences of rollouts with models at ``μ ± h``, ``e ± h``) and its wall time (s)."""
+    central differences of rollouts with models at ``μ ± h``, ``e ± h``) and its `Cost`."""
     from ..data.cube_tosses import NOMINAL
     from .gradients_cube import HORIZON, pose_difference, toss_scene
     scene = toss_scene()
@@ -254,33 +252,33 @@ def mujoco_cube(variant: Variant, h: float = 1e-4) -> tuple[np.ndarray, float]:
     qvel = np.concatenate([_quaternion_matrix(q[6], *q[3:6]) @ v[:3], v[3:6]])
     steps = steps_of(HORIZON, variant.timestep)
 
+    settings = [(NOMINAL.friction, NOMINAL.restitution), (NOMINAL.friction + h, NOMINAL.restitution),
+                (NOMINAL.friction - h, NOMINAL.restitution), (NOMINAL.friction, NOMINAL.restitution + h),
+                (NOMINAL.friction, NOMINAL.restitution - h)]
+    models = {setting: cube_model(variant, *setting) for setting in settings}  # compiled outside the timer
+
     def final(mu, e):
-        end = rollout(cube_model(variant, mu, e), qpos, qvel, steps)
+        end = rollout(models[(mu, e)], qpos, qvel, steps)
         return np.concatenate([end[:3], end[4:7], [end[3]]])
 
-    start = time.perf_counter()
-    nominal = final(NOMINAL.friction, NOMINAL.restitution)
-    columns = [pose_difference(scene, nominal, final(NOMINAL.friction + h, NOMINAL.restitution),
-                               final(NOMINAL.friction - h, NOMINAL.restitution), h),
-               pose_difference(scene, nominal, final(NOMINAL.friction, NOMINAL.restitution + h),
-                               final(NOMINAL.friction, NOMINAL.restitution - h), h)]
-    return np.array(columns).T, time.perf_counter() - start
+    watch = Stopwatch()  # the rollouts alone, as contactdiff's runs (its scene is built before its timer)
+    nominal = final(*settings[0])
+    columns = [pose_difference(scene, nominal, final(*settings[1]), final(*settings[2]), h),
+               pose_difference(scene, nominal, final(*settings[3]), final(*settings[4]), h)]
+    return np.array(columns).T, watch.read()
 
 
-def mjx_gradient(model, qpos, qvel, steps: int, rows, columns) -> tuple[np.ndarray, float, float]:
+def mjx_gradient(model, qpos, qvel, steps: int, rows, columns) -> tuple[np.ndarray, float, Cost]:
     """MJX (JAX, CPU, float64) forward-mode derivative ``d qpos_N[rows] / d x0[columns]`` of the
     rollout (indices as `fd_gradient`'s), the first call's wall time (s, with JAX's compilation)
-    and a second call's (s, the run alone).
+    and a second call's `Cost` (the run alone).
 
     Raises:
-        ContactDiffError: ``jax`` or ``mujoco.mjx`` is not installed.
+        MissingExtraError: ``jax`` or ``mujoco.mjx`` is not installed (the ``mjx`` extra).
     """
-    try:
-        import jax
-        import jax.numpy as jnp
-        from mujoco import mjx
-    except ImportError:
-        raise ContactDiffError("the MJX baseline needs jax and mujoco-mjx: pip install mujoco-mjx") from None
+    jax = require_extra("jax", "mjx", "the MJX baseline")
+    jnp = require_extra("jax.numpy", "mjx", "the MJX baseline")
+    mjx = require_extra("mujoco.mjx", "mjx", "the MJX baseline")
     jax.config.update("jax_enable_x64", True)
     start = time.perf_counter()
     mx = mjx.put_model(model)
@@ -296,6 +294,6 @@ def mjx_gradient(model, qpos, qvel, steps: int, rows, columns) -> tuple[np.ndarr
     jacobian = jax.jit(jax.jacfwd(final))
     gradient = np.asarray(jacobian(x0[columns]).block_until_ready())
     first = time.perf_counter() - start
-    start = time.perf_counter()
+    watch = Stopwatch()
     jacobian(x0[columns]).block_until_ready()
-    return gradient, first, time.perf_counter() - start
+    return gradient, first, watch.read()

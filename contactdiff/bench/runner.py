@@ -36,6 +36,7 @@ import sys
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pinocchio as pin
@@ -44,16 +45,20 @@ from ..errors import ContactDiffError, InvalidInputError, unknown_name
 from ..integration.hybrid import simulate
 from ..jsonable import to_jsonable
 from ..model.scene import Scene
-from ..model.scene_file import load_scene
 from ..paper import trot_touchdown
+from ..scenes.scene_file import load_scene
 from .baselines import solve_ivp_baseline, time_stepping_baseline
 from .methods import METHODS
 from .metrics import event_error, state_error, time_at_error
 
+if TYPE_CHECKING:
+    from .footprint import Footprint
+    from .study_rows import StudyResult
+
 LONG_RUN = 2.0  # s: a run longer than this is timed once
 TARGETS = (1e-6, 1e-9)
-REF_TOL = dict(rtol=1e-13, atol=1e-14)
-CHECK_TOL = dict(rtol=1e-12, atol=1e-13)
+REF_TOL: dict[str, Any] = dict(rtol=1e-13, atol=1e-14)
+CHECK_TOL: dict[str, Any] = dict(rtol=1e-12, atol=1e-13)
 FD_EPS = 1e-5  # the sweet spot of tests/integration/test_sensitivity.py: truncation ~eps², step-sequence noise ~tol/eps
 
 # name -> (builder, t_final)
@@ -147,8 +152,8 @@ class BenchResult:
     derivatives: list[dict] = field(default_factory=list)
     ratios: list[dict] = field(default_factory=list)
     repeats: int = 3
-    studies: object = None  # studies.StudyResult (stiff and extreme cases), with --studies
-    footprint: object = None  # footprint.Footprint (only what a scene needs), with --studies
+    studies: StudyResult | None = None  # the stiff and extreme cases, with --studies
+    footprint: Footprint | None = None  # only what a scene needs, with --studies
 
     def to_dict(self) -> dict:
         """JSON-ready form: every measurement, with the studies and footprint when run."""
@@ -431,9 +436,9 @@ def run_bench(scenes: Sequence[str] | None = None, methods: Sequence[str] | None
                 if best is None:
                     note = "ours does not reach it" + (f"; baseline: {note}" if note else "")
                 ratio = t_b / best if (t_b is not None and best is not None) else None
-                if ratio is not None and not note:
+                if ratio is not None and t_b is not None and best is not None and not note:
                     note = f"baseline {1e3 * t_b:.2f} ms vs {best_m} {1e3 * best:.2f} ms"
-                elif ratio is not None:
+                elif ratio is not None and t_b is not None and best is not None:
                     note = f"baseline {1e3 * t_b:.2f} ms ({note}) vs {best_m} {1e3 * best:.2f} ms"
                 result.ratios.append({"scene": s, "baseline": b, "target": target, "time_baseline": t_b,
                                       "time_ours": best, "ours_method": best_m, "ratio": ratio,

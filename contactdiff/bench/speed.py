@@ -34,7 +34,7 @@ import pinocchio as pin
 from ..dynamics.constraint_dynamics import RigidContactMode
 from ..errors import InvalidInputError, check_count, check_number
 from ..integration.hybrid import simulate
-from ..model.scene_file import load_scene
+from ..scenes.scene_file import load_scene
 
 TROTS = ("solo12_trot", "anymal_trot")
 CALLS = 2000  # Pinocchio calls per timing of its own cost
@@ -184,6 +184,7 @@ def trot_speed(name: str, t_final: float = 3.0, repeats: int = 3) -> TrotSpeed:
         traj = simulate(scene, t_final)
         walls.append(time.perf_counter() - start)
     wall = statistics.median(walls)
+    assert traj is not None  # repeats >= 1
     s = traj.stats
     costs = _PinocchioCosts(scene, traj.q, traj.v)
     return TrotSpeed(scene=name, t_final=t_final, wall=wall, events=len(traj.events), steps=s.steps,

@@ -13,7 +13,7 @@ import pinocchio as pin
 from ..errors import ContactDiffError, IntegrationError
 from ..model.efforts import Spring
 from ..model.scene import Scene
-from ..model.scene_file import load_scene
+from ..scenes.scene_file import load_scene
 from .study_rows import DEFAULT_TOL, StudyRow, _counts, _failed, _run, state_error
 
 

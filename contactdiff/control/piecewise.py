@@ -14,6 +14,7 @@ import bisect
 from collections.abc import Callable
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..errors import InvalidInputError
 
@@ -32,7 +33,7 @@ class PiecewisePolynomial:
         starts: the pieces' first phases (a list: the evaluation bisects it).
     """
 
-    def __init__(self, breaks, sample: Callable[[np.ndarray], np.ndarray], degree: int):
+    def __init__(self, breaks: ArrayLike, sample: Callable[[np.ndarray], np.ndarray], degree: int):
         breaks = np.asarray(breaks, dtype=float)
         if breaks.ndim != 1 or not breaks.size or breaks[0] != 0.0 or np.any(np.diff(breaks) <= 0.0) \
                 or breaks[-1] >= 1.0:

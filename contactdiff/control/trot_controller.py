@@ -105,12 +105,13 @@ import bisect
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, fields
+from typing import ClassVar
 
 import numpy as np
 import pinocchio as pin
 
 from ..errors import InvalidInputError, check_number
-from ..model.efforts import central_time_difference
+from ..model.efforts import EffortParameters, central_time_difference
 from ..model.kinematics import Kinematics
 from ..model.robot import Robot
 from .foot_paths import SWING_RISE, foot_offset, reference_spline, smooth_step
@@ -178,6 +179,8 @@ class TrotController:
     feedforward: bool = True
     stance: tuple = ()
     samples: int = 240
+    KEYS: ClassVar[tuple[str, ...]]  # set below the class (module level: they list its fields)
+    NUMBERS: ClassVar[tuple[str, ...]]
 
     def __post_init__(self) -> None:
         owner = "trot controller"
@@ -224,6 +227,10 @@ class TrotController:
         set_(self, "stance", tuple((name, check_number(owner, f"stance angle of {name!r}", value))
                                    for name, value in pairs))
 
+    def named_parameters(self) -> EffortParameters:
+        """``trot:<field>`` for each of `NUMBERS`."""
+        return EffortParameters("trot", "", self.NUMBERS)
+
     def bind(self, robot: Robot) -> TrotControllerEvaluator:
         """The evaluator of this controller on ``robot`` (its legs found, the schedule precomputed)."""
         return TrotControllerEvaluator(self, robot)
@@ -248,6 +255,8 @@ class TrotControllerEvaluator(TrotParameterDerivatives):
         shares: fraction of the weight each leg carries when its pair stands alone.
         load_scale: the scale ``s`` of the scheduled loads (see the module notes).
     """
+
+    spec: TrotController
 
     def __init__(self, spec: TrotController, robot: Robot):
         self.spec, self.robot, self.nv = spec, robot, robot.nv
@@ -350,9 +359,9 @@ class TrotControllerEvaluator(TrotParameterDerivatives):
         leg_breaks = [0.0, r, start, end, end + r, 1.0 - r] if s.feedforward else []
         if s.release_gain != 1.0:
             leg_breaks += [s.duty - s.transfer, s.duty, s.duty + s.transfer]
-        phases = list(self._knots[:-1])
-        phases += [(psi - offset) % 1.0 for offset in self._offsets for psi in leg_breaks]
-        phases = np.sort(np.mod(phases, 1.0))
+        knots = list(self._knots[:-1])
+        knots += [(psi - offset) % 1.0 for offset in self._offsets for psi in leg_breaks]
+        phases = np.sort(np.mod(knots, 1.0))
         keep = np.concatenate(([True], np.diff(phases) > 1e-12))
         return phases[keep]
 

@@ -11,6 +11,7 @@ computed from the model when the controller is bound.
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 
 import numpy as np
 
@@ -18,11 +19,53 @@ from ..errors import InvalidInputError
 from ..model.kinematics import Kinematics
 from .piecewise import PiecewisePolynomial
 
+if TYPE_CHECKING:
+    import pinocchio as pin
+
+    from ..model.robot import Robot
+
+
+class TrotSpec(Protocol):
+    """What the derivatives read of the controller's spec
+    (`contactdiff.control.trot_controller.TrotController`, a frozen dataclass)."""
+
+    NUMBERS: ClassVar[tuple[str, ...]]
+    """Its real numbers, the parameters ``trot:<field>``."""
+
+    @property
+    def feedforward(self) -> bool:
+        """Whether the torques carry the feed-forward (leg gravity, scheduled load)."""
+
+    def bind(self, robot: Robot) -> Any:
+        """The evaluator of the spec on ``robot`` (a controller bound anew)."""
+
 
 class TrotParameterDerivatives:
     """``d tau/dp`` of a bound trot controller (needs the evaluator's ``spec``, ``robot``,
     ``nv``, ``iv``, ``iq``, ``tau``, ``time_derivative``, ``_phase_terms``, ``_schedule``,
     ``_static_terms``)."""
+
+    if TYPE_CHECKING:  # the evaluator's state it borrows (set there), for the type checker only
+        spec: TrotSpec
+        robot: Robot
+        nv: int
+        iq: np.ndarray
+        iv: np.ndarray
+        load_scale: float
+        _schedule: PiecewisePolynomial
+        _DEGREE: int
+
+        def phase(self, t: float) -> float:
+            """The gait phase at ``t`` (the evaluator's)."""
+
+        def tau(self, kin: Kinematics, t: float) -> np.ndarray:
+            """The efforts at ``t`` (the evaluator's)."""
+
+        def time_derivative(self, kin: Kinematics, t: float) -> np.ndarray:
+            """``d tau/dt`` at ``t`` (the evaluator's)."""
+
+        def _phase_terms(self, phis: np.ndarray): ...
+        def _static_terms(self, model: pin.Model | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]: ...
 
     SCHEDULE_STEP = 1e-5
     """Relative step of the central differences in the schedule numbers (see
@@ -66,6 +109,7 @@ class TrotParameterDerivatives:
         terms = self._parameter_terms(t) if any(f in ("kp", "kd") for _, f in fields) else None
         for col, (_, field) in enumerate(fields):
             if field in ("kp", "kd"):
+                assert terms is not None  # computed above for kp and kd
                 if field == "kp":
                     out[iv, col] = terms[:n] - terms[n:2 * n] * kin.q[self.iq]
                 else:
@@ -96,7 +140,7 @@ class TrotParameterDerivatives:
 
         def bound(x):
             try:
-                return type(self)(replace(self.spec, **{field: x}), self.robot)
+                return replace(self.spec, **{field: x}).bind(self.robot)
             except InvalidInputError:
                 return None
         plus, minus = bound(value + h), bound(value - h)
@@ -144,7 +188,8 @@ class TrotParameterDerivatives:
                 d_gravity[:, col] = (g_plus - g_minus) / (2.0 * step)
                 d_carry[:, :, col] = (c_plus - c_minus) / (2.0 * step)
             stacked = self._model_derivatives = (perturbed, d_gravity, d_carry.reshape(4, -1))
-        _, d_gravity, d_carry = stacked
+        _, gravity_derivative, carry_derivative = stacked  # carry's reshaped to (4, joints × parameters)
         loads = self._parameter_terms(t)[3 * self.iv.size:]
-        out[self.iv] = d_gravity + self.load_scale * (loads @ d_carry).reshape(d_gravity.shape)
+        out[self.iv] = gravity_derivative + self.load_scale * (loads @ carry_derivative).reshape(
+            gravity_derivative.shape)
         return out

@@ -19,12 +19,15 @@ by keyword.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from ..errors import InvalidInputError, unknown_name
 from ..model.contacts import Contact
 from ..model.kinematics import Kinematics
-from ..model.robot import QUADRUPEDS, Robot, load_robot
+from ..model.robot import Robot
+from ..model.robot_files import QUADRUPEDS, load_robot
 from ..model.scene import Scene
 from .trot_controller import TrotController, TrotControllerEvaluator
 
@@ -90,7 +93,7 @@ def trot_scene(robot: str | Robot, *, name: str | None = None, **overrides) -> S
         robot = load_robot(robot)
     elif not isinstance(robot, Robot):
         raise InvalidInputError(f"robot must be a quadruped name or a Robot, got {robot!r}")
-    parameters = dict(TROT_PARAMETERS.get(robot.name, {}))
+    parameters: dict[str, Any] = dict(TROT_PARAMETERS.get(robot.name, {}))
     parameters.update(overrides)
     missing = [k for k in ("period", "step_height", "kp", "kd") if k not in parameters]
     if missing:
@@ -114,27 +117,4 @@ def trot_scene(robot: str | Robot, *, name: str | None = None, **overrides) -> S
     return scene.with_state(q0=q0)
 
 
-
-
-
-def stance_intervals(traj, contact: str, min_duration: float = 2e-3) -> list[tuple[float, float]]:
-    """Time intervals (s) during which ``contact`` is active in ``traj``, on the scale of
-    a gait: flights shorter than ``min_duration`` (a stance foot nudged off the ground
-    by another foot's impact, back within microseconds) are closed, and stances
-    shorter than it are dropped.
-
-    Args:
-        traj: a `Trajectory`.
-        contact: contact name.
-        min_duration: shortest flight or stance kept (s), >= 0.
-    """
-    raw = []
-    for segment in traj.segments:
-        if contact in segment.mode and segment.t1 > segment.t0:
-            if raw and segment.t0 - raw[-1][1] <= min_duration:
-                raw[-1][1] = segment.t1
-            else:
-                raw.append([segment.t0, segment.t1])
-    return [(a, b) for a, b in raw if b - a >= min_duration or b >= traj.t]
-
-__all__ = ["trot_scene", "trot_parameters", "stance_intervals", "TROT_PARAMETERS", "GRAVITY"]
+__all__ = ["trot_scene", "trot_parameters", "TROT_PARAMETERS", "GRAVITY"]

@@ -15,6 +15,9 @@ Two rollout starts, as the two published studies of these tosses start theirs:
   reaches the board from higher up. A toss with fewer than three samples of free
   flight starts at its first sample, as measured.
 
+`toss_windows` cuts a toss into short windows that start in free flight just
+before each touch (windowed residuals, `contactdiff.fit.windows`).
+
 `split` keeps the tosses that upstream holds twice (the same recording
 processed again with another yaw: identical heights z(t)) on one side.
 """
@@ -31,7 +34,8 @@ import pinocchio as pin
 from ..errors import InvalidInputError
 from ..fit.metrics import position_error, rotation_error
 from ..fit.recordings import Recording
-from .cube_tosses import NOMINAL, CubeParameters, Toss
+from ..fit.windows import FIRST_START, Windows, cut
+from .cube_tosses import NOMINAL, CubeParameters, Toss, cube_scene
 
 MARGIN_SAMPLES = 3
 """Samples between `Start.BEFORE_TOUCH`'s start and the first sample at which the cube can touch."""
@@ -52,14 +56,14 @@ def first_touch_sample(toss: Toss, parameters: CubeParameters = NOMINAL) -> int:
     return int(close[0]) if len(close) else len(toss) - 1
 
 
-def free_flight_velocity(toss: Toss, k0: int, k_touch: int) -> np.ndarray:
-    """The velocity at sample ``k0`` from a fit of the free flight (samples before ``k_touch``),
-    as the cube scene's ``v`` (linear and angular, both in the cube's frame).
+def free_flight_velocity(toss: Toss, k0: int, k_touch: int, first: int = 0) -> np.ndarray:
+    """The velocity at sample ``k0`` from a fit of the free flight (samples ``first`` to
+    ``k_touch − 1``), as the cube scene's ``v`` (linear and angular, both in the cube's frame).
 
     Raises:
         InvalidInputError: fewer than three free-flight samples (a parabola needs three).
     """
-    flight = np.arange(0, max(k_touch, 0))
+    flight = np.arange(first, max(k_touch, first))
     if len(flight) < 3:
         raise InvalidInputError(f"{toss.name}: {len(flight)} samples of free flight before the cube can touch; "
                                 "a parabola needs three (use the first sample's velocity)")
@@ -99,6 +103,57 @@ def toss_recording(toss: Toss, start: Start | str = Start.FIRST,
             k0 = 0
             q0, v0 = toss.state(0)
     return Recording(toss.name, toss.t, q, float(toss.t[k0]), q0, v0)
+
+
+WINDOW_CLEARANCE = 0.003
+"""m: a sample is in free flight when the cube's lowest corner is this far above the board
+(three times the data's ~1 mm noise, and above the board's ~1 mm offset in the data)."""
+
+
+def lowest_corner(toss: Toss, parameters: CubeParameters = NOMINAL) -> np.ndarray:
+    """The height (n,) of the cube's lowest corner above the board at each sample (m):
+    the centre's height less half the edge times the sum of ``|R[2, j]|`` (the corners'
+    reach along the board's z)."""
+    R = np.array([pin.Quaternion(w, x, y, z).normalized().matrix() for w, x, y, z in toss.quaternion])
+    return toss.position[:, 2] - parameters.ground - parameters.edge / 2.0 * np.abs(R[:, 2, :]).sum(axis=1)
+
+
+def toss_windows(toss: Toss, windows: Windows, parameters: CubeParameters = NOMINAL,
+                 clearance: float = WINDOW_CLEARANCE, lead: int = 0, model=None) -> list[Recording]:
+    """The toss cut into windows (`contactdiff.fit.windows`) that start in free flight just
+    before a touch: one ``lead`` samples before the last sample of every run of at least three
+    free-flight samples (`lowest_corner` above ``clearance``) that a touch ends (not before
+    the run's third sample), each with the velocity of a parabola through that run
+    (`free_flight_velocity`), each comparing `Windows.length` samples. A toss without such a
+    run has no window (an empty list).
+
+    Raises:
+        InvalidInputError: ``clearance`` not a length >= 0, ``lead`` not a count >= 0.
+    """
+    if not (isinstance(clearance, (int, float)) and np.isfinite(clearance) and clearance >= 0.0):
+        raise InvalidInputError(f"toss_windows: clearance must be a length >= 0 (m), got {clearance!r}")
+    if isinstance(lead, bool) or not isinstance(lead, (int, np.integer)) or lead < 0:
+        raise InvalidInputError(f"toss_windows: lead must be a whole number of samples >= 0, got {lead!r}")
+    free = lowest_corner(toss, parameters) > clearance
+    starts, velocities = [], []
+    k = 0
+    while k < len(toss):
+        if not free[k]:
+            k += 1
+            continue
+        first = k
+        while k < len(toss) and free[k]:
+            k += 1
+        last = k - 1  # the run's last free sample; k: the first in touch (or the end)
+        start = max(last - lead, first + 2, FIRST_START)
+        if k < len(toss) and last - first >= 2 and start <= len(toss) - 2:
+            starts.append(start)
+            velocities.append(free_flight_velocity(toss, start, last + 1, first))
+    if not starts:
+        return []
+    model = model if model is not None else cube_scene(parameters).model
+    whole = Recording(toss.name, toss.t, toss.configurations(), 0.0, *toss.state(0))
+    return cut(whole, windows, model, starts, velocities)
 
 
 def duplicate_groups(tosses: dict[str, Toss]) -> list[list[str]]:
@@ -142,5 +197,6 @@ def toss_errors(recording: Recording, q_simulated: np.ndarray, edge: float = NOM
             rotation_error(q_simulated[:, 3:7], measured[:, 3:7]))
 
 
-__all__ = ["MARGIN_SAMPLES", "Start", "duplicate_groups", "first_touch_sample", "free_flight_velocity", "split",
+__all__ = ["MARGIN_SAMPLES", "WINDOW_CLEARANCE", "Start", "lowest_corner", "toss_windows",
+           "duplicate_groups", "first_touch_sample", "free_flight_velocity", "split",
            "toss_errors", "toss_recording"]

@@ -166,16 +166,16 @@ def solve_contact_lcp(
         The solution. Which one, when several exist:
 
         * frictionless rows and positive definite ``G``: the solution is
-          unique (proof in `_pivot`), every method gives it;
+            unique (proof in `_pivot`), every method gives it;
         * singular ``G`` (redundant rows): ``w`` is still unique for
-          frictionless rows, ``x`` is not; within the chosen active set the
-          minimum-norm ``x`` with ``x_n >= 0`` is returned;
+            frictionless rows, ``x`` is not; within the chosen active set the
+            minimum-norm ``x`` with ``x_n >= 0`` is returned;
         * sticking rows: several active sets can be valid (a separating
-          contact that sticking would also press down). Enumeration returns
-          the valid set with the most contacts (keep contacts sticking where
-          possible), ties broken by the lexicographic order of contact
-          indices. Above :data:`AUTO_ENUMERATE_MAX` contacts ``"auto"``
-          returns the set found by pivoting from "all active".
+            contact that sticking would also press down). Enumeration returns
+            the valid set with the most contacts (keep contacts sticking where
+            possible), ties broken by the lexicographic order of contact
+            indices. Above :data:`AUTO_ENUMERATE_MAX` contacts ``"auto"``
+            returns the set found by pivoting from "all active".
 
     Raises:
         InvalidInputError: Bad shapes, non-finite entries, asymmetric ``G``,

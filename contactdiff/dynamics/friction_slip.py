@@ -27,8 +27,13 @@ from __future__ import annotations
 import functools
 import math
 from collections.abc import Iterator
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from .lcp_problem import ContactRows
 
 # Newton on the slip angles of the spatial sliding contacts of a candidate.
 _NEWTON_MAX_ITER = 40
@@ -287,8 +292,37 @@ class SlipMap:
         return ok
 
 
+@dataclass
+class _Eval:
+    """One candidate of a frictional impact at given slip states and directions: its
+    impulses ``lam`` (N s) and post-impact velocity ``up``, the unknowns ``z`` of its
+    linear system (``lam = B z``) and that system's matrix ``K`` (None without unknowns)."""
+
+    lam: np.ndarray
+    up: np.ndarray
+    z: np.ndarray
+    K: np.ndarray | None
+
+
 class SlipDirections:
     """Slip-direction search of a candidate (module doc)."""
+
+    if TYPE_CHECKING:  # the candidate's state it borrows (set by its subclass), for the type checker only
+        G: np.ndarray
+        u: np.ndarray
+        rows: ContactRows
+        e: np.ndarray
+        mu: np.ndarray
+        tol: float
+        n: int
+        m: int
+        normal: np.ndarray
+        tang: tuple[np.ndarray, ...]
+        _fp: tuple[np.ndarray, np.ndarray] | None
+        _grids: dict[tuple[int, ...], tuple]
+
+        def evaluate(self, states, dirs, lay) -> _Eval:
+            """The candidate at the given states and slip directions (the subclass's)."""
 
     def slip_roots(self, states, dirs, spatial, lay) -> Iterator[np.ndarray]:
         """Slip angles θ with g(θ) = 0, nearest the pre-impact slip directions first
@@ -441,7 +475,7 @@ class SlipDirections:
         if self._fp is not None:
             return self._fp
         lam = np.zeros(self.m)
-        blocks = self.rows._rows_of  # type: ignore[attr-defined]
+        blocks = self.rows._rows_of
         # each contact's rows of G, restitution term, step and cone, formed once (a sweep
         # repeats them up to _FP_SWEEPS times; the arithmetic of a sweep is unchanged)
         sweep = []
@@ -455,29 +489,29 @@ class SlipDirections:
         recent = [lam.copy()]  # the iterates after the last sweeps (L_0 first), at most _FP_CYCLE
         for done in range(1, _FP_SWEEPS + 1):
             old = lam.copy()
-            for r, u_r, G_r, restitution, friction, coulomb, dg, cone in sweep:
+            for at_rows, u_r, G_r, restitution, friction, coulomb, dg, cone in sweep:
                 w = u_r + G_r @ lam
                 if coulomb:
                     wt = w[1:]  # the norm as np.linalg.norm forms it (the BLAS dot, then sqrt)
                     w[0] += restitution + (friction * math.sqrt(wt.dot(wt)) if friction is not None else 0.0)
                 else:
                     w[0] += restitution
-                x = lam[r] - w / dg if dg > 0.0 else lam[r]
+                x = lam[at_rows] - w / dg if dg > 0.0 else lam[at_rows]
                 if cone == np.inf:
-                    lam[r] = project_cone(x, cone)
+                    lam[at_rows] = project_cone(x, cone)
                     continue
                 # `project_cone` inlined, its arithmetic unchanged (a sweep is mostly call overhead)
                 xt = x[1:]
-                n, t = float(x[0]), math.sqrt(xt.dot(xt))
-                if n >= 0.0 and t <= cone * n:
-                    lam[r] = x
-                elif cone * t <= -n:
-                    lam[r] = 0.0
+                xn, xt_norm = float(x[0]), math.sqrt(xt.dot(xt))
+                if xn >= 0.0 and xt_norm <= cone * xn:
+                    lam[at_rows] = x
+                elif cone * xt_norm <= -xn:
+                    lam[at_rows] = 0.0
                 else:
-                    n2 = (n + cone * t) / (1.0 + cone * cone)
-                    xt *= cone * n2 / t
+                    n2 = (xn + cone * xt_norm) / (1.0 + cone * cone)
+                    xt *= cone * n2 / xt_norm
                     x[0] = n2
-                    lam[r] = x
+                    lam[at_rows] = x
             if np.abs(lam - old).max() <= 1e-14 * max(np.abs(lam).max(), 1e-300):
                 break
             # a cycle in round-off: the iterate equals one p sweeps back, bit for bit. A

@@ -117,7 +117,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import EnergyGainError, InvalidInputError, SolverError
-from .friction_slip import SLIP_ZERO, SlipDirections
+from .friction_slip import SLIP_ZERO, SlipDirections, _Eval
 from .lcp_problem import DEFAULT_TOL, ContactRows, _as_real_array, _as_vector, _validate
 from .redundant import gram_range_basis
 
@@ -281,14 +281,6 @@ def _describe(states: Sequence[ContactState], signs: dict[int, float] | None = N
         parts.append(f"{k}: {txt}")
     return "{" + ", ".join(parts) + "}"
 
-
-
-@dataclass
-class _Eval:
-    lam: np.ndarray
-    up: np.ndarray
-    z: np.ndarray
-    K: np.ndarray | None
 
 
 class _Impact(SlipDirections):

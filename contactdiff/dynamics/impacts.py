@@ -166,10 +166,10 @@ def resolve_impact(dyn: ModeDynamics, q: np.ndarray, v_minus: np.ndarray, contac
     # Restitution restores compression only: a closed contact that is not approaching
     # takes part plastically (with its own e, Newton's law could add energy).
     e[Av[normal] >= 0.0] = 0.0
-    solution = solve_contact_lcp(G, impact_rhs(Av, e, rows), rows, on_infeasible="relax")
-    v_plus = v_minus + MinvAT @ solution.x
-    return ImpactResult(v_plus, solution.x[normal].copy(), solution.x, contacts, Av[normal],
-                        (A @ v_plus)[normal], e, solution.active, rows, solution.tangential_only)
+    lcp = solve_contact_lcp(G, impact_rhs(Av, e, rows), rows, on_infeasible="relax")
+    v_plus = v_minus + MinvAT @ lcp.x
+    return ImpactResult(v_plus, lcp.x[normal].copy(), lcp.x, contacts, Av[normal],
+                        (A @ v_plus)[normal], e, lcp.active, rows, lcp.tangential_only)
 
 
 def choose_mode(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float,

@@ -7,7 +7,8 @@ The mathematics is in `contactdiff.dynamics.complementarity`, which solves it.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.linalg import cho_solve
@@ -62,6 +63,8 @@ class ContactRows:
 
     normal: tuple[int, ...]
     tangential: tuple[tuple[int, ...], ...]
+    if TYPE_CHECKING:  # set by __post_init__, not a field (annotated for the type checker only)
+        _rows_of: tuple[np.ndarray, ...] = field(init=False)
 
     def __post_init__(self) -> None:
         normal = tuple(_as_index(i, "ContactRows.normal") for i in self.normal)
@@ -132,7 +135,7 @@ class ContactRows:
         """Row indices of the given contacts (each contact's normal row first)."""
         if len(contacts) == 0:
             return np.empty(0, dtype=np.intp)
-        return np.concatenate([self._rows_of[k] for k in contacts])  # type: ignore[attr-defined]
+        return np.concatenate([self._rows_of[k] for k in contacts])
 
 
 @dataclass(frozen=True, eq=False)  # arrays: no element-wise ==
@@ -186,7 +189,7 @@ class _Problem:
         self.G, self.b, self.rows, self.tol = G, b, rows, tol
         self.m, self.n = G.shape[0], rows.n_contacts
         self.normal = np.array(rows.normal, dtype=np.intp)
-        self.blocks = rows._rows_of  # type: ignore[attr-defined]
+        self.blocks = rows._rows_of
         self.tang = tuple(np.array(t, dtype=np.intp) for t in rows.tangential)
         self.gmax = float(np.abs(G).max())
         self.bmax = float(np.abs(b).max())

@@ -39,12 +39,14 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Literal, overload
 
 import numpy as np
 import pinocchio as pin
 from scipy.linalg.lapack import dposv as _dposv
 
 from ..errors import InvalidInputError, OutsideDomainError, PainleveError, SolverError, check_number
+from ..model.contacts import BoundContact
 from ..model.kinematics import Kinematics
 from ..model.scene import Scene
 from .constraint_dynamics import RigidContactMode
@@ -93,8 +95,8 @@ class ModeDerivatives:
     ddq_dv: np.ndarray
     forces_dq: np.ndarray
     forces_dv: np.ndarray
-    ddq_dtau: np.ndarray | None = None
-    forces_dtau: np.ndarray | None = None
+    ddq_dtau: np.ndarray
+    forces_dtau: np.ndarray
 
 
 class ModeDynamics:
@@ -115,8 +117,8 @@ class ModeDynamics:
         self.data = self.model.createData()
         self._modes: dict[tuple[int, ...], tuple] = {}
         self.n_contacts = len(scene.contacts)
-        self._views = list(scene.contacts) + [c.sliding_view() if c.sticking else None
-                                              for c in scene.contacts]
+        self._views: list[BoundContact | None] = [*scene.contacts, *(c.sliding_view() if c.sticking else None
+                                                                      for c in scene.contacts)]
         self.slip_reference: dict[int, np.ndarray] = {}
         """Per slipping contact (scene index), the unit direction (tangent coordinates)
         its slip is continued along: a planar contact's slip sign, a spatial contact's
@@ -221,6 +223,20 @@ class ModeDynamics:
                 raise InvalidInputError(f"ModeDynamics.solve: {name} must be finite, got {x!r}")
         check_number("ModeDynamics.solve", "t", t)
 
+    @overload
+    def solve(self, q: np.ndarray, v: np.ndarray, t: float, active: Sequence[int] = (),
+              *, derivatives: Literal[False] = False, tau: np.ndarray | None = None) -> ModeSolution: ...
+
+    @overload
+    def solve(self, q: np.ndarray, v: np.ndarray, t: float, active: Sequence[int] = (),
+              *, derivatives: Literal[True], tau: np.ndarray | None = None
+              ) -> tuple[ModeSolution, ModeDerivatives]: ...
+
+    @overload
+    def solve(self, q: np.ndarray, v: np.ndarray, t: float, active: Sequence[int] = (),
+              *, derivatives: bool, tau: np.ndarray | None = None
+              ) -> ModeSolution | tuple[ModeSolution, ModeDerivatives]: ...
+
     def solve(self, q: np.ndarray, v: np.ndarray, t: float, active: Sequence[int] = (),
               *, derivatives: bool = False, tau: np.ndarray | None = None
               ) -> ModeSolution | tuple[ModeSolution, ModeDerivatives]:
@@ -273,7 +289,8 @@ class ModeDynamics:
             return ModeSolution(pin.aba(model, data, q, v, tau), np.zeros(0), active, slices)
         solved = rigid.solve(q, v, tau) if rigid is not None else None
         if solved is not None:
-            solution = ModeSolution(*solved, active, slices)
+            ddq, forces = solved
+            solution = ModeSolution(ddq, forces, active, slices)
             if not derivatives:
                 return solution
             dtau_dq, dtau_dv = self.scene.tau_derivatives(kin, t)
@@ -389,7 +406,8 @@ class ModeAccelerator:
         contacts, _, self.rigid, _, _ = dyn._mode(active)
         self._contacts = contacts
         self._kin, self._tau = dyn.kin, dyn.scene.tau
-        self._raw = self._solution = None
+        self._raw: np.ndarray | None = None
+        self._solution: ModeSolution | None = None
         if self.rigid is not None:
             # row k picks contact k's normal force out of the stacked world forces
             self._normals = np.zeros((len(contacts), 3 * len(contacts)))
@@ -414,6 +432,7 @@ class ModeAccelerator:
         """Normal forces (N) of the mode's contacts (order of the mode) at the last call."""
         if self._raw is not None:
             return self._normals @ self._raw
+        assert self._solution is not None  # set by __call__ whenever _raw is None
         return self._solution.normal_forces()
 
     def row_forces(self) -> list[np.ndarray]:
@@ -421,6 +440,7 @@ class ModeAccelerator:
         `ModeSolution.row_forces`."""
         if self._raw is not None:
             return [c.directions @ self._raw[3 * k:3 * k + 3] for k, c in enumerate(self._contacts)]
+        assert self._solution is not None  # set by __call__ whenever _raw is None
         return self._solution.row_forces()
 
 

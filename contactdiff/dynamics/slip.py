@@ -49,6 +49,9 @@ the flow Jacobian's error controlled its estimate did not shrink with the step
 (``ds/du_T`` is of order ``|ŵ - r| / ε`` there): a slip that started from
 rest at an angle to its reference collapsed the steps, and the flow Jacobian
 ignored how ``r`` depended on the steps.
+The reference of a slip from rest is a function of the onset's state, held: the
+flow Jacobian carries ``∂s/∂r`` (`reference_turn`) times ``r``'s derivative at the
+onset (`contactdiff.integration.mode_field.ModeField`, docs/design.md).
 
 **Painlevé's paradox.** With one slipping contact the normal force solves
 ``g λ_N = -b`` with ``g = A_n M^-1 F^T``: where ``g <= 0`` a normal force
@@ -60,8 +63,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from ..model.contacts import BoundContact
 
 SLIP_SPEED_EPS = 1e-10
 """m/s: a 3-D slip slower than this takes its direction from the reference (a
@@ -121,6 +128,30 @@ def slip_direction(slip_velocity: np.ndarray, reference: np.ndarray | None, floo
     return blended, (np.eye(2) - np.outer(blended, blended)) / norm @ db_dw
 
 
+def reference_turn(slip_velocity: np.ndarray, reference: np.ndarray, floor: float) -> np.ndarray | None:
+    """``∂s/∂θ`` (2,) of a 3-D slip direction (`slip_direction`) at fixed ``u_T`` when its
+    reference ``r`` turns by the angle ``θ`` (rad) in the tangent plane, ``∂r/∂θ = r⊥``
+    (``r`` turned by +90°); None where ``s`` does not depend on ``r`` (above ``2 floor``,
+    where ``s`` is the slip's own direction).
+
+    Below ``floor`` and past a stop ``s = r``: ``r⊥``. In the band ``s = b / ||b||``,
+    ``b = a ŵ + (1 - a) r``: ``(1 - a) (I - s sᵀ) r⊥ / ||b||``.
+    """
+    u = np.asarray(slip_velocity, dtype=float)
+    r = np.asarray(reference, dtype=float)
+    turned = np.array([-r[1], r[0]])
+    speed = float(np.hypot(u[0], u[1]))
+    if speed <= floor or u @ r < 0.0:
+        return turned
+    if speed >= 2.0 * floor:
+        return None
+    a, _ = _turn(speed / floor - 1.0)
+    b = a * (u / speed) + (1.0 - a) * r
+    norm = float(np.linalg.norm(b))
+    s = b / norm
+    return (1.0 - a) * (turned - s * (s @ turned)) / norm
+
+
 @dataclass
 class SlipRow:
     """The force row of one slipping contact at one state (module doc).
@@ -143,7 +174,7 @@ class SlipRow:
     direction_jacobian: np.ndarray | None
     tangent_rows: np.ndarray
     force_row: np.ndarray
-    full: object
+    full: BoundContact
 
     @classmethod
     def at(cls, dyn, key: int, row: int, kin, v: np.ndarray) -> SlipRow:

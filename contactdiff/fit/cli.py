@@ -3,7 +3,7 @@
     contactdiff fit SCENE DATA [DATA ...] --param NAME [--param NAME ...]
                     [--scale NAME=PARAM,PARAM,...] [--bound NAME=LO:HI] [--fit-state none|velocity|full]
                     [--policy keep|exclude] [--position-weight W] [--orientation-weight W]
-                    [--joint-weight W] [--rtol R] [--atol A] [--max-evaluations N]
+                    [--window N [--window-stride S]] [--joint-weight W] [--rtol R] [--atol A] [--max-evaluations N]
                     [--jobs N] [--backend loky|dask|ray] [--json] [--plot out.png]
 
 Each DATA file is one measured trajectory of SCENE (docs/observations.md: CSV or
@@ -13,7 +13,9 @@ subcommand; `run` is its action.
 
 from __future__ import annotations
 
+import argparse
 import json
+from typing import TYPE_CHECKING
 
 from ..cli_args import (
     COUNT,
@@ -28,8 +30,11 @@ from ..cli_args import (
 )
 from ..errors import InvalidInputError
 
+if TYPE_CHECKING:
+    from .problem import FitResult
 
-def add_parser(sub) -> None:
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
     """Add ``fit`` to the ``contactdiff`` subcommands ``sub``."""
     from .evaluation import StateFit
     from .problem import NonDifferentiablePolicy
@@ -52,6 +57,11 @@ def add_parser(sub) -> None:
                         help="bounds of a fitted unknown (default: mu, e, masses, ... >= 0, e <= 1)")
     parser.add_argument("--fit-state", default=StateFit.NONE.value, choices=[s.value for s in StateFit],
                         help="also fit each trajectory's initial velocity or whole state (default none)")
+    parser.add_argument("--window", type=int, default=None, metavar="N",
+                        help="fit on windows of N samples cut from each trajectory (multiple shooting: each "
+                             "window starts from the data; docs/fit.md), not on whole trajectories")
+    parser.add_argument("--window-stride", type=int, default=None, metavar="S",
+                        help="with --window: samples between window starts (default N)")
     parser.add_argument("--policy", default=NonDifferentiablePolicy.KEEP.value,
                         choices=[p.value for p in NonDifferentiablePolicy],
                         help="trajectories whose outcome is not differentiable: keep (count, warn) or exclude "
@@ -74,9 +84,9 @@ def add_parser(sub) -> None:
     parser.set_defaults(run=run)
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     """Run ``contactdiff fit`` from parsed ``args``; return the exit status."""
-    from ..model.scene_file import load_source
+    from ..scenes.scene_file import load_source
     from .observation_files import load_observations
     from .problem import fit
     from .recordings import Recording
@@ -88,6 +98,13 @@ def run(args) -> int:
         raise InvalidInputError("fit: name the parameters to fit with --param NAME (or --scale NAME=PARAMS)")
     scene = load_source(args.scene)
     recordings = [Recording.from_observations(load_observations(path, scene), name=path) for path in args.data]
+    if args.window is not None or args.window_stride is not None:
+        from .windows import Windows, cut
+
+        if args.window is None:
+            raise InvalidInputError("fit: --window-stride needs --window N (the windows' length in samples)")
+        windows = Windows(args.window, args.window_stride)
+        recordings = [w for rec in recordings for w in cut(rec, windows, scene.model)]
     unknowns = list(args.param) + [_scaled(item, scene) for item in args.scale]
     options = {k: v for k, v in (("rtol", args.rtol), ("atol", args.atol)) if v is not None}
     source = scene if args.jobs == 1 else args.scene
@@ -126,7 +143,7 @@ def _bounds(items: list[str]) -> dict:
     return out
 
 
-def format_result(result) -> str:
+def format_result(result: FitResult) -> str:
     """The fitted values, the cost, the iterations and each trajectory's residual and verdict."""
     lines = [result.table(), "",
              f"cost {result.start_cost:.6g} -> {result.cost:.6g} in {result.iterations} iterations "

@@ -145,6 +145,7 @@ def evaluate(scene, plan_parameters: tuple, task: Task) -> Evaluation:
     except ContactDiffError as exc:
         return Evaluation.failed(task.index, f"{type(exc).__name__}: {exc}")
     samples = traj.samples
+    assert samples is not None  # asked for (sample_times)
     if len(samples) != len(k):
         return Evaluation.failed(task.index, f"the run ended at {traj.t} s, before its last sample at {rec.t[-1]} s")
     residual = PoseResidual(model, task.weights)
@@ -157,6 +158,7 @@ def evaluate(scene, plan_parameters: tuple, task: Task) -> Evaluation:
     Jp = (np.vstack([Jk @ P[:nv] for Jk, P in zip(Jr, samples.parameter_jacobian)])
           if samples.parameter_jacobian is not None else np.zeros((len(r), 0)))
     if fitted_state:
+        assert samples.jacobian is not None  # asked for (jacobian=fitted_state)
         cols = task.state_fit.columns(nv)
         start = _start_derivative(model, rec, task.state_fit, task.offset)[:, cols]
         Js = np.vstack([Jk @ X[:nv] @ start for Jk, X in zip(Jr, samples.jacobian)])

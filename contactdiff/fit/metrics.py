@@ -16,6 +16,7 @@ configuration holds them); ``q`` and ``−q`` are the same rotation.
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..errors import InvalidInputError
 
@@ -30,13 +31,13 @@ def _pair(name: str, simulated, measured, width: int) -> tuple[np.ndarray, np.nd
     return a, b
 
 
-def position_errors(simulated, measured) -> np.ndarray:
+def position_errors(simulated: ArrayLike, measured: ArrayLike) -> np.ndarray:
     """``‖p_sim − p_data‖`` at each sample (m), from two ``(n, 3)`` position arrays."""
     a, b = _pair("position_errors", simulated, measured, 3)
     return np.linalg.norm(a - b, axis=1)
 
 
-def position_error(simulated, measured, scale: float | None = None) -> float:
+def position_error(simulated: ArrayLike, measured: ArrayLike, scale: float | None = None) -> float:
     """The time average of ``‖p_sim − p_data‖``: in m, or in percent of ``scale`` (m) when given."""
     mean = float(np.mean(position_errors(simulated, measured)))
     if scale is None:
@@ -46,7 +47,7 @@ def position_error(simulated, measured, scale: float | None = None) -> float:
     return 100.0 * mean / scale
 
 
-def rotation_errors(simulated, measured) -> np.ndarray:
+def rotation_errors(simulated: ArrayLike, measured: ArrayLike) -> np.ndarray:
     """The angle between the two orientations at each sample (degrees), from ``(n, 4)``
     quaternion arrays ``[qx qy qz qw]`` (normalised here; a zero quaternion is refused)."""
     a, b = _pair("rotation_errors", simulated, measured, 4)
@@ -62,7 +63,7 @@ def rotation_errors(simulated, measured) -> np.ndarray:
     return np.degrees(2.0 * np.arctan2(sine, cosine))
 
 
-def rotation_error(simulated, measured) -> float:
+def rotation_error(simulated: ArrayLike, measured: ArrayLike) -> float:
     """The time average of the angle between the orientations (degrees)."""
     return float(np.mean(rotation_errors(simulated, measured)))
 

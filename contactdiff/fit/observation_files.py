@@ -15,11 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import ObservationFileError, OutputFileError
+from ..errors import ObservationFileError
+from .column_files import FORMATS, write_columns
 from .observations import Observations, from_columns
-
-FORMATS = (".csv", ".npz")
-"""The suffixes of observation files."""
 
 
 def load_observations(path: str | Path, scene) -> Observations:
@@ -102,21 +100,4 @@ def save_observations(observations: Observations, path: str | Path, scene) -> Pa
     Raises:
         ObservationFileError: an unknown suffix; OutputFileError: the file cannot be written.
     """
-    p = Path(path)
-    suffix = p.suffix.lower()
-    if suffix not in FORMATS:
-        raise ObservationFileError(f"{path}: unknown kind of observation file {p.suffix!r}; "
-                                   f"valid: {', '.join(FORMATS)}")
-    columns = observations.columns(scene)
-    try:
-        if suffix == ".npz":
-            np.savez(p, **columns)
-        else:
-            table = np.column_stack(list(columns.values()))
-            with p.open("w", newline="", encoding="utf-8") as handle:
-                writer = csv.writer(handle)
-                writer.writerow(list(columns))
-                writer.writerows([[f"{x:.17g}" for x in row] for row in table])
-    except OSError as exc:
-        raise OutputFileError(f"{path}: cannot write the observations ({exc})") from None
-    return p
+    return write_columns(observations.columns(scene), path)

@@ -36,6 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InvalidInputError, ObservationFileError
+from .column_files import write_columns
 
 QUATERNION_TOLERANCE = 0.1
 """A quaternion whose norm differs from 1 by at most this is normalised; farther, refused."""
@@ -185,15 +186,13 @@ class Observations:
             out[WEIGHT] = self.weights
         for joint in joint_columns(scene):
             if joint.name in self.joints:
-                measured_v = self.v is not None and bool(self.v_mask[joint.idx_v])
+                measured_v = self.v is not None and self.v_mask is not None and bool(self.v_mask[joint.idx_v])
                 out |= state_columns(joint, self.q, self.v if measured_v else None)
         return out
 
     def save(self, path: str | Path, scene) -> Path:
         """Write these observations as CSV or ``.npz`` (by the suffix of ``path``)."""
-        from .observation_files import save_observations
-
-        return save_observations(self, path, scene)
+        return write_columns(self.columns(scene), path)
 
 
 # -- quaternion algebra (scalar first, [w x y z]) -------------------------------------

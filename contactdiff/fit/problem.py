@@ -32,6 +32,7 @@ from collections import Counter
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from enum import StrEnum
+from typing import TypeVar
 
 import numpy as np
 from scipy import sparse
@@ -43,6 +44,8 @@ from .evaluation import Evaluation, StateFit, Task, evaluate
 from .parameters import FitPlan
 from .recordings import Recording
 from .residuals import ResidualWeights
+
+_E = TypeVar("_E", bound=StrEnum)
 
 FAILED_RESIDUAL = 1e3
 """A trial value at which a run fails gets every residual row this many times the start's RMS
@@ -162,6 +165,7 @@ class _Workers:
         self.scene = scene if isinstance(scene, Scene) else None
         self.source = None if self.scene is not None else SceneSource.of(scene)
         if self.scene is None and jobs == 1:
+            assert self.source is not None  # not a Scene: a source
             self.scene = self.source.build()
         if self.scene is not None and jobs > 1 and self.source is None:
             raise InvalidInputError(
@@ -171,7 +175,10 @@ class _Workers:
         self.progress = progress
 
     def model_scene(self) -> Scene:
-        return self.scene if self.scene is not None else self.source.build()
+        if self.scene is not None:
+            return self.scene
+        assert self.source is not None  # not a Scene: a source
+        return self.source.build()
 
     def run(self, tasks: list[Task], parameters: tuple, label: str) -> list[Evaluation]:
         from ..sweeps.runner import _progress_bar
@@ -187,7 +194,9 @@ class _Workers:
                     for ev in run(_evaluate_in_worker, [(self.source, parameters, t) for t in tasks]):
                         out[ev.index] = ev
                         bar.update(1)
-        return out
+        evaluations = [ev for ev in out if ev is not None]
+        assert len(evaluations) == len(tasks)  # every task has its evaluation
+        return evaluations
 
 
 def _evaluate_in_worker(source, parameters: tuple, task: Task) -> Evaluation:
@@ -249,7 +258,7 @@ def fit(scene, recordings: Sequence[Recording], parameters, *, bounds: Mapping |
     active = list(range(len(recordings)))
     trials: list[str] = []  # trial values at which a run failed (the step is rejected)
 
-    def run(x: np.ndarray) -> list[Evaluation]:
+    def run(x: np.ndarray) -> list[Evaluation] | None:
         if cache.get("x") is not None and np.array_equal(cache["x"], x):
             return cache["evals"]
         values = plan.values(x[:n])
@@ -270,6 +279,7 @@ def fit(scene, recordings: Sequence[Recording], parameters, *, bounds: Mapping |
         return evals
 
     first = run(x0)
+    assert first is not None  # a failed run at the start raises
     if policy is NonDifferentiablePolicy.EXCLUDE:
         active[:] = [i for i in active if first[i].differentiable]
         counts[-1] = 0
@@ -286,13 +296,16 @@ def fit(scene, recordings: Sequence[Recording], parameters, *, bounds: Mapping |
         return np.concatenate([evals[i].residual for i in active])
 
     def jacobian(x):
-        return _assemble(run(x), active, plan.C, n, s, len(recordings))
+        evals = run(x)
+        assert evals is not None  # asked for at accepted points only (a failed run's step is rejected)
+        return _assemble(evals, active, plan.C, n, s, len(recordings))
 
     solution = least_squares(residuals, x0, jac=jacobian, bounds=(_bound(plan.lower, s, recordings),
                                                                     _bound(plan.upper, s, recordings, upper=True)),
                              method="trf", x_scale="jac", ftol=tolerance, xtol=tolerance, gtol=tolerance,
                              max_nfev=max_evaluations)
     final = run(solution.x)  # the accepted point: cached, or run again if the last trial failed
+    assert final is not None  # it ran at the accepted point before
     J = jacobian(solution.x)
     J = J.toarray() if sparse.issparse(J) else J
     covariance, rank_deficient = _covariance(J, solution.fun, n)
@@ -309,7 +322,7 @@ def fit(scene, recordings: Sequence[Recording], parameters, *, bounds: Mapping |
                      time.perf_counter() - started)
 
 
-def _enum(kind, value, name: str):
+def _enum(kind: type[_E], value, name: str) -> _E:
     try:
         return kind(value)
     except ValueError:

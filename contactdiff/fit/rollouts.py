@@ -59,7 +59,9 @@ def rollout(scene, recording: Recording, values: Mapping | None = None, options:
         error = None
     except StoppedRunError as exc:
         traj, error = exc.trajectory, f"{type(exc).__name__}: {exc}"
-    except ContactDiffError as exc:
+    except (ContactDiffError, ValueError, np.linalg.LinAlgError) as exc:
+        # ValueError, LinAlgError: a defect of the integrator on this run (reported as the run's
+        # failure with its type, so that an evaluation of many recordings lists it and goes on)
         return Rollout(recording.name, np.zeros((0, len(recording.q0))), {}, {}, time.perf_counter() - started,
                        f"{type(exc).__name__}: {exc}")
     wall = time.perf_counter() - started
@@ -94,7 +96,9 @@ def rollouts(scene, recordings: Sequence[Recording], values: Mapping | None = No
                 for i, r in run(_indexed, tasks):
                     out[i] = r
                     bar.update(1)
-    return out
+    rollouts = [r for r in out if r is not None]
+    assert len(rollouts) == len(recordings)  # every recording has its rollout
+    return rollouts
 
 
 def _indexed(i: int, task: tuple) -> tuple[int, Rollout]:

@@ -11,6 +11,8 @@ parameters, their blocks (`contactdiff.integration.parameter_jumps`).
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from ..dynamics.frictional_impact import ContactState
@@ -32,7 +34,14 @@ from .sensitivity import (
     simultaneous_saltation,
     vector_field,
 )
-from .trajectory import Event, NonSmooth
+from .trajectory import Event, EventKind, NonSmooth
+
+if TYPE_CHECKING:
+    from ..dynamics.mode import ModeDynamics
+    from ..model.contacts import BoundContact
+    from ..model.kinematics import Kinematics
+    from ..model.scene import Scene
+    from .options import SimulateOptions
 
 CREEP_FACTOR = 10.0
 """A contact that an impact leaves slipping slower than this many slip-speed floors
@@ -48,6 +57,27 @@ the velocities (the impact law's round-off is about 1e-15 of them) count as one.
 
 class EventResets:
     """The loop's event handling (module doc)."""
+
+    if TYPE_CHECKING:  # the state it borrows from HybridLoop (set there), for the type checker only
+        scene: Scene
+        dyn: ModeDynamics
+        kin: Kinematics
+        contacts: list[BoundContact]
+        names: list[str]
+        options: SimulateOptions
+        events: list[Event]
+        notes: list[str]
+        phi: np.ndarray | None
+        n_state: int
+        jumps: ParameterJumps | None
+        sensitive: bool
+        gap_tol: float
+
+        def _gaps_and_rates(self, q, v) -> tuple[np.ndarray, np.ndarray]: ...
+        def _mode_names(self, mode) -> tuple[str, ...]: ...
+        def _sliding_names(self, mode) -> tuple[str, ...]: ...
+        def _friction_event(self, t, q, v, mode, fired: list[Guard]): ...
+        def _bear_event(self, t, q, v, mode, bearing: list[int]): ...
 
     def _event(self, t, q, v, mode, fired: list[Guard]):
         dyn = self.dyn
@@ -73,7 +103,8 @@ class EventResets:
         # pressed it down) slides instead: normal row only, until its force vanishes
         unheld = self._unheld(q, v, mode, releasing)
         new_mode = liftoff_mode(dyn, q, v, t, mode, releasing, unheld)
-        kind = "slip" if any(dyn.is_sliding(k) and k not in mode and k not in unheld for k in new_mode) else "lift-off"
+        kind = (EventKind.SLIP if any(dyn.is_sliding(k) and k not in mode and k not in unheld for k in new_mode)
+                else EventKind.LIFT_OFF)
         event = Event(t=t, kind=kind, contacts=self._mode_names(releasing), simultaneous=len(releasing) > 1,
                       q=q.copy(), v_minus=v.copy(), v_plus=v.copy(), impulses={},
                       mode_before=self._mode_names(mode), mode_after=self._mode_names(new_mode),
@@ -217,9 +248,11 @@ class EventResets:
                     if SPEED_TOL * scale < s < self.options.zeno_speed and dyn.contact_index(k) not in leaving
                     and (dyn.contact_index(k) not in touching or e_k == 0.0)]
         new_mode = choose_mode(dyn, q, v_plus, t, staying + settling)
+        from_rest: list = []  # the contacts that slip from rest after the impact (`_onset_columns`)
         if impact.states is not None:
             refuse_ambiguous_slip(dyn, q, v_plus, t, staying + settling, new_mode)
-            new_mode, _ = settle_friction(dyn, q, v_plus, t, new_mode)
+            new_mode, _ = settle_friction(dyn, q, v_plus, t, new_mode, from_rest)
+            from_rest = [(i, m, v_plus) for i, m in from_rest]
         settled = [i for i in dyn.contacts_of(settling) if i in dyn.contacts_of(new_mode)]
         nonsmooth = {}  # the cascade rule's cut-off and a grazing touchdown are not smooth
         if settled:
@@ -231,17 +264,17 @@ class EventResets:
         # zero, or, lifted by the impact law, kept closed by the rule above
         ended = sorted(set(zeno) | {i for i in settled if i in touching and abs(speeds[i]) < self.options.zeno_speed})
         if grazing:
-            kind = "grazing"
+            kind = EventKind.GRAZING
             nonsmooth[NonSmooth.GRAZING] = self._note(
                 f"grazing touchdown of {', '.join(self.names[i] for i in grazing)} at t = {t:.12g}")
         elif ended:
-            kind = "zeno"
+            kind = EventKind.ZENO
             self.notes.append(f"Zeno: bounces of {', '.join(self.names[i] for i in ended)} ended at t = {t:.12g} "
                               f"(impact speed below zeno_speed = {self.options.zeno_speed:g} m/s); contact kept closed")
         elif any(i in dyn.contacts_of(new_mode) for i in touching):
-            kind = "touchdown"
+            kind = EventKind.TOUCHDOWN
         else:
-            kind = "bounce"
+            kind = EventKind.BOUNCE
         outcomes = None if initial else self._resting_outcomes(t, q, v_minus, v_plus, mode, impact_keys, touching,
                                                                 nonsmooth)
         impulses = {self.names[dyn.contact_index(k)]: float(x) for k, x in zip(closed, impact.impulses)}
@@ -275,6 +308,9 @@ class EventResets:
             if self.jumps:
                 event.parameter_saltation = reset_parameters()
                 event.parameter_time_gradient = np.zeros(self.jumps.p)
+            if from_rest:
+                self._onset_columns(t, q, from_rest, self._jumped(self.phi, event), np.zeros(self.phi.shape[1]),
+                                    new_mode)
         elif self.sensitive:
             F_minus = vector_field(self.dyn, q, v_minus, t, mode)
             guard = min(touching, key=lambda i: speeds[i])
@@ -294,9 +330,18 @@ class EventResets:
                 DR = reset_jacobian()
                 F_plus = vector_field(self.dyn, q, v_plus, t, new_mode)
                 xi = saltation(DR, Dh, F_minus, F_plus)
+                R_p = reset_parameters() if self.jumps else None
                 if self.jumps:
-                    xi_p = ParameterJumps.saltation(reset_parameters(), h_p, DR, F_minus, F_plus,
-                                                    float(Dh @ F_minus))
+                    xi_p = ParameterJumps.saltation(R_p, h_p, DR, F_minus, F_plus, float(Dh @ F_minus))
+                if from_rest:  # the state after the reset, moved with the event's time
+                    dt = -(Dh @ self.phi)
+                    if h_p is not None:
+                        dt[self.n_state:] -= h_p
+                    dt /= float(Dh @ F_minus)
+                    moved = DR @ (self.phi + np.outer(F_minus, dt))
+                    if R_p is not None:
+                        moved[:, self.n_state:] += R_p
+                    self._onset_columns(t, q, from_rest, moved, dt, new_mode)
             self._attach_sensitivity(event, xi, Dh, F_minus, xi_p=xi_p, h_p=h_p)
         elif len(touching) > 1 and not initial:  # the verdict must not depend on what was asked for
             self._landing_orders(event, t, q, v_minus, mode, touching, closed, e, verdict_only=True)
@@ -364,6 +409,7 @@ class EventResets:
         n = self.n_state
         rate = float(Dh @ F_minus) + h_t
         event.saltation = xi
+        assert self.phi is not None  # set before every event of a run with derivatives
         if self.options.jacobian:
             event.time_gradient = -(Dh @ self.phi[:, :n]) / rate
         if self.jumps is not None:

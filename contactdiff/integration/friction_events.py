@@ -37,16 +37,23 @@ stick or slip on): the paper's stick/slip threshold. Those events carry
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from ..dynamics.mode import ModeDynamics, ModeSolution
 from ..dynamics.redundant import row_rank
+from ..dynamics.slip import reference_turn
 from ..errors import PainleveError, SolverError
 from .guards import Guard, GuardKind
 from .parameter_jumps import ParameterJumps
 from .projection import held_velocity, held_velocity_jacobian, mode_rows
 from .sensitivity import saltation, vector_field
-from .trajectory import Event, NonSmooth
+from .trajectory import Event, EventKind, NonSmooth
+
+if TYPE_CHECKING:
+    from ..model.scene import Scene
+    from .options import SimulateOptions
 
 THRESHOLD_TOL = 1e-9
 """Relative distance to the friction cone's boundary (of ``μ λ_N``), and relative
@@ -60,13 +67,15 @@ floors (``zeno_speed``, as an impact's creeping rule) slips along its own slip."
 
 
 def settle_friction(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float,
-                    mode: tuple[int, ...]) -> tuple[tuple[int, ...], ModeSolution]:
+                    mode: tuple[int, ...], from_rest: list | None = None) -> tuple[tuple[int, ...], ModeSolution]:
     """The mode after Coulomb's law on ``mode`` at ``(q, v, t)``.
 
     A sticking contact whose sticking force leaves the cone slips along
     ``-λ_T / ||λ_T||`` (its reference direction is set on ``dyn``), and the solve is
     repeated until every sticking contact is inside its cone. Returns the mode and
-    its `ModeSolution` there.
+    its `ModeSolution` there. ``from_rest``, if given, gets ``(scene index, mode)`` for
+    each contact that slips from rest, in order, ``mode`` the one whose sticking force
+    set its reference (`FrictionEvents._onset_columns`).
 
     Raises:
         PainleveError: a slipping contact has no consistent force (Painlevé).
@@ -93,6 +102,8 @@ def settle_friction(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float,
             speed = float(np.linalg.norm(slip))
             moving = speed > SLIPPING_FLOORS * dyn.slip_speed_floor
             dyn.slip_reference[index] = slip / speed if moving else -f[1:] / np.linalg.norm(f[1:])
+            if not moving and from_rest is not None:
+                from_rest.append((index, mode))
             keys[keys.index(key)] = dyn.sliding_key(index)
         mode = tuple(sorted(keys))
     raise SolverError(f"no mode satisfies Coulomb's law for contacts {mode} at t = {t!r}")
@@ -187,6 +198,27 @@ def stop_guard(dyn: ModeDynamics, q, v, key: int) -> np.ndarray:
 class FrictionEvents:
     """The loop's stick → slip and slip → stick events (module doc)."""
 
+    if TYPE_CHECKING:  # the state it borrows from HybridLoop (set there), for the type checker only
+        scene: Scene
+        dyn: ModeDynamics
+        names: list[str]
+        options: SimulateOptions
+        events: list[Event]
+        jumps: ParameterJumps | None
+        sensitive: bool
+        gap_tol: float
+        phi: np.ndarray | None
+        n_state: int
+        onsets: dict[int, np.ndarray]
+
+        def _gaps_and_rates(self, q, v) -> tuple[np.ndarray, np.ndarray]: ...
+        def _mode_names(self, mode) -> tuple[str, ...]: ...
+        def _sliding_names(self, mode) -> tuple[str, ...]: ...
+        def _note(self, text: str) -> str: ...
+        def _attach_sensitivity(self, event: Event, xi: np.ndarray, Dh: np.ndarray, F_minus: np.ndarray,
+                                h_t: float = 0.0, xi_p: np.ndarray | None = None,
+                                h_p: np.ndarray | None = None) -> None: ...
+
     def _friction_event(self, t, q, v, mode, fired: list[Guard]):
         dyn = self.dyn
         cone = [g.contact for g in fired if g.kind is GuardKind.CONE]
@@ -203,7 +235,8 @@ class FrictionEvents:
             keys[keys.index(k)] = dyn.contact_index(k)
         new_mode = tuple(sorted(keys))
         v_plus = held_velocity(dyn, q, v, new_mode) if stops else v
-        new_mode, settled = settle_friction(dyn, q, v_plus, t, new_mode)
+        from_rest: list = []
+        new_mode, settled = settle_friction(dyn, q, v_plus, t, new_mode, from_rest)
         if stops:
             gaps, rates = self._gaps_and_rates(q, v_plus)
             active = dyn.contacts_of(new_mode)
@@ -213,7 +246,7 @@ class FrictionEvents:
             if bearing is not None:
                 new_mode, settled = bearing
         stuck = [dyn.contact_index(k) for k in stops if dyn.contact_index(k) in new_mode]
-        kind = "stick" if stuck and not cone else "slip"
+        kind = EventKind.STICK if stuck and not cone else EventKind.SLIP
         fired_names = self._mode_names(cone + stops)
         event = Event(t=t, kind=kind, contacts=fired_names, simultaneous=len(fired) > 1,
                       q=q.copy(), v_minus=v.copy(), v_plus=v_plus.copy(), impulses={},
@@ -235,16 +268,77 @@ class FrictionEvents:
             if self.jumps:
                 if cone:
                     sol_k, der_k, rows, w = solved
-                    forces = self.jumps.forces
-                    h_p = w @ der_k.forces_dtau[rows] @ forces.mode_forces(dyn, sol_k, q, v, t)
+                    parameter_forces = self.jumps.forces
+                    h_p = w @ der_k.forces_dtau[rows] @ parameter_forces.mode_forces(dyn, sol_k, q, v, t)
                     # the cone's own size: ∂(μ λ_N)/∂μ = λ_N at fixed forces
-                    h_p[forces.friction_columns.get(dyn.contact_index(cone[0]), [])] += sol_k.forces[rows.start]
+                    columns = parameter_forces.friction_columns.get(dyn.contact_index(cone[0]), [])
+                    h_p[columns] += sol_k.forces[rows.start]
                 else:
                     h_p = np.zeros(self.jumps.p)  # the slip velocity does not depend on the parameters
                 xi_p = ParameterJumps.saltation(None, h_p, DR, F_minus, F_plus, rate)
+            found = [(dyn.contact_index(k), mode, v) for k in cone] + [(i, m, v_plus) for i, m in from_rest]
+            if found:
+                dt = -(Dh @ self.phi)  # ∂t/∂ of phi's columns (as the parameters' saltation)
+                if h_p is not None:
+                    dt[self.n_state:] -= h_p
+                dt /= rate
+                moved = self.phi + np.outer(F_minus, dt)  # the event's state before its reset
+                self._onset_columns(t, q, found, moved if DR is None else DR @ moved, dt, new_mode)
             self._attach_sensitivity(event, xi, Dh, F_minus, h_t, xi_p=xi_p, h_p=h_p)
         self.events.append(event)
         return new_mode, v_plus
+
+    def _onset_columns(self, t, q, found, moved: np.ndarray, dt: np.ndarray, new_mode) -> None:
+        """Set ``self.onsets`` (`contactdiff.integration.mode_field.ModeField`) for the 3-D
+        contacts that slip from rest from this event on, along ``r = -λ_T/||λ_T||`` of their
+        sticking force: ``w = ∂θ/∂`` of the flow Jacobian's columns, ``θ`` the angle of ``r``
+        (``δθ = r⊥ · δr = -r⊥ · δλ_T / ||λ_T||``).
+
+        Args:
+            t: the event's time (s).
+            q: its configuration.
+            found: ``(scene index, mode, v)`` per contact, in the order their references
+                were set: ``λ_T`` is the contact's sticking force in ``mode`` at ``(q, v)``.
+                A contact set later (a round of `settle_friction` with earlier ones
+                slipping) also moves with the earlier ones' ``θ`` (through their force
+                ``-μ λ_N A_Tᵀ ∂s/∂θ``).
+            moved: ``∂x/∂`` of phi's columns (2nv × m) at the event's state after its
+                reset, moved with the event's time: ``DR (φ + F- ∂t/∂)``.
+            dt: ``∂t/∂`` of phi's columns (m,): ``λ_T`` moves with time through the efforts.
+            new_mode: the mode after the event (a contact that does not slip in it is skipped).
+        """
+        dyn = self.dyn
+        floor = dyn.slip_speed_floor
+        for index, mode, v in found:
+            if dyn.sliding_key(index) not in new_mode:
+                continue
+            mode = tuple(mode)
+            sol, der = dyn.solve(q, v, t, mode, derivatives=True)
+            rows = sol.row_slices[mode.index(index)]
+            lam_T = sol.forces[rows][1:]
+            if len(lam_T) != 2:
+                continue
+            r = dyn.slip_reference[index]
+            turn = -np.array([-r[1], r[0]]) / float(np.linalg.norm(lam_T))  # ∂θ/∂λ_T
+            w = np.concatenate([turn @ der.forces_dq[rows][1:], turn @ der.forces_dv[rows][1:]]) @ moved
+            dyn.kin.update(q, v)
+            tau_t = dyn.scene.tau_time_derivative(dyn.kin, t)
+            if np.any(tau_t):  # the forces are affine in the efforts
+                tau = dyn.scene.tau(dyn.kin, t) + tau_t
+                w += float(turn @ (dyn.solve(q, v, t, mode, tau=tau).forces[rows][1:] - lam_T)) * dt
+                dyn.kin.update(q, v)
+            if self.jumps:
+                w[self.n_state:] += turn @ der.forces_dtau[rows][1:] @ self.jumps.forces.mode_forces(dyn, sol, q, v, t)
+            for key, other in zip(sol.active, sol.row_slices):  # earlier slips from rest in this mode
+                earlier = self.onsets.get(dyn.contact_index(key))
+                if earlier is None or not dyn.is_sliding(key):
+                    continue
+                A_T = dyn.contact(key).full.rows(dyn.kin)[1:]
+                ds = reference_turn(A_T @ v, dyn.slip_reference[dyn.contact_index(key)], floor)
+                if ds is not None:
+                    force = -dyn.contact(key).spec.mu * sol.forces[other.start] * (A_T.T @ ds)
+                    w += float(turn @ der.forces_dtau[rows][1:] @ force) * earlier
+            self.onsets[index] = w
 
     def _threshold_note(self, event: Event, t, cone, stuck, rate, cone_size, settled: ModeSolution) -> None:
         """Mark an event on the stick/slip threshold as not differentiable (module doc);

@@ -24,7 +24,7 @@ from enum import Enum
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-from .events import hermite_minimum, locate_crossing
+from ..ode.crossings import hermite_minimum, locate_crossing
 from .options import SimulateOptions
 
 DIP_FRACTION = 0.5

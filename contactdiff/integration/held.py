@@ -27,6 +27,9 @@ is held.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Protocol
+
 import numpy as np
 
 from ..dynamics.mode import ModeDynamics
@@ -36,7 +39,10 @@ from .friction_events import settle_friction
 from .parameter_jumps import ParameterJumps
 from .projection import mode_rows
 from .sensitivity import liftoff_guard, saltation, vector_field
-from .trajectory import Event
+from .trajectory import Event, EventKind
+
+if TYPE_CHECKING:
+    from ..model.scene import Scene
 
 
 def held_contacts(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float, mode: tuple[int, ...],
@@ -123,10 +129,32 @@ def bear_guard(dyn: ModeDynamics, t: float, q: np.ndarray, v: np.ndarray, mode, 
     return -Dh, -h_t
 
 
+class HoldingField(Protocol):
+    """What the bearing event reads of a mode's field (`contactdiff.integration.mode_field.ModeField`,
+    which evaluates the bearing guards with `bear_value`): the contacts it holds."""
+
+    held: dict[int, int]
+    """``{scene index: key}`` of the held contacts (`held_contacts`)."""
+
+
 class HeldEvents:
     """The loop's ``bear`` events (module doc); a mixin of
     `contactdiff.integration.hybrid.HybridLoop` (its state as for
     `contactdiff.integration.event_resets`; ``fields[-1]`` is the mode's field)."""
+
+    if TYPE_CHECKING:  # the state it borrows from HybridLoop (set there), for the type checker only
+        scene: Scene
+        dyn: ModeDynamics
+        fields: Sequence[HoldingField]  # the loop's ModeField objects
+        events: list[Event]
+        jumps: ParameterJumps | None
+        sensitive: bool
+
+        def _mode_names(self, mode) -> tuple[str, ...]: ...
+        def _sliding_names(self, mode) -> tuple[str, ...]: ...
+        def _attach_sensitivity(self, event: Event, xi: np.ndarray, Dh: np.ndarray, F_minus: np.ndarray,
+                                h_t: float = 0.0, xi_p: np.ndarray | None = None,
+                                h_p: np.ndarray | None = None) -> None: ...
 
     def _bear_event(self, t, q, v, mode, bearing: list[int]):
         """The held contacts ``bearing`` (scene indices) join ``mode`` at ``(t, q, v)``: no
@@ -136,7 +164,7 @@ class HeldEvents:
         held = self.fields[-1].held
         keys = [held[i] for i in bearing]
         new_mode, _ = settle_friction(dyn, q, v, t, tuple(sorted((*mode, *keys))))
-        event = Event(t=t, kind="bear", contacts=self._mode_names(keys), simultaneous=len(keys) > 1,
+        event = Event(t=t, kind=EventKind.BEAR, contacts=self._mode_names(keys), simultaneous=len(keys) > 1,
                       q=q.copy(), v_minus=v.copy(), v_plus=v.copy(), impulses={},
                       mode_before=self._mode_names(mode), mode_after=self._mode_names(new_mode),
                       sliding=self._sliding_names(new_mode))

@@ -2,7 +2,7 @@
 
 `simulate` integrates a `Scene` event by event:
 
-1. In mode ``J`` the stepper (`contactdiff.integration.steppers`) integrates the KKT flow of
+1. In mode ``J`` the stepper (`contactdiff.ode`) integrates the KKT flow of
    `contactdiff.dynamics.mode`.
 2. After every accepted step each guard of the mode is checked over the step:
    the gap of every inactive contact (downward through 0, including a dip
@@ -29,7 +29,7 @@
 
 With ``method="auto"`` the stepper is DOP853 while its steps are limited by
 accuracy and Radau IIA while they would be limited by stability
-(`contactdiff.integration.method_choice`); a switch restarts the stepper at the current point
+(`contactdiff.ode.method_choice`); a switch restarts the stepper at the current point
 (no jump; the flow Jacobian carries over).
 
 Admissibility: a penetrating initial state is an error; closed contacts at the
@@ -41,9 +41,9 @@ the integration error cannot tell a touch from a miss); a bounce slower than
 ``zeno_speed`` ends the bounce sequence (the contact stays closed, event kind
 ``zeno``); more than ``max_events`` events raise `TooManyEventsError`, more
 than ``max_steps`` steps `TooManyStepsError` (early, as `StepBudgetError`, when steady
-steps project far more than the budget: `contactdiff.integration.step_budget`), and steps
+steps project far more than the budget: `contactdiff.ode.step_budget`), and steps
 that collapse by orders of magnitude with no event `StepCollapseError`
-(`contactdiff.integration.step_collapse`).
+(`contactdiff.ode.step_collapse`).
 
 `HybridLoop` is the loop itself, public and meant to be extended: a subclass
 may override `HybridLoop.initial_mode` (the consistent start) and
@@ -56,6 +56,7 @@ run are one `SimulateOptions`.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
@@ -72,24 +73,25 @@ from ..errors import (
     TooManyStepsError,
     check_number,
 )
-from ..model.scene import Scene
-from ..model.scene_file import passive_note
+from ..model.scene import Scene, StateInput
+from ..ode.crossings import simultaneous_group
+from ..ode.factory import PinocchioGroup, make_stepper
+from ..ode.method_choice import EXPLICIT, MethodChooser, spectral_radius
+from ..ode.step_budget import BudgetWatch, budget_message
+from ..ode.step_collapse import COLLAPSE_RATIO, COLLAPSE_STEPS, CollapseWatch
+from ..scenes.scene_file import passive_note
 from .event_resets import EventResets
-from .events import simultaneous_group
+from .final_time import final_touches
 from .friction_events import FrictionEvents, refuse_ambiguous_slip, settle_friction
 from .guards import GuardFinder, NearMiss
 from .held import HeldEvents, held_contacts
-from .method_choice import EXPLICIT, MethodChooser, spectral_radius
 from .mode_field import ModeField
 from .options import AUTO, OnGrazing, SimulateOptions
 from .parameter_jumps import ParameterJumps
 from .projection import held_velocity, project_state
 from .rest import RestCheck
 from .samples import SampleRecorder, check_sample_times
-from .step_budget import BudgetWatch, budget_message
-from .step_collapse import COLLAPSE_RATIO, COLLAPSE_STEPS, CollapseWatch
-from .steppers import PinocchioGroup, make_stepper
-from .trajectory import Event, RunStats, Segment, Termination, Trajectory
+from .trajectory import Event, NonSmooth, RunStats, Segment, Termination, Trajectory
 
 MAX_NOTES = 10
 """Notes written for the first method switches of ``method="auto"`` and the first
@@ -98,8 +100,8 @@ GAP_TOL = 1e-12
 """m: a contact whose gap is below this is closed."""
 
 
-def simulate(scene: Scene, t_final: float, q0=None, v0=None, *, t0: float = 0.0,
-             options: SimulateOptions | None = None, **option_values) -> Trajectory:
+def simulate(scene: Scene, t_final: float, q0: StateInput | None = None, v0: StateInput | None = None, *,
+             t0: float = 0.0, options: SimulateOptions | None = None, **option_values: Any) -> Trajectory:
     """Compute the hybrid trajectory of ``scene`` from ``t0`` to ``t_final``.
 
     Args:
@@ -142,8 +144,10 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
 
     Args:
         scene: the `Scene`.
-        t0, t_final: start and final time (s).
-        q0, v0: initial state (arrays or joint-name mappings); None: the scene's.
+        t0: start time (s).
+        t_final: final time (s).
+        q0: initial configuration (an array or a joint-name mapping); None: the scene's.
+        v0: initial velocity (an array or a joint-name mapping); None: the scene's.
         options: the `SimulateOptions`.
 
     Extension: override `initial_mode` and `on_event` (see there). The state a
@@ -154,8 +158,8 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
     the state's 2nv with ``jacobian``, then the parameters').
     """
 
-    def __init__(self, scene: Scene, t0: float, t_final: float, q0=None, v0=None,
-                 options: SimulateOptions | None = None):
+    def __init__(self, scene: Scene, t0: float, t_final: float, q0: StateInput | None = None,
+                 v0: StateInput | None = None, options: SimulateOptions | None = None):
         if not isinstance(scene, Scene):
             raise InvalidInputError(f"scene must be a Scene (see load_scene), got {scene!r}")
         self.options = SimulateOptions() if options is None else options
@@ -187,6 +191,9 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
         self.phi = None  # flow Jacobian just before the event being processed
         self.initial_saltation = None
         self.jumps = None  # the parameters' blocks at events, with options.parameters
+        # the slips from rest that follow the reference set at the last event: scene index ->
+        # ∂θ/∂ of phi's columns (`ModeField`; set by `FrictionEvents`, cleared at every event)
+        self.onsets: dict[int, np.ndarray] = {}
         # phi's columns: the state's 2nv (with options.jacobian), then the parameters'
         self.sensitive = self.options.jacobian or bool(self.options.parameters)
         self.n_state = 2 * self.scene.nv if self.options.jacobian else 0
@@ -213,18 +220,19 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
             held = held_contacts(self.dyn, q, v, t, tuple(mode), gaps, rates,
                                  max(self.gap_tol, self.options.resolved_project_tol), self.options.grazing_speed)
         return ModeField(self.dyn, mode, fused=fused, parameters=self.jumps.forces if self.jumps else None,
-                         held=held)
+                         held=held, onsets=self.onsets)
 
-    def _jumped(self, phi: np.ndarray, event: Event) -> np.ndarray:
+    def _jumped(self, phi: np.ndarray | None, event: Event) -> np.ndarray:
         """The flow Jacobian just after ``event`` from ``phi`` just before: ``Ξ phi``, plus
         ``Ξ_p`` on the parameter columns."""
+        assert phi is not None and event.saltation is not None  # called only in a sensitive run
         out = event.saltation @ phi
         if event.parameter_saltation is not None:
             out[:, self.n_state:] += event.parameter_saltation
         return out
 
     # -- hooks ----------------------------------------------------------------------
-    def on_event(self, event: Event, mode_before: tuple[int, ...], phi_before) -> bool:
+    def on_event(self, event: Event, mode_before: tuple[int, ...], phi_before: np.ndarray | None) -> bool:
         """Called once for every event, in time order, after the loop has processed it
         (the state after the reset is ``event.q``, ``event.v_plus``).
 
@@ -290,16 +298,22 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
         mode = choose_mode(self.dyn, q, v, self.t0, candidates)
         refuse_ambiguous_slip(self.dyn, q, v, self.t0, candidates, mode)
         if any(self.contacts[self.dyn.contact_index(k)].spec.coulomb for k in mode):
-            mode, _ = settle_friction(self.dyn, q, v, self.t0, mode)
+            from_rest: list = []
+            mode, _ = settle_friction(self.dyn, q, v, self.t0, mode, from_rest)
+            if self.sensitive and from_rest:  # no guard at t0: the start's own perturbations
+                start = self._identity_phi()
+                self._onset_columns(self.t0, q, [(i, m, v) for i, m in from_rest], start,
+                                    np.zeros(start.shape[1]), mode)
         return mode, held_velocity(self.dyn, q, v, mode)
 
     # -- the loop -------------------------------------------------------------------
     def _stepper_options(self, field: ModeField) -> dict:
         o = self.options
-        options = dict(rtol=o.rtol, atol=o.atol, max_step=o.max_step, t_bound=self.t_final)
+        options: dict[str, Any] = dict(rtol=o.rtol, atol=o.atol, max_step=o.max_step, t_bound=self.t_final)
+        if self.sensitive:  # the parameters' forcing, and a slip onset's (`ModeField`)
+            options.update(parameter_jac=field.parameter_jac)
         if self.jumps is not None:
-            options.update(parameter_jac=field.parameter_jac, variational_column_scale=np.concatenate(
-                [np.ones(self.n_state), self.jumps.scale]))
+            options.update(variational_column_scale=np.concatenate([np.ones(self.n_state), self.jumps.scale]))
         return options
 
     def run(self) -> Trajectory:
@@ -368,8 +382,8 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
                     self._collapse(stepper, mode, h, watch.typical)
                 if projection := budget.after_step(h, clipped, self.t_final - stepper.t, steps):
                     self._over_budget(stepper, mode, steps, *projection)
-                # at rest: to t_final in one step (not over samples still to take: steps end on them)
-                if self.recorder.next_time >= self.t_final and rest.settle(stepper, field, mode, segment):
+                # at rest: to t_final in one step, or to the next sample time (steps end on them)
+                if rest.settle(stepper, field, mode, segment, min(self.t_final, self.recorder.next_time)):
                     self.recorder.take(stepper)
                 if self.chooser is not None and stepper.t < self.t_final:
                     switch = self.chooser.after_step(h, stepper.q, stepper.v, stepper.t)
@@ -385,6 +399,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
             dense.t = segment.t1 = t_event
             self.phi = stepper.phi
             n_before, mode_before = len(self.events), tuple(mode)
+            self._end_onsets(field, t_event, stepper.q, stepper.v)
             mode, v_plus = self._event(t_event, stepper.q, stepper.v, mode, fired)
             self.guards.restart_from_rest(mode_before, mode, fired)
             if len(self.events) > options.max_events:
@@ -400,7 +415,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
             field = self._field(mode, self.sensitive and stepper.method != "Radau", t_event, q_event, v_plus)
             self.fields.append(field)
             stepper.restart(t_event, q_event, v_plus, accel=field.accel, jac=field.jac,
-                            parameter_jac=field.parameter_jac if self.jumps else None,
+                            parameter_jac=field.parameter_jac if self.sensitive else None,
                             phi=None if self.events[-1].saltation is None else self._jumped(stepper.phi,
                                                                                              self.events[-1]))
             if self.chooser is not None:
@@ -413,10 +428,27 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
             forces = field.guard_values(stepper.t, stepper.q, stepper.v)
             if stop:
                 return self._trajectory(stepper, Termination.STOPPED)
-        return self._trajectory(stepper, Termination.T_FINAL)
+        traj = self._trajectory(stepper, Termination.T_FINAL)
+        if touches := final_touches(self.names, *self._gaps_and_rates(traj.q, traj.v),
+                                    set(self.dyn.contacts_of(mode)), self.events, traj.t, options):
+            traj.final_nonsmooth[NonSmooth.FINAL_TIME] = "; ".join(touches)
+            self.notes.extend(touches)
+        return traj
+
+    def _end_onsets(self, field: ModeField, t: float, q, v) -> None:
+        """At an event: the slips from rest stop carrying their onset's term (`ModeField`; the
+        event's own dependence on the reference is not formed), noted where one is still
+        below ``2 zeno_speed`` at ``(q, v)``, so its field still depends on the reference there
+        (docs/design.md, Coulomb friction)."""
+        if self.onsets:
+            for index in field.onsets_in_band(q, v):
+                self.notes.append(f"flow Jacobian: from t = {t:.12g} it holds the reference direction of "
+                                  f"{self.names[index]}'s slip from rest fixed (an event before the slip "
+                                  f"reached 2 zeno_speed = {2.0 * self.dyn.slip_speed_floor:.3g} m/s)")
+        self.onsets = {}
 
     def _collapse(self, stepper, mode, h: float, typical: float, underflow: str | None = None):
-        """Raise `StepCollapseError` (`contactdiff.integration.step_collapse`) at the stepper's
+        """Raise `StepCollapseError` (`contactdiff.ode.step_collapse`) at the stepper's
         point; ``underflow``: the stepper's own underflow message, where the steps shrank to
         the resolution of time before the count of short steps was reached."""
         names = self._mode_names(mode)
@@ -431,7 +463,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
             self._trajectory(stepper, Termination.STEP_COLLAPSE), stepper.t, names, h)
 
     def _over_budget(self, stepper, mode, steps: int, needed: float, reference: float):
-        """Raise `StepBudgetError` (`contactdiff.integration.step_budget`) at the stepper's point."""
+        """Raise `StepBudgetError` (`contactdiff.ode.step_budget`) at the stepper's point."""
         names = self._mode_names(mode)
         raise StepBudgetError(budget_message(self.options.max_steps, self.t_final, stepper.t, names, steps, needed,
                                              reference), self._trajectory(stepper, Termination.MAX_STEPS),
@@ -459,6 +491,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
         self.switches.append((stepper.t, method))
         # Radau evaluates the field at Newton iterates, where no derivative is wanted
         field.fused = self.sensitive and method != "Radau"
+        assert self.chooser is not None  # method "auto" switches, and it has a chooser
         rho = self.chooser.rho
         if len(self.switches) <= MAX_NOTES:
             why = ("explicit steps limited by stability" if method != EXPLICIT
@@ -529,6 +562,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
         q, v, D = project_state(self.dyn, stepper.q, stepper.v, mode, jacobian=self.sensitive)
         phi = None if D is None else D @ stepper.phi
         if self.jumps is not None:
+            assert phi is not None  # a run with parameters is sensitive: D is computed
             phi[:, self.n_state:] += self.jumps.projection(q, mode)
         stepper.restart(stepper.t, q, v, phi=phi)
         self.n_projections += 1

@@ -11,6 +11,7 @@ import numpy as np
 
 from ..dynamics.mode import ModeDynamics
 from ..dynamics.parameter_forces import ParameterForces
+from ..dynamics.slip import reference_turn
 from .guards import Guard, GuardKind, mode_guards
 from .held import bear_value
 
@@ -27,13 +28,26 @@ class ModeField:
     solve also gives ``∂ddq/∂p``. ``held`` (``{scene index: key}``,
     `contactdiff.integration.held.held_contacts`): the contacts the mode holds at zero
     gap, each watched by a `GuardKind.BEAR` guard.
+
+    ``onsets`` (``{scene index: w}``): the 3-D slips that started from rest at the
+    event the mode began with and still follow the reference ``r`` set there; ``w``
+    (m,) is ``∂θ/∂`` of the flow Jacobian's columns (the state's and the parameters'),
+    ``θ`` the angle of ``r`` in the tangent plane. While the slip is below ``2 floor``
+    the field depends on ``r`` (`contactdiff.dynamics.slip.reference_turn`), so every
+    column of the variational equation is forced with ``(∂ddq/∂θ) w``: `parameter_jac`
+    returns that forcing (nv × m), the parameters' own ``∂ddq/∂p`` in its last p
+    columns. `advance` drops a slip once it leaves the band (its reference is then its
+    own direction, no longer ``r``).
     """
 
     _KEEP = 32  # points remembered: more than the stages of one step
 
     def __init__(self, dyn: ModeDynamics, mode: tuple[int, ...], fused: bool = False,
-                 parameters: ParameterForces | None = None, held: dict[int, int] | None = None):
+                 parameters: ParameterForces | None = None, held: dict[int, int] | None = None,
+                 onsets: dict[int, np.ndarray] | None = None):
         self.dyn, self.mode, self.fused, self.parameters = dyn, mode, fused, parameters
+        self.onsets: dict[int, np.ndarray] = onsets if onsets is not None else {}
+        """The slips from rest still on their onset's reference: scene index → ``∂θ/∂`` columns."""
         self.held: dict[int, int] = dict(held or {})
         """The contacts the mode holds at zero gap: scene index → key in the enlarged set."""
         self._plain = dyn.accelerator(mode)
@@ -64,13 +78,36 @@ class ModeField:
         """Solve with derivatives at ``(t, q, v)`` and keep them; the solution."""
         self.n_derivatives += 1
         sol, der = self.dyn.solve(q, v, t, self.mode, derivatives=True)
-        ddq_dp = None
+        ddq_dp = np.zeros((len(v), 0))
         if self.parameters is not None:
             ddq_dp = der.ddq_dtau @ self.parameters.mode_forces(self.dyn, sol, q, v, t)
+        if self.onsets:
+            ddq_dp = self._onset_forcing(sol, der, v, ddq_dp)
         self._derivatives[(t, q.tobytes(), v.tobytes())] = (der.ddq_dq, der.ddq_dv, ddq_dp)
         if len(self._derivatives) > self._KEEP:
             self._derivatives.popitem(last=False)
         return sol
+
+    def _onset_forcing(self, sol, der, v, ddq_dp: np.ndarray) -> np.ndarray:
+        """The variational equation's forcing (nv × m) with the onsets' terms (class doc):
+        ``Σ (∂ddq/∂θ) w`` over every column, ``ddq_dp`` added on the last p. A turn of
+        ``s`` moves the slipping force ``F^T λ_N`` by ``-μ λ_N A_T^T ∂s/∂θ``, a generalised
+        force at fixed state (``dyn.kin`` is at ``(q, v)`` after the solve)."""
+        dyn = self.dyn
+        m = len(next(iter(self.onsets.values())))
+        out = np.zeros((len(v), m))
+        out[:, m - ddq_dp.shape[1]:] = ddq_dp
+        for key, rows in zip(sol.active, sol.row_slices):
+            index = dyn.contact_index(key)
+            w = self.onsets.get(index)
+            if w is None or not dyn.is_sliding(key):
+                continue
+            A_T = dyn.contact(key).full.rows(dyn.kin)[1:]
+            ds = reference_turn(A_T @ v, dyn.slip_reference[index], dyn.slip_speed_floor)
+            if ds is not None:
+                force = -dyn.contact(key).spec.mu * sol.forces[rows.start] * (A_T.T @ ds)
+                out += np.outer(der.ddq_dtau @ force, w)
+        return out
 
     def _known(self, t, q, v):
         known = self._derivatives.get((t, q.tobytes(), v.tobytes()))
@@ -85,7 +122,8 @@ class ModeField:
         return self._known(t, q, v)[:2]
 
     def parameter_jac(self, t, q, v):
-        """``d ddq/dp`` (nv × p) at time ``t`` (s) and ``(q, v)``, for the field's ``parameters``."""
+        """``d ddq/dp`` (nv × p) at time ``t`` (s) and ``(q, v)``, for the field's ``parameters``
+        (nv × 0 without); with ``onsets`` the forcing of every column (nv × m, class doc)."""
         return self._known(t, q, v)[2]
 
     def row_forces(self, t, q, v) -> list[np.ndarray]:
@@ -137,6 +175,13 @@ class ModeField:
         _, u_T, s = self._slip(key, q, v)
         return float(s @ u_T)
 
+    def onsets_in_band(self, q, v) -> list[int]:
+        """Scene indices of the `onsets` whose slip at ``(q, v)`` is still below ``2 floor``,
+        where the field depends on the onset's reference (class doc)."""
+        band = 2.0 * self.dyn.slip_speed_floor
+        return [index for index in self.onsets
+                if np.linalg.norm(self._slip(self.dyn.sliding_key(index), q, v)[1]) < band]
+
     def advance(self, q, v) -> None:
         """After an accepted step ending at ``(q, v)``: each 3-D slip continues along its
         direction there (the reference of `contactdiff.dynamics.slip`), unless its speed
@@ -149,3 +194,4 @@ class ModeField:
             index, u_T, s = self._slip(key, q, v)
             if len(u_T) == 2 and np.hypot(u_T[0], u_T[1]) >= 2.0 * self.dyn.slip_speed_floor:
                 self.dyn.slip_reference[index] = s
+                self.onsets.pop(index, None)  # out of the band: the onset's reference no longer acts

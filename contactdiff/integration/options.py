@@ -15,11 +15,11 @@ from enum import StrEnum
 import numpy as np
 
 from ..errors import InvalidInputError, check_count, check_number
-from .steppers import METHODS
+from ..ode.factory import METHODS
 
 AUTO = "auto"
 SIMULATE_METHODS = (AUTO,) + METHODS
-"""Valid ``method`` names: ``"auto"`` (`contactdiff.integration.method_choice`) or a stepper."""
+"""Valid ``method`` names: ``"auto"`` (`contactdiff.ode.method_choice`) or a stepper."""
 MAX_STEPS = 200_000
 """Default step budget (accepted steps)."""
 RTOL_MIN = 100 * np.finfo(float).eps
@@ -49,7 +49,7 @@ class SimulateOptions:
             `RTOL_MAX`]; absolute in m, rad, m/s, in (0, `ATOL_MAX`]).
         method: ``"auto"`` (explicit DOP853, switching to Radau IIA while the
             explicit steps are limited by stability rather than accuracy, see
-            `contactdiff.integration.method_choice`; the steps of each are in
+            `contactdiff.ode.method_choice`; the steps of each are in
             ``traj.stats``) or a stepper of `METHODS` used throughout
             (``"Radau"`` for stiff scenes).
         jacobian: also compute the flow Jacobian ``traj.jacobian`` (d x(t_final) /
@@ -170,7 +170,9 @@ def field_names() -> list[str]:
 
 
 def _sample_times(times) -> tuple[float, ...]:
-    """``sample_times`` as a tuple of finite, non-decreasing floats (s)."""
+    """``sample_times`` as a tuple of finite, non-decreasing floats (s); None: none."""
+    if times is None:
+        return ()
     try:
         values = np.asarray(times, dtype=float)
     except (TypeError, ValueError):

@@ -90,8 +90,8 @@ class ParameterJumps:
     def impact(self, q: np.ndarray, v_minus: np.ndarray, impact: ImpactResult, live: Sequence[int]) -> np.ndarray:
         """``∂R/∂p`` (2nv × p) of ``impact``; ``live``: the contact keys whose own
         restitution the impact used (not ended by the Zeno rule)."""
-        live = {self.dyn.contact_index(k) for k in live}
-        columns = {i: cols for i, cols in self.restitution_columns.items() if i in live}
+        live_indices = {self.dyn.contact_index(k) for k in live}
+        columns = {i: cols for i, cols in self.restitution_columns.items() if i in live_indices}
         return impact_parameter_jacobian(self.dyn, q, v_minus, impact, self.forces, columns,
                                          self.forces.friction_columns)
 

@@ -1,5 +1,8 @@
 """Rest: a run that has come to rest in a mode goes to its final time in one step.
 
+(With sample times still to take, it goes to each of them in one step, and from the
+last to the final time.)
+
 A run at rest still pays for every step to its final time, and at rest the steps
 are bounded by round-off, not by the motion: along the directions a closed contact
 holds, a mode's field is a double integrator (the contact forces hold it at the
@@ -47,7 +50,7 @@ import numpy as np
 import pinocchio as pin
 from scipy.linalg import expm
 
-from .dense import DenseOutput
+from ..ode.dense import DenseOutput
 from .guards import GuardKind
 from .projection import held_velocity, projection_jacobian
 
@@ -80,13 +83,18 @@ class RestCheck:
         self.weight = pin.computeTotalMass(loop.scene.model) * float(np.linalg.norm(loop.scene.model.gravity.linear))
         self._wait = 1  # steps before the next full check
         self._skip = 0
+        # the rest under way (its start and end, s; its note) when it goes on past a sample time
+        self._resting_from, self._scale_seen, self._jumps = -np.inf, 0.0, 0
+        self._segment: object | None = None  # the mode's segment of the rest under way
+        self._note: str | None = None
 
-    def settle(self, stepper, field, mode, segment) -> bool:
+    def settle(self, stepper, field, mode, segment, t_to: float) -> bool:
         """After an accepted step with no event: if the run rests (module doc), move the
-        stepper to the final time (state, flow Jacobian), extend ``segment`` and note it.
-        Returns whether it did."""
+        stepper to ``t_to`` (s: the final time, or the next sample time before it) in one
+        step of the linearised flow (state, flow Jacobian), extend ``segment`` and note it
+        (one note for a rest that goes on across sample times). Returns whether it did."""
         loop = self.loop
-        t, remaining = stepper.t, loop.t_final - stepper.t
+        t, remaining = stepper.t, t_to - stepper.t
         if not 0.0 < remaining <= loop.options.max_step or field.slipping:
             return False  # (a max_step shorter than the rest: the user's own steps)
         nv = self.nv
@@ -105,18 +113,27 @@ class RestCheck:
         if loop.options.dense:
             y0 = np.concatenate((stepper.q, v)) if stepper._vs else np.concatenate((np.zeros(nv), v))
             change = np.concatenate((d[:nv], v1 - v))[None, :]  # the held velocity's removal, then the flow's
-            segment.pieces.append(DenseOutput(t, loop.t_final, remaining, y0, change,
+            segment.pieces.append(DenseOutput(t, t_to, remaining, y0, change,
                                               None if stepper._vs else stepper.group, None if stepper._vs
                                               else stepper.q, nv))
-        stepper.t_bound = loop.t_final  # (a step cut short at a sample or breakpoint left it there)
-        stepper.restart(loop.t_final, q1, v1, phi=phi1)
+        stepper.t_bound = t_to  # (a step cut short at a sample or breakpoint left it there)
+        stepper.restart(t_to, q1, v1, phi=phi1)
         stepper.n_steps += 1
-        segment.t1 = loop.t_final
+        segment.t1 = t_to
+        self._wait, self._skip = 1, 0  # still at rest after a sample time: checked at once
         decay = "neutral" if slowest == 0.0 else f"slowest decay {slowest:.3g} /s"
-        loop.notes.append(f"at rest from t = {t:.12g} s in mode ({', '.join(segment.mode) or 'free flight'}): an "
-                          f"equilibrium of the mode to {_rms(d / self._scale(stepper.q, v, stepper)):.2g} of the "
-                          f"tolerance, stable ({decay}); stepped to t_final = {loop.t_final:g} s in one step of its "
-                          "linearised flow")
+        scale = _rms(d / self._scale(stepper.q, v, stepper))
+        start, jumps = t, 1
+        if self._segment is segment and self._note is not None:  # the same rest (one mode), past sample times
+            start, jumps, scale = self._resting_from, self._jumps + 1, max(scale, self._scale_seen)
+            loop.notes.remove(self._note)
+        end = "t_final" if t_to == loop.t_final else "t"
+        steps = "one step" if jumps == 1 else f"{jumps} steps (one to each sample time)"
+        self._note = (f"at rest from t = {start:.12g} s in mode ({', '.join(segment.mode) or 'free flight'}): an "
+                      f"equilibrium of the mode to {scale:.2g} of the tolerance, stable ({decay}); stepped to "
+                      f"{end} = {t_to:g} s in {steps} of its linearised flow")
+        loop.notes.append(self._note)
+        self._resting_from, self._segment, self._scale_seen, self._jumps = start, segment, scale, jumps
         return True
 
     def _scale(self, q, v, stepper) -> np.ndarray:

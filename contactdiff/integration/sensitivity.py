@@ -114,6 +114,7 @@ def impact_reset_jacobian(dyn: ModeDynamics, q: np.ndarray, v_minus: np.ndarray,
         # a tangential-only contact keeps its tangential rows only; its normal impulse is 0
         kept = slice(0, c.n_rows) if k in impact.active else slice(1, c.n_rows)
         e_k = impact.restitution[k] if k in impact.active else 0.0
+        assert impact.rows is not None  # set by every impact with held contacts
         impulses = impact.row_impulses[impact.rows.rows_of([k])]
         rhs_q += c.rows_transpose_dq(kin, impulses)
         rows = c.rows(kin)
@@ -123,6 +124,7 @@ def impact_reset_jacobian(dyn: ModeDynamics, q: np.ndarray, v_minus: np.ndarray,
         force_rows = rows[kept]
         if _slides_with_friction(impact, k, c):
             kept = slice(0, 1)
+            assert impact.friction is not None  # set with the contact states
             mu, s = impact.friction[k], impact.slide_directions[k]
             force_rows = (rows[0] - mu * s @ rows[1:])[None, :]
             u_T = rows[1:] @ v_plus
@@ -171,6 +173,7 @@ def _slip_vanishes(speed: float, v_minus: np.ndarray) -> bool:
 def _slides_with_friction(impact: ImpactResult, k: int, contact) -> bool:
     """Whether contact ``k`` of ``impact`` slides with finite friction on tangential rows."""
     return (impact.states is not None and impact.states[k] is ContactState.SLIDE and contact.n_rows > 1
+            and impact.friction is not None  # set with the states
             and 0.0 < impact.friction[k] < np.inf and bool(np.any(impact.slide_directions[k])))
 
 
@@ -214,6 +217,7 @@ def impact_parameter_jacobian(dyn: ModeDynamics, q: np.ndarray, v_minus: np.ndar
         if k in impact.active and _slides_with_friction(impact, k, c):
             full = rows
             rows = force_rows = full[:1]
+            assert impact.friction is not None and impact.rows is not None  # set with the contact states
             mu, s = impact.friction[k], impact.slide_directions[k]
             lam_n = float(impact.row_impulses[impact.rows.rows_of([k])][0])
             force_rows = (full[0] - mu * s @ full[1:])[None, :]
@@ -248,7 +252,7 @@ def _as_list(columns) -> list[int]:
     """A column, a list of columns, or None, as a list."""
     if columns is None:
         return []
-    return [columns] if isinstance(columns, (int, np.integer)) else list(columns)
+    return [int(columns)] if isinstance(columns, (int, np.integer)) else list(columns)
 
 
 def gap_gradient(dyn: ModeDynamics, q: np.ndarray, contact: int) -> np.ndarray:

@@ -1,60 +1,25 @@
-"""Error-controlled one-step integrators with dense output: the factory and the names.
+"""The steppers' former home, kept so that ``contactdiff.integration.steppers`` imports
+keep working: the steppers live in `contactdiff.ode` (the factory in
+`contactdiff.ode.factory`)."""
 
-The methods: `DOP853` and `RK45` (`contactdiff.integration.explicit_rk`), `Radau`
-(`contactdiff.integration.radau`), all on the `Stepper` base
-(`contactdiff.integration.stepper`: the state, units, frames, the flow Jacobian
-and what a new method implements), over a configuration space of
-`contactdiff.integration.lie`. A stepper is driven one accepted step at a time::
-
-    st = make_stepper("DOP853", accel, PinocchioGroup(model), t0, q0, v0,
-                      rtol=1e-10, atol=1e-12)
-    st.step()                       # one accepted step [st.t_old, st.t]
-    dense = st.dense()              # (q, v) = dense(t) on that interval
-    st.truncate(t_event)            # keep the step only up to an event
-    st.restart(t_event, q_plus, v_plus, phi=Xi @ st.phi)   # after a jump
-"""
-
-from __future__ import annotations
-
-from ..errors import InvalidInputError
-from .dense import DenseOutput, LazyDenseOutput
-from .explicit_rk import DOP853, RK45, ExplicitRK
-from .lie import LieGroup, PinocchioGroup, VectorSpace
-from .radau import Radau
-from .stepper import AccelFn, JacFn, Stepper
+from ..ode.factory import (
+    DOP853,
+    METHODS,
+    RK45,
+    AccelFn,
+    DenseOutput,
+    ExplicitRK,
+    JacFn,
+    LazyDenseOutput,
+    LieGroup,
+    PinocchioGroup,
+    Radau,
+    Stepper,
+    VectorSpace,
+    make_stepper,
+)
 
 __all__ = [
     "METHODS", "AccelFn", "JacFn", "LieGroup", "VectorSpace", "PinocchioGroup", "DenseOutput",
     "LazyDenseOutput", "Stepper", "ExplicitRK", "RK45", "DOP853", "Radau", "make_stepper",
 ]
-
-_CLASSES: dict[str, type[Stepper]] = {"DOP853": DOP853, "RK45": RK45, "Radau": Radau}
-METHODS: tuple[str, ...] = tuple(_CLASSES)
-"""Valid ``method`` names for `make_stepper`."""
-
-
-def make_stepper(method: str, accel: AccelFn, group, t0: float, q0, v0, **options) -> Stepper:
-    """Create a stepper by name.
-
-    Args:
-        method: one of `METHODS` (case-insensitive): ``"DOP853"`` (explicit,
-            default choice), ``"RK45"`` (explicit, loose tolerances),
-            ``"Radau"`` (implicit, stiff springs).
-        accel: ``accel(t, q, v) -> dv/dt`` (nv,).
-        group: configuration space (`VectorSpace`, `PinocchioGroup`) or a
-            ``pinocchio.Model``.
-        t0: initial time (s).
-        q0: initial configuration (nq,).
-        v0: initial velocity (nv,), tangent space.
-        **options: keyword arguments of `Stepper` (``rtol``, ``atol``, ``jac``,
-            ``first_step``, ``max_step``, ``t_bound``, ``variational``, ...; see there
-            for units and defaults).
-
-    Raises:
-        InvalidInputError: unknown method (the message lists the valid ones) or bad input.
-    """
-    by_lower = {m.lower(): c for m, c in _CLASSES.items()}
-    cls = by_lower.get(str(method).lower())
-    if cls is None:
-        raise InvalidInputError(f"unknown integration method {method!r}; valid: {', '.join(METHODS)}")
-    return cls(accel, group, t0, q0, v0, **options)

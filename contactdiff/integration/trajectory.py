@@ -13,23 +13,45 @@ import json
 from dataclasses import asdict, dataclass, field
 from enum import Enum, StrEnum
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..errors import ContactDiffError, InvalidInputError
+from ..errors import ContactDiffError, InvalidInputError, unknown_name
+from ..model.parameters import parameter_table
 from .samples import Samples
 
-EVENT_KINDS = ("touchdown", "lift-off", "slip", "stick", "bounce", "grazing", "zeno", "bear")
-"""``touchdown``: contacts close and stay closed (impact); ``lift-off``: an active
-contact's normal force reaches zero and it leaves; ``slip``: a sticking contact's
-normal force reaches zero but leaving would let it sink, so it slides (normal row
-only) until a later lift-off, or a contact with Coulomb friction starts to slip
-(its tangential force reached the cone, or it stopped but friction cannot hold
-it); ``stick``: a slipping contact stopped and sticks; ``bounce``: an impact after which the
-contact leaves again; ``grazing``: a contact closes with zero normal speed;
-``zeno``: an impact below the Zeno speed, after which the contact stays closed; ``bear``:
-a closed contact the others held at zero gap starts to bear (its compatible load
-turned to pushing: no impulse, `contactdiff.integration.held`)."""
+if TYPE_CHECKING:
+    from ..model.scene import Scene
+
+class EventKind(StrEnum):
+    """What happened at an event. A `StrEnum`: each kind compares equal to its value
+    (``event.kind == "touchdown"``), and prints, formats and writes to JSON as it."""
+
+    TOUCHDOWN = "touchdown"
+    """contacts close and stay closed (impact)"""
+    LIFT_OFF = "lift-off"
+    """an active contact's normal force reaches zero and it leaves"""
+    SLIP = "slip"
+    """a sticking contact's normal force reaches zero but leaving would let it sink, so it
+    slides (normal row only) until a later lift-off, or a contact with Coulomb friction
+    starts to slip (its tangential force reached the cone, or it stopped but friction
+    cannot hold it)"""
+    STICK = "stick"
+    """a slipping contact stopped and sticks"""
+    BOUNCE = "bounce"
+    """an impact after which the contact leaves again"""
+    GRAZING = "grazing"
+    """a contact closes with zero normal speed"""
+    ZENO = "zeno"
+    """an impact below the Zeno speed, after which the contact stays closed"""
+    BEAR = "bear"
+    """a closed contact the others held at zero gap starts to bear (its compatible load
+    turned to pushing: no impulse, `contactdiff.integration.held`)"""
+
+
+EVENT_KINDS = tuple(EventKind)
+"""Every `EventKind`, in the order of the sweeps' ``events:<kind>`` columns."""
 
 
 class NonSmooth(Enum):
@@ -44,6 +66,9 @@ class NonSmooth(Enum):
                        "outcome (`Event.outcomes`)")
     FRICTION_THRESHOLD = ("the tangential force sits on the friction cone's boundary without crossing it "
                           "(neighbouring runs stick or slip: the stick/slip threshold)")
+    FINAL_TIME = ("a contact touches at the final time with nonzero normal speed (neighbouring runs land "
+                  "before or after it: the final state has one-sided derivatives; "
+                  "`Trajectory.final_nonsmooth`, `contactdiff.integration.final_time`)")
 
 
 class Termination(StrEnum):
@@ -104,7 +129,7 @@ class Event:
 
     Attributes:
         t: time (s).
-        kind: one of `EVENT_KINDS`.
+        kind: an `EventKind` (a string given is turned into one).
         contacts: names of the contacts whose guard fired.
         simultaneous: several guards fired within the simultaneity tolerance.
         q: configuration at the event.
@@ -132,7 +157,7 @@ class Event:
     """
 
     t: float
-    kind: str
+    kind: EventKind
     contacts: tuple[str, ...]
     simultaneous: bool
     q: np.ndarray
@@ -150,6 +175,11 @@ class Event:
     parameter_saltation: np.ndarray | None = None
     parameter_time_gradient: np.ndarray | None = None
     outcomes: dict[str, np.ndarray] | None = None
+
+    def __post_init__(self) -> None:
+        if self.kind not in EVENT_KINDS:
+            raise unknown_name("event kind", self.kind, EVENT_KINDS)
+        self.kind = EventKind(self.kind)
 
     @property
     def differentiable(self) -> bool:
@@ -169,13 +199,14 @@ class Event:
                 extra["time_gradient"] = self.time_gradient.tolist()
         if self.parameter_saltation is not None:
             extra["parameter_saltation"] = self.parameter_saltation.tolist()
-            extra["parameter_time_gradient"] = self.parameter_time_gradient.tolist()
+            if self.parameter_time_gradient is not None:
+                extra["parameter_time_gradient"] = self.parameter_time_gradient.tolist()
         if self.outcomes:
             extra["outcomes"] = {name: v.tolist() for name, v in self.outcomes.items()}
         if self.saltation_orders:
             extra["saltation_orders"] = {" > ".join(k): m.tolist() for k, m in self.saltation_orders.items()}
         return extra | {
-            "t": self.t, "kind": self.kind, "contacts": list(self.contacts),
+            "t": self.t, "kind": str(self.kind), "contacts": list(self.contacts),
             "simultaneous": self.simultaneous, "q": self.q.tolist(),
             "v_minus": self.v_minus.tolist(), "v_plus": self.v_plus.tolist(),
             "impulses": dict(self.impulses), "mode_before": list(self.mode_before),
@@ -226,6 +257,8 @@ class Trajectory:
             projection, over the run (m).
         termination: why the run ended (a `Termination`; ``"t_final"`` normally).
         notes: human-readable remarks (Zeno ends, grazing, ...).
+        final_nonsmooth: `NonSmooth.FINAL_TIME` with its remark where a contact touches
+            at the final time itself, which no event records (empty otherwise).
         jacobian: ``d x(t) / d x0`` (2nv × 2nv, tangent space) if it was asked for.
         parameter_jacobian: ``d x(t) / d p`` (2nv × p, tangent space, per unit of each
             parameter) if parameters were asked for (``simulate(..., parameters=[...])``).
@@ -249,6 +282,7 @@ class Trajectory:
     max_drift: float = 0.0
     termination: Termination = Termination.T_FINAL
     notes: list[str] = field(default_factory=list)
+    final_nonsmooth: dict[NonSmooth, str] = field(default_factory=dict)
     jacobian: np.ndarray | None = None
     dense: bool = True
     parameter_jacobian: np.ndarray | None = None
@@ -257,8 +291,9 @@ class Trajectory:
 
     @property
     def differentiable(self) -> bool:
-        """True unless some event has only a piecewise-linear derivative."""
-        return all(e.differentiable for e in self.events)
+        """True unless some event has only a piecewise-linear derivative, or a contact
+        touches at the final time (``final_nonsmooth``)."""
+        return not self.final_nonsmooth and all(e.differentiable for e in self.events)
 
     @property
     def modes(self) -> list[tuple[str, ...]]:
@@ -293,8 +328,9 @@ class Trajectory:
         return np.array([s[0] for s in states]), np.array([s[1] for s in states])
 
     def why_not_differentiable(self) -> list[str]:
-        """The remarks of the events where the flow is not differentiable, in time order."""
-        return [remark for e in self.events for remark in e.nonsmooth.values()]
+        """The remarks of the events where the flow is not differentiable, in time order,
+        then ``final_nonsmooth``'s."""
+        return [remark for e in self.events for remark in e.nonsmooth.values()] + list(self.final_nonsmooth.values())
 
     def summary(self) -> dict:
         """Final state, events and statistics (what ``--json`` prints, without dense data)."""
@@ -307,9 +343,81 @@ class Trajectory:
             "stats": self.stats.to_dict(), "max_drift": self.max_drift,
             "termination": str(self.termination), "notes": list(self.notes),
             "differentiable": self.differentiable,
+            "final_nonsmooth": {reason.name.lower(): remark for reason, remark in self.final_nonsmooth.items()},
         } | ({"jacobian": self.jacobian.tolist()} if self.jacobian is not None else {}) | (
             {"parameter_names": list(self.parameter_names), "parameter_jacobian": self.parameter_jacobian.tolist()}
             if self.parameter_jacobian is not None else {})
+
+    def format(self, scene: Scene) -> str:
+        """The run as text (what ``contactdiff simulate`` prints without ``--json``): the
+        events (the first 200), the final state by coordinate name, the counters and
+        notes, and the flow and parameter Jacobians' summaries when they were asked for.
+
+        Args:
+            scene: the `Scene` simulated (its robot names the coordinates; its parameters'
+                values head the parameter Jacobian's rows).
+        """
+        lines = [f"simulation of {self.scene_name} from t = {self.t0:g} to {self.t:g} s",
+                 f"{len(self.events)} events", ""]
+        if self.events:
+            lines.append(f"  {'t (s)':>18}  {'kind':<9}  {'contacts':<28}  {'simult.':<7}  mode after")
+            for e in self.events[:200]:
+                lines.append(f"  {e.t:18.12f}  {e.kind:<9}  {', '.join(e.contacts):<28}  "
+                             f"{'yes' if e.simultaneous else 'no':<7}  {', '.join(e.mode_after) or '(flight)'}")
+            if len(self.events) > 200:
+                lines.append(f"  ... {len(self.events) - 200} more (see --json)")
+            lines.append("")
+        lines.append("final state")
+        names = scene.robot.tangent_names()
+        for label, x in zip(scene.robot.configuration_names(), self.q):
+            lines.append(f"  q {label:<24} {x: .12g}")
+        for label, x in zip(names, self.v):
+            lines.append(f"  v {label:<24} {x: .12g}")
+        lines.append("")
+        s = self.stats
+        lines.append(f"steps {s.steps} (rejected {s.rejected_steps}), dynamics evaluations "
+                     f"{s.dynamics_evaluations}, largest active-gap drift {self.max_drift:.2e} m")
+        if s.steps_by_method:
+            lines.append(f"method {s.method}: " + ", ".join(f"{m} {n} steps" for m, n in s.steps_by_method.items()))
+        lines += [f"note: {n}" for n in self.notes]
+        labels = [f"dq[{n}]" for n in names] + [f"dv[{n}]" for n in names]
+        if self.jacobian is not None:
+            lines += [""] + self._jacobian_lines(self.jacobian, labels)
+        if self.parameter_jacobian is not None:
+            lines += [""] + self._parameter_jacobian_lines(self.parameter_jacobian, scene, labels)
+        return "\n".join(lines)
+
+    def _parameter_jacobian_lines(self, P: np.ndarray, scene: Scene, labels: list[str]) -> list[str]:
+        """Per parameter: its value, the largest entry of its column and where."""
+        values = {row["name"]: row["value"] for row in parameter_table(scene)}  # None: a group whose members differ
+        lines = [f"parameter Jacobian d x({self.t:g}) / d p: {P.shape[0]} x {P.shape[1]}, tangent space, "
+                 "per unit of each parameter", f"  {'parameter':<40} {'value':>12}  {'largest entry':>14}  of"]
+        for k, name in enumerate(self.parameter_names):
+            i = int(np.argmax(np.abs(P[:, k])))
+            value = values[name]
+            shown = f"{'(differ)':>12}" if value is None else f"{value:12.6g}"
+            lines.append(f"  {name:<40} {shown}  {P[i, k]:14.6g}  {labels[i]}")
+        return lines
+
+    def _jacobian_lines(self, J: np.ndarray, labels: list[str]) -> list[str]:
+        """Its norm and condition number, its largest entries, each event's verdict."""
+        sv = np.linalg.svd(J, compute_uv=False)
+        lines = [f"flow Jacobian d x({self.t:g}) / d x({self.t0:g}): {J.shape[0]} x {J.shape[1]}, tangent space",
+                 f"  2-norm {sv[0]:.6g}, condition number {sv[0] / sv[-1] if sv[-1] > 0 else float('inf'):.6g}",
+                 "  largest entries:"]
+        order = np.argsort(-np.abs(J), axis=None)[:6]
+        for flat in order:
+            i, j = divmod(int(flat), J.shape[1])
+            lines.append(f"    d {labels[i]:<28} / d {labels[j]:<28} = {J[i, j]: .6g}")
+        lines.append("  events:")
+        for e in self.events:
+            verdict = "differentiable" if e.differentiable else "NOT differentiable (piecewise-linear derivative)"
+            lines.append(f"    t = {e.t:.12f}  {e.kind:<9} {', '.join(e.contacts):<24} {verdict}")
+        verdict = ("differentiable" if self.differentiable
+                   else "NOT differentiable at some event (see notes)" if not self.final_nonsmooth
+                   else "NOT differentiable: a contact touches at the final time (see notes)")
+        lines.append(f"  the trajectory is {verdict}")
+        return lines
 
     def save_json(self, path: str | Path) -> None:
         """Write `summary` as JSON."""
@@ -324,7 +432,7 @@ class Trajectory:
                  event_kind=np.array([e.kind for e in self.events], dtype=str),
                  event_contacts=np.array(["+".join(e.contacts) for e in self.events], dtype=str))
 
-    def to_html(self, path: str | Path, scene=None, **options) -> Path:
+    def to_html(self, path: str | Path, scene: Scene | None = None, **options: Any) -> Path:
         """Write a self-contained HTML page that replays this run in 3-D in a browser,
         with no network: the robot, its closed contacts and a timeline of the events
         (`contactdiff.replay`; needs meshcat, ``pip install 'contactdiff[viz]'``).
@@ -334,7 +442,7 @@ class Trajectory:
             scene: the `Scene` simulated; default the scene named ``scene_name``
                 (a scene or robot name, or a file path).
             **options: ``fps`` (frames per second of simulated time, default
-                `contactdiff.replay.DEFAULT_FPS`; every event time is a frame too),
+                `contactdiff.replay_frames.DEFAULT_FPS`; every event time is a frame too),
                 ``contact_radius`` (m), ``title``, ``package_dirs`` (folders in which the URDF's
                 ``package://`` meshes are found; see `contactdiff.replay.replay_html`).
 
@@ -349,7 +457,7 @@ class Trajectory:
         from ..replay import write_html
 
         if scene is None:
-            from ..model.scene_file import load_source
+            from ..scenes.scene_file import load_source
 
             try:
                 scene = load_source(self.scene_name)

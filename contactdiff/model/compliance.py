@@ -45,6 +45,7 @@ from collections.abc import Sequence
 
 import numpy as np
 import pinocchio as pin
+from numpy.typing import ArrayLike
 
 from ..errors import InvalidInputError, check_number, unknown_name
 from .efforts import JointSpring, Spring, UserEffort
@@ -244,7 +245,8 @@ def _map_configuration(old: pin.Model, new: pin.Model, jmap: dict, q: np.ndarray
     return out
 
 
-def compliant_state(robot: Robot, compliant: Robot, q, v=None) -> tuple[np.ndarray, np.ndarray]:
+def compliant_state(robot: Robot, compliant: Robot, q: ArrayLike, v: ArrayLike | None = None
+                    ) -> tuple[np.ndarray, np.ndarray]:
     """A state ``(q, v)`` of ``robot`` as a state of ``compliant``: every joint of
     ``robot`` keeps its value (matched by name), the springs are at rest and still.
 
@@ -286,7 +288,7 @@ def _remove_point_mass(inertia: pin.Inertia, mass: float, point: np.ndarray, bod
     h = np.append(point, 1.0)
     # J may be singular (a point-mass body): then h must lie in its range (pseudo-inverse)
     J_pinv = np.linalg.pinv(J, rcond=1e-12, hermitian=True)
-    in_range = np.linalg.norm(J @ (J_pinv @ h) - h) <= 1e-9 * max(1.0, np.linalg.norm(h))
+    in_range = np.linalg.norm(J @ (J_pinv @ h) - h) <= 1e-9 * max(1.0, float(np.linalg.norm(h)))
     limit = 1.0 / float(h @ J_pinv @ h) if in_range and inertia.mass > 0 else 0.0
     if mass > limit * (1 - 1e-12):
         raise InvalidInputError(

@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING
 from ..errors import GroupMismatchError, InvalidInputError
 
 if TYPE_CHECKING:
+    from .contacts import Contact
     from .parameters import Parameter
     from .scene import Scene
 
@@ -35,7 +36,7 @@ CONTACT_FIELDS = ("restitution", "offset", "friction")
 """Fields of a contact (and of a group): Newton's coefficient (1), the offset (m), Coulomb's μ (1)."""
 
 
-def contact_fields(spec) -> tuple[str, ...]:
+def contact_fields(spec: Contact) -> tuple[str, ...]:
     """The parameter fields of one contact spec: ``friction`` only with a Coulomb coefficient."""
     return CONTACT_FIELDS if spec.coulomb else CONTACT_FIELDS[:2]
 

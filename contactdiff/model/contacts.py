@@ -36,6 +36,7 @@ from __future__ import annotations
 import copy
 import dataclasses
 from dataclasses import dataclass
+from enum import StrEnum
 
 import numpy as np
 
@@ -43,10 +44,25 @@ from ..errors import InvalidInputError, check_number
 from .kinematics import Kinematics
 from .robot import Robot
 
-FRICTION_MODES = ("none", "stick")
-"""``none``: frictionless, one row. ``stick``: no slip while active, three rows.
-A number ``μ >= 0`` is Coulomb friction of that coefficient (``0`` is ``"none"``,
-``inf`` is ``"stick"``)."""
+
+class FrictionLaw(StrEnum):
+    """A contact's friction law (`Contact.law`). A `StrEnum`: ``NONE`` and ``STICK`` are
+    also the values a contact's ``friction`` is given by name (``"none"``, ``"stick"``),
+    and compare equal to those strings."""
+
+    NONE = "none"
+    """frictionless: one row (the normal)"""
+    STICK = "stick"
+    """no slip while active (infinite friction): three rows"""
+    COULOMB = "coulomb"
+    """Coulomb's law with a finite coefficient ``μ > 0`` (the contact's ``friction`` is
+    that number): it sticks inside the cone ``||λ_T|| <= μ λ_N`` and slips on it"""
+
+
+FRICTION_MODES = (FrictionLaw.NONE, FrictionLaw.STICK)
+"""The friction laws a contact's ``friction`` names: ``none``, frictionless, one row;
+``stick``, no slip while active, three rows. A number ``μ >= 0`` is Coulomb friction of
+that coefficient (``0`` is ``"none"``, ``inf`` is ``"stick"``)."""
 
 _ROW_TOL = 1e-12  # a row whose Jacobian is this small everywhere cannot act (m per unit q)
 
@@ -59,20 +75,22 @@ def _unit_vector(value, *, owner: str) -> tuple[float, float, float]:
     norm = np.linalg.norm(n)
     if not np.all(np.isfinite(n)) or norm < 1e-12:
         raise InvalidInputError(f"{owner}: normal must be a finite non-zero 3-vector, got {value!r}")
-    return tuple(float(x) for x in n / norm)
+    x, y, z = (float(c) for c in n / norm)
+    return x, y, z
 
 
-def _friction(value, owner: str) -> str | float:
-    """``"none"``, ``"stick"`` or a finite ``μ > 0`` (0 and inf map to the names)."""
+def _friction(value, owner: str) -> FrictionLaw | float:
+    """`FrictionLaw.NONE`, `FrictionLaw.STICK` or a finite ``μ > 0`` (0 and inf map to
+    the laws)."""
     if isinstance(value, str):
         if value in FRICTION_MODES:
-            return value
+            return FrictionLaw(value)
     elif not isinstance(value, bool) and isinstance(value, (int, float, np.integer, np.floating)):
         mu = float(value)
         if mu == 0.0:
-            return "none"
+            return FrictionLaw.NONE
         if mu == np.inf:
-            return "stick"
+            return FrictionLaw.STICK
         if mu > 0.0 and np.isfinite(mu):
             return mu
     raise InvalidInputError(f"{owner}: friction must be one of {', '.join(FRICTION_MODES)} or a Coulomb "
@@ -91,7 +109,8 @@ class Contact:
         restitution: Newton coefficient ``e`` in [0, 1] (0 plastic, 1 elastic).
         friction: ``"none"`` (frictionless), ``"stick"`` (no slip while active, infinite
             friction) or a Coulomb coefficient ``μ >= 0`` (a number; stored as
-            ``"none"`` for 0 and ``"stick"`` for inf): the contact sticks while its
+            `FrictionLaw.NONE` for 0 and `FrictionLaw.STICK` for inf, a name as its
+            `FrictionLaw`; the law is `law`): the contact sticks while its
             tangential force stays in the cone ``||λ_T|| <= μ λ_N`` and slips with the
             force ``-μ λ_N s`` along its slip direction ``s`` otherwise.
         against: second frame; ``None`` is the ground (world origin).
@@ -112,9 +131,9 @@ class Contact:
     normal: tuple[float, float, float] = (0.0, 0.0, 1.0)
     offset: float = 0.0
     restitution: float = 0.0
-    friction: str | float = "none"
+    friction: FrictionLaw | str | float = FrictionLaw.NONE
     against: str | None = None
-    name: str | None = None
+    name: str = None  # type: ignore[assignment]  # None: the frame's name (__post_init__)
     radius: float | None = None
     group: str | None = None
 
@@ -153,20 +172,28 @@ class Contact:
         return dataclasses.replace(self, radius=radius)
 
     @property
+    def law(self) -> FrictionLaw:
+        """The friction law: `FrictionLaw.COULOMB` for a coefficient, else the named one."""
+        return self.friction if isinstance(self.friction, FrictionLaw) else FrictionLaw.COULOMB
+
+    @property
     def sticking(self) -> bool:
         """Whether the contact holds tangential rows while it sticks (``"stick"`` or a
         Coulomb coefficient)."""
-        return self.friction != "none"
+        return self.law is not FrictionLaw.NONE
 
     @property
     def mu(self) -> float:
         """Coulomb coefficient: 0 for ``"none"``, inf for ``"stick"``."""
-        return {"none": 0.0, "stick": np.inf}.get(self.friction, self.friction)
+        law = self.law
+        if law is FrictionLaw.COULOMB:
+            return float(self.friction)
+        return 0.0 if law is FrictionLaw.NONE else np.inf
 
     @property
     def coulomb(self) -> bool:
         """Whether the friction is Coulomb's with a finite coefficient ``μ > 0``."""
-        return not isinstance(self.friction, str)
+        return self.law is FrictionLaw.COULOMB
 
     def bind(self, robot: Robot) -> BoundContact:
         """Resolve frame names on ``robot`` and choose the constraint directions."""
@@ -236,7 +263,7 @@ class BoundContact:
         return reach
 
     sliding = False  # a normal-only view of a sticking contact (see `sliding_view`)
-    full = None  # the contact of a sliding view, with all its rows
+    full: BoundContact | None = None  # the contact of a sliding view, with all its rows
 
     @property
     def mu(self) -> float:
@@ -257,7 +284,7 @@ class BoundContact:
     def slips(self) -> bool:
         """Whether this is a slipping view with Coulomb friction (force ``-μ λ_N s`` along its
         slip direction ``s``, `contactdiff.dynamics.slip`)."""
-        return self.sliding and self.spec.coulomb and self.full.n_rows > 1
+        return self.sliding and self.spec.coulomb and self.full is not None and self.full.n_rows > 1
 
     @property
     def sticking(self) -> bool:

@@ -5,7 +5,7 @@ The package keeps clones of the models' repositories in its cache, the folder
 ``ROBOT_DESCRIPTIONS_CACHE`` (default ``~/.cache/robot_descriptions``), and clones a
 repository there the first time one of its models is asked for (that needs the
 network). `description_file` returns the model file (MJCF if the description has
-one, else URDF) for `contactdiff.model.robot.load_robot`, and `legged` says whether
+one, else URDF) for `contactdiff.model.robot_files.load_robot`, and `legged` says whether
 the package tags the robot quadruped, biped or humanoid (a URDF of one then gets a
 floating base by default; an MJCF says so itself with its free joint).
 """

@@ -21,8 +21,12 @@ and the integrator ends a step exactly on each such time instead of stepping
 across it: a high-order method that steps across a jump of the third
 derivative rejects the step, or keeps a shorter one, again and again.
 
-An evaluator whose spec has named parameters (`contactdiff.model.parameters`:
-a joint spring's stiffness, a user effort's own numbers, ...) also has
+A spec with named parameters (`contactdiff.model.parameters`: a joint spring's
+stiffness, a user effort's own numbers, ...) declares them with
+
+    named_parameters()       -> EffortParameters  their kind, target and fields
+
+and its evaluator also has
 
     parameter_derivatives(kin, t, fields) -> (nv × len(fields))  d tau/dp
 
@@ -38,7 +42,7 @@ import bisect
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Protocol, runtime_checkable
+from typing import ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -65,6 +69,23 @@ class BoundEffort(Protocol):
     # after ``t`` (s); an effort without it counts as time-dependent (`Scene.autonomous_from`)
 
 
+@dataclass(frozen=True)
+class EffortParameters:
+    """The named parameters an effort spec declares: ``kind:target:field`` for each field
+    (``kind:field`` without a target; `contactdiff.model.parameters`).
+
+    Attributes:
+        kind: the first part of their names, a `contactdiff.model.parameters.ParameterKind`
+            value of an effort: ``spring``, ``joint_spring``, ``trot`` or ``effort``.
+        target: the spec's name ("" for none; ``#k`` is added where two specs share one).
+        fields: the numbers' names, in order.
+    """
+
+    kind: str
+    target: str
+    fields: tuple[str, ...]
+
+
 @runtime_checkable
 class Effort(Protocol):
     """A robot-independent effort spec: `Scene` accepts any object with ``bind``."""
@@ -89,11 +110,17 @@ class JointSpring:
     stiffness: float
     damping: float = 0.0
     rest: float = 0.0
+    FIELDS: ClassVar[tuple[str, ...]] = ("stiffness", "damping", "rest")
+    """Its parameters ``joint_spring:<joint>:<field>`` (N m/rad, N m s/rad, rad or N/m, N s/m, m)."""
 
     def __post_init__(self) -> None:
         owner = f"joint spring on {self.joint!r}"
         for name, minimum in (("stiffness", 0.0), ("damping", 0.0), ("rest", None)):
             object.__setattr__(self, name, check_number(owner, name, getattr(self, name), minimum=minimum))
+
+    def named_parameters(self) -> EffortParameters:
+        """``joint_spring:<joint>:<field>`` for each of `FIELDS`."""
+        return EffortParameters("joint_spring", self.joint, self.FIELDS)
 
     def bind(self, robot: Robot) -> _BoundJointSpring:
         """The evaluator of this spring on ``robot`` (the joint's indices resolved; it must
@@ -140,7 +167,7 @@ class _BoundJointSpring:
         """Whether the effort no longer depends on time after ``t`` (s): always."""
         return True
 
-    _FIELDS = ("stiffness", "damping", "rest")
+    _FIELDS = JointSpring.FIELDS
 
     def parameter_derivatives(self, kin: Kinematics, t: float, fields) -> np.ndarray:
         """``d tau/dp`` (nv × len(fields)) for ``fields`` = ``(k, field)`` pairs: spring ``k``
@@ -172,8 +199,11 @@ class Spring:
     frame ``a`` by the opposite force.
 
     Args:
-        frame_a, frame_b: frame names.
-        stiffness: N/m, >= 0.  damping: N s/m, >= 0.  rest_length: m, >= 0.
+        frame_a: name of the first frame (``a``).
+        frame_b: name of the second frame (``b``).
+        stiffness: N/m, >= 0.
+        damping: N s/m, >= 0.
+        rest_length: m, >= 0.
         name: label of the spring (its parameters are ``spring:<name>:stiffness``, ...,
             see `contactdiff.model.parameters`); defaults to ``"<frame_a>-<frame_b>"``.
     """
@@ -184,6 +214,8 @@ class Spring:
     damping: float = 0.0
     rest_length: float = 0.0
     name: str | None = None
+    FIELDS: ClassVar[tuple[str, ...]] = ("stiffness", "damping", "rest_length")
+    """Its parameters ``spring:<name>:<field>`` (N/m, N s/m, m)."""
 
     def __post_init__(self) -> None:
         owner = f"spring {self.frame_a!r}-{self.frame_b!r}"
@@ -193,6 +225,10 @@ class Spring:
             object.__setattr__(self, "name", f"{self.frame_a}-{self.frame_b}")
         elif not isinstance(self.name, str) or not self.name:
             raise InvalidInputError(f"{owner}: name must be a non-empty string, got {self.name!r}")
+
+    def named_parameters(self) -> EffortParameters:
+        """``spring:<name>:<field>`` for each of `FIELDS`."""
+        return EffortParameters("spring", str(self.name), self.FIELDS)
 
     def bind(self, robot: Robot) -> _BoundSpring:
         """The evaluator of this spring on ``robot`` (both frames resolved, distinct)."""
@@ -359,6 +395,10 @@ class UserEffort:
         object.__setattr__(self, "parameters", _named_numbers(self.name, self.parameters))
         if self.parameter_jacobian is not None and not self.parameters:
             raise InvalidInputError(f"{self.name}: parameter_jacobian is given but the effort has no parameters")
+
+    def named_parameters(self) -> EffortParameters:
+        """``effort:<name>:<parameter>`` for each of its own ``parameters``, in order."""
+        return EffortParameters("effort", self.name, tuple(name for name, _ in self.parameters))
 
     def bind(self, robot: Robot) -> _BoundUserEffort:
         """The evaluator of this effort on ``robot`` (its output checked for shape (nv,) and

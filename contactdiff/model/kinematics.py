@@ -39,7 +39,9 @@ class Kinematics:
         self.data = model.createData()
         self._zero = np.zeros(model.nv)
         self._cache: dict = {}
-        self.q = self.v = None
+        # the state of the last `update`; None before the first (nothing is read before it)
+        self.q: np.ndarray = None  # type: ignore[assignment]  # set by the first update
+        self.v: np.ndarray = None  # type: ignore[assignment]  # set by the first update
         self.has_derivatives = False
         self._fresh = self._fresh_derivatives = False
 

@@ -42,8 +42,11 @@ import pinocchio as pin
 
 from ..errors import ModelLoadError, UnsupportedModelError
 from . import mjcf_xml
+from .feet import choose_feet
 from .mjcf_audit import Audit, audit, pinocchio_tree
+from .mjcf_feet import add_sphere_frames, collision_spheres, sphere_feet, sphere_limbs
 from .mjcf_xml import compiler_option, numbers
+from .robot import Robot, _check_inertias, _check_mass_matrix
 
 
 class MJCFWarning(UserWarning):
@@ -214,7 +217,7 @@ def mujoco_velocity_map(model: pin.Model, q: np.ndarray, v: np.ndarray | None = 
 
 def load_mjcf(path: str | Path, floating_base: bool | None = None, feet=None, name: str | None = None,
               allow_outside: bool = False):
-    """Load a robot from an MJCF file (module notes); `contactdiff.model.robot.load_robot`
+    """Load a robot from an MJCF file (module notes); `contactdiff.model.robot_files.load_robot`
     calls this for ``.xml`` files whose root is ``<mujoco>``.
 
     Args:
@@ -236,10 +239,6 @@ def load_mjcf(path: str | Path, floating_base: bool | None = None, feet=None, na
     Raises:
         UnsafeModelFileError, UnsupportedModelError, ModelLoadError: see `build_model`.
     """
-    from .feet import choose_feet
-    from .mjcf_feet import add_sphere_frames, collision_spheres, sphere_feet, sphere_limbs
-    from .robot import Robot, _check_inertias, _check_mass_matrix
-
     path = Path(path)
     model, root, _ = build_model(path, floating_base, allow_outside)
     floating = has_free_root(model)

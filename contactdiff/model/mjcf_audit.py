@@ -12,7 +12,7 @@ from xml.etree.ElementTree import Element
 
 from ..errors import ModelLoadError, UnsupportedModelError
 from . import mjcf_tree
-from .mjcf_mesh import equivalent_box, mesh_inertia
+from .mjcf_mesh import MeshInertia, equivalent_box, mesh_inertia
 from .mjcf_xml import asset_elements, bodies, compiler_option, mesh_name, numbers
 
 _DYNAMIC_ACTUATORS = ("cylinder", "muscle", "adhesion")  # shortcuts with activation dynamics
@@ -91,7 +91,7 @@ def audit(root: Element, floating_base: bool | None = None, folder: Path | None 
     frames = mjcf_tree.flatten_frames(root)
     if frames:
         found.repaired.append(f"{frames} <frame> element(s) replaced by their children, placed")
-    split = mjcf_tree.split_joints(root, {e.get("name") for e in root.iter() if e.get("name")})
+    split = mjcf_tree.split_joints(root, {name for e in root.iter() if (name := e.get("name"))})
     if split:
         found.repaired.append(f"bodies with several joints ({', '.join(split)}) split into one body per joint")
     _base_joint(root, floating_base, found)
@@ -217,15 +217,15 @@ def _base_joint(root: Element, floating_base: bool | None, found: Audit) -> None
         base.insert(0, Element("freejoint", {"name": _free_name(root, "root")}))
         pose = " ".join(map(str, numbers(base.get("pos"), (0.0, 0.0, 0.0)) + (1.0, 0.0, 0.0, 0.0)))
         for key in root.iter("key"):  # the new joint's coordinates come first: the body's position
-            if key.get("qpos") is not None:
-                key.set("qpos", pose + " " + key.get("qpos"))
+            if (qpos := key.get("qpos")) is not None:
+                key.set("qpos", pose + " " + qpos)
         found.repaired.append(f"a free joint added to body {_named(base)} (floating_base=True)")
     elif floating_base is False and free:
         for j in free:
             base.remove(j)
         for key in root.iter("key"):  # the free joint's seven coordinates come first: drop them
-            if key.get("qpos") is not None:
-                key.set("qpos", " ".join(key.get("qpos").split()[7 * len(free):]))
+            if (qpos := key.get("qpos")) is not None:
+                key.set("qpos", " ".join(qpos.split()[7 * len(free):]))
         found.repaired.append(f"the free joint of body {_named(base)} removed (floating_base=False)")
 
 
@@ -269,7 +269,7 @@ def _mesh_masses(root: Element, found: Audit, folder: Path | None, allow_outside
               if e.tag == "mesh"} if folder is not None else {}
     inline = {mesh_name(e) for asset in root.findall("asset") for e in asset.findall("mesh") if not e.get("file")}
     moving = _moving_bodies(root)
-    cache: dict[str, object] = {}
+    cache: dict[str, MeshInertia | ModelLoadError] = {}
     missing, failed, replaced = [], [], 0
     for body, geoms in _bodies_weighed_by_geoms(root):
         for geom, weighs in geoms:
@@ -287,15 +287,17 @@ def _mesh_masses(root: Element, found: Audit, folder: Path | None, allow_outside
                 continue
             name = geom.get("mesh")
             if name not in cache:
+                assert mesh is not None  # a file path is found only with its <mesh> element
                 try:
                     cache[name] = mesh_inertia(mesh, path)
                 except ModelLoadError as exc:
                     cache[name] = exc
-            if isinstance(cache[name], ModelLoadError):
+            weighed = cache[name]
+            if isinstance(weighed, ModelLoadError):
                 if id(body) in moving:
-                    failed.append(f"body {_named(body)}: {cache[name]}")
+                    failed.append(f"body {_named(body)}: {weighed}")
                 continue
-            box = equivalent_box(geom, cache[name])
+            box = equivalent_box(geom, weighed)
             for key in ("mesh", "density", "euler", "axisangle", "xyaxes", "zaxis", "fromto"):
                 geom.attrib.pop(key, None)
             geom.attrib.update(box)

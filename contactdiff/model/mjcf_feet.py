@@ -58,8 +58,8 @@ def collision_spheres(root: Element, leaves_only: bool = True) -> list[SphereGeo
             if not name:  # named after the body (module notes), indexed when it has several
                 name = f"{body.get('name')}_sphere" + (f"{unnamed.index(geom) + 1}" if len(unnamed) > 1 else "")
             centre = numbers(geom.get("pos"), (0.0, 0.0, 0.0))
-            found.append(SphereGeom(name, body.get("name", ""), float(numbers(geom.get("size"), (0.0,))[0]),
-                                    tuple(float(x) for x in centre[:3])))
+            x, y, z = (float(c) for c in centre[:3])
+            found.append(SphereGeom(name, body.get("name", ""), float(numbers(geom.get("size"), (0.0,))[0]), (x, y, z)))
     return found
 
 

@@ -51,7 +51,7 @@ def _matrix_quat(R: np.ndarray) -> np.ndarray:
     k = int(np.argmax(candidates))
     if k == 0:
         s = 2 * np.sqrt(1 + t)
-        q = [s / 4, (R[2, 1] - R[1, 2]) / s, (R[0, 2] - R[2, 0]) / s, (R[1, 0] - R[0, 1]) / s]
+        q = np.array([s / 4, (R[2, 1] - R[1, 2]) / s, (R[0, 2] - R[2, 0]) / s, (R[1, 0] - R[0, 1]) / s])
     else:
         i, j, m = k - 1, k % 3, (k + 1) % 3
         s = 2 * np.sqrt(1 + R[i, i] - R[j, j] - R[m, m])
@@ -73,7 +73,7 @@ def orientation(element: Element, degrees: bool, sequence: str) -> np.ndarray | 
         return q / np.linalg.norm(q)
     if element.get("axisangle") is not None:
         x = numbers(element.get("axisangle"))
-        return _axis_angle(x[:3], x[3] * unit)
+        return _axis_angle(np.array(x[:3]), x[3] * unit)
     if element.get("euler") is not None:
         q = np.array([1.0, 0.0, 0.0, 0.0])
         for letter, angle in zip(sequence, numbers(element.get("euler"))):
@@ -183,6 +183,7 @@ def split_joints(root: Element, taken: set[str]) -> list[str]:
             parent = _parent(world, body)
             index = list(parent).index(body)
             parent.remove(body)
+            assert holder is not None  # the loop ran (two joints or more)
             holder.append(body)
             parent.insert(index, outer)
             split.append(name)

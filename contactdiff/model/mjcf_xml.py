@@ -81,7 +81,7 @@ def looks_like_mjcf(path: str | Path) -> bool:
     head = re.sub(r"<!--.*?-->", "", head, flags=re.S)  # comments before the root
     head = re.sub(r"<\?.*?\?>", "", head, flags=re.S)  # the XML declaration
     match = re.search(r"<\s*([A-Za-z_][\w.-]*)", head)
-    return bool(match) and match.group(1) == "mujoco"
+    return match is not None and match.group(1) == "mujoco"
 
 
 def parse_xml_file(path: Path, what: str = "MJCF") -> Element:

@@ -33,7 +33,8 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import InvalidInputError, check_number, check_vector, unknown_name
-from .robot import Robot, load_robot
+from .robot import Robot
+from .robot_files import load_robot
 
 SHAPES = ("box", "sphere", "cylinder")
 """Shapes an object may have without a URDF: a box (``size``: three edge lengths, m),
@@ -51,11 +52,12 @@ def _pose(owner: str, position, rpy) -> pin.SE3:
 def _points(owner: str, points) -> tuple[tuple[str, tuple[float, float, float]], ...]:
     if not isinstance(points, Mapping):
         raise InvalidInputError(f"{owner}: points must be a table of name = [x, y, z] (m), got {points!r}")
-    out = []
+    out: list[tuple[str, tuple[float, float, float]]] = []
     for name, xyz in points.items():
         if not isinstance(name, str) or not name or "/" in name:
             raise InvalidInputError(f"{owner}: point names must be non-empty and without '/', got {name!r}")
-        out.append((name, tuple(float(x) for x in check_vector(owner, f"point {name!r}", xyz, 3))))
+        x, y, z = (float(c) for c in check_vector(owner, f"point {name!r}", xyz, 3))
+        out.append((name, (x, y, z)))
     return tuple(out)
 
 
@@ -70,7 +72,8 @@ def _moments(owner: str, moments) -> tuple[float, float, float]:
     if np.any(2.0 * values > total * (1.0 + 1e-12)):
         raise InvalidInputError(f"{owner}: moments {values.tolist()} are not those of a body: each must be at "
                                 "most the sum of the other two")
-    return tuple(float(x) for x in values)
+    x, y, z = (float(c) for c in values)
+    return x, y, z
 
 
 @dataclass(frozen=True)
@@ -184,9 +187,12 @@ class SceneObject:
         """A shape's volume (m³): a box's ``x y z``, a sphere's ``4/3 π r³``, a cylinder's
         ``π r² l``."""
         if self.shape == "box":
+            assert self.size is not None  # a box has its size (__post_init__)
             return float(np.prod(self.size))
+        assert self.radius is not None  # a sphere and a cylinder have theirs (__post_init__)
         if self.shape == "sphere":
             return 4.0 / 3.0 * np.pi * self.radius ** 3
+        assert self.length is not None
         return np.pi * self.radius ** 2 * self.length
 
     @property
@@ -199,6 +205,7 @@ class SceneObject:
         if self.moments is not None:
             return pin.Inertia(self.mass, np.zeros(3), np.diag(self.moments))
         if self.shape == "box":
+            assert self.size is not None  # a box has its size (__post_init__)
             return pin.Inertia.FromBox(self.mass, *self.size)
         if self.shape == "sphere":
             return pin.Inertia.FromSphere(self.mass, self.radius)
@@ -313,6 +320,7 @@ def _append_urdf(model: pin.Model, obj: SceneObject, base: Path | None) -> tuple
     if obj.points:
         raise InvalidInputError(f"object {obj.name!r}: points are for shapes; a URDF object has its "
                                 f"own frames (points {[name for name, _ in obj.points]})")
+    assert obj.urdf is not None  # a URDF object (the caller's branch)
     path = Path(obj.urdf)
     if not path.is_absolute() and base is not None:
         path = base / path

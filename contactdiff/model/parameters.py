@@ -48,6 +48,9 @@ joint order, contacts and efforts in scene order, groups after the contacts). Th
 * **Springs**: by `Spring.name` (default ``"<frame_a>-<frame_b>"``); **joint
   springs**: by joint. **User efforts**: by `UserEffort.name`, one parameter per
   entry of its ``parameters`` (the protocol is in `UserEffort`'s docstring).
+  Each effort spec declares its own (its ``named_parameters()``, an
+  `contactdiff.model.efforts.EffortParameters`: kind, target, fields), so this
+  module knows no effort class.
 * A target that two specs share (two springs between the same frames, two joint
   springs on one joint, two efforts with one name, two trot controllers) gets
   ``#1``, ``#2``, ... in scene order: ``joint_spring:knee#2:stiffness``,
@@ -78,10 +81,9 @@ from enum import Enum
 import numpy as np
 import pinocchio as pin
 
-from ..control.trot_controller import TrotController
 from ..errors import GroupMismatchError, InvalidInputError, unknown_name
 from .contact_parameters import contact_parameters, contact_value, stage_contact_change
-from .efforts import JointSpring, Spring, UserEffort, bound_positions
+from .efforts import EffortParameters, bound_positions
 from .kinematics import Kinematics
 from .scene import Scene
 
@@ -103,8 +105,6 @@ class ParameterKind(Enum):
 BODY_FIELDS = ("mass", "com_x", "com_y", "com_z", "ixx", "ixy", "ixz", "iyy", "iyz", "izz")
 """Fields of a body: mass (kg), centre of mass (m, link frame), inertia about it (kg m², link axes)."""
 JOINT_FIELDS = ("armature",)
-SPRING_FIELDS = ("stiffness", "damping", "rest_length")
-JOINT_SPRING_FIELDS = ("stiffness", "damping", "rest")
 SCENE_FIELDS = ("gravity_x", "gravity_y", "gravity_z")
 
 _AXIS = {"x": 0, "y": 1, "z": 2}
@@ -192,19 +192,25 @@ def all_parameters(scene: Scene) -> list[Parameter]:
         if model.joints[j].nv == 1:
             out.append(Parameter(ParameterKind.JOINT, model.names[j], "armature", joint=j))
     out += contact_parameters(scene)
-    specs = list(enumerate(scene.effort_specs))
-    groups = (
-        (ParameterKind.SPRING, Spring, lambda s: s.name, lambda s: SPRING_FIELDS),
-        (ParameterKind.JOINT_SPRING, JointSpring, lambda s: s.joint, lambda s: JOINT_SPRING_FIELDS),
-        (ParameterKind.TROT, TrotController, lambda s: "", lambda s: TrotController.NUMBERS),
-        (ParameterKind.EFFORT, UserEffort, lambda s: s.name, lambda s: [n for n, _ in s.parameters]),
-    )
-    for kind, cls, target, fields in groups:
-        mine = [(i, s) for i, s in specs if isinstance(s, cls)]
-        for (i, s), name in zip(mine, _numbered([target(s) for _, s in mine])):
-            out += [Parameter(kind, name, f, index=i) for f in fields(s)]
+    declared = [(i, _declared(scene, i, s)) for i, s in enumerate(scene.effort_specs)
+                if hasattr(s, "named_parameters")]
+    for kind in _EFFORT_KINDS:  # each effort declares its own (`EffortParameters`)
+        mine = [(i, d) for i, d in declared if d.kind == kind.value]
+        for (i, d), name in zip(mine, _numbered([d.target for _, d in mine])):
+            out += [Parameter(kind, name, f, index=i) for f in d.fields]
     scene.__dict__["_parameter_list"] = out
     return out
+
+
+def _declared(scene: Scene, index: int, spec) -> EffortParameters:
+    """The parameters effort spec ``index`` of ``scene`` declares, checked."""
+    declared = spec.named_parameters()
+    kinds = [k.value for k in _EFFORT_KINDS]
+    if not isinstance(declared, EffortParameters) or declared.kind not in kinds:
+        raise InvalidInputError(f"scene {scene.name!r}: effort {index} ({type(spec).__name__}) declares its "
+                                f"parameters as {declared!r}; expected an EffortParameters of kind "
+                                f"{', '.join(kinds)}")
+    return declared
 
 
 def parameter_names(scene: Scene) -> list[str]:

@@ -1,7 +1,7 @@
 """Scenes: a robot, its contacts, its efforts, gravity and an initial state.
 
 A scene is built in Python (`Scene`, `Scene.from_robot`) or read from a TOML
-file (`contactdiff.model.scene_file`).
+file (`contactdiff.scenes.scene_file`).
 """
 
 from __future__ import annotations
@@ -9,9 +9,11 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Mapping, Sequence
+from typing import TypeAlias
 
 import numpy as np
 import pinocchio as pin
+from numpy.typing import ArrayLike
 
 from ..errors import InconsistentStateError, InvalidInputError, check_names, check_vector, unknown_name
 from .contacts import FRICTION_MODES, BoundContact, Contact
@@ -19,6 +21,10 @@ from .efforts import Effort, bind_efforts
 from .feet import FootChoice, up_direction
 from .kinematics import Kinematics
 from .robot import Robot
+
+StateInput: TypeAlias = "ArrayLike | Mapping[str, ArrayLike]"
+"""An initial configuration or velocity: a full array (``nq`` or ``nv``), or a mapping
+from joint name to value (a number, or a sequence for a multi-coordinate joint)."""
 
 PENETRATION_TOL = 1e-9
 """Largest penetration (m) an initial state may have: a closed contact, not an error."""
@@ -37,9 +43,11 @@ class Scene:
             `JointSpring`, `Spring`, `UserEffort`, the trot controller); gravity is
             not one: it is the model's, set by ``gravity``.
         gravity: world gravity (m/s², 3 numbers); ``None`` keeps the model's.
-        q0, v0: initial state, either full arrays (``nq`` / ``nv``) or mappings
+        q0: initial configuration, either a full array (``nq``) or a mapping
             from joint name to value (a number, or a list for multi-coordinate
-            joints); unnamed joints keep the robot's reference pose and zero velocity.
+            joints); unnamed joints keep the robot's reference pose.
+        v0: initial velocity, either a full array (``nv``) or a mapping from joint
+            name to value, as ``q0``; unnamed joints keep zero velocity.
         name: label for reports.
 
     Raises:
@@ -47,7 +55,8 @@ class Scene:
     """
 
     def __init__(self, robot: Robot, contacts: Sequence[Contact] = (), efforts: Sequence = (),
-                 gravity=None, q0=None, v0=None, name: str | None = None):
+                 gravity: ArrayLike | None = None, q0: StateInput | None = None, v0: StateInput | None = None,
+                 name: str | None = None):
         if not isinstance(robot, Robot):
             raise InvalidInputError(f"robot must be a contactdiff Robot (see load_robot), got {robot!r}")
         if gravity is not None:
@@ -309,7 +318,7 @@ class Scene:
         scene.foot_choice = self.foot_choice
         return scene
 
-    def with_state(self, q0=None, v0=None) -> Scene:
+    def with_state(self, q0: StateInput | None = None, v0: StateInput | None = None) -> Scene:
         """The same scene from another initial state: full arrays, or joint-name
         mappings that change only the named joints of this scene's state."""
         scene = Scene.__new__(Scene)

@@ -15,7 +15,9 @@ import argparse
 import json
 import sys
 import warnings
+from collections.abc import Collection
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ..cli_args import (
     COUNT,
@@ -31,11 +33,14 @@ from ..cli_args import (
 )
 from ..errors import InvalidInputError, ModelLoadError, OutputFileError
 
+if TYPE_CHECKING:
+    from .rows import SweepResult
+
 TABLE_ROWS = 200
 """Rows printed as text (every row is in --json and --out)."""
 
 
-def add_parser(sub) -> None:
+def add_parser(sub: argparse._SubParsersAction) -> None:
     """Add ``sweep`` to the ``contactdiff`` subcommands ``sub``."""
     from .engines import Backend
     from .jobs import JobKind
@@ -99,7 +104,7 @@ def add_parser(sub) -> None:
     parser.set_defaults(run=run)
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     """Run ``contactdiff sweep`` from parsed ``args``; return the exit status."""
     from .runner import DamagedRowsWarning, sweep
 
@@ -109,7 +114,8 @@ def run(args) -> int:
                                  ("max_steps", args.max_steps)) if v is not None}
     job_options = {k: v for k, v in (("parameters", args.param or None), ("contacts", args.contacts),
                                      ("foot", args.foot), ("iterations", args.newton)) if v is not None}
-    failures = {}  # option: its file's failed write, reported once the rows are printed
+    # option: its file's failed write, reported once the rows are printed
+    failures: dict[str, OutputFileError | None] = {}
     with warnings.catch_warnings():
         warnings.simplefilter("always", DamagedRowsWarning)
         warnings.showwarning = _warning_line
@@ -195,7 +201,7 @@ def _read_points(path: str) -> list:
     return data
 
 
-def format_result(result, args: argparse.Namespace, failed=frozenset()) -> str:
+def format_result(result: SweepResult, args: argparse.Namespace, failed: Collection[str] = frozenset()) -> str:
     """The rows as a text table: the point's values, the plotted (or job's) output, the
     error; and the files written (but those of the options in ``failed``)."""
     output = args.plot_output or result.default_output
@@ -211,6 +217,7 @@ def format_result(result, args: argparse.Namespace, failed=frozenset()) -> str:
     if len(cells) > TABLE_ROWS:
         lines.append(f"  ... {len(cells) - TABLE_ROWS} more rows (--json, --out)")
     for r in result.failed[:3]:
+        assert r.error is not None  # a failed row has its error
         lines.append(f"point #{r.index} failed: {r.error.kind}: {r.error.message}")
     if args.out and "--out" not in failed:
         lines.append(f"rows written to {args.out}")

@@ -27,7 +27,7 @@ from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from enum import StrEnum
 
-from ..errors import InvalidInputError, check_count, unknown_name
+from ..errors import InvalidInputError, check_count, require_extra, unknown_name
 
 CONNECT_TIMEOUT = 10.0
 """Seconds a sweep waits for a Dask scheduler or a Ray cluster to answer."""
@@ -46,7 +46,7 @@ class Backend(StrEnum):
     RAY = "ray"
 
 
-_EXTRAS = {Backend.DASK: ("distributed", "contactdiff[dask]"), Backend.RAY: ("ray", "contactdiff[ray]")}
+_EXTRAS = {Backend.DASK: ("distributed", "dask"), Backend.RAY: ("ray", "ray")}
 
 
 @dataclass(frozen=True)
@@ -70,8 +70,8 @@ class Engine:
 
         Raises:
             UnknownNameError: an unknown backend (the valid ones are listed).
-            InvalidInputError: ``n_jobs`` < 1, a scheduler for the local backend, or
-                the backend's package missing (with the extra that installs it).
+            InvalidInputError: ``n_jobs`` < 1, or a scheduler for the local backend.
+            MissingExtraError: the backend's package is missing (with the extra that installs it).
         """
         if backend not in tuple(Backend):
             raise unknown_name("backend", backend, list(Backend))
@@ -83,10 +83,7 @@ class Engine:
                                     "loky runs local processes")
         if backend in _EXTRAS:
             module, extra = _EXTRAS[backend]
-            try:
-                __import__(module)
-            except ImportError:
-                raise InvalidInputError(f"backend {backend.value!r} needs {module}: pip install '{extra}'") from None
+            require_extra(module, extra, f"backend {backend.value!r}")
         return cls(backend, None if n_jobs == -1 else n_jobs, scheduler)
 
     @property

@@ -173,7 +173,7 @@ class ResultsFile:
             self._write_csv(header + missing, rows + [row])
             return
         with self.path.open("a", newline="") as f:
-            csv.DictWriter(f, self._header).writerow({k: _to_cell(row.get(k)) for k in self._header})
+            csv.DictWriter(f, header).writerow({k: _to_cell(row.get(k)) for k in header})
 
 
     def _write_csv(self, header: list[str], rows: list[dict]) -> None:

@@ -40,7 +40,7 @@ from enum import StrEnum
 import numpy as np
 
 from ..errors import InvalidInputError, unknown_name
-from ..integration.trajectory import EVENT_KINDS, Trajectory
+from ..integration.trajectory import EVENT_KINDS, EventKind, Trajectory
 from ..jsonable import to_jsonable
 from ..model.scene import Scene
 from .callables import import_callable, reference
@@ -142,6 +142,7 @@ class Job:
         """
         settings = {**self.options, **arguments}
         if self.kind is None:
+            assert self.function is not None  # a user job (kind None) has its function
             outputs = self.function(scene, dict(point))
             if not isinstance(outputs, Mapping) or not all(isinstance(k, str) for k in outputs):
                 raise InvalidInputError(f"job {self.label} must return a dict of outputs by name, got "
@@ -176,6 +177,7 @@ def _jacobian(scene: Scene, t_final, options: dict, settings: dict) -> dict:
     names = settings.get("parameters") or ()
     names = scene.parameter_names() if names == "all" else [names] if isinstance(names, str) else list(names)
     traj = simulate(scene, t_final, **{**options, "jacobian": True, "parameters": names})
+    assert traj.jacobian is not None  # asked for
     out = trajectory_outputs(traj, scene)
     singular = np.linalg.svd(traj.jacobian, compute_uv=False)
     out["jacobian_norm"] = float(singular[0])
@@ -207,7 +209,7 @@ def _order_gap(scene: Scene, t_final, options: dict, settings: dict) -> dict:
     sliding = set(traj.segments[0].sliding) if traj.segments else set()
     for event in traj.events:  # an event's mode_after says which of its contacts slide
         sliding_before, sliding = sliding, set(event.sliding)
-        if event.kind != "touchdown" or len(event.contacts) < 2:
+        if event.kind != EventKind.TOUCHDOWN or len(event.contacts) < 2:
             continue
         if sliding_before & set(event.mode_before):  # order_gap takes sticking modes
             skipped += 1

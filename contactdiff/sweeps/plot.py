@@ -14,24 +14,36 @@ from __future__ import annotations
 
 import numbers
 from pathlib import Path
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
 from ..errors import InvalidInputError, unknown_name
-from .rows import RESERVED, SweepResult
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 
-def numeric_outputs(result: SweepResult) -> list[str]:
-    """Output columns holding numbers (or true/false) in some row, in column order."""
-    names: dict[str, None] = {}
-    for row in result:
-        for name, value in row.outputs.items():
-            if isinstance(value, (numbers.Real, bool)) and name not in RESERVED:
-                names.setdefault(name)
-    return list(names)
+class SweepRows(Protocol):
+    """What a sweep's figure reads of its rows (`contactdiff.sweeps.rows.SweepResult`)."""
+
+    names: tuple[str, ...]
+    default_output: str | None
+
+    @property
+    def failed(self) -> list: ...
+    def __len__(self) -> int: ...
+    def column(self, name: str) -> list: ...
+    def numeric_outputs(self) -> list[str]: ...
 
 
-def plot_sweep(result: SweepResult, path: str | Path, output: str | None = None) -> Path:
+def numeric_outputs(result: SweepRows) -> list[str]:
+    """Output columns holding numbers (or true/false) in some row, in column order
+    (`SweepResult.numeric_outputs`)."""
+    return result.numeric_outputs()
+
+
+def plot_sweep(result: SweepRows, path: str | Path, output: str | None = None) -> Path:
     """Draw ``output`` (default: the job's, e.g. ``events`` for a plain simulation, else
     the first numeric output) over the swept quantities and save it to ``path``
     (`sweep_figure`).
@@ -49,7 +61,7 @@ def plot_sweep(result: SweepResult, path: str | Path, output: str | None = None)
     return Path(path)
 
 
-def sweep_figure(result: SweepResult, output: str | None = None):
+def sweep_figure(result: SweepRows, output: str | None = None) -> Figure:
     """The matplotlib ``Figure`` of `plot_sweep` (same arguments and errors)."""
     from ..plotting import _pyplot
 

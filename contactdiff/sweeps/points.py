@@ -193,7 +193,7 @@ class Normal:
         return rng.normal(self.mean, self.std, n)
 
 
-DISTRIBUTIONS = {"uniform": Uniform, "normal": Normal}
+DISTRIBUTIONS: dict[str, type[Uniform] | type[Normal]] = {"uniform": Uniform, "normal": Normal}
 """Distribution names of `parse_distribution`: ``uniform:LOW:HIGH``, ``normal:MEAN:STD``."""
 
 
@@ -229,7 +229,7 @@ def parse_values(name: str, spec) -> list[Value]:
     if isinstance(spec, str):
         parts = spec.split(":")
         if len(parts) == 3 and all(_number_or_none(p) is not None for p in parts):
-            lo, hi, count = (_number_or_none(p) for p in parts)
+            lo, hi, count = (float(p) for p in parts)  # numbers: checked just above
             if count != int(count) or count < 1:
                 raise InvalidInputError(f"sweep: range {name}={spec!r}: the count n of lo:hi:n must be a positive "
                                         f"integer, got {parts[2]!r}")
@@ -264,7 +264,8 @@ def parse_distribution(name: str, spec) -> Uniform | Normal:
     if kind not in DISTRIBUTIONS or len(numbers_) != 2 or None in numbers_:
         raise InvalidInputError(f"sweep: distribution of {name} must be uniform:LOW:HIGH or normal:MEAN:STD, "
                                 f"got {spec!r}")
-    return DISTRIBUTIONS[kind](*numbers_)
+    low_or_mean, high_or_std = (float(x) for x in rest.split(":"))  # numbers: checked just above
+    return DISTRIBUTIONS[kind](low_or_mean, high_or_std)
 
 
 def _number_or_none(text: str) -> float | None:
@@ -286,7 +287,7 @@ def _text_value(text: str) -> Value:
     return text if x is None else x
 
 
-def as_points(points) -> PointSet:
+def as_points(points: PointSet | Mapping[str, Sequence | str] | Sequence[Mapping]) -> PointSet:
     """A `PointSet` from what `sweep` accepts: a `PointSet`, a mapping (a `grid`) or a
     sequence of mappings (a `point_list`)."""
     if isinstance(points, PointSet):

@@ -99,7 +99,9 @@ def resolve(names: Sequence[str], scene: Scene | Callable[[], Scene], arguments:
 
     def get() -> Scene:
         nonlocal built
-        built = built or scene()
+        if built is None:
+            assert not isinstance(scene, Scene)  # built is None: scene is the factory
+            built = scene()
         return built
 
     return tuple(_resolve_one(name, get, arguments, job_arguments) for name in names)

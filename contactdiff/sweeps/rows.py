@@ -15,10 +15,11 @@ whatever the backend and the number of workers.
 
 from __future__ import annotations
 
+import numbers
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
-from ..errors import ContactDiffError, InvalidInputError
+from ..errors import ContactDiffError, require_extra
 
 RESERVED = ("index", "error", "error_message", "run_time", "sweep")
 """Columns of every row besides the point's values and the outputs."""
@@ -118,6 +119,7 @@ class SweepResult(list):
         """These rows if every run succeeded; else the first failed point's error, raised
         as a `ContactDiffError` naming the point (for studies that need every row)."""
         for r in self.failed[:1]:
+            assert r.error is not None  # a failed row has its error
             raise ContactDiffError(f"{r.error.kind} at {r.point}: {r.error.message}")
         return self
 
@@ -129,17 +131,22 @@ class SweepResult(list):
         """One column over the rows (None where a row has no such value, e.g. a failed run)."""
         return [r.to_dict().get(name) for r in self]
 
+    def numeric_outputs(self) -> list[str]:
+        """Output columns holding numbers (or true/false) in some row, in column order."""
+        names: dict[str, None] = {}
+        for row in self:
+            for name, value in row.outputs.items():
+                if isinstance(value, (numbers.Real, bool)) and name not in RESERVED:
+                    names.setdefault(name)
+        return list(names)
+
     def to_pandas(self):
         """The rows as a `pandas.DataFrame`, one column per name (needs pandas).
 
         Raises:
-            InvalidInputError: pandas is not installed.
+            MissingExtraError: pandas is not installed.
         """
-        try:
-            import pandas as pd
-        except ImportError:
-            raise InvalidInputError("to_pandas needs pandas: pip install 'contactdiff[pandas]'") from None
-        return pd.DataFrame(self.to_dicts())
+        return require_extra("pandas", "pandas", "to_pandas").DataFrame(self.to_dicts())
 
     def plot(self, path, output: str | None = None):
         """Draw ``output`` over the sweep (`contactdiff.sweeps.plot.plot_sweep`)."""

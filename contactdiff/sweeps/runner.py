@@ -19,9 +19,10 @@ import re
 import sys
 import time
 import warnings
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ..errors import ContactDiffError, InvalidInputError, ModelLoadError, check_number, write_failed
 from ..integration.options import SimulateOptions, field_names
@@ -32,6 +33,9 @@ from .jobs import Job
 from .points import PointSet, as_points, key
 from .rows import RESERVED, Row, RunError, SweepResult
 from .sources import SceneSource
+
+if TYPE_CHECKING:
+    from ..model.scene import Scene
 
 JOB_OWNED = ("jacobian", "parameters", "dense", "progress")
 """`SimulateOptions` fields the job sets, not the sweep's options."""
@@ -89,7 +93,8 @@ def run_point(context: Context, index: int, values: tuple) -> Row:
     return Row(index, point, outputs, time.perf_counter() - started, error, context.sweep)
 
 
-def sweep(scene, points, job="simulate", *, t_final: float | None = None,
+def sweep(scene: str | Path | Callable[..., Scene], points: PointSet | Mapping | Sequence[Mapping],
+          job="simulate", *, t_final: float | None = None,
           options: SimulateOptions | Mapping | None = None, job_options: Mapping | None = None,
           fixed: Mapping | None = None, backend: str = "loky",
           n_jobs: int | None = None, scheduler: str | None = None, out: str | Path | None = None,
@@ -164,6 +169,7 @@ def sweep(scene, points, job="simulate", *, t_final: float | None = None,
     result = SweepResult([rows[i] for i in range(len(points))], points.names, skipped=len(points) - len(todo),
                          wall_time=time.perf_counter() - started, default_output=job.default_output())
     if lost is not None:
+        assert results is not None  # only a write to it is lost
         raise write_failed("--out", results.path, lost, result)
     return result
 
@@ -197,10 +203,11 @@ def _context(source: SceneSource, points: PointSet, job: Job, t_final, options: 
     """Check the sweep in this process (scene, names, values, settings) and describe it."""
     source.check_arguments(points.names)
     arguments = {n[4:]: v for n, v in points[0].items() if n.startswith("arg:")}
+    scene: Scene | Callable[[], Scene]
     if source.factory is None:
         scene = source.build()  # a name or file: loading it here checks it (cheap), and one worker uses it
     else:
-        def scene():  # a factory may be expensive (a trot simulated): built here only if a name needs it
+        def scene() -> Scene:  # a factory may be expensive (a trot simulated): built here only if a name needs it
             try:
                 return source.build(arguments)
             except ContactDiffError:

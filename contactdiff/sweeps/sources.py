@@ -33,7 +33,7 @@ class SceneSource:
             robot name, or ``module:function`` of a factory.
         factory: the function that builds the scene from keyword arguments (the
             sweep's ``arg:<name>`` quantities), or None for a name or file loaded
-            with `contactdiff.model.scene_file.load_source`.
+            with `contactdiff.scenes.scene_file.load_source`.
     """
 
     label: str
@@ -116,7 +116,7 @@ class _Builder:
     def __call__(self) -> Scene:
         source = self.source
         if source.factory is None:
-            from ..model.scene_file import load_source
+            from ..scenes.scene_file import load_source
 
             return load_source(source.label)
         scene = source.factory(**dict(self.items))
@@ -135,7 +135,7 @@ def _stamp(label: str):
     """A scene file's modification time and size (an edited file is loaded again); None otherwise."""
     path = Path(label)
     if path.suffix != ".toml":
-        from ..model.robot import ROBOTS_DIR
+        from ..model.robot_files import ROBOTS_DIR
 
         path = ROBOTS_DIR / f"{label}.toml"
     try:

@@ -19,11 +19,11 @@ import pytest
 import contactdiff as cd
 from contactdiff.bench import extreme_cases as studies
 from contactdiff.errors import GrazingError
-from contactdiff.integration import method_choice
 from contactdiff.integration.hybrid import simulate
-from contactdiff.integration.method_choice import spectral_radius
-from contactdiff.integration.steppers import PinocchioGroup
-from contactdiff.model.robot import ROBOTS_DIR
+from contactdiff.model.robot_files import ROBOTS_DIR
+from contactdiff.ode import method_choice
+from contactdiff.ode.factory import PinocchioGroup
+from contactdiff.ode.method_choice import spectral_radius
 
 TIGHT = dict(rtol=1e-12, atol=1e-14)
 

@@ -22,7 +22,8 @@ from contactdiff.control.joint_targets import JointTargets
 from contactdiff.errors import InvalidInputError, UnknownNameError
 from contactdiff.model.efforts import BoundEffort, Effort
 from contactdiff.model.kinematics import Kinematics
-from contactdiff.model.robot import Robot, load_robot
+from contactdiff.model.robot import Robot
+from contactdiff.model.robot_files import load_robot
 
 TIMES = (0.5, 1.5, 2.5)  # s: pieces of 1 s each, so the midpoints have u = 1/2 exactly
 H = 1e-6  # FD step (rad, m, rad/s, m/s or s)

@@ -14,9 +14,10 @@ import pytest
 from helpers import assert_fd, fd_dq, fd_dv
 
 import contactdiff as cd
+from contactdiff.analysis.gait.stances import stance_intervals
 from contactdiff.control.legs import PAIR_A, PAIR_B, find_legs
 from contactdiff.control.trot_controller import TrotController
-from contactdiff.control.trot_scenes import TROT_PARAMETERS, stance_intervals, trot_scene
+from contactdiff.control.trot_scenes import TROT_PARAMETERS, trot_scene
 from contactdiff.errors import InvalidInputError, UnknownNameError
 from contactdiff.model.kinematics import Kinematics
 

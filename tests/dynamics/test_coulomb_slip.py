@@ -16,7 +16,7 @@ from helpers import assert_fd, fd_dq, fd_dv, random_state, sphere_urdf
 
 import contactdiff as cd
 from contactdiff.dynamics.mode import ModeDynamics
-from contactdiff.dynamics.slip import SLIP_SPEED_EPS, slip_direction
+from contactdiff.dynamics.slip import SLIP_SPEED_EPS, reference_turn, slip_direction
 from contactdiff.errors import InvalidInputError, PainleveError
 from contactdiff.model.contacts import Contact
 
@@ -264,3 +264,28 @@ def test_slip_direction_turns_smoothly_through_the_noise_floor():
                                    - slip_direction(u - h * e, r, eps)[0]) / (2 * h) for e in np.eye(2)])
             # truncation ~ (h / ε)² |D|, round-off ~ 1e-16 / h: both below 1e-6 |D|
             np.testing.assert_allclose(D, fd, rtol=0, atol=1e-6 * np.abs(D).max())
+
+
+def test_reference_turn_matches_central_differences_in_the_angle():
+    """``∂s/∂θ`` (`reference_turn`) against central differences of `slip_direction` in the
+    reference's angle, ``r(θ) = (cos θ, sin θ)``, at fixed slip velocity: below the floor and
+    past a stop ``s = r`` (``∂s/∂θ = r⊥``), in the band the blend's share ``1 - a``, above
+    ``2ε`` nothing (None, and the differences are zero). Step 1e-6 rad: truncation
+    ~ (1e-6)² times the third derivative in θ (``s`` turns with ``θ`` at rates of order 1),
+    round-off ~ 1e-16 / 1e-6 = 1e-10: both below the 1e-8 asserted."""
+    eps, theta = 1e-6, 1.2
+    own = np.array([0.8, 0.6])  # the slip's own direction, 32° from the reference
+
+    def direction(u, angle):
+        return slip_direction(u, np.array([math.cos(angle), math.sin(angle)]), eps)[0]
+
+    h = 1e-6
+    r = np.array([math.cos(theta), math.sin(theta)])
+    for u in (own * 0.5 * eps, -own * 1.5 * eps, own * 1.1 * eps, own * 1.5 * eps, own * 1.9 * eps, own * 3 * eps):
+        fd = (direction(u, theta + h) - direction(u, theta - h)) / (2 * h)
+        turn = reference_turn(u, r, eps)
+        if np.linalg.norm(u) >= 2 * eps:
+            assert turn is None and np.abs(fd).max() == 0.0
+            continue
+        np.testing.assert_allclose(turn, fd, rtol=0, atol=1e-8)
+    assert np.abs(reference_turn(own * 1.5 * eps, r, eps)).max() > 1e-3  # the band's term is there

@@ -20,9 +20,10 @@ from contactdiff.model.contacts import Contact
 from contactdiff.model.efforts import JointSpring, Spring
 from contactdiff.model.kinematics import Kinematics
 from contactdiff.model.objects import RobotFrame, add_objects
-from contactdiff.model.robot import Robot, load_robot
+from contactdiff.model.robot import Robot
+from contactdiff.model.robot_files import load_robot
 from contactdiff.model.scene import Scene
-from contactdiff.model.scene_file import load_source
+from contactdiff.scenes.scene_file import load_source
 
 M_RIGID, I_RIGID = 3.0, 31 / 24
 FEET_X = {"rear_foot": -0.25, "front_foot": 0.25}

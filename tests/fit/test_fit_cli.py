@@ -50,3 +50,23 @@ def test_fit_command_text_and_errors(tmp_path, capsys):
     assert err.count("\n") == 1 and "missing.csv" in err
     assert main(["fit", "ball", path, "--param", "contact:ball:springiness"]) == 2
     assert "springiness" in capsys.readouterr().err
+
+
+def test_fit_command_on_windows(tmp_path, capsys):
+    """--window 30 --window-stride 30: the drop cut into windows named by their samples, each
+    window's start velocity fitted; the restitution within three standard errors of E_TRUE. Bad
+    window options exit 2 with one named line."""
+    path = _observation_file(tmp_path, 4)
+    assert main(["fit", "ball", path, "--param", "contact:ball:restitution", "--window", "30",
+                 "--window-stride", "30", "--fit-state", "velocity", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    names = [r["name"] for r in out["recordings"]]
+    assert names[0].endswith("[2:32]") and len(names) == 5  # starts 2, 32, 62, 92, 122 of 150 samples
+    e = out["parameters"]["contact:ball:restitution"]
+    assert abs(e["value"] - E_TRUE) < 3 * e["standard_error"]
+    for bad, fragment in ((["--window", "0"], "length must be a whole number of samples >= 1, got 0"),
+                          (["--window", "5", "--window-stride", "-1"], "stride must be"),
+                          (["--window-stride", "5"], "needs --window")):
+        assert main(["fit", "ball", path, "--param", "contact:ball:restitution", *bad]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and fragment in err, err

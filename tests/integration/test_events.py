@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import contactdiff as cd
-from contactdiff.integration.events import _quadratic_roots, hermite_minimum, locate_crossing, simultaneous_group
+from contactdiff.ode.crossings import _quadratic_roots, hermite_minimum, locate_crossing, simultaneous_group
 
 
 def test_hermite_minimum_of_an_exact_cubic():

@@ -31,7 +31,7 @@ from scipy.optimize import brentq
 import contactdiff as cd
 from contactdiff.errors import GrazingError, TooManyEventsError
 from contactdiff.integration.hybrid import simulate
-from contactdiff.integration.steppers import METHODS
+from contactdiff.ode.factory import METHODS
 
 TIGHT = dict(rtol=1e-12, atol=1e-14)
 SQ2 = math.sqrt(2.0)

@@ -22,7 +22,7 @@ import contactdiff as cd
 from contactdiff.dynamics.impacts import choose_mode
 from contactdiff.dynamics.mode import ModeDynamics
 from contactdiff.integration.rest import RestCheck
-from contactdiff.model.robot import load_robot
+from contactdiff.model.robot_files import load_robot
 
 E = 0.8  # the ball's restitution (robots/ball.toml; h = 1 m, g = 1 m/s²)
 ZENO_SPEED = 1e-6  # SimulateOptions.zeno_speed's default (m/s)
@@ -188,6 +188,31 @@ def test_rest_flow_jacobian_against_closed_forms(tmp_path, t_final):
     expected[0, 5] = -LEG_LEG * LEG_L * math.cos(theta0) / LEG_C
     np.testing.assert_allclose(traj.jacobian, expected, atol=1e-6)
     np.testing.assert_allclose(traj.parameter_jacobian[:, 0], [0.0, 1.0, 0.0, 0.0, 0.0, 0.0], atol=1e-6)
+
+
+def test_rest_goes_on_across_sample_times(tmp_path):
+    """The leg of `_leg_scene` at rest from ~23 s, sampled every 10 s to 1e4 s: the rest
+    steps from sample to sample (a few steps per sample, not steps bounded by round-off),
+    every sample after the rest holds the resting state, and the final state and flow
+    Jacobians are those of the unsampled run, which steps to t_final in one step.
+
+    Chained steps of the linearised flow of one equilibrium ``exp(J a) exp(J b)`` equal
+    ``exp(J (a + b))`` (the same ``J`` to the equilibrium's round-off, ~1e-16 of the
+    state): 1e-9 leaves room for the expm's own round-off over 1e3 samples."""
+    scene = _leg_scene(tmp_path)
+    times = np.arange(10.0, 1e4, 10.0)
+    plain = cd.simulate(scene, 1e4, jacobian=True, parameters=["joint_spring:body_z:rest"])
+    sampled = cd.simulate(scene, 1e4, jacobian=True, parameters=["joint_spring:body_z:rest"], sample_times=times)
+    assert sampled.stats.steps < plain.stats.steps + 3 * len(times)
+    notes = [note for note in sampled.notes if note.startswith("at rest from t = ")]
+    assert len(notes) == 1 and "one to each sample time" in notes[0]
+    np.testing.assert_allclose(sampled.q, plain.q, atol=1e-9)
+    np.testing.assert_allclose(sampled.jacobian, plain.jacobian, atol=1e-9)
+    np.testing.assert_allclose(sampled.parameter_jacobian, plain.parameter_jacobian, atol=1e-9)
+    resting = sampled.samples.t >= 30.0
+    np.testing.assert_allclose(sampled.samples.q[resting], np.broadcast_to(plain.q, sampled.samples.q[resting].shape),
+                               atol=1e-9)
+    np.testing.assert_allclose(sampled.samples.jacobian[-1], plain.jacobian, atol=1e-9)
 
 
 def test_rest_flow_jacobian_against_finite_differences(tmp_path):

@@ -32,7 +32,7 @@ from test_sensitivity import _solo_tilted  # the tilted solo12 drop: feet land o
 import contactdiff as cd
 from contactdiff.errors import InvalidInputError
 from contactdiff.integration.hybrid import simulate
-from contactdiff.integration.steppers import VectorSpace, make_stepper
+from contactdiff.ode.factory import VectorSpace, make_stepper
 
 TOL = dict(rtol=1e-12, atol=1e-13)
 REL_STEP = 1e-5

@@ -165,8 +165,9 @@ def test_samples_without_jacobian_are_the_dense_states():
     assert np.abs(traj.samples.q - q).max() <= NOISE and np.abs(traj.samples.v - v).max() <= NOISE
 
 
-def test_no_sample_times_no_samples():
-    assert cd.simulate(cd.load_scene("ball"), 1.0).samples is None
+@pytest.mark.parametrize("times", [(), None])
+def test_no_sample_times_no_samples(times):
+    assert cd.simulate(cd.load_scene("ball"), 1.0, sample_times=times).samples is None
 
 
 # ---------------------------------------------------------------------------------------

@@ -1,6 +1,6 @@
 """Step budget: a run that cannot reach its final time within max_steps stops early.
 
-`contactdiff.integration.step_budget`: after WINDOW steady steps (no event, no growth)
+`contactdiff.ode.step_budget`: after WINDOW steady steps (no event, no growth)
 the steps still needed are projected at a high percentile of the recent steps; a run
 that would need more than MARGIN times the steps it has left stops with
 `StepBudgetError`, a `TooManyStepsError` with the run so far, its time, mode and step.
@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import contactdiff as cd
-from contactdiff.integration.step_budget import CHECK_EVERY, GROWTH, MARGIN, WINDOW, BudgetWatch
+from contactdiff.ode.step_budget import CHECK_EVERY, GROWTH, MARGIN, WINDOW, BudgetWatch
 
 OMEGA = 1e6  # rad/s: the body's pitch rate of the fast-spin runs
 

@@ -1,4 +1,4 @@
-"""Step collapse (`contactdiff.integration.step_collapse`), redundant contact rows, and
+"""Step collapse (`contactdiff.ode.step_collapse`), redundant contact rows, and
 the step budget's edge cases."""
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from helpers import assert_fd, fd_dv
 
 import contactdiff as cd
 from contactdiff.dynamics.mode import ModeDynamics
-from contactdiff.integration.step_collapse import COLLAPSE_STEPS
+from contactdiff.ode.step_collapse import COLLAPSE_STEPS
 
 
 @pytest.fixture(scope="module")

@@ -1,4 +1,4 @@
-"""Tests of contactdiff.integration.steppers against closed forms, finite differences and scipy."""
+"""Tests of contactdiff.ode's steppers against closed forms, finite differences and scipy."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 from scipy.integrate import solve_ivp
 
 from contactdiff.errors import IntegrationError, InvalidInputError, OutsideDomainError
-from contactdiff.integration.steppers import (
+from contactdiff.ode.factory import (
     DOP853,
     METHODS,
     PinocchioGroup,
@@ -509,7 +509,7 @@ def test_bad_jac_and_truncate_before_step():
 def test_lazy_dense_output_equals_the_eager_one_after_later_steps(method):
     """A lazy interpolant read after the stepper has moved on (and changed its
     vector field) must give exactly the eager interpolant of its own step."""
-    from contactdiff.integration.steppers import VectorSpace, make_stepper
+    from contactdiff.ode.factory import VectorSpace, make_stepper
 
     def accel(t, q, v):
         return -4.0 * q

@@ -9,16 +9,20 @@ import pytest
 
 from contactdiff.data.cube_recordings import (
     MARGIN_SAMPLES,
+    WINDOW_CLEARANCE,
     Start,
     duplicate_groups,
     first_touch_sample,
     free_flight_velocity,
+    lowest_corner,
     split,
     toss_errors,
     toss_recording,
+    toss_windows,
 )
 from contactdiff.data.cube_tosses import NOMINAL, Toss
 from contactdiff.errors import InvalidInputError
+from contactdiff.fit import Windows
 
 DT = 1.0 / 148.0  # s, the data's sample time
 V0 = np.array([0.8, -0.3, 0.5])  # m/s, world frame
@@ -101,3 +105,38 @@ def test_toss_errors_of_a_rollout_against_itself_and_shifted():
     shifted = q.copy()
     shifted[:, 0] += 0.01
     assert toss_errors(rec, shifted)[0] == pytest.approx(100 * 0.01 / NOMINAL.edge, rel=1e-12)
+
+
+def test_lowest_corner_of_a_flat_and_a_tilted_cube():
+    """Flat on a face with its centre at edge/2: the lowest corner is on the board (0). Turned by
+    45° about x: the corners' reach along z is edge/2 (|0| + |cos 45°| + |sin 45°|) = edge/√2, so the
+    lowest corner is at z − edge/√2."""
+    t = np.arange(2) * DT
+    half = NOMINAL.edge / 2.0
+    c, s = math.cos(math.pi / 8), math.sin(math.pi / 8)  # the half-angle of 45° about x
+    quats = np.array([[1.0, 0.0, 0.0, 0.0], [c, s, 0.0, 0.0]])
+    position = np.array([[0.0, 0.0, half], [0.0, 0.0, 0.2]])
+    toss = Toss("toss_901", t, position, quats, np.zeros((2, 3)), np.zeros((2, 3)))
+    low = lowest_corner(toss)
+    assert low[0] == pytest.approx(0.0, abs=1e-15)
+    assert low[1] == pytest.approx(0.2 - NOMINAL.edge / math.sqrt(2.0), abs=1e-15)
+
+
+def test_toss_windows_start_in_free_flight_before_the_touch():
+    """A throw that falls onto the board: one window, starting ``lead`` samples before the last
+    sample whose lowest corner clears the board by WINDOW_CLEARANCE, comparing ``length`` samples,
+    with the throw's velocity (the parabola through the flight: exact for this flight, as in
+    test_free_flight_velocity_of_a_known_throw, to 1e-9 m/s)."""
+    toss = _throw(n=60)
+    low = lowest_corner(toss)
+    last = int(np.flatnonzero(low > WINDOW_CLEARANCE)[-1])
+    assert last < len(toss) - 1  # the throw reaches the board within its samples
+    (window,) = toss_windows(toss, Windows(8), lead=2)
+    assert window.t0 == toss.t[last - 2] and len(window.t) == 9
+    rotation = pin.Quaternion(*toss.quaternion[last - 2]).normalized().matrix()
+    velocity = V0 - np.array([0.0, 0.0, 9.81]) * toss.t[last - 2]
+    np.testing.assert_allclose(window.v0, np.r_[rotation.T @ velocity, OMEGA], atol=1e-9)
+    with pytest.raises(InvalidInputError, match="lead must be a whole number of samples >= 0, got -1"):
+        toss_windows(toss, Windows(8), lead=-1)
+    with pytest.raises(InvalidInputError, match="clearance must be a length >= 0"):
+        toss_windows(toss, Windows(8), clearance=-0.001)

@@ -34,7 +34,7 @@ from mjcf_models import (
 from contactdiff.errors import ModelLoadError, UnsupportedModelError
 from contactdiff.model.feet import FootRule
 from contactdiff.model.mjcf import MJCFWarning, load_mjcf, mujoco_velocity_map
-from contactdiff.model.robot import load_robot
+from contactdiff.model.robot_files import load_robot
 
 RTOL = 1e-12
 
@@ -371,7 +371,7 @@ def test_cli_checks_an_mjcf_file(capsys):
 
 
 def test_scene_file_names_an_mjcf_robot(tmp_path):
-    from contactdiff.model.scene_file import load_scene
+    from contactdiff.scenes.scene_file import load_scene
 
     write(tmp_path, "free.xml", FREE_XML)
     scene_path = write(tmp_path, "scene.toml", 'robot = "free.xml"\n')
@@ -492,7 +492,7 @@ def test_round_feet_of_an_mjcf_robot_without_sphere_feet_is_a_named_error(tmp_pa
     """The two-link leg on a floating pelvis, its foot chosen by hand as the shank's body: no
     sphere there, and no URDF to look in."""
     from contactdiff.errors import InvalidInputError
-    from contactdiff.model.feet import foot_spheres
+    from contactdiff.model.round_feet import foot_spheres
 
     robot = load_robot(write(tmp_path, "leg.xml", LEG_XML), feet=["shank"])
     with pytest.raises(InvalidInputError, match="is an MJCF model: its round feet are the collision spheres"):

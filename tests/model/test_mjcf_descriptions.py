@@ -12,7 +12,7 @@ from mjcf_models import FREE_XML
 pytest.importorskip("robot_descriptions", reason="the optional robot_descriptions package is not installed")
 
 from contactdiff.errors import ModelLoadError  # noqa: E402
-from contactdiff.model.robot import load_robot  # noqa: E402
+from contactdiff.model.robot_files import load_robot  # noqa: E402
 
 MODULE = "robot_descriptions.go2_mj_description"
 

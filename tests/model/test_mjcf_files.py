@@ -12,7 +12,7 @@ from mjcf_models import FREE_XML, write
 from contactdiff.errors import ModelLoadError, UnsafeModelFileError
 from contactdiff.model.mjcf import load_mjcf
 from contactdiff.model.mjcf_xml import MAX_INCLUDES, looks_like_mjcf
-from contactdiff.model.robot import load_robot
+from contactdiff.model.robot_files import load_robot
 
 BILLION_LAUGHS = """<?xml version="1.0"?>
 <!DOCTYPE mujoco [

@@ -22,7 +22,7 @@ from mjcf_models import write
 
 import contactdiff as cd
 from contactdiff.model.feet import FootRule
-from contactdiff.model.robot import load_robot
+from contactdiff.model.robot_files import load_robot
 
 REL = 1e-10
 

@@ -31,7 +31,7 @@ from mjcf_models import (  # noqa: E402
 from mujoco_reference import MujocoReference, random_states, stripped_copy  # noqa: E402
 
 from contactdiff.model import mjcf_xml  # noqa: E402
-from contactdiff.model.robot import load_robot  # noqa: E402
+from contactdiff.model.robot_files import load_robot  # noqa: E402
 
 RTOL = 1e-9
 

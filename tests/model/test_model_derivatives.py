@@ -18,9 +18,9 @@ from contactdiff.dynamics.mode import ModeDynamics
 from contactdiff.model.contacts import Contact
 from contactdiff.model.efforts import JointSpring, Spring, UserEffort
 from contactdiff.model.kinematics import Kinematics
-from contactdiff.model.robot import load_robot
+from contactdiff.model.robot_files import load_robot
 from contactdiff.model.scene import Scene
-from contactdiff.model.scene_file import load_source
+from contactdiff.scenes.scene_file import load_source
 
 T = 0.37  # time passed to efforts (only user efforts use it)
 

@@ -174,7 +174,7 @@ def test_a_scene_file_of_objects_alone(tmp_path):
 
 
 def test_scenes_that_drive_a_robot_include_its_joint_targets():
-    from contactdiff.model.scene_file import driving_scenes
+    from contactdiff.scenes.scene_file import driving_scenes
 
     assert driving_scenes("panda") == ["panda_lift"]  # the only robots/ scene on the panda: [[joint_targets]]
     assert {"solo12_drop", "solo12_trot"} <= set(driving_scenes("solo12"))  # joint springs, a trot

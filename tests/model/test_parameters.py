@@ -30,7 +30,7 @@ import contactdiff as cd
 from contactdiff.control.trot_controller import TrotController, TrotControllerEvaluator
 from contactdiff.errors import InconsistentStateError, InvalidInputError, UnknownNameError
 from contactdiff.model.compliance import add_compliant_feet
-from contactdiff.model.efforts import JointSpring, Spring, UserEffort
+from contactdiff.model.efforts import EffortParameters, JointSpring, Spring, UserEffort
 from contactdiff.model.kinematics import Kinematics
 from contactdiff.model.parameters import BODY_FIELDS, Parameter, ParameterKind, body_names, resolve
 
@@ -188,6 +188,29 @@ def test_repeated_targets_are_numbered_and_changed_one_by_one():
     new = scene.with_parameters({"joint_spring:body_z#2:rest": 0.7, "effort:drag#1:k": 9.0})
     assert [s.rest for s in new.effort_specs[:2]] == [0.0, 0.7]
     assert [dict(s.parameters)["k"] for s in new.effort_specs[4:]] == [9.0, 5.0]
+
+
+@dataclasses.dataclass(frozen=True)
+class _Misdeclared:
+    """An effort spec whose parameters claim a kind that is not an effort's (``body``)."""
+
+    def named_parameters(self) -> EffortParameters:
+        return EffortParameters("body", "drag", ("gain",))
+
+    def bind(self, robot):
+        return JointSpring("body_z", 0.0).bind(robot)
+
+
+def test_each_effort_declares_its_parameters_and_a_kind_of_no_effort_is_refused():
+    """The names come from each spec's own declaration (kind, target, fields); a
+    declaration of a kind that is not an effort's is refused naming the spec and the
+    kinds an effort may declare, not listed as a body's."""
+    assert JointSpring("knee", 1.0).named_parameters() == EffortParameters(
+        "joint_spring", "knee", ("stiffness", "damping", "rest"))
+    assert TrotController().named_parameters() == EffortParameters("trot", "", TrotController.NUMBERS)
+    scene = cd.Scene(cd.load_robot("two_limb"), [], [_Misdeclared()], q0=[1.0, 0.5, 0.5])
+    with pytest.raises(InvalidInputError, match=r"_Misdeclared.*spring, joint_spring, trot, effort"):
+        scene.parameter_names()
 
 
 def test_spring_name_defaults_to_its_frames_and_can_be_given():

@@ -19,9 +19,9 @@ import pytest
 
 from contactdiff.model.contacts import Contact
 from contactdiff.model.kinematics import Kinematics
-from contactdiff.model.robot import QUADRUPEDS, load_robot
+from contactdiff.model.robot_files import QUADRUPEDS, load_robot
 from contactdiff.model.scene import Scene
-from contactdiff.model.scene_file import load_scene, load_source
+from contactdiff.scenes.scene_file import load_scene, load_source
 
 PITCHES = (0.0, 0.3, -0.7, 1.2)
 

@@ -41,9 +41,9 @@ from contactdiff.dynamics.constraint_dynamics import eligible
 from contactdiff.dynamics.mode import ModeDynamics
 from contactdiff.errors import InvalidInputError
 from contactdiff.model.contacts import Contact
-from contactdiff.model.feet import foot_spheres, round_feet
 from contactdiff.model.kinematics import Kinematics
-from contactdiff.model.scene_file import load_scene
+from contactdiff.model.round_feet import foot_spheres, round_feet
+from contactdiff.scenes.scene_file import load_scene
 
 MASS, RADIUS, G = 2.0, 0.1, 9.81
 INERTIA = 0.4 * MASS * RADIUS**2  # solid sphere
@@ -625,7 +625,7 @@ def test_one_foot_off_centre_moves_that_contact_only():
     """Given spheres: a1 with one sphere moved 1 cm along its foot's x. Only that contact
     moves (to FL_foot_sphere); the others stay, bit for bit; all gaps at the reference pose
     are the point scene's."""
-    from contactdiff.model.feet import FootSphere
+    from contactdiff.model.round_feet import FootSphere
 
     robot = cd.load_robot("a1")
     point = cd.Scene.from_robot(robot)

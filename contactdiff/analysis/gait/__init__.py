@@ -6,8 +6,8 @@ guard, tangent space) and its mathematics; `section` the section's coordinates,
 the ground's neutral moves (x, y, yaw) and the Floquet multipliers of a stride;
 `periodic` the search for a periodic gait up to those moves and the
 stroboscopic period map of a clock-driven scene; `sensitivity` the derivatives of
-a periodic gait with respect to the scene's parameters. The public names of all
-four are importable from here.
+a periodic gait with respect to the scene's parameters; `stances` a foot's
+stance intervals in a run. The public names of all five are importable from here.
 """
 
 from ...errors import StrideError
@@ -22,9 +22,10 @@ from .section import (
                       section_basis,
 )
 from .sensitivity import GaitSensitivity, gait_sensitivity
+from .stances import stance_intervals
 from .stride import Stride, StrideLoop, first_touchdown, stride_map
 
 __all__ = ["GaitSensitivity", "NEUTRAL_NAMES", "PeriodMap", "PeriodicGait", "Stride", "StrideError", "StrideLoop",
            "align", "available_neutral", "find_periodic_gait", "first_touchdown", "floquet_multipliers",
            "gait_sensitivity", "neutral_directions", "onto_section", "period_map", "scene_period", "section_basis",
-           "stride_map"]
+           "stance_intervals", "stride_map"]

@@ -10,12 +10,15 @@ import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
+from numpy.typing import ArrayLike
 
 from ...errors import InconsistentStateError, InvalidInputError, StrideError, check_number
 from ...integration.hybrid import simulate
+from ...integration.options import RTOL_MIN
 from ...integration.trajectory import Trajectory
 from ...model.scene import Scene
 from .section import (
@@ -30,7 +33,7 @@ from .section import (
     onto_section,
     section_basis,
 )
-from .stride import Stride, _min_flight, first_touchdown, stride_map
+from .stride import STRIDE_ATOL, STRIDE_METHOD, STRIDE_RTOL, Stride, _min_flight, first_touchdown, stride_map
 
 
 @dataclass(kw_only=True)
@@ -176,12 +179,13 @@ def floquet_multipliers(scene: Scene, stride: Stride, neutral: Sequence[str] | N
     return _sorted_eigenvalues(B.T @ stride.extended_jacobian() @ B)
 
 
-def find_periodic_gait(scene: Scene, foot: str, q=None, v=None, t: float = 0.0, *,
+def find_periodic_gait(scene: Scene, foot: str, q: ArrayLike | None = None, v: ArrayLike | None = None,
+                       t: float = 0.0, *,
                        iterations: int = 8, tol: float = 1e-9, neutral: Sequence[str] | None = None,
                        period: float | None = None, t_max: float = 10.0, min_stride: float | None = None,
                        min_flight: float | None = None, warmup: float = 0.0,
-                       line_search: int = 4, resolution: bool = True, rtol: float = 1e-10,
-                       atol: float = 1e-12, method: str = "DOP853", **options) -> PeriodicGait:
+                       line_search: int = 4, resolution: bool = True, rtol: float = STRIDE_RTOL,
+                       atol: float = STRIDE_ATOL, method: str = STRIDE_METHOD, **options) -> PeriodicGait:
     """Approach a periodic gait by Newton's method on the stride map, reduced state.
 
     The unknowns are the section coordinates ``s`` (`section_basis`: along the
@@ -283,7 +287,8 @@ def find_periodic_gait(scene: Scene, foot: str, q=None, v=None, t: float = 0.0, 
         return resolutions[-1] is not None and residuals[-1] <= resolutions[-1]
 
     stride, B, r, moved = evaluate(q, v, t)
-    residuals, steps, resolutions = [float(np.linalg.norm(r))], ["start"], [None]
+    residuals, steps = [float(np.linalg.norm(r))], ["start"]
+    resolutions: list[float | None] = [None]
     for n in range(iterations + 1):
         # the resolution is measured only in a search (iterations > 0), at each iterate above tol
         if residuals[-1] <= tol or (resolution and iterations and resolved_here(stride, B, r)) or n == iterations:
@@ -322,7 +327,7 @@ def _map_resolution(scene, foot, stride, B, r, neutral, clock, sim) -> float | N
     (`find_periodic_gait`); None if those tolerances are below the stepper's floor
     (100 eps) or that stride fails."""
     rtol, atol = sim["rtol"] / RESOLUTION_TIGHTENING, np.asarray(sim["atol"]) / RESOLUTION_TIGHTENING
-    if rtol < 100 * np.finfo(float).eps:
+    if rtol < RTOL_MIN:
         return None
     try:
         again = stride_map(scene, foot, stride.q0, stride.v0, stride.t0, jacobian=False,
@@ -360,9 +365,10 @@ class PeriodMap:
     trajectory: Trajectory = field(repr=False)
 
 
-def period_map(scene: Scene, q=None, v=None, t: float = 0.0, *, period: float | None = None,
-               neutral: Sequence[str] | None = None, rtol: float = 1e-10, atol: float = 1e-12,
-               **options) -> PeriodMap:
+def period_map(scene: Scene, q: ArrayLike | None = None, v: ArrayLike | None = None, t: float = 0.0, *,
+               period: float | None = None,
+               neutral: Sequence[str] | None = None, rtol: float = STRIDE_RTOL, atol: float = STRIDE_ATOL,
+               **options: Any) -> PeriodMap:
     """The state after one clock period and its Jacobian (the stroboscopic Poincaré map).
 
     Args:
@@ -383,6 +389,7 @@ def period_map(scene: Scene, q=None, v=None, t: float = 0.0, *, period: float | 
     v = scene.v0 if v is None else np.array(v, dtype=float)
     t = check_number("period map", "t", t)
     traj = simulate(scene, t + clock, q, v, t0=t, jacobian=True, rtol=rtol, atol=atol, **options)
+    assert traj.jacobian is not None  # asked for
     neutral = _check_neutral(scene, neutral, q, v, t)
     N = neutral_directions(scene, q, neutral)
     if N.shape[1]:

@@ -16,6 +16,7 @@ import pinocchio as pin
 from ...dynamics.mode import ModeDynamics
 from ...errors import InvalidInputError, check_number
 from ...integration.sensitivity import gap_gradient
+from ...integration.trajectory import EventKind
 from ...model.scene import Scene
 
 NEUTRAL_NAMES = ("x", "y", "yaw")
@@ -33,7 +34,7 @@ RESOLUTION_TIGHTENING = 10.0
 integration error: DOP853's shrinks about 7.7 times, 10^(8/9))."""
 
 _SYMMETRY_TOL = 1e-9  # relative change of gaps and accelerations under a neutral move that counts as none
-_IMPACT_KINDS = ("touchdown", "bounce")
+_IMPACT_KINDS = (EventKind.TOUCHDOWN, EventKind.BOUNCE)
 
 def _positive_duration(owner: str, name: str, value) -> float:
     x = check_number(owner, name, value, minimum=0.0)
@@ -210,13 +211,17 @@ def align(scene: Scene, q: np.ndarray, q_ref: np.ndarray, neutral: Sequence[str]
     moved = {}
     if "yaw" in neutral:
         dpsi = math.atan2(math.sin(_yaw(q) - _yaw(q_ref)), math.cos(_yaw(q) - _yaw(q_ref)))
-        q = pin.integrate(model, q, -dpsi * _neutral_vector(scene, q, "yaw"))
+        d = _neutral_vector(scene, q, "yaw")
+        assert d is not None  # neutral holds available moves only (_check_neutral)
+        q = pin.integrate(model, q, -dpsi * d)
         moved["yaw"] = dpsi
     com, com_ref = pin.centerOfMass(model, data, q).copy(), pin.centerOfMass(model, data, q_ref).copy()
     for name, axis in (("x", 0), ("y", 1)):
         if name in neutral:
             shift = float(com[axis] - com_ref[axis])
-            q = pin.integrate(model, q, -shift * _neutral_vector(scene, q, name))
+            d = _neutral_vector(scene, q, name)
+            assert d is not None  # neutral holds available moves only (_check_neutral)
+            q = pin.integrate(model, q, -shift * d)
             moved[name] = shift
     return q, moved
 

@@ -83,9 +83,12 @@ foot's touchdown a terminal event and keeps the flow Jacobian just before it.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ...dynamics.impacts import choose_mode
 from ...errors import InvalidInputError, StrideError, check_number
@@ -93,7 +96,7 @@ from ...integration.hybrid import HybridLoop
 from ...integration.options import SimulateOptions
 from ...integration.parameter_jumps import ParameterJumps
 from ...integration.sensitivity import gap_gradient, saltation, touchdown, vector_field
-from ...integration.trajectory import Trajectory
+from ...integration.trajectory import Event, EventKind, Trajectory
 from ...model.scene import Scene
 from .section import (
     _IMPACT_KINDS,
@@ -105,6 +108,14 @@ from .section import (
     onto_section,
     scene_period,
 )
+
+STRIDE_RTOL = 1e-10
+"""Default relative tolerance of the runs of a stride (`stride_map`, `first_touchdown`,
+`contactdiff.analysis.gait.periodic`); ``contactdiff stride --rtol``'s too."""
+STRIDE_ATOL = 1e-12
+"""Default absolute tolerance of those runs (m, rad, m/s)."""
+STRIDE_METHOD = "DOP853"
+"""Default stepper of those runs."""
 
 
 # ----------------------------------------------------------------------------------
@@ -187,6 +198,7 @@ class Stride:
             raise InvalidInputError("this stride was computed without parameters (stride_map(..., parameters=[...]))")
         if self.period is None:
             return self.parameter_jacobian
+        assert self.parameter_time_gradient is not None  # computed with the parameters' Jacobian
         return np.vstack([self.parameter_jacobian, self.parameter_time_gradient])
 
     def summary(self) -> dict:
@@ -197,10 +209,12 @@ class Stride:
                "events": [f"{e.t:.12g} {e.kind} {'+'.join(e.contacts)}" for e in self.trajectory.events],
                "differentiable": self.differentiable, "simultaneous": list(self.simultaneous)}
         if self.jacobian is not None:
+            assert self.time_gradient is not None and self.start_time_column is not None  # computed with it
             out |= {"jacobian": self.jacobian.tolist(), "time_gradient": self.time_gradient.tolist(),
                     "start_time_column": self.start_time_column.tolist(),
                     "start_time_derivative": self.start_time_derivative}
         if self.parameter_jacobian is not None:
+            assert self.parameter_time_gradient is not None  # computed with it
             out |= {"parameter_names": list(self.parameter_names),
                     "parameter_jacobian": self.parameter_jacobian.tolist(),
                     "parameter_time_gradient": self.parameter_time_gradient.tolist()}
@@ -226,7 +240,8 @@ class StrideLoop(HybridLoop):
         # last time the foot was on the ground (s); the start counts as such, so a
         # foot a few nanometres up after a restart does not "land" at once
         self.last_contact = t0
-        self.hit = None  # (event, mode before as keys, Φ just before)
+        # (event, mode before as keys, Φ just before)
+        self.hit: tuple[Event, tuple[int, ...], np.ndarray | None] | None = None
         self.start = None  # (mode before, F- at the start, contacts landing with the foot)
 
     def initial_mode(self, q, v):
@@ -279,7 +294,7 @@ class StrideLoop(HybridLoop):
         """The foot's touchdown that ends the stride is terminal; every event where the
         foot is on the ground moves the start of its flight."""
         stop = False
-        if (self.names[self.foot] in event.contacts and event.kind not in ("lift-off", "slip")
+        if (self.names[self.foot] in event.contacts and event.kind not in (EventKind.LIFT_OFF, EventKind.SLIP)
                 and event.t >= self.t_earliest and event.t - self.last_contact >= self.min_flight
                 and self.hit is None):
             self.hit = (event, tuple(mode_before), phi_before)
@@ -295,11 +310,11 @@ class StrideLoop(HybridLoop):
                 or name in event.mode_after)
 
 
-def stride_map(scene: Scene, foot: str, q, v, t: float = 0.0, *, t_max: float = 10.0,
+def stride_map(scene: Scene, foot: str, q: ArrayLike, v: ArrayLike, t: float = 0.0, *, t_max: float = 10.0,
                min_stride: float | None = None, min_flight: float | None = None,
-               period: float | None = None, jacobian: bool = True, parameters=(),
-               rtol: float = 1e-10, atol: float = 1e-12, method: str = "DOP853", max_events: int = 1000,
-               **options) -> Stride:
+               period: float | None = None, jacobian: bool = True, parameters: Sequence[str] = (),
+               rtol: float = STRIDE_RTOL, atol: float = STRIDE_ATOL, method: str = STRIDE_METHOD,
+               max_events: int = 1000, **options: Any) -> Stride:
     """The stride map of ``foot``: from just before one of its touchdowns to just before the next.
 
     Args:
@@ -377,8 +392,8 @@ def _min_flight(value, clock: float | None, where: str) -> float:
 
 
 def first_touchdown(scene: Scene, foot: str, q=None, v=None, t: float = 0.0, *, t_max: float = 10.0,
-                    min_flight: float | None = None, rtol: float = 1e-10, atol: float = 1e-12,
-                    method: str = "DOP853", max_events: int = 1000,
+                    min_flight: float | None = None, rtol: float = STRIDE_RTOL, atol: float = STRIDE_ATOL,
+                    method: str = STRIDE_METHOD, max_events: int = 1000,
                     **options) -> tuple[float, np.ndarray, np.ndarray]:
     """Simulate from ``(q, v, t)`` (default the scene's initial state) to the first
     touchdown of ``foot`` after ``t`` that follows a flight of at least ``min_flight``
@@ -417,6 +432,7 @@ def _run_stride(scene, i, q, v, t0, t_end, clock, jacobian, require_start, min_s
     t, q1, v1 = event.t, event.q.copy(), event.v_minus.copy()
     J = tg = col = dt = J_p = tg_p = None
     if jacobian:
+        assert phi is not None  # a run with the Jacobian records it
         dyn = run.dyn
         Dh = gap_gradient(dyn, q1, i)
         F = vector_field(dyn, q1, v1, t, mode)

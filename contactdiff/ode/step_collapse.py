@@ -27,7 +27,7 @@ There is no knife edge in the outcome: a run near the thresholds ends in this er
 or, later, in `TooManyStepsError`, both of which stop it; no accepted run changes. A
 run that needs short steps from its start (a body spinning at 1e6 rad/s: steps of
 1e-6 s throughout) has not collapsed: its steps are its own, and its budget is
-``max_steps`` (`contactdiff.integration.step_budget` stops it early when its steps
+``max_steps`` (`contactdiff.ode.step_budget` stops it early when its steps
 cannot reach the final time within it). Steps cut short by an effort's breakpoint or by ``t_final`` are short by
 choice, not by the error control, and count as neither collapsed nor typical.
 """

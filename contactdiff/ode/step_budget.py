@@ -2,7 +2,7 @@
 
 A run whose steps are short from its start and stay short (a body spinning at 1e6
 rad/s: steps of ~1e-6 s throughout, 2 s of it needing ~2e6 steps) has not collapsed
-(`contactdiff.integration.step_collapse`): its steps are the mode's own. Without a
+(`contactdiff.ode.step_collapse`): its steps are the mode's own. Without a
 projection it ran its 200,000 steps, minutes of work, to end in `TooManyStepsError`
 at a tenth of its horizon. `BudgetWatch` projects the steps still needed from the
 recent ones and stops such a run after `WINDOW` steps (`StepBudgetError`).

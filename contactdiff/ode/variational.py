@@ -2,7 +2,7 @@
 user's callbacks (or forward differences), applied to the variational columns, with the
 parameters' forcing, and the columns' error scale.
 
-A mixin of `contactdiff.integration.stepper.Stepper` (its state: ``nv``, ``n``,
+A mixin of `contactdiff.ode.base.Stepper` (its state: ``nv``, ``n``,
 ``_vs``, ``group``, ``accel``, ``jac``, ``parameter_jac``, ``phi``, ``rtol``,
 ``_atol_phi``, ``n_jac``, ``n_accel``); the conventions are in its docstring.
 """
@@ -10,16 +10,38 @@ A mixin of `contactdiff.integration.stepper.Stepper` (its state: ``nv``, ``n``,
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..errors import IntegrationError, InvalidInputError
 
+if TYPE_CHECKING:
+    from .field_types import AccelFn, JacFn, ParameterJacFn
+    from .lie import LieGroup
+
 _EPS = np.finfo(float).eps
+
+StageDF = tuple[np.ndarray, np.ndarray, "np.ndarray | None", "np.ndarray | None"]
+"""``(J_q, J_v, G, J_p)`` of the tangent-space field at a point (`VariationalAlgebra._stage_df`)."""
 
 
 class VariationalAlgebra:
     """``DF`` at a point and ``DF @ phi`` (plus the parameters' forcing), for a stepper."""
+
+    if TYPE_CHECKING:  # the state it borrows from Stepper (set there), for the type checker only
+        nv: int
+        n: int
+        _vs: bool
+        group: LieGroup
+        accel: AccelFn
+        jac: JacFn | None
+        parameter_jac: ParameterJacFn | None
+        phi: np.ndarray | None
+        rtol: float
+        _atol_phi: float | np.ndarray
+        n_jac: int
+        n_accel: int
 
     def _call_jac(self, t: float, q: np.ndarray, v: np.ndarray):
         """``(J_q, J_v)`` from the user's callback, or forward differences if none."""
@@ -27,8 +49,8 @@ class VariationalAlgebra:
         if self.jac is None:
             return self._fd_jac(t, q, v)
         Jq, Jv = self.jac(t, q, v)
-        Jq = np.asarray(Jq, dtype=float)
-        Jv = np.asarray(Jv, dtype=float)
+        Jq = np.asarray(Jq, dtype=np.float64)
+        Jv = np.asarray(Jv, dtype=np.float64)
         shape = (self.nv, self.nv)
         if Jq.shape != shape or Jv.shape != shape:
             raise InvalidInputError(f"jac must return two {shape} arrays, got shapes {Jq.shape} and {Jv.shape}")
@@ -39,7 +61,7 @@ class VariationalAlgebra:
     def _fd_jac(self, t: float, q: np.ndarray, v: np.ndarray):
         """Forward differences in the tangent space (only for Radau's Newton matrix)."""
         nv = self.nv
-        a0 = np.asarray(self.accel(t, q, v), dtype=float)
+        a0 = np.asarray(self.accel(t, q, v), dtype=np.float64)
         Jq, Jv = np.empty((nv, nv)), np.empty((nv, nv))
         mq = np.abs(q[:nv]) if self._vs else self.group.magnitude(q)
         for k in range(nv):
@@ -47,11 +69,11 @@ class VariationalAlgebra:
             dq = np.zeros(nv)
             dq[k] = e
             qk = q + dq if self._vs else self.group.integrate(q, dq)
-            Jq[:, k] = (np.asarray(self.accel(t, qk, v), dtype=float) - a0) / e
+            Jq[:, k] = (np.asarray(self.accel(t, qk, v), dtype=np.float64) - a0) / e
             e = math.sqrt(_EPS) * max(1.0, abs(v[k]))
             vk = v.copy()
             vk[k] += e
-            Jv[:, k] = (np.asarray(self.accel(t, q, vk), dtype=float) - a0) / e
+            Jv[:, k] = (np.asarray(self.accel(t, q, vk), dtype=np.float64) - a0) / e
         self.n_accel += 1 + 2 * nv
         return Jq, Jv
 
@@ -67,7 +89,7 @@ class VariationalAlgebra:
         A[nv:, nv:] = Jv
         return A
 
-    def _stage_df(self, t: float, q: np.ndarray, v: np.ndarray):
+    def _stage_df(self, t: float, q: np.ndarray, v: np.ndarray) -> StageDF:
         """``(J_q, J_v, G, J_p)`` of the tangent-space field at a point; ``G = -ad(v)`` (None on
         vector spaces), ``J_p`` the parameter Jacobian (None without ``parameter_jac``)."""
         Jq, Jv = self._call_jac(t, q, v)
@@ -75,7 +97,8 @@ class VariationalAlgebra:
                 None if self.parameter_jac is None else self._call_parameter_jac(t, q, v))
 
     def _call_parameter_jac(self, t: float, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        Jp = np.asarray(self.parameter_jac(t, q, v), dtype=float)
+        assert self.parameter_jac is not None  # called only with one (`_stage_df`)
+        Jp = np.asarray(self.parameter_jac(t, q, v), dtype=np.float64)
         m = 0 if self.phi is None else self.phi.shape[1]
         if Jp.ndim != 2 or Jp.shape[0] != self.nv or Jp.shape[1] > m:
             raise InvalidInputError(f"parameter_jac must return an ({self.nv}, p) array with p <= {m} (the "

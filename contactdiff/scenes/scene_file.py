@@ -16,11 +16,11 @@ from ..control.joint_targets import JointTargets
 from ..control.trot_controller import TrotController
 from ..control.trot_scenes import TROT_PARAMETERS
 from ..errors import InvalidInputError, ModelLoadError, UnknownRobotError, unknown_name
-from .contacts import Contact
-from .efforts import JointSpring, Spring
-from .objects import RobotFrame, SceneObject, add_objects, empty_robot
-from .robot import ROBOTS_DIR, example_robot_data_names, load_robot, own_robot_names
-from .scene import Scene
+from ..model.contacts import Contact
+from ..model.efforts import JointSpring, Spring
+from ..model.objects import RobotFrame, SceneObject, add_objects, empty_robot
+from ..model.robot_files import ROBOTS_DIR, example_robot_data_names, load_robot, own_robot_names
+from ..model.scene import Scene
 
 _TOP_KEYS = ("robot", "floating_base", "gravity", "name", "description", "frame", "object", "contact",
              "spring", "joint_spring", "joint_targets", "trot", "initial")

@@ -3,13 +3,16 @@
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 from scipy.linalg.lapack import dgetrf, dgetrs, zgetrf, zgetrs
 
 from ..errors import IntegrationError, InvalidInputError, OutsideDomainError
+from .base import Stepper
 from .dense import DenseOutput
-from .stepper import _EPS, _MAX_FACTOR, _MIN_FACTOR, Stepper, _rms, _rms_cols
+from .step_control import _EPS, _MAX_FACTOR, _MIN_FACTOR, _rms, _rms_cols
+from .variational import StageDF
 
 _S6 = 6**0.5
 _RC = np.array([(4 - _S6) / 10, (4 + _S6) / 10, 1.0])
@@ -109,11 +112,16 @@ class Radau(Stepper):
         self.newton_tol = max(10 * _EPS / self.rtol, min(0.03, self.rtol**0.5))
         self._J = self._call_jac(self.t, self.q, self.v)
         self._current_jac = True
-        self._lu = None  # (h, J, lu_real, piv_real, lu_complex, piv_complex)
+        # (h, J, lu_real, piv_real, lu_complex, piv_complex, singular)
+        self._lu: tuple[float, Any, np.ndarray, np.ndarray, np.ndarray, np.ndarray, bool] | None = None
         self._sol: DenseOutput | None = None
-        self._h_abs_old = self._err_old = None
-        self._y_old = self._qc_old = self._Z = None
-        self._df_start = None  # (J_q, J_v, G) at the current point, when known
+        self._h_abs_old: float | None = None
+        self._err_old: float | None = None
+        # the last step's start: None until a step is accepted, read only after one
+        self._y_old: np.ndarray = None  # type: ignore[assignment]  # no step yet
+        self._qc_old: np.ndarray | None = None
+        self._Z: np.ndarray | None = None
+        self._df_start: StageDF | None = None  # (J_q, J_v, G, J_p) at the current point, when known
 
     # -- linear algebra on (alpha I - [[0, I], [J_q, J_v]]) --------------------
 
@@ -129,13 +137,14 @@ class Radau(Stepper):
 
     def _solve(self, r: np.ndarray, real: bool) -> np.ndarray:
         """Solve ``(alpha I - J) x = r`` via the Schur complement on the velocity block."""
+        assert self._lu is not None  # factored by _ensure_lu before any solve
         h, (Jq, _), lur, pivr, luc, pivc, _ = self._lu
         nv = self.nv
         r1, r2 = r[:nv], r[nv:]
         if real and r.ndim == 2:  # phi's error estimate: one column at a time, because
             # OpenBLAS threads getrs with several right-hand sides, which costs ~0.1 ms a
             # call on small busy machines (10x the whole step in tests)
-            alpha = _MU_REAL / h
+            alpha: complex = _MU_REAL / h  # real here, complex for the conjugate pair
             b = alpha * r2 + Jq @ r1
             w = np.empty_like(b)
             for j in range(b.shape[1]):
@@ -158,6 +167,7 @@ class Radau(Stepper):
     # -- Newton on the collocation system ----------------------------------------
 
     def _newton(self, t: float, y: np.ndarray, h: float, Z0: np.ndarray, scale: np.ndarray, qc):
+        assert self._lu is not None  # factored by _ensure_lu before Newton
         if self._lu[6]:
             return False, 1, Z0, None
         nv = self.nv
@@ -196,6 +206,7 @@ class Radau(Stepper):
                 rate >= 1 or rate ** (_NEWTON_MAXITER - k) / (1 - rate) * dW_norm > self.newton_tol
             ):
                 # stalled at the field's round-off, far below the tolerance: the last iterate
+                assert dW_norm_old is not None  # rate is set from the second iterate on
                 converged = dW_norm <= NEWTON_STALL_TOL and dW_norm_old <= NEWTON_STALL_TOL
                 break
             W += dW
@@ -361,6 +372,7 @@ class Radau(Stepper):
     def _controlled_variational(self, t: float, h: float, y: np.ndarray, Z: np.ndarray, qc, rejected: bool):
         """phi_{n+1} of an attempt, (J_q, J_v) at its end and phi's error norm (Radau's estimator)."""
         P0 = self.phi
+        assert P0 is not None  # called only with a flow Jacobian
         dY, df_end = self._variational_stages(t, h, y, Z, qc, P0)
         phi_new = dY[2]
         if self._df_start is None:
@@ -375,6 +387,7 @@ class Radau(Stepper):
         return phi_new, df_end, err
 
     def _redo_variational(self, h: float) -> np.ndarray:
+        assert self.phi_old is not None  # called only with a flow Jacobian (`truncate`)
         return self._retake(self.t_old, self._y_old, h, self._qc_old, self.phi_old, _RETAKE_SPLITS)
 
     def _retake(self, t: float, y: np.ndarray, h: float, qc, P0: np.ndarray, splits: int) -> np.ndarray:
@@ -388,6 +401,7 @@ class Radau(Stepper):
         nv = self.nv
         q = y[:nv] if qc is None else self.group.integrate(qc, y[:nv])
         scale = self.atol + self.rtol * self._mag(y, None if qc is None else q)
+        assert self._sol is not None  # the step being re-taken has its polynomial
         Z0 = self._sol._y(t + h * _RC) - y  # same chart: an excellent guess
         for _ in range(2):
             self._ensure_lu(h)

@@ -1,42 +1,14 @@
 """The stepper base class: error-controlled one-step integration with dense output.
 
-The state is a Pinocchio configuration ``q`` (size ``nq``; a Lie-group element
-when the model has a free-flyer, spherical, planar or continuous joint) and a
-velocity ``v`` (size ``nv``) driven by ``dv/dt = accel(t, q, v)`` and
-``dq/dt = v`` in Pinocchio's sense, ``q(t + dt) = q(t) ⊕ dt·v + O(dt²)``.
-
-Lie groups are handled by Runge–Kutta–Munthe-Kaas in a chart re-centred at the
-start of every step: ``q = q_n ⊕ xi`` with ``xi(t_n) = 0`` and
-``dxi/dt = Jr(xi)^-1 v`` (exact dexpinv), so every Runge–Kutta method keeps its
-order; ``q_{n+1} = q_n ⊕ xi_{n+1}``. On vector spaces the chart is the identity
-and the steppers integrate ``y = (q, v)`` directly without any chart call.
-
-A stepper is driven one accepted step at a time by the hybrid loop::
-
-    st = make_stepper("DOP853", accel, PinocchioGroup(model), t0, q0, v0,
-                      rtol=1e-10, atol=1e-12)
-    st.step()                       # one accepted step [st.t_old, st.t]
-    dense = st.dense()              # (q, v) = dense(t) on that interval
-    st.truncate(t_event)            # keep the step only up to an event
-    st.restart(t_event, q_plus, v_plus, phi=Xi @ st.phi)   # after a jump
-
-Units and frames: time in the model's unit (s); ``q`` and ``v`` in Pinocchio's
-units and frames (m, rad, quaternion components; m/s and rad/s in each joint's
-local frame). The flow Jacobian ``phi`` (``2nv x m``) maps perturbations at the
-initial point to tangent perturbations ``(δq, δv)`` at the current point,
-``q ⊕ δq`` (Pinocchio's convention, docs/design.md §2); by default its local error
-is controlled together with the state's (``variational_error_control``).
-Integration runs forward in time only.
-
-Callbacks receive arrays that this module never modifies afterwards, so they
-may keep references to them (e.g. for caching).
+The state, units, frames, how a stepper is driven and what it provides are the
+package's contract (`contactdiff.ode`); what a new method implements is in `Stepper`'s
+docstring. Step-size control shared by the methods is in `contactdiff.ode.step_control`.
 """
 
 from __future__ import annotations
 
 import abc
-import math
-from typing import Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -50,25 +22,17 @@ from ..errors import (
     check_vector,
 )
 from .dense import DenseOutput
+from .field_types import AccelFn, JacFn, ParameterJacFn
 from .lie import _as_group
+from .step_control import _EPS, initial_step, roundoff_error
 from .variational import VariationalAlgebra
 
-AccelFn = Callable[[float, np.ndarray, np.ndarray], np.ndarray]
-"""``accel(t, q, v) -> dv/dt`` (nv,), in the joints' local frames."""
-JacFn = Callable[[float, np.ndarray, np.ndarray], "tuple[np.ndarray, np.ndarray]"]
-"""``jac(t, q, v) -> (J_q, J_v)``: d accel / d q (tangent, ``q ⊕ δq``) and d accel / d v, nv x nv each."""
-ParameterJacFn = Callable[[float, np.ndarray, np.ndarray], np.ndarray]
-"""``parameter_jac(t, q, v) -> J_p``: d accel / d p (nv x p) at fixed state, for p parameters."""
+if TYPE_CHECKING:
+    import pinocchio as pin
+    from numpy.typing import ArrayLike
 
-_EPS = np.finfo(float).eps
-_SAFETY = 0.9
-_MIN_FACTOR = 0.2  # largest allowed step decrease after a rejection
-_MAX_FACTOR = 10.0  # largest allowed step increase
-ROUNDOFF_MARGIN = 10.0
-"""A step's round-off, ``eps |y_new - y|`` (the dense output and the stages add terms the
-size of the step's change), times this margin must stay within the tolerance at the
-step's start, ``atol + rtol |y|`` (RMS over the components, as the error): see
-`Stepper._roundoff_error`."""
+    from .lie import LieGroup
+
 
 
 
@@ -85,15 +49,6 @@ def _combine(weights: np.ndarray, stack: np.ndarray) -> np.ndarray:
     product (``np.tensordot``'s Python-level reshaping costs more at these sizes)."""
     return (weights @ stack.reshape(len(weights), -1)).reshape(stack.shape[1:])
 
-
-def _rms(x: np.ndarray) -> float:
-    return math.sqrt(float(np.vdot(x, x)) / x.size)
-
-
-def _rms_cols(x: np.ndarray) -> float:
-    """Largest RMS over the rows of a column of ``x`` (n x m); inf if not finite."""
-    err = math.sqrt(float(np.max(np.einsum("ij,ij->j", x, x))) / x.shape[0])
-    return err if math.isfinite(err) else math.inf
 
 
 
@@ -129,7 +84,7 @@ class Stepper(VariationalAlgebra, abc.ABC):
     (buffers, after the base's ``__init__`` has set the point),
     ``_after_truncate()`` and ``_after_restart()`` (drop caches that belong to
     the abandoned step). States are ``y = (xi, v)`` in the chart at ``q`` of the
-    step's start (``y = (q, v)`` on a vector space; see `contactdiff.integration.lie`).
+    step's start (``y = (q, v)`` on a vector space; see `contactdiff.ode.lie`).
 
     Args:
         accel: ``accel(t, q, v) -> dv/dt`` (nv,); it may raise `OutsideDomainError`
@@ -194,25 +149,33 @@ class Stepper(VariationalAlgebra, abc.ABC):
     method: str = ""
     error_order: int = 0  # error ~ h^(error_order + 1); for the first-step heuristic
 
+    # the previous point: None until a step is accepted (and after a restart); read only
+    # after one (`dense`, `truncate` check ``t_old is None`` first)
+    t_old: float
+    q_old: np.ndarray
+    v_old: np.ndarray
+    phi_old: np.ndarray | None
+    _outside: OutsideDomainError | None
+
     def __init__(
         self,
         accel: AccelFn,
-        group,
+        group: LieGroup | pin.Model,
         t0: float,
-        q0,
-        v0,
+        q0: ArrayLike,
+        v0: ArrayLike,
         *,
         rtol: float = 1e-6,
-        atol=1e-9,
+        atol: ArrayLike = 1e-9,
         jac: JacFn | None = None,
         first_step: float | None = None,
         max_step: float = np.inf,
         t_bound: float = np.inf,
-        variational=None,
+        variational: ArrayLike | None = None,
         variational_error_control: bool = True,
-        variational_atol=None,
+        variational_atol: ArrayLike | None = None,
         parameter_jac: ParameterJacFn | None = None,
-        variational_column_scale=None,
+        variational_column_scale: ArrayLike | None = None,
     ) -> None:
         if not callable(accel):
             raise InvalidInputError(f"accel must be callable accel(t, q, v), got {accel!r}")
@@ -251,7 +214,7 @@ class Stepper(VariationalAlgebra, abc.ABC):
             raise InvalidInputError(f"t_bound must be >= t0 = {t0!r} (forward integration only), got {t_bound!r}")
         self.variational_error_control = bool(variational_error_control)
         if variational_atol is None:
-            self._atol_phi = self.atol if atol_arr.ndim == 0 else self.atol[:, None]
+            self._atol_phi = self.atol if atol_arr.ndim == 0 else atol_arr[:, None]
         else:
             va = np.array(variational_atol, dtype=float)
             if va.shape not in ((), (self.n,)):
@@ -272,7 +235,7 @@ class Stepper(VariationalAlgebra, abc.ABC):
 
         self.n_steps = self.n_rejected = self.n_accel = self.n_jac = 0
         self._outside = None
-        self.t_old = self.q_old = self.v_old = self.phi_old = None
+        self.t_old = self.q_old = self.v_old = self.phi_old = None  # type: ignore[assignment]  # no step yet (class doc)
         self._y = self._point_y(self.q, self.v)
         self._f = self._point_f(self.t, self.q, self.v)
         self._setup()
@@ -338,8 +301,9 @@ class Stepper(VariationalAlgebra, abc.ABC):
         self._f = self._point_f(t, q, v)
         self._after_truncate()
 
-    def restart(self, t: float, q, v, phi=None, *, accel: AccelFn | None = None, jac: JacFn | None = None,
-                t_bound: float | None = None, parameter_jac: ParameterJacFn | None = None) -> None:
+    def restart(self, t: float, q: ArrayLike, v: ArrayLike, phi: ArrayLike | None = None, *,
+                accel: AccelFn | None = None, jac: JacFn | None = None, t_bound: float | None = None,
+                parameter_jac: ParameterJacFn | None = None) -> None:
         """Start again from a new state (after a jump or a mode change).
 
         The step-size estimate is kept; Jacobian, LU factors and the dense
@@ -380,7 +344,7 @@ class Stepper(VariationalAlgebra, abc.ABC):
         if phi is not None:
             self.phi = self._check_phi(phi)
         self.t, self.q, self.v = t, q, v
-        self.t_old = self.q_old = self.v_old = self.phi_old = None
+        self.t_old = self.q_old = self.v_old = self.phi_old = None  # type: ignore[assignment]  # no step yet (class doc)
         self._y = self._point_y(q, v)
         self._f = self._point_f(t, q, v)
         self._after_restart()
@@ -435,6 +399,7 @@ class Stepper(VariationalAlgebra, abc.ABC):
         """Sizes that ``rtol`` is relative to, per component of ``y``."""
         if self._vs:
             return np.abs(y)
+        assert q is not None  # off vector spaces the caller passes the point
         return np.concatenate((self.group.magnitude(q), np.abs(y[self.nv :])))
 
     def _eval_into(self, t: float, y: np.ndarray, out: np.ndarray, qc, accel=None) -> np.ndarray:
@@ -464,48 +429,23 @@ class Stepper(VariationalAlgebra, abc.ABC):
             )
 
     def _initial_step(self) -> float:
-        """Hairer–Nørsett–Wanner's starting step (as scipy's ``select_initial_step``)."""
-        interval = self.t_bound - self.t
-        if interval == 0.0:
-            return min(1.0, self.max_step)  # nothing to integrate; any positive value
-        y0, f0 = self._y, self._f
-        scale = self.atol + self.rtol * self._mag(y0, self.q)
-        d0 = _rms(self._mag(y0, self.q) / scale)
-        d1 = _rms(f0 / scale)
-        h0 = 1e-6 if d0 < 1e-5 or d1 < 1e-5 else 0.01 * d0 / d1
-        h0 = min(h0, interval)
-        y1 = y0 + h0 * f0
-        f1 = np.empty(self.n)
-        try:
-            self._eval_into(self.t + h0, y1, f1, None if self._vs else self.q)
-        except OutsideDomainError:  # the trial point left the field's domain: the step will shrink
-            return min(h0, self.max_step)
-        self._nonfinite_stage(self.t + h0, y1, f1[self.nv :])
-        d2 = _rms((f1 - f0) / scale) / h0
-        if d1 <= 1e-15 and d2 <= 1e-15:
-            h1 = max(1e-6, h0 * 1e-3)
-        else:
-            h1 = (0.01 / max(d1, d2)) ** (1.0 / (self.error_order + 1))
-        return min(100 * h0, h1, interval, self.max_step)
+        """The first step (s): `step_control.initial_step` at the current point."""
+
+        def field(h0: float, y1: np.ndarray) -> np.ndarray | None:
+            f1 = np.empty(self.n)
+            try:
+                self._eval_into(self.t + h0, y1, f1, None if self._vs else self.q)
+            except OutsideDomainError:
+                return None
+            self._nonfinite_stage(self.t + h0, y1, f1[self.nv :])
+            return f1
+
+        return initial_step(self.t_bound - self.t, self.max_step, self._y, self._f, self._mag(self._y, self.q),
+                            self.atol, self.rtol, self.error_order, field)
 
     def _roundoff_error(self, y: np.ndarray, y_new: np.ndarray, mag: np.ndarray) -> float:
-        """Round-off of a step from ``y`` to ``y_new`` (same chart) relative to the tolerance
-        at its start (``mag``: `_mag` there), times `ROUNDOFF_MARGIN`. A step where this
-        exceeds 1 is rejected; below, it caps the growth of the next step (the error
-        control's choice is kept wherever it is smaller, so ordinary runs never see it).
-
-        The error estimate of an exact step is zero (free flight under constant gravity
-        is a polynomial), so without this bound such steps grow tenfold each time until
-        ``t_bound``: their length, and the state's change over them, then scale with the
-        final time asked for (a ball bouncing at t = 12 s in a step to t = 1e9 s). Every
-        point of a step's dense output carries round-off of order eps times that change,
-        which for long enough steps exceeds the tolerance where the step starts (a ball's
-        bounce of 1e-6 m/s, just after a step's start, resolved in a step whose end lies
-        5e17 m below the ground). The bound keeps every step's round-off below its
-        tolerance, whatever the final time; it never binds on steps of ordinary length
-        (with atol = 1e-10 a step would have to change a state component by ~1e4)."""
-        scale = self.atol + self.rtol * mag
-        return ROUNDOFF_MARGIN * _EPS * _rms((y_new - y) / scale)
+        """`step_control.roundoff_error` of a step from ``y`` to ``y_new`` (``mag``: `_mag` at its start)."""
+        return roundoff_error(y, y_new, mag, self.atol, self.rtol)
 
     def _begin_step(self) -> tuple[float, float]:
         """Check that a step is possible; return (min_step, first h to try)."""

@@ -8,8 +8,10 @@ import numpy as np
 
 from ..errors import InvalidInputError, OutsideDomainError
 from . import tableaus
+from .base import Stepper, _combine
 from .dense import DenseOutput, LazyDenseOutput
-from .stepper import _MAX_FACTOR, _MIN_FACTOR, _SAFETY, Stepper, _combine, _rms, _rms_cols
+from .step_control import _MAX_FACTOR, _MIN_FACTOR, _SAFETY, _rms, _rms_cols
+from .variational import StageDF
 
 
 class ExplicitRK(Stepper):
@@ -33,14 +35,20 @@ class ExplicitRK(Stepper):
     C: np.ndarray
     n_stages: int
     n_rows: int  # rows of the stage buffer (stages + FSAL + dense-output extras)
+    E: np.ndarray  # error weights (of the embedded pair)
+    # the last step's start and end: None until a step is accepted, read only after one
+    _f_old: np.ndarray
+    _y_old: np.ndarray
+    _y_end: np.ndarray
+    _qc_old: np.ndarray | None  # the step's chart point (None on vector spaces)
 
     def _setup(self) -> None:
         self._K = np.empty((self.n_rows, self.n))
         self._dense_cache: DenseOutput | None = None
-        self._f_old = self._y_old = self._qc_old = self._y_end = None
+        self._f_old = self._y_old = self._qc_old = self._y_end = None  # type: ignore[assignment]  # no step yet
         self._h_last = 0.0
         self._KP: np.ndarray | None = None  # stage increments of phi, (n_stages + 1, n, m)
-        self._df_start = None  # DF at the current point (t, y), when known
+        self._df_start: StageDF | None = None  # DF at the current point (t, y), when known
         # stages the error formula uses: the FSAL stage only if it has a nonzero weight
         self._n_err = self.n_stages + int(any(e[self.n_stages] != 0 for e in self._error_weights()))
 
@@ -114,7 +122,8 @@ class ExplicitRK(Stepper):
         mag_n = self._mag(y, qc)
         exponent = -1.0 / (self.error_order + 1)
         control = self.phi is not None and self.variational_error_control
-        phi_new = df_end = None
+        phi_new: np.ndarray | None = None
+        df_end = None
         rejected = False
         while True:
             if h_abs < min_step:
@@ -185,6 +194,7 @@ class ExplicitRK(Stepper):
 
     def _redo_variational(self, h: float) -> np.ndarray:
         self._K[0] = self._f_old
+        assert self.phi_old is not None  # called only with a flow Jacobian (`truncate`)
         _, _, ys, qs = self._stages(self.t_old, self._y_old, h, self._qc_old)
         return self._variational(self.t_old, h, ys, qs, self.phi_old)
 
