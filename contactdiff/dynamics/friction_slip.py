@@ -25,6 +25,7 @@ evaluation methods).
 from __future__ import annotations
 
 import functools
+import math
 from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
@@ -48,8 +49,12 @@ _GRID_POINTS = {2: 48, 3: 20}  # per axis; more sliders: _GRID_BUDGET in all
 _GRID_BUDGET = 20000
 _GRID_STARTS = 48
 _FP_SWEEPS = 1000  # until a relative change of 1e-14; a cap, most touchdowns converge in far fewer
+_FP_CYCLE = 8  # iterates kept to recognise a cycle in round-off (periods 2 to 5 seen on face landings)
 _POLE_GAP = 1e-9  # rad: scan points beside a pole of one slider's Λ_N
 _DUPLICATE = 1e-8  # rad: two roots closer than this are one
+# OpenBLAS's gemm runs on one thread up to this many multiply-adds (its SMP_THRESHOLD_MIN
+# 65536 times GEMM_MULTITHREAD_THRESHOLD 4)
+_ONE_THREAD = 65536 * 4
 
 # A post-impact slip below this share of the velocity scale has no direction.
 SLIP_ZERO = 1e-14
@@ -95,6 +100,45 @@ def _run_starts(mask: np.ndarray) -> np.ndarray:
         starts = np.zeros_like(mask)
         starts[0] = True
     return starts
+
+
+def _thin_matmul(X: np.ndarray, Y: np.ndarray) -> np.ndarray:
+    """``X @ Y`` (2-D) in blocks of rows of ``X`` (or columns of ``Y``, whichever is
+    longer) of at most `_ONE_THREAD` multiply-adds each: the slip search's products are
+    thin (a few columns) and long (a grid of thousands of angles), and OpenBLAS runs a
+    larger product on every core, whose start-up costs more than the product (the
+    search ran 1.6 times slower with it on two busy cores). Each element is the same
+    sum as in the whole product. Blocks have at least two rows (columns): numpy takes
+    a vector kernel for one."""
+    m, k = X.shape
+    n = Y.shape[1]
+    if m * k * n <= _ONE_THREAD or min(m, k, n) < 2:
+        return X @ Y
+    if m >= n:
+        step = max(2, _ONE_THREAD // (k * n))
+        cuts = list(range(0, m, step))
+        if m - cuts[-1] < 2:
+            cuts.pop()
+        return np.concatenate([X[a:b] @ Y for a, b in zip(cuts, cuts[1:] + [m])], axis=0)
+    step = max(2, _ONE_THREAD // (k * m))
+    cuts = list(range(0, n, step))
+    if n - cuts[-1] < 2:
+        cuts.pop()
+    return np.concatenate([X @ Y[:, a:b] for a, b in zip(cuts, cuts[1:] + [n])], axis=1)
+
+
+def _congruence(U: np.ndarray, K: np.ndarray) -> np.ndarray:
+    """``Uᵀ K[i] U`` for a stack ``K`` (P, p, p), ``U`` (p, r): the stacked product
+    computed as two products of all P matrices at once (one BLAS call each, not one
+    per matrix), each element the same sum over the same terms; with ``r = 1`` (where
+    numpy takes vector kernels) or one matrix, the stacked product itself."""
+    P, p, _ = K.shape
+    r = U.shape[1]
+    if r < 2 or P < 2:
+        return U.T @ K @ U
+    left = _thin_matmul(K.transpose(0, 2, 1).reshape(P * p, p), U).reshape(P, p, r)  # (Uᵀ K[i])ᵀ
+    left = np.ascontiguousarray(left.transpose(0, 2, 1))
+    return _thin_matmul(left.reshape(P * r, p), U).reshape(P, r, r)
 
 
 def _solve_stack(K: np.ndarray, rhs: np.ndarray) -> np.ndarray:
@@ -143,23 +187,41 @@ class SlipMap:
         U = self.U
         if U is None:
             return _solve_stack(K, rhs)
-        return U @ _solve_stack(U.T @ K @ U, U.T @ rhs)
+        return U @ _solve_stack(_congruence(U, K), U.T @ rhs)
 
-    def __call__(self, theta: np.ndarray, jac: bool = True):
+    def _solve_r(self, K: np.ndarray) -> np.ndarray:
+        """``K[i] z[i] = r`` for a stack (P, p, p) with one right-hand side: `_solve`
+        with ``Uᵀ r`` formed once for all matrices (P, p, 1)."""
+        U, P = self.U, K.shape[0]
+        if U is None:
+            return _solve_stack(K, np.broadcast_to(self.r, (P, self.r.size))[..., None])
+        Ur = U.T @ self.r[:, None]
+        return U @ _solve_stack(_congruence(U, K), np.broadcast_to(Ur, (P,) + Ur.shape))
+
+    def turns(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
+        """``cos θ``, ``sin θ`` (P, ns) and the friction columns ``a_k(θ)`` (m, P) of
+        each slider at angles ``theta`` (P, ns): what `__call__` forms first. They
+        depend on the sliders and the angles only, not on the rest of the candidate, so
+        a problem forms them once per set of sliders for its grid (`grid_turns`)."""
+        cs, sn = np.cos(theta), np.sin(theta)
+        a = [_thin_matmul(self.GT[j], np.stack([cs[:, j], sn[:, j]])) for j in range(theta.shape[1])]
+        return cs, sn, a
+
+    def __call__(self, theta: np.ndarray, jac: bool = True, turns=None):
         """For angles ``theta`` of shape (P, ns): the residual f (P, ns), its
         Jacobian (P, ns, ns) or None, the feasibility of the law's other
         conditions (P,), whether every slip is along (not against) its ``s``
         (P,) and the scale of f (P,). With ``cross``, ``f_k = s_k x u+_T,k``
-        (smooth; scale: the velocity scale), else ``f_k = g_k`` (scale 1)."""
+        (smooth; scale: the velocity scale), else ``f_k = g_k`` (scale 1).
+        ``turns``: `turns` of ``theta`` if already formed."""
         P, ns = theta.shape
-        cs, sn = np.cos(theta), np.sin(theta)
-        a = [self.GT[j] @ np.stack([cs[:, j], sn[:, j]]) for j in range(ns)]  # (m, P) each
+        cs, sn, a = self.turns(theta) if turns is None else turns  # a: (m, P) each
         K = np.repeat(self.K0[None], P, axis=0)
         for j in range(ns):
             K[:, :, self.c[j]] += a[j][self.eq].T
-        z = self._solve(K, np.broadcast_to(self.r, (P, self.r.size))[..., None])[..., 0]
+        z = self._solve_r(K)[..., 0]
         zc = z[:, self.c]
-        up = self.prob.u + z @ self.GB0.T
+        up = self.prob.u + _thin_matmul(z, self.GB0.T)
         for j in range(ns):
             up += a[j].T * zc[:, j, None]
         lam_max = np.maximum(np.abs(z).max(axis=1, initial=0.0), (np.abs(zc) * self.mu_s).max(axis=1))
@@ -184,7 +246,7 @@ class SlipMap:
         rhs = np.empty((P, self.r.size, ns))
         da = []
         for j in range(ns):
-            da.append(self.GT[j] @ np.stack([-sn[:, j], cs[:, j]]))
+            da.append(_thin_matmul(self.GT[j], np.stack([-sn[:, j], cs[:, j]])))
             rhs[:, :, j] = da[j][self.eq].T * zc[:, j, None]
         dup = GB @ -self._solve(K, rhs)
         for j in range(ns):
@@ -257,6 +319,7 @@ class SlipDirections:
         normal: np.ndarray
         tang: tuple[np.ndarray, ...]
         _fp: tuple[np.ndarray, np.ndarray] | None
+        _grids: dict[tuple[int, ...], tuple]
 
         def evaluate(self, states, dirs, lay) -> _Eval:
             """The candidate at the given states and slip directions (the subclass's)."""
@@ -319,10 +382,9 @@ class SlipDirections:
         free = self.evaluate(states, dirs, lay)  # sliders without their friction columns
         starts.append(np.array([np.arctan2(free.up[self.tang[k][1]], free.up[self.tang[k][0]])
                                 for k in spatial]))
+        per_axis, grid, turns = self.grid_turns(fmap, spatial, pre)
         ns = len(spatial)
-        per_axis, offsets = _torus_grid(ns)
-        grid = pre + offsets
-        f, _, feas, _, vscale = fmap(grid, jac=False)
+        f, _, feas, _, vscale = fmap(grid, jac=False, turns=turns)
         merit = np.abs(f).max(axis=1) / vscale + np.where(feas, 0.0, 1.0)
         merit = np.where(np.isfinite(merit), merit, np.inf).reshape((per_axis,) * ns)
         local = np.isfinite(merit)
@@ -333,6 +395,18 @@ class SlipDirections:
         idx = idx[np.argsort(merit.ravel()[idx], kind="stable")][:_GRID_STARTS]
         starts.extend(grid[idx])
         return self.newton(fmap, np.array(starts))
+
+    def grid_turns(self, fmap, spatial, pre) -> tuple[int, np.ndarray, tuple]:
+        """The torus grid of the sliders ``spatial`` from their pre-impact slip angles
+        ``pre`` (points per axis, the angles) and its `SlipMap.turns`, formed once per
+        set of sliders in a problem: its candidates with the same sliders (a face's
+        corners sticking or open around them) share them."""
+        key = tuple(spatial)
+        if key not in self._grids:
+            per_axis, offsets = _torus_grid(len(spatial))
+            grid = pre + offsets
+            self._grids[key] = (per_axis, grid, fmap.turns(grid))
+        return self._grids[key]
 
     def cross_roots(self, fmap, pre: float) -> list[tuple[np.ndarray, float]]:
         """One spatial slider: the sign changes of the cross form ``s × u+_T`` over the
@@ -394,6 +468,9 @@ class SlipDirections:
         normal row and ``ρ_k = 1 / max diag G_kk``. Its fixed points are the
         solutions of the law; it need not converge (at most _FP_SWEEPS sweeps: on the
         ANYmal trot's touchdowns 100 left sticking feet with a residual slip, 1000 do not).
+        Where the iterates fall into a cycle in round-off (an iterate equal, bit for bit,
+        to one of the last _FP_CYCLE: often, on a face's corners), the sweeps stop there
+        with the iterate they would have reached at the cap.
         """
         if self._fp is not None:
             return self._fp
@@ -409,18 +486,46 @@ class SlipDirections:
             at = slice(int(r[0]), int(r[-1]) + 1) if np.array_equal(r, np.arange(r[0], r[-1] + 1)) else r
             sweep.append((at, self.u[r], self.G[r], self.e[k] * self.u[self.normal[k]], friction,
                           t.size and mu > 0.0, dg, mu if t.size else 0.0))
-        for _ in range(_FP_SWEEPS):
+        recent = [lam.copy()]  # the iterates after the last sweeps (L_0 first), at most _FP_CYCLE
+        for done in range(1, _FP_SWEEPS + 1):
             old = lam.copy()
             for at_rows, u_r, G_r, restitution, friction, coulomb, dg, cone in sweep:
                 w = u_r + G_r @ lam
                 if coulomb:
-                    w[0] += restitution + (friction * np.linalg.norm(w[1:]) if friction is not None else 0.0)
+                    wt = w[1:]  # the norm as np.linalg.norm forms it (the BLAS dot, then sqrt)
+                    w[0] += restitution + (friction * math.sqrt(wt.dot(wt)) if friction is not None else 0.0)
                 else:
                     w[0] += restitution
                 x = lam[at_rows] - w / dg if dg > 0.0 else lam[at_rows]
-                lam[at_rows] = project_cone(x, cone)
+                if cone == np.inf:
+                    lam[at_rows] = project_cone(x, cone)
+                    continue
+                # `project_cone` inlined, its arithmetic unchanged (a sweep is mostly call overhead)
+                xt = x[1:]
+                xn, xt_norm = float(x[0]), math.sqrt(xt.dot(xt))
+                if xn >= 0.0 and xt_norm <= cone * xn:
+                    lam[at_rows] = x
+                elif cone * xt_norm <= -xn:
+                    lam[at_rows] = 0.0
+                else:
+                    n2 = (xn + cone * xt_norm) / (1.0 + cone * cone)
+                    xt *= cone * n2 / xt_norm
+                    x[0] = n2
+                    lam[at_rows] = x
             if np.abs(lam - old).max() <= 1e-14 * max(np.abs(lam).max(), 1e-300):
                 break
+            # a cycle in round-off: the iterate equals one p sweeps back, bit for bit. A
+            # sweep is a function of the iterate alone, so the iterates repeat with period p
+            # from there, and the stop test, failed at every step of one period, fails
+            # forever: the loop would end at the cap, on the iterate of its phase there
+            period = next((p for p in range(1, len(recent) + 1) if np.array_equal(recent[-p], lam)), None)
+            if period is not None:
+                phase = (_FP_SWEEPS - done) % period
+                lam = recent[phase - period] if phase else lam
+                break
+            recent.append(lam.copy())
+            if len(recent) > _FP_CYCLE:
+                del recent[0]
         self._fp = (lam, self.u + self.G @ lam)
         return self._fp
 

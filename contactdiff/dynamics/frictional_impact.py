@@ -307,6 +307,7 @@ class _Impact(SlipDirections):
         # `contactdiff.dynamics.redundant`, and no first guess (module doc)
         self.redundant = gram_range_basis(G) is not None
         self._bases: dict[tuple[int, ...], np.ndarray | None] = {}
+        self._grids: dict[tuple[int, ...], tuple] = {}  # `SlipDirections.grid_turns`
 
     def equality_basis(self, eq) -> np.ndarray | None:
         """With dependent rows, a basis of the range of the equality rows ``eq`` of a
@@ -373,6 +374,9 @@ class _Impact(SlipDirections):
     def solve(self) -> FrictionalImpact:
         # with dependent rows the approximation's pattern completed first, then as it is
         guesses = [self.predicted(complete=True), self.predicted()] if self.redundant else [self.predicted()]
+        # the guesses that failed (a candidate is a function of the problem: tried again in
+        # the enumeration, it fails again; it is counted, and its search's failure noted, again)
+        failed: dict[tuple, bool] = {}
         for guess in dict.fromkeys(g for g in guesses if g is not None):
             states, sliding = guess
             planar = [k for k in sliding if self.tang[k].size == 1]
@@ -380,9 +384,11 @@ class _Impact(SlipDirections):
             _, up = self.fixed_point()
             signs = {k: (1.0 if up[self.tang[k][0]] >= 0.0 else -1.0) for k in planar}
             self.tried += 1
+            noted = len(self.newton_failed)
             out = self.try_candidate(states, signs, spatial)
             if out is not None:
                 return out
+            failed[(states, tuple(sorted(signs.items())))] = len(self.newton_failed) > noted
         for states, sliding in self.candidates():
             planar = [k for k in sliding if self.tang[k].size == 1]
             spatial = [k for k in sliding if self.tang[k].size == 2]
@@ -390,6 +396,11 @@ class _Impact(SlipDirections):
             for flips in itertools.product((1.0, -1.0), repeat=len(planar)):
                 signs = {k: pref[k] * f for k, f in zip(planar, flips)}
                 self.tried += 1
+                key = (states, tuple(sorted(signs.items())))
+                if key in failed:
+                    if failed[key]:
+                        self.newton_failed.append(_describe(states, signs))
+                    continue
                 out = self.try_candidate(states, signs, spatial)
                 if out is not None:
                     return out
@@ -437,7 +448,7 @@ class _Impact(SlipDirections):
             if states[k] is ContactState.SLIDE and k in dirs:
                 B[self.tang[k], c] = -self.mu[k] * dirs[k]
         for k, cs in cols_t.items():
-            B[np.ix_(self.tang[k], cs)] = np.eye(cs.size)
+            B[self.tang[k], cs] = 1.0  # the identity block of a sticking contact's tangential rows
         return B
 
     def evaluate(self, states, dirs, lay) -> _Eval:
