@@ -52,35 +52,48 @@ class _Parser(argparse.ArgumentParser):
 
 def _add_source(parser: argparse.ArgumentParser) -> None:
     """SOURCE and the options that say how a robot stands on its feet."""
-    parser.add_argument("source", metavar="SOURCE",
-                        help="scene (TOML path or robots/ name) or robot (URDF path or "
-                             "example-robot-data name such as solo12)")
-    parser.add_argument("--feet", metavar="FRAME,FRAME,...",
-                        help="a robot's foot frames, chosen by hand (default: the lowest end frames "
-                             "at its reference pose)")
-    parser.add_argument("--floating-base", action="store_true", default=None,
-                        help="load a URDF path with a free-flyer base (its feet are then found)")
+    parser.add_argument(
+        "source",
+        metavar="SOURCE",
+        help="scene (TOML path or robots/ name) or robot (URDF path or example-robot-data name such as solo12)",
+    )
+    parser.add_argument(
+        "--feet",
+        metavar="FRAME,FRAME,...",
+        help="a robot's foot frames, chosen by hand (default: the lowest end frames at its reference pose)",
+    )
+    parser.add_argument(
+        "--floating-base",
+        action="store_true",
+        default=None,
+        help="load a URDF path with a free-flyer base (its feet are then found)",
+    )
 
 
 def build_parser() -> argparse.ArgumentParser:
     """The ``contactdiff`` argument parser: subcommands check, simulate, bench, stride and sweep."""
     parser = _Parser(
-        prog="contactdiff",
-        description="Differentiability through contact: check robots for limb decoupling.")
+        prog="contactdiff", description="Differentiability through contact: check robots for limb decoupling."
+    )
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     check = sub.add_parser(
-        "check", help="decoupling / orthogonality report of a scene or robot",
+        "check",
+        help="decoupling / orthogonality report of a scene or robot",
         description="Measure how far a scene is from the paper's assumptions: inverse-mass "
-                    "coupling of every contact pair, and limbs decoupled through the body.")
+        "coupling of every contact pair, and limbs decoupled through the body.",
+    )
     _add_source(check)
-    check.add_argument("--samples", type=COUNT, default=20,
-                       help="random poses besides the reference (default 20)")
+    check.add_argument("--samples", type=COUNT, default=20, help="random poses besides the reference (default 20)")
     check.add_argument("--seed", type=SEED, default=0, help="seed of the random poses, >= 0 (default 0)")
-    check.add_argument("--armature", type=NONNEGATIVE, default=0.0,
-                       help="rotor inertia added to actuated joints, kg m^2; the report "
-                            "is compared with the one without it")
-    check.add_argument("--tol", type=POSITIVE, default=1e-9,
-                       help="relative size below which a coupling counts as zero (default 1e-9)")
+    check.add_argument(
+        "--armature",
+        type=NONNEGATIVE,
+        default=0.0,
+        help="rotor inertia added to actuated joints, kg m^2; the report is compared with the one without it",
+    )
+    check.add_argument(
+        "--tol", type=POSITIVE, default=1e-9, help="relative size below which a coupling counts as zero (default 1e-9)"
+    )
     check.add_argument("--json", action="store_true", help="print the report as JSON")
     check.set_defaults(run=_run_check)
 
@@ -90,128 +103,246 @@ def build_parser() -> argparse.ArgumentParser:
     from .replay import DEFAULT_FPS
 
     sim = sub.add_parser(
-        "simulate", help="event-driven simulation: events, final state",
+        "simulate",
+        help="event-driven simulation: events, final state",
         description="Integrate a scene event by event (touchdown, lift-off, bounce) and "
-                    "print its events and final state.")
+        "print its events and final state.",
+    )
     _add_source(sim)
     sim.add_argument("--t-final", type=FINITE, required=True, help="final time (s)")
-    sim.add_argument("--q", action="append", default=[], metavar="JOINT=VALUE",
-                     help="initial joint coordinate (repeatable); comma-separated for multi-dof joints")
-    sim.add_argument("--v", action="append", default=[], metavar="JOINT=VALUE",
-                     help="initial joint velocity (repeatable)")
+    sim.add_argument(
+        "--q",
+        action="append",
+        default=[],
+        metavar="JOINT=VALUE",
+        help="initial joint coordinate (repeatable); comma-separated for multi-dof joints",
+    )
+    sim.add_argument(
+        "--v", action="append", default=[], metavar="JOINT=VALUE", help="initial joint velocity (repeatable)"
+    )
     defaults = SimulateOptions()  # every default below is the options' own
-    sim.add_argument("--method", default=defaults.method, choices=SIMULATE_METHODS,
-                     help=f"stepper: {AUTO} (DOP853, switching to Radau while stiff; the default), "
-                          "or one used throughout")
-    sim.add_argument("--rtol", type=FINITE, default=defaults.rtol,
-                     help=f"relative tolerance in [{RTOL_MIN:.3g}, {RTOL_MAX:g}] (default {defaults.rtol:g})")
-    sim.add_argument("--atol", type=FINITE, default=defaults.atol,
-                     help=f"absolute tolerance in (0, {ATOL_MAX:g}] (m, rad, m/s; default {defaults.atol:g})")
-    sim.add_argument("--max-steps", type=COUNT, default=defaults.max_steps,
-                     help="step budget: a run needing more accepted steps stops with an error "
-                          f"(default {defaults.max_steps}, at least 1)")
-    sim.add_argument("--max-events", type=COUNT, default=defaults.max_events,
-                     help=f"event budget: a run with more events stops with an error (default {defaults.max_events})")
-    sim.add_argument("--zeno-speed", type=FINITE, default=defaults.zeno_speed,
-                     help="a contact closing slower than this (m/s, >= 0) does not bounce: a bounce "
-                          f"sequence ends there and the contact stays closed (default {defaults.zeno_speed:g})")
-    sim.add_argument("--grazing-speed", type=FINITE, default=defaults.grazing_speed,
-                     help=f"a touchdown slower than this (m/s, >= 0) is grazing (default {defaults.grazing_speed:g})")
-    sim.add_argument("--grazing-gap", type=FINITE, default=None,
-                     help="a gap that comes down to within this distance (m, >= 0) of the ground and turns back "
-                          "up is a near-grazing miss (default 10 (atol + rtol |q|))")
-    sim.add_argument("--on-grazing", choices=tuple(OnGrazing), default=defaults.on_grazing.value,
-                     help="event: a grazing touchdown is an event, a near-grazing miss a note (the default); "
-                          "raise: both stop the run with an error")
-    sim.add_argument("--jacobian", action="store_true",
-                     help="also compute the flow Jacobian d x(T)/d x0 and every saltation matrix")
-    sim.add_argument("--param", action="append", default=[], metavar="NAME",
-                     help="differentiate the final state with respect to this scene parameter "
-                          "(kind:name:field, e.g. body:base_link:mass, contact:FL_FOOT:restitution, "
-                          "scene:gravity_z; repeatable; 'all' for every parameter of the scene; "
-                          "'list' prints the names); with --jacobian also the state's flow Jacobian")
+    sim.add_argument(
+        "--method",
+        default=defaults.method,
+        choices=SIMULATE_METHODS,
+        help=f"stepper: {AUTO} (DOP853, switching to Radau while stiff; the default), or one used throughout",
+    )
+    sim.add_argument(
+        "--rtol",
+        type=FINITE,
+        default=defaults.rtol,
+        help=f"relative tolerance in [{RTOL_MIN:.3g}, {RTOL_MAX:g}] (default {defaults.rtol:g})",
+    )
+    sim.add_argument(
+        "--atol",
+        type=FINITE,
+        default=defaults.atol,
+        help=f"absolute tolerance in (0, {ATOL_MAX:g}] (m, rad, m/s; default {defaults.atol:g})",
+    )
+    sim.add_argument(
+        "--max-steps",
+        type=COUNT,
+        default=defaults.max_steps,
+        help="step budget: a run needing more accepted steps stops with an error "
+        f"(default {defaults.max_steps}, at least 1)",
+    )
+    sim.add_argument(
+        "--max-events",
+        type=COUNT,
+        default=defaults.max_events,
+        help=f"event budget: a run with more events stops with an error (default {defaults.max_events})",
+    )
+    sim.add_argument(
+        "--zeno-speed",
+        type=FINITE,
+        default=defaults.zeno_speed,
+        help="a contact closing slower than this (m/s, >= 0) does not bounce: a bounce "
+        f"sequence ends there and the contact stays closed (default {defaults.zeno_speed:g})",
+    )
+    sim.add_argument(
+        "--grazing-speed",
+        type=FINITE,
+        default=defaults.grazing_speed,
+        help=f"a touchdown slower than this (m/s, >= 0) is grazing (default {defaults.grazing_speed:g})",
+    )
+    sim.add_argument(
+        "--grazing-gap",
+        type=FINITE,
+        default=None,
+        help="a gap that comes down to within this distance (m, >= 0) of the ground and turns back "
+        "up is a near-grazing miss (default 10 (atol + rtol |q|))",
+    )
+    sim.add_argument(
+        "--on-grazing",
+        choices=tuple(OnGrazing),
+        default=defaults.on_grazing.value,
+        help="event: a grazing touchdown is an event, a near-grazing miss a note (the default); "
+        "raise: both stop the run with an error",
+    )
+    sim.add_argument(
+        "--jacobian", action="store_true", help="also compute the flow Jacobian d x(T)/d x0 and every saltation matrix"
+    )
+    sim.add_argument(
+        "--param",
+        action="append",
+        default=[],
+        metavar="NAME",
+        help="differentiate the final state with respect to this scene parameter "
+        "(kind:name:field, e.g. body:base_link:mass, contact:FL_FOOT:restitution, "
+        "scene:gravity_z; repeatable; 'all' for every parameter of the scene; "
+        "'list' prints the names); with --jacobian also the state's flow Jacobian",
+    )
     sim.add_argument("--json", action="store_true", help="print the trajectory summary as JSON")
-    add_plot(sim, "draw contact gaps over time with events marked; for a floating base, "
-                   "the contact timeline and the base height, roll and pitch")
-    sim.add_argument("--html", metavar="FILE",
-                     help="write a self-contained HTML page that replays the run in 3-D in a browser, "
-                          "offline: the robot, its closed contacts, the events on a timeline "
-                          "(needs meshcat: pip install 'contactdiff[viz]')")
-    sim.add_argument("--package-dir", action="append", default=[], metavar="DIR",
-                     help="with --html: a folder in which the URDF's package://NAME/... meshes are found as "
-                          "DIR/NAME/... (repeatable; the folders above the URDF are searched too)")
-    sim.add_argument("--fps", type=POSITIVE, default=DEFAULT_FPS,
-                     help=f"with --html: frames per second of simulated time (default {DEFAULT_FPS:g}; "
-                          "events are frames too)")
+    add_plot(
+        sim,
+        "draw contact gaps over time with events marked; for a floating base, "
+        "the contact timeline and the base height, roll and pitch",
+    )
+    sim.add_argument(
+        "--html",
+        metavar="FILE",
+        help="write a self-contained HTML page that replays the run in 3-D in a browser, "
+        "offline: the robot, its closed contacts, the events on a timeline "
+        "(needs meshcat: pip install 'contactdiff[viz]')",
+    )
+    sim.add_argument(
+        "--package-dir",
+        action="append",
+        default=[],
+        metavar="DIR",
+        help="with --html: a folder in which the URDF's package://NAME/... meshes are found as "
+        "DIR/NAME/... (repeatable; the folders above the URDF are searched too)",
+    )
+    sim.add_argument(
+        "--fps",
+        type=POSITIVE,
+        default=DEFAULT_FPS,
+        help=f"with --html: frames per second of simulated time (default {DEFAULT_FPS:g}; events are frames too)",
+    )
     sim.set_defaults(run=_run_simulate)
 
     bench = sub.add_parser(
-        "bench", help="error against run time of each method and baseline",
+        "bench",
+        help="error against run time of each method and baseline",
         description="Measure final-state and event-time error against run time for contactdiff "
-                    "and its baselines (solve_ivp with events, impulse time stepping) on the "
-                    "project's scenes, and the cost of flow Jacobians against finite differences.")
-    bench.add_argument("--scenes", nargs="+", metavar="SCENE",
-                       help="scenes to run (default all; with --quick: ball and planar_trot_rigid)")
-    bench.add_argument("--quick", action="store_true",
-                       help="a tiny sweep of a few seconds (tests, CI): fewer tolerances, and the scenes "
-                            "ball and planar_trot_rigid unless --scenes names others")
-    bench.add_argument("--repeats", type=Number(int, 1), default=3,
-                       help="timing repeats, median kept (default 3)")
+        "and its baselines (solve_ivp with events, impulse time stepping) on the "
+        "project's scenes, and the cost of flow Jacobians against finite differences.",
+    )
+    bench.add_argument(
+        "--scenes",
+        nargs="+",
+        metavar="SCENE",
+        help="scenes to run (default all; with --quick: ball and planar_trot_rigid)",
+    )
+    bench.add_argument(
+        "--quick",
+        action="store_true",
+        help="a tiny sweep of a few seconds (tests, CI): fewer tolerances, and the scenes "
+        "ball and planar_trot_rigid unless --scenes names others",
+    )
+    bench.add_argument("--repeats", type=Number(int, 1), default=3, help="timing repeats, median kept (default 3)")
     bench.add_argument("--json", action="store_true", help="print the results as JSON")
     add_plot(bench, "write the log-log error vs run time plot")
-    bench.add_argument("--studies", action="store_true",
-                       help="also run the stiff and extreme-case studies and measure what a scene "
-                            "costs beyond its needs (with --quick: seconds; without: minutes)")
-    bench.add_argument("--speed", action="store_true",
-                       help="instead: time the quadruped trots against real time and against Pinocchio's "
-                            "own calls (--scenes chooses the trots)")
-    bench.add_argument("--t-final", type=Number(float, 0.0, strict=True), default=3.0,
-                       help="with --speed: simulated time of each timed run, s (default 3)")
-    bench.add_argument("--memory", type=Number(float, 0.0, strict=True), metavar="SECONDS",
-                       help="with --speed: also the peak memory of a solo12 trot this long keeping events only")
+    bench.add_argument(
+        "--studies",
+        action="store_true",
+        help="also run the stiff and extreme-case studies and measure what a scene "
+        "costs beyond its needs (with --quick: seconds; without: minutes)",
+    )
+    bench.add_argument(
+        "--speed",
+        action="store_true",
+        help="instead: time the quadruped trots against real time and against Pinocchio's "
+        "own calls (--scenes chooses the trots)",
+    )
+    bench.add_argument(
+        "--t-final",
+        type=Number(float, 0.0, strict=True),
+        default=3.0,
+        help="with --speed: simulated time of each timed run, s (default 3)",
+    )
+    bench.add_argument(
+        "--memory",
+        type=Number(float, 0.0, strict=True),
+        metavar="SECONDS",
+        help="with --speed: also the peak memory of a solo12 trot this long keeping events only",
+    )
     bench.set_defaults(run=_run_bench)
 
     stride = sub.add_parser(
-        "stride", help="gait stability: stride map, periodic gait, Floquet multipliers",
+        "stride",
+        help="gait stability: stride map, periodic gait, Floquet multipliers",
         description="Stride map of a foot (the state just before one of its touchdowns to the state "
-                    "just before the next) and its Jacobian; Newton iterations towards a periodic "
-                    "gait; the Floquet multipliers (eigenvalues in section coordinates, neutral moves "
-                    "removed). The start is the scene's initial state carried to the foot's first "
-                    "touchdown.")
+        "just before the next) and its Jacobian; Newton iterations towards a periodic "
+        "gait; the Floquet multipliers (eigenvalues in section coordinates, neutral moves "
+        "removed). The start is the scene's initial state carried to the foot's first "
+        "touchdown.",
+    )
     _add_source(stride)
     stride.add_argument("--foot", required=True, help="contact whose touchdowns define the section")
-    stride.add_argument("--newton", type=COUNT, default=0, metavar="N",
-                        help="Newton iterations towards a periodic gait (default 0: one stride)")
-    stride.add_argument("--tol", type=NONNEGATIVE, default=1e-9,
-                        help="residual at which Newton stops (default 1e-9); it also stops where the "
-                             "residual is within the map's resolution, twice its change when the stride "
-                             "is computed again at 10 times tighter tolerances")
+    stride.add_argument(
+        "--newton",
+        type=COUNT,
+        default=0,
+        metavar="N",
+        help="Newton iterations towards a periodic gait (default 0: one stride)",
+    )
+    stride.add_argument(
+        "--tol",
+        type=NONNEGATIVE,
+        default=1e-9,
+        help="residual at which Newton stops (default 1e-9); it also stops where the "
+        "residual is within the map's resolution, twice its change when the stride "
+        "is computed again at 10 times tighter tolerances",
+    )
     stride.add_argument("--t0", type=FINITE, default=0.0, help="start time (s, default 0)")
     stride.add_argument("--t-max", type=FINITE, default=10.0, help="longest stride (s, default 10)")
-    stride.add_argument("--min-stride", type=FINITE, default=None,
-                        help="shortest stride (s): earlier re-landings of the foot are skipped "
-                             "(default: half the clock period of a clock-driven scene, else 0)")
-    stride.add_argument("--min-flight", type=FINITE, default=None,
-                        help="shortest flight (s) before a touchdown that ends a stride: re-landings of "
-                             "impact cascades are skipped (default: 5 %% of the clock period, else 0)")
-    stride.add_argument("--warmup", type=FINITE, default=0.0, metavar="SECONDS",
-                        help="simulate this long before the search: a stable gait settles on its own "
-                             "(default 0)")
-    stride.add_argument("--period", type=FINITE, default=None,
-                        help="clock period (s) of a clock-driven scene (default: from its controller)")
-    stride.add_argument("--neutral", default=None, metavar="MOVES",
-                        help="neutral moves removed, comma-separated from x, y, yaw, or 'none' "
-                             "(default: those the scene admits)")
-    stride.add_argument("--q", action="append", default=[], metavar="JOINT=VALUE",
-                        help="initial joint coordinate (repeatable)")
-    stride.add_argument("--v", action="append", default=[], metavar="JOINT=VALUE",
-                        help="initial joint velocity (repeatable)")
-    stride.add_argument("--method", default=STRIDE_METHOD, choices=METHODS,
-                        help=f"stepper (default {STRIDE_METHOD})")
-    stride.add_argument("--rtol", type=FINITE, default=STRIDE_RTOL,
-                        help=f"relative tolerance (default {STRIDE_RTOL:g})")
-    stride.add_argument("--atol", type=FINITE, default=STRIDE_ATOL,
-                        help=f"absolute tolerance (default {STRIDE_ATOL:g})")
+    stride.add_argument(
+        "--min-stride",
+        type=FINITE,
+        default=None,
+        help="shortest stride (s): earlier re-landings of the foot are skipped "
+        "(default: half the clock period of a clock-driven scene, else 0)",
+    )
+    stride.add_argument(
+        "--min-flight",
+        type=FINITE,
+        default=None,
+        help="shortest flight (s) before a touchdown that ends a stride: re-landings of "
+        "impact cascades are skipped (default: 5 %% of the clock period, else 0)",
+    )
+    stride.add_argument(
+        "--warmup",
+        type=FINITE,
+        default=0.0,
+        metavar="SECONDS",
+        help="simulate this long before the search: a stable gait settles on its own (default 0)",
+    )
+    stride.add_argument(
+        "--period",
+        type=FINITE,
+        default=None,
+        help="clock period (s) of a clock-driven scene (default: from its controller)",
+    )
+    stride.add_argument(
+        "--neutral",
+        default=None,
+        metavar="MOVES",
+        help="neutral moves removed, comma-separated from x, y, yaw, or 'none' (default: those the scene admits)",
+    )
+    stride.add_argument(
+        "--q", action="append", default=[], metavar="JOINT=VALUE", help="initial joint coordinate (repeatable)"
+    )
+    stride.add_argument(
+        "--v", action="append", default=[], metavar="JOINT=VALUE", help="initial joint velocity (repeatable)"
+    )
+    stride.add_argument("--method", default=STRIDE_METHOD, choices=METHODS, help=f"stepper (default {STRIDE_METHOD})")
+    stride.add_argument(
+        "--rtol", type=FINITE, default=STRIDE_RTOL, help=f"relative tolerance (default {STRIDE_RTOL:g})"
+    )
+    stride.add_argument(
+        "--atol", type=FINITE, default=STRIDE_ATOL, help=f"absolute tolerance (default {STRIDE_ATOL:g})"
+    )
     stride.add_argument("--json", action="store_true", help="print the result as JSON")
     stride.set_defaults(run=_run_stride)
 
@@ -232,10 +363,23 @@ def _run_stride(args) -> int:
     if neutral is not None and neutral.strip().lower() == "none":
         neutral = ""
     with _ProgressBar("stride search", None) as bar:
-        gait = find_periodic_gait(scene, args.foot, t=args.t0, iterations=args.newton, tol=args.tol,
-                                  neutral=neutral, period=args.period, t_max=args.t_max,
-                                  min_stride=args.min_stride, min_flight=args.min_flight, warmup=args.warmup,
-                                  method=args.method, rtol=args.rtol, atol=args.atol, progress=bar)
+        gait = find_periodic_gait(
+            scene,
+            args.foot,
+            t=args.t0,
+            iterations=args.newton,
+            tol=args.tol,
+            neutral=neutral,
+            period=args.period,
+            t_max=args.t_max,
+            min_stride=args.min_stride,
+            min_flight=args.min_flight,
+            warmup=args.warmup,
+            method=args.method,
+            rtol=args.rtol,
+            atol=args.atol,
+            progress=bar,
+        )
     _print(json.dumps(gait.to_dict(), indent=2) if args.json else gait.format())
     return 0
 
@@ -321,12 +465,23 @@ def _run_simulate(args) -> int:
         return 0
     parameters = scene.parameter_names() if "all" in args.param else list(args.param)
     with _ProgressBar(f"simulate {scene.name}", (0.0, args.t_final)) as bar:
-        traj = simulate(scene, args.t_final, method=args.method, rtol=args.rtol, atol=args.atol,
-                        jacobian=args.jacobian, max_steps=args.max_steps, max_events=args.max_events,
-                        zeno_speed=args.zeno_speed, grazing_speed=args.grazing_speed,
-                        grazing_gap=args.grazing_gap, on_grazing=args.on_grazing, progress=bar,
-                        dense=bool(args.plot or args.html),  # plot and replay sample states between events
-                        parameters=parameters)
+        traj = simulate(
+            scene,
+            args.t_final,
+            method=args.method,
+            rtol=args.rtol,
+            atol=args.atol,
+            jacobian=args.jacobian,
+            max_steps=args.max_steps,
+            max_events=args.max_events,
+            zeno_speed=args.zeno_speed,
+            grazing_speed=args.grazing_speed,
+            grazing_gap=args.grazing_gap,
+            on_grazing=args.on_grazing,
+            progress=bar,
+            dense=bool(args.plot or args.html),  # plot and replay sample states between events
+            parameters=parameters,
+        )
     plotted = replayed = None  # a failed write, reported once the run is printed
     if args.plot:
         from .plotting import plot_gait, plot_gaps
@@ -335,8 +490,9 @@ def _run_simulate(args) -> int:
         plot = plot_gait if scene.robot.floating_base else plot_gaps
         plotted = write_output("--plot", args.plot, lambda: plot(traj, scene, args.plot))
     if args.html:
-        replayed = write_output("--html", args.html, lambda: traj.to_html(args.html, scene, fps=args.fps,
-                                                                          package_dirs=args.package_dir))
+        replayed = write_output(
+            "--html", args.html, lambda: traj.to_html(args.html, scene, fps=args.fps, package_dirs=args.package_dir)
+        )
     if args.json:
         _print(json.dumps(traj.summary(), indent=2))
     else:
@@ -367,8 +523,16 @@ class _ProgressBar:
 
         total = None if self.span is None else self.span[1] - self.span[0]
         fmt = "{desc} {percentage:3.0f}%|{bar}| [{elapsed}<{remaining}]" if total else "{desc} [{elapsed}]"
-        self.bar = tqdm(total=total, desc=self.label, file=sys.stderr, delay=1.0, disable=None,
-                        bar_format=fmt, leave=False, dynamic_ncols=True)
+        self.bar = tqdm(
+            total=total,
+            desc=self.label,
+            file=sys.stderr,
+            delay=1.0,
+            disable=None,
+            bar_format=fmt,
+            leave=False,
+            dynamic_ncols=True,
+        )
         return self
 
     def __call__(self, t: float, events: int, steps: int) -> None:
@@ -377,12 +541,14 @@ class _ProgressBar:
             return
         self.last = now
         if self.span is None:
-            self.bar.set_description_str(f"{self.label}: t = {t:.4g} s, {events} events, "
-                                         f"{steps} steps in this run", refresh=False)
+            self.bar.set_description_str(
+                f"{self.label}: t = {t:.4g} s, {events} events, {steps} steps in this run", refresh=False
+            )
             self.bar.update(0)
             return
-        self.bar.set_description_str(f"{self.label}: t = {t:.4g} / {self.span[1]:g} s, {events} events, "
-                                     f"{steps} steps", refresh=False)
+        self.bar.set_description_str(
+            f"{self.label}: t = {t:.4g} / {self.span[1]:g} s, {events} events, {steps} steps", refresh=False
+        )
         self.bar.update((t - self.span[0]) - self.bar.n)
 
     def __exit__(self, *exc) -> None:
@@ -404,8 +570,10 @@ def _run_check(args) -> int:
         return 0
     _print(report.format())
     if baseline is not None and report.verdict is not None:
-        _print(f"\narmature {args.armature:g}: max coupling {baseline.max_coupling:.3e} -> "
-               f"{report.max_coupling:.3e}; verdict {baseline.verdict} -> {report.verdict}")
+        _print(
+            f"\narmature {args.armature:g}: max coupling {baseline.max_coupling:.3e} -> "
+            f"{report.max_coupling:.3e}; verdict {baseline.verdict} -> {report.verdict}"
+        )
     return 0
 
 

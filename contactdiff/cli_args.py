@@ -21,8 +21,7 @@ class Number:
     """An argparse type: a number (``int`` or ``float``) in a range, with a message
     that names the range rather than a Python function."""
 
-    def __init__(self, kind: type, minimum: float | None = None, *, strict: bool = False,
-                 what: str | None = None):
+    def __init__(self, kind: type, minimum: float | None = None, *, strict: bool = False, what: str | None = None):
         self.kind, self.minimum, self.strict = kind, minimum, strict
         self.what = what or ("an integer" if kind is int else "a finite number")
 
@@ -32,8 +31,11 @@ class Number:
             value = self.kind(text)
         except ValueError:
             raise argparse.ArgumentTypeError(f"must be {self._range()}, got {text!r}") from None
-        if value != value or value in (float("inf"), float("-inf")) or (
-                self.minimum is not None and (value <= self.minimum if self.strict else value < self.minimum)):
+        if (
+            value != value
+            or value in (float("inf"), float("-inf"))
+            or (self.minimum is not None and (value <= self.minimum if self.strict else value < self.minimum))
+        ):
             raise argparse.ArgumentTypeError(f"must be {self._range()}, got {text!r}")
         return value
 
@@ -52,8 +54,9 @@ FINITE = Number(float)
 
 def add_plot(parser: argparse.ArgumentParser, help_text: str) -> None:
     """The ``--plot FILE`` option, its help ``help_text`` and the formats."""
-    parser.add_argument("--plot", metavar="FILE", help=help_text + " (any format matplotlib writes: "
-                                                                    "png, pdf, svg, ...)")
+    parser.add_argument(
+        "--plot", metavar="FILE", help=help_text + " (any format matplotlib writes: png, pdf, svg, ...)"
+    )
 
 
 def check_plot_path(path: str) -> None:
@@ -101,4 +104,3 @@ def assignment(item: str, flag: str, form: str) -> tuple[str, str]:
     if not sep or not name or not text:
         raise InvalidInputError(f"{flag} takes {form}, got {item!r}")
     return name, text
-

@@ -115,8 +115,7 @@ class StepBudgetError(TooManyStepsError):
     far; ``.t`` (s), ``.mode`` (the names of the active contacts), ``.step`` (s, the
     reference step of the projection) and ``.steps_needed`` say where and how far."""
 
-    def __init__(self, message: str, trajectory, t: float, mode: tuple[str, ...], step: float,
-                 steps_needed: float):
+    def __init__(self, message: str, trajectory, t: float, mode: tuple[str, ...], step: float, steps_needed: float):
         super().__init__(message, trajectory)
         self.t, self.mode, self.step, self.steps_needed = t, mode, step, steps_needed
 
@@ -190,8 +189,9 @@ def require_extra(module: str, extra: str, purpose: str) -> ModuleType:
     try:
         return importlib.import_module(module)
     except ImportError as exc:
-        raise MissingExtraError(f"{purpose} needs {module.split('.')[0]} ({exc}): "
-                                f"pip install 'contactdiff[{extra}]'") from None
+        raise MissingExtraError(
+            f"{purpose} needs {module.split('.')[0]} ({exc}): pip install 'contactdiff[{extra}]'"
+        ) from None
 
 
 def check_names(owner: str, what: str, value) -> tuple[str, ...]:
@@ -213,8 +213,7 @@ def check_names(owner: str, what: str, value) -> tuple[str, ...]:
     return names
 
 
-def check_number(owner: str, name: str, value, *, minimum: float | None = None,
-                 allow_inf: bool = False) -> float:
+def check_number(owner: str, name: str, value, *, minimum: float | None = None, allow_inf: bool = False) -> float:
     """``value`` as a finite float (>= ``minimum`` if given; ``allow_inf`` admits
     ±inf), else `InvalidInputError` naming ``owner`` and ``name`` and showing the value.
 
@@ -257,8 +256,9 @@ def check_vector(owner: str, name: str, value, size: int, labels=None):
     except (TypeError, ValueError):
         raise InvalidInputError(f"{owner}: {name} must be {size} real numbers, got {value!r}") from None
     if arr.shape != (size,):
-        raise InvalidInputError(f"{owner}: {name} has shape {arr.shape}; expected ({size},): {size} entries, "
-                                f"got {value!r}")
+        raise InvalidInputError(
+            f"{owner}: {name} has shape {arr.shape}; expected ({size},): {size} entries, got {value!r}"
+        )
     if not np.isfinite(arr).all():
         i = int(np.flatnonzero(~np.isfinite(arr))[0])
         where = f" ({labels[i]})" if labels is not None else ""
@@ -284,8 +284,7 @@ def check_output_file(option: str, path, example: str) -> Path:
 
     target = Path(path)
     if target.is_dir():
-        raise OutputFileError(f"{option} {str(path)!r} is a folder; give a file name such as "
-                              f"{str(target / example)!r}")
+        raise OutputFileError(f"{option} {str(path)!r} is a folder; give a file name such as {str(target / example)!r}")
     folder = target.parent
     if not folder.exists():
         raise OutputFileError(f"{option} {str(path)!r}: folder {str(folder)!r} does not exist")

@@ -24,10 +24,15 @@ def _pyplot():
     return plt
 
 
-_EVENT_STYLE = {EventKind.TOUCHDOWN: ("tab:red", "-"), EventKind.LIFT_OFF: ("tab:green", "--"),
-                EventKind.SLIP: ("tab:olive", "--"), EventKind.BOUNCE: ("tab:orange", ":"),
-                EventKind.GRAZING: ("tab:purple", "-."), EventKind.ZENO: ("black", "-"),
-                EventKind.BEAR: ("tab:brown", ":")}
+_EVENT_STYLE = {
+    EventKind.TOUCHDOWN: ("tab:red", "-"),
+    EventKind.LIFT_OFF: ("tab:green", "--"),
+    EventKind.SLIP: ("tab:olive", "--"),
+    EventKind.BOUNCE: ("tab:orange", ":"),
+    EventKind.GRAZING: ("tab:purple", "-."),
+    EventKind.ZENO: ("black", "-"),
+    EventKind.BEAR: ("tab:brown", ":"),
+}
 
 
 def plot_gaps(traj: Trajectory, scene: Scene, path: str | Path, n_samples: int = 800) -> Path:
@@ -49,8 +54,7 @@ def plot_gaps(traj: Trajectory, scene: Scene, path: str | Path, n_samples: int =
     seen = set()
     for e in traj.events:
         color, style = _EVENT_STYLE.get(e.kind, ("gray", "-"))
-        ax.axvline(e.t, color=color, ls=style, lw=0.8, alpha=0.7,
-                   label=e.kind if e.kind not in seen else None)
+        ax.axvline(e.t, color=color, ls=style, lw=0.8, alpha=0.7, label=e.kind if e.kind not in seen else None)
         seen.add(e.kind)
     ax.axhline(0.0, color="k", lw=0.6)
     ax.set_xlabel("time (s)")
@@ -90,10 +94,10 @@ def gait_figure(traj: Trajectory, scene: Scene, n_samples: int = 1500) -> Figure
     plt = _pyplot()
     times = np.linspace(traj.t0, traj.t, n_samples)
     qs, _ = traj.sample(times)
-    rpy = np.array([pin.rpy.matrixToRpy(pin.Quaternion(q[6], q[3], q[4], q[5]).toRotationMatrix())
-                    for q in qs])
-    fig, (ax_c, ax_z, ax_a) = plt.subplots(3, 1, figsize=(9, 7), sharex=True, constrained_layout=True,
-                                           gridspec_kw={"height_ratios": [1.1, 1, 1]})
+    rpy = np.array([pin.rpy.matrixToRpy(pin.Quaternion(q[6], q[3], q[4], q[5]).toRotationMatrix()) for q in qs])
+    fig, (ax_c, ax_z, ax_a) = plt.subplots(
+        3, 1, figsize=(9, 7), sharex=True, constrained_layout=True, gridspec_kw={"height_ratios": [1.1, 1, 1]}
+    )
     names = scene.contact_names
     for row, name in enumerate(names):
         spans = [(s.t0, s.t1 - s.t0) for s in traj.segments if name in s.mode and s.t1 > s.t0]
@@ -142,7 +146,7 @@ def _power_label(value: float, _position=None) -> str:
     if not value > 0:
         return ""
     exponent = int(np.floor(np.log10(value) + 1e-9))
-    mantissa = round(value / 10.0 ** exponent)
+    mantissa = round(value / 10.0**exponent)
     return f"$10^{{{exponent}}}$" if mantissa == 1 else f"${mantissa}\\times10^{{{exponent}}}$"
 
 
@@ -169,12 +173,13 @@ def bench_figure(result):
     fig, axes = plt.subplots(rows, cols, figsize=(4.5 * cols, 3.8 * rows), squeeze=False)
     for ax, scene in zip(axes.flat, scenes):
         for method in METHODS:
-            pts = sorted((r["time"], max(r["error"], 1e-17)) for r in result.runs
-                         if r["scene"] == scene and r["method"] == method and not r["failed"]
-                         and math.isfinite(r["error"]))
+            pts = sorted(
+                (r["time"], max(r["error"], 1e-17))
+                for r in result.runs
+                if r["scene"] == scene and r["method"] == method and not r["failed"] and math.isfinite(r["error"])
+            )
             if pts:
-                ax.loglog([p[0] for p in pts], [p[1] for p in pts], "o-", label=method, ms=4,
-                          color=COLORS[method])
+                ax.loglog([p[0] for p in pts], [p[1] for p in pts], "o-", label=method, ms=4, color=COLORS[method])
         ax.set_title(scene)
         ax.set_xlabel("run time (s)")
         ax.set_ylabel("final-state error")
@@ -182,7 +187,7 @@ def bench_figure(result):
         ax.legend(fontsize=7)
         readable_log_ticks(ax.xaxis)
         readable_log_ticks(ax.yaxis)
-    for ax in list(axes.flat)[len(scenes):]:
+    for ax in list(axes.flat)[len(scenes) :]:
         ax.set_visible(False)
     fig.tight_layout()
     return fig

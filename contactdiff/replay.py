@@ -65,8 +65,16 @@ if TYPE_CHECKING:
 ROOT = "contactdiff"
 """Name of the meshcat node under which the robot and the contacts are drawn."""
 
-EVENT_COLOURS = {"touchdown": "#d62728", "lift-off": "#2ca02c", "slip": "#bcbd22", "stick": "#17becf",
-                 "bounce": "#ff7f0e", "grazing": "#9467bd", "zeno": "#000000", "bear": "#8c564b"}
+EVENT_COLOURS = {
+    "touchdown": "#d62728",
+    "lift-off": "#2ca02c",
+    "slip": "#bcbd22",
+    "stick": "#17becf",
+    "bounce": "#ff7f0e",
+    "grazing": "#9467bd",
+    "zeno": "#000000",
+    "bear": "#8c564b",
+}
 """Timeline colour of each event kind (CSS)."""
 
 
@@ -108,7 +116,7 @@ class _Recorder:
         elif kind == "set_animation":
             self.animation = packed
         elif kind == "delete":
-            for key in [k for k in self.nodes if k[:len(path)] == path]:
+            for key in [k for k in self.nodes if k[: len(path)] == path]:
                 del self.nodes[key]
 
     def commands(self) -> list[bytes]:
@@ -122,8 +130,15 @@ class _Recorder:
 
 
 # -- the page --------------------------------------------------------------------------------
-def replay_html(traj: ReplayedRun, scene: Scene, *, fps: float = DEFAULT_FPS, contact_radius: float | None = None,
-                title: str | None = None, package_dirs: Sequence[str | Path] = ()) -> str:
+def replay_html(
+    traj: ReplayedRun,
+    scene: Scene,
+    *,
+    fps: float = DEFAULT_FPS,
+    contact_radius: float | None = None,
+    title: str | None = None,
+    package_dirs: Sequence[str | Path] = (),
+) -> str:
     """The replay page of ``traj`` as HTML text (see the module docstring).
 
     Args:
@@ -148,8 +163,10 @@ def replay_html(traj: ReplayedRun, scene: Scene, *, fps: float = DEFAULT_FPS, co
 
     robot = scene.robot
     if len(traj.q0) != robot.nq:
-        raise InvalidInputError(f"replay: the trajectory's q has {len(traj.q0)} entries but scene "
-                                f"{scene.name!r}'s robot has nq = {robot.nq}; pass the scene it was computed on")
+        raise InvalidInputError(
+            f"replay: the trajectory's q has {len(traj.q0)} entries but scene "
+            f"{scene.name!r}'s robot has nq = {robot.nq}; pass the scene it was computed on"
+        )
     size = model_size(robot, traj.q0)
     radius = marker_radius(robot, size) if contact_radius is None else _positive(contact_radius, "contact_radius")
     frames = sample_frames(traj, fps)
@@ -174,9 +191,15 @@ def replay_html(traj: ReplayedRun, scene: Scene, *, fps: float = DEFAULT_FPS, co
     viewer.set_animation(animation, play=True, repetitions=1)
     _place_camera(viewer, distance)
 
-    info = {"scene": scene.name, "t0": traj.t0, "t": traj.t, "fps": fps, "frames": len(frames.times),
-            "contacts": list(contacts),
-            "events": [{"t": e.t, "kind": e.kind, "contacts": list(e.contacts)} for e in traj.events]}
+    info = {
+        "scene": scene.name,
+        "t0": traj.t0,
+        "t": traj.t,
+        "fps": fps,
+        "frames": len(frames.times),
+        "contacts": list(contacts),
+        "events": [{"t": e.t, "kind": e.kind, "contacts": list(e.contacts)} for e in traj.events],
+    }
     return _page(recorder.commands(), info, title or f"contactdiff replay: {scene.name}", meshcat)
 
 
@@ -200,8 +223,9 @@ def _load_surfaces(viewer, surfaces, meshcat) -> None:
     """Each contact plane (`contact_surfaces`) as a box under ``ROOT/surfaces`` (static)."""
     for surface in surfaces:
         node = viewer[f"{ROOT}/surfaces/{surface.name}"]
-        node.set_object(meshcat.geometry.Box(list(surface.size)),
-                        meshcat.geometry.MeshLambertMaterial(color=surface.colour))
+        node.set_object(
+            meshcat.geometry.Box(list(surface.size)), meshcat.geometry.MeshLambertMaterial(color=surface.colour)
+        )
         node.set_transform(surface.pose)
 
 
@@ -245,8 +269,14 @@ def _record_robot(animation, viewer, viz, robot, geoms, frames: Frames, fps: flo
         node = viewer[viz.getViewerNodeName(g, pin.GeometryType.VISUAL)]
         tracks = _clip(animation, node.path, fps, meshcat)
         _track(tracks, "position", "vector3", keys, [p.translation.tolist() for p in poses[i]], meshcat)
-        _track(tracks, "quaternion", "quaternion", keys,
-               [pin.Quaternion(p.rotation).coeffs().tolist() for p in poses[i]], meshcat)  # x y z w
+        _track(
+            tracks,
+            "quaternion",
+            "quaternion",
+            keys,
+            [pin.Quaternion(p.rotation).coeffs().tolist() for p in poses[i]],
+            meshcat,
+        )  # x y z w
         scale = np.asarray(g.meshScale, dtype=float)
         if not np.allclose(scale, 1.0):
             _track(tracks, "scale", "vector3", keys[:1], [scale.tolist()], meshcat)
@@ -303,20 +333,36 @@ def _page(commands: list[bytes], info: dict, title: str, meshcat) -> str:
     URI, the replay's facts as JSON and the timeline, as meshcat's server writes it."""
     script = Path(meshcat.__file__).parent / "viewer" / "dist" / "main.min.js"
     if not script.is_file():
-        raise MissingExtraError(f"meshcat's viewer script {str(script)!r} is missing: "
-                                "pip install --force-reinstall meshcat")
+        raise MissingExtraError(
+            f"meshcat's viewer script {str(script)!r} is missing: pip install --force-reinstall meshcat"
+        )
     viewer_js = script.read_text(encoding="utf-8").replace("</script", "<\\/script")
     drawing = "".join(
         'fetch("data:application/octet-binary;base64,{}")'
-        ".then(r => r.arrayBuffer()).then(b => viewer.handle_command_bytearray(new Uint8Array(b)));\n"
-        .format(base64.b64encode(c).decode("ascii")) for c in commands)
+        ".then(r => r.arrayBuffer()).then(b => viewer.handle_command_bytearray(new Uint8Array(b)));\n".format(
+            base64.b64encode(c).decode("ascii")
+        )
+        for c in commands
+    )
     info_json = json.dumps(info).replace("</", "<\\/")
-    events = "".join(
-        f"<li>{e['t']:.6f} s: {html.escape(e['kind'])} ({html.escape(', '.join(e['contacts']))})</li>"
-        for e in info["events"]) or "<li>none</li>"
-    return _TEMPLATE.format(title=html.escape(title), viewer_js=viewer_js, drawing=drawing, info=info_json,
-                            n_events=len(info["events"]), events=events, timeline_js=_TIMELINE_JS,
-                            colours=json.dumps(EVENT_COLOURS), legend=_legend(info["events"]))
+    events = (
+        "".join(
+            f"<li>{e['t']:.6f} s: {html.escape(e['kind'])} ({html.escape(', '.join(e['contacts']))})</li>"
+            for e in info["events"]
+        )
+        or "<li>none</li>"
+    )
+    return _TEMPLATE.format(
+        title=html.escape(title),
+        viewer_js=viewer_js,
+        drawing=drawing,
+        info=info_json,
+        n_events=len(info["events"]),
+        events=events,
+        timeline_js=_TIMELINE_JS,
+        colours=json.dumps(EVENT_COLOURS),
+        legend=_legend(info["events"]),
+    )
 
 
 def _legend(events: list[dict]) -> str:
@@ -326,8 +372,11 @@ def _legend(events: list[dict]) -> str:
     keys = [(kind, colour) for kind, colour in EVENT_COLOURS.items() if kind in kinds]
     keys += sorted((kind, "#555") for kind in kinds - set(EVENT_COLOURS))
     keys.append(("animation time (click the bar to seek)", "#1f77b4"))
-    return "".join(f'<span class="key" data-kind="{html.escape(kind)}"><i style="background:{colour}"></i>'
-                   f"{html.escape(kind)}</span>" for kind, colour in keys)
+    return "".join(
+        f'<span class="key" data-kind="{html.escape(kind)}"><i style="background:{colour}"></i>'
+        f"{html.escape(kind)}</span>"
+        for kind, colour in keys
+    )
 
 
 _TIMELINE_JS = """

@@ -120,8 +120,9 @@ def frame_times(traj: ReplayedRun, fps: float = DEFAULT_FPS) -> tuple[np.ndarray
     span = traj.t - traj.t0
     n = int(math.floor(span * fps + 1e-9)) + 1
     if n > MAX_FRAMES:
-        raise InvalidInputError(f"replay: {span:g} s at fps = {fps:g} gives {n} frames, more than "
-                                f"{MAX_FRAMES}; lower fps")
+        raise InvalidInputError(
+            f"replay: {span:g} s at fps = {fps:g} gives {n} frames, more than {MAX_FRAMES}; lower fps"
+        )
     grid = traj.t0 + np.arange(n) / fps
     if traj.t - grid[-1] > _EVENT_TOL:
         grid = np.append(grid, traj.t)
@@ -136,8 +137,10 @@ def frame_times(traj: ReplayedRun, fps: float = DEFAULT_FPS) -> tuple[np.ndarray
 def sample_frames(traj: ReplayedRun, fps: float = DEFAULT_FPS) -> Frames:
     """The states and contact modes at the `frame_times` of ``traj`` (needs its dense output)."""
     if not traj.dense:
-        raise InvalidInputError("replay: this run kept no dense output, so the states between events are "
-                                "gone: simulate(..., dense=True) keeps them")
+        raise InvalidInputError(
+            "replay: this run kept no dense output, so the states between events are "
+            "gone: simulate(..., dense=True) keeps them"
+        )
     times, is_event = frame_times(traj, fps)
     by_time: dict[float, ReplayedEvent] = {}
     for e in traj.events:

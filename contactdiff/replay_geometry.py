@@ -38,8 +38,10 @@ def package_folders(package_dirs) -> list[Path]:
     for d in dirs:
         path = Path(d).expanduser()
         if not path.is_dir():
-            raise InvalidInputError(f"replay: package folder {str(d)!r} is not a folder (a package folder holds "
-                                    "the packages that package://NAME/... mesh paths name, as NAME/...)")
+            raise InvalidInputError(
+                f"replay: package folder {str(d)!r} is not a folder (a package folder holds "
+                "the packages that package://NAME/... mesh paths name, as NAME/...)"
+            )
         out.append(path.resolve())
     return out
 
@@ -61,9 +63,11 @@ def visual_model(robot, package_dirs=()) -> pin.GeometryModel:
     try:
         return pin.buildGeomFromUrdf(robot.model, str(urdf), pin.GeometryType.VISUAL, package_dirs=dirs)
     except (RuntimeError, ValueError) as exc:
-        raise InvalidInputError(f"replay: cannot read the visual geometry of {str(urdf)!r}: {exc} (meshes "
-                                "package://NAME/... are looked for as DIR/NAME/... in each package folder: "
-                                "--package-dir DIR, or package_dirs=[DIR] in Python; and above the URDF)") from None
+        raise InvalidInputError(
+            f"replay: cannot read the visual geometry of {str(urdf)!r}: {exc} (meshes "
+            "package://NAME/... are looked for as DIR/NAME/... in each package folder: "
+            "--package-dir DIR, or package_dirs=[DIR] in Python; and above the URDF)"
+        ) from None
 
 
 def _shaped_objects(robot) -> set[str]:
@@ -86,8 +90,7 @@ def _body_spheres(robot, radius: float) -> pin.GeometryModel:
     for fid, frame in enumerate(robot.model.frames):
         if frame.type != pin.FrameType.BODY or frame.name in shaped:
             continue
-        g = pin.GeometryObject(f"{frame.name}_sphere", frame.parentJoint, fid, frame.placement,
-                               coal.Sphere(radius))
+        g = pin.GeometryObject(f"{frame.name}_sphere", frame.parentJoint, fid, frame.placement, coal.Sphere(radius))
         g.meshColor = np.array([0.35, 0.45, 0.75, 1.0])
         geoms.addGeometryObject(g)
     return geoms
@@ -104,8 +107,11 @@ def _add_object_shapes(geoms: pin.GeometryModel, robot) -> None:
     for obj in robot.objects:
         if obj.urdf is not None:
             continue
-        shape = {"box": lambda: coal.Box(*obj.size), "sphere": lambda: coal.Sphere(obj.radius),
-                 "cylinder": lambda: coal.Cylinder(obj.radius, obj.length)}[obj.shape]()
+        shape = {
+            "box": lambda: coal.Box(*obj.size),
+            "sphere": lambda: coal.Sphere(obj.radius),
+            "cylinder": lambda: coal.Cylinder(obj.radius, obj.length),
+        }[obj.shape]()
         fid = robot.frame_id(obj.name)
         frame = robot.model.frames[fid]
         g = pin.GeometryObject(f"{obj.name}_{obj.shape}", frame.parentJoint, fid, frame.placement, shape)
@@ -116,8 +122,12 @@ def _add_object_shapes(geoms: pin.GeometryModel, robot) -> None:
 def marker_radius(robot, size: float) -> float:
     """Default contact-marker radius (m): 4 % of the model's size, at most 30 % of the
     smallest half-dimension of its objects (a marker must not hide a grasped box)."""
-    halves = [h for obj in robot.objects if obj.urdf is None
-              for h in ([x / 2 for x in obj.size] if obj.shape == "box" else [obj.radius])]
+    halves = [
+        h
+        for obj in robot.objects
+        if obj.urdf is None
+        for h in ([x / 2 for x in obj.size] if obj.shape == "box" else [obj.radius])
+    ]
     return min([0.04 * size] + [0.3 * h for h in halves])
 
 
@@ -215,7 +225,15 @@ def contact_surfaces(scene, points: dict[str, np.ndarray], size: float) -> list[
         pose = np.eye(4)
         pose[:3, :3] = axes
         pose[:3, 3] = axes[:, :2] @ ((low + high) / 2) + (offset - thickness / 2) * n
-        surfaces.append(Surface("ground" if ground else f"plane{k}", tuple(c.name for c in contacts), n,
-                                float(offset), (*(high - low + 2 * margin).tolist(), thickness), pose,
-                                GROUND_COLOUR if ground else SURFACE_COLOUR))
+        surfaces.append(
+            Surface(
+                "ground" if ground else f"plane{k}",
+                tuple(c.name for c in contacts),
+                n,
+                float(offset),
+                (*(high - low + 2 * margin).tolist(), thickness),
+                pose,
+                GROUND_COLOUR if ground else SURFACE_COLOUR,
+            )
+        )
     return surfaces

@@ -24,8 +24,9 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--json", metavar="PATH", help="also write the results as JSON")
     parser.add_argument("--out", type=Path, default=ROOT / "docs" / "bench_error_vs_time.png", help="PNG to write")
-    parser.add_argument("--quick", action="store_true",
-                        help="the bench's own quick sweep (run_bench(quick=True)), one repeat: seconds")
+    parser.add_argument(
+        "--quick", action="store_true", help="the bench's own quick sweep (run_bench(quick=True)), one repeat: seconds"
+    )
     args = parser.parse_args(argv)
     result = run_bench(repeats=1 if args.quick else args.repeats, quick=args.quick)
     out = args.out

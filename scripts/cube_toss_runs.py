@@ -38,11 +38,17 @@ def summarise(rows) -> dict:
     for r in done:
         events.update({k: r.outputs[f"events:{k}"] for k in EVENT_KINDS})
         reasons.update({n.name: r.outputs[f"nonsmooth:{n.name}"] for n in NonSmooth})
-    return {"tosses": len(rows), "finished": len(done), "events": dict(events), "nonsmooth": dict(reasons),
-            "tosses_not_differentiable": sum(r.outputs["not_differentiable"] > 0 for r in done),
-            "wall_median": statistics.median(walls) if walls else None, "wall_max": max(walls, default=None),
-            "slowest": sorted(((r.outputs["wall"], r.point["job:toss"]) for r in done), reverse=True)[:3],
-            "errors": [f"{r.point['job:toss']}: {r.error.kind}: {r.error.message}" for r in rows if r.error]}
+    return {
+        "tosses": len(rows),
+        "finished": len(done),
+        "events": dict(events),
+        "nonsmooth": dict(reasons),
+        "tosses_not_differentiable": sum(r.outputs["not_differentiable"] > 0 for r in done),
+        "wall_median": statistics.median(walls) if walls else None,
+        "wall_max": max(walls, default=None),
+        "slowest": sorted(((r.outputs["wall"], r.point["job:toss"]) for r in done), reverse=True)[:3],
+        "errors": [f"{r.point['job:toss']}: {r.error.kind}: {r.error.message}" for r in rows if r.error],
+    }
 
 
 def main(argv=None) -> int:
@@ -59,12 +65,17 @@ def main(argv=None) -> int:
     if args.quick:
         names = names[:3]
     if args.limit is not None:
-        names = names[:args.limit]
+        names = names[: args.limit]
     fixed = {"job:tosses": args.tosses} if args.tosses else {}
     points = [{"arg:friction": mu, "arg:restitution": e, "job:toss": name} for mu, e in settings for name in names]
     started = time.perf_counter()
-    result = cd.sweep("contactdiff.data.cube_tosses:cube_scene", points, job="contactdiff.data.cube_tosses:run_toss",
-                      fixed=fixed, n_jobs=args.jobs)
+    result = cd.sweep(
+        "contactdiff.data.cube_tosses:cube_scene",
+        points,
+        job="contactdiff.data.cube_tosses:run_toss",
+        fixed=fixed,
+        n_jobs=args.jobs,
+    )
     wall = time.perf_counter() - started
     summary = {"wall_total": wall, "settings": []}
     for mu, e in settings:
@@ -74,13 +85,17 @@ def main(argv=None) -> int:
         print(json.dumps(summary, indent=1))
         return 0
     print(f"{len(names)} tosses x {len(settings)} settings in {wall:.1f} s wall")
-    print(f"{'mu':>5} {'e':>5} {'done':>9} {'events by kind':<60} {'not diff. (tosses)':>18} "
-          f"{'wall median / max (s)':>22}")
+    print(
+        f"{'mu':>5} {'e':>5} {'done':>9} {'events by kind':<60} {'not diff. (tosses)':>18} "
+        f"{'wall median / max (s)':>22}"
+    )
     for s in summary["settings"]:
         kinds = " ".join(f"{k} {n}" for k, n in s["events"].items() if n)
         median = "-" if s["wall_median"] is None else f"{s['wall_median']:.3f} / {s['wall_max']:.3f}"
-        print(f"{s['friction']:>5g} {s['restitution']:>5g} {s['finished']:>4}/{s['tosses']:<4} {kinds:<60} "
-              f"{s['tosses_not_differentiable']:>18} {median:>22}")
+        print(
+            f"{s['friction']:>5g} {s['restitution']:>5g} {s['finished']:>4}/{s['tosses']:<4} {kinds:<60} "
+            f"{s['tosses_not_differentiable']:>18} {median:>22}"
+        )
         reasons = ", ".join(f"{k} {n}" for k, n in s["nonsmooth"].items() if n)
         print(f"{'':>11} slowest: " + ", ".join(f"{name} {wall:.2f} s" for wall, name in s["slowest"]))
         print(f"{'':>11} non-differentiable events: {reasons or 'none'}")

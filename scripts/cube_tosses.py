@@ -62,8 +62,12 @@ def unknowns(scene, gravity: bool = True, offset: bool = True) -> list:
     """μ and e shared by the eight corners, (unless ``offset`` is False) the board height, a scale
     of the three moments, and (unless ``gravity`` is False) gravity."""
     moments = {f"body:cube:i{a}{a}": NOMINAL.moment for a in "xyz"}
-    return (["group:cube:friction", "group:cube:restitution"] + (["group:cube:offset"] if offset else [])
-            + [Scaled("inertia_scale", moments)] + (["scene:gravity_z"] if gravity else []))
+    return (
+        ["group:cube:friction", "group:cube:restitution"]
+        + (["group:cube:offset"] if offset else [])
+        + [Scaled("inertia_scale", moments)]
+        + (["scene:gravity_z"] if gravity else [])
+    )
 
 
 def training_recordings(tosses, names, args, scene) -> list:
@@ -72,8 +76,9 @@ def training_recordings(tosses, names, args, scene) -> list:
     if not args.window:
         return [toss_recording(tosses[n], Start.BEFORE_TOUCH) for n in names]
     base = base_parameters(args)
-    return [w for n in names for w in toss_windows(tosses[n], Windows(args.window), base, lead=args.lead,
-                                                   model=scene.model)]
+    return [
+        w for n in names for w in toss_windows(tosses[n], Windows(args.window), base, lead=args.lead, model=scene.model)
+    ]
 
 
 def summary(errors: list[tuple[float, float]]) -> dict:
@@ -81,15 +86,22 @@ def summary(errors: list[tuple[float, float]]) -> dict:
     rot = [e[1] for e in errors]
     if not pos:
         return {"tosses": 0}
-    return {"tosses": len(pos), "position_mean": statistics.fmean(pos), "position_std": statistics.pstdev(pos),
-            "position_median": statistics.median(pos), "rotation_mean": statistics.fmean(rot),
-            "rotation_std": statistics.pstdev(rot), "rotation_median": statistics.median(rot)}
+    return {
+        "tosses": len(pos),
+        "position_mean": statistics.fmean(pos),
+        "position_std": statistics.pstdev(pos),
+        "position_median": statistics.median(pos),
+        "rotation_mean": statistics.fmean(rot),
+        "rotation_std": statistics.pstdev(rot),
+        "rotation_median": statistics.median(rot),
+    }
 
 
 def base_parameters(args):
     """The cube's parameters the fit starts from: the board at --ground, lengths and g scaled by --length-scale."""
-    return replace(NOMINAL, ground=args.ground, edge=NOMINAL.edge * args.length_scale,
-                   gravity=NOMINAL.gravity * args.length_scale)
+    return replace(
+        NOMINAL, ground=args.ground, edge=NOMINAL.edge * args.length_scale, gravity=NOMINAL.gravity * args.length_scale
+    )
 
 
 def evaluate_held_out(tosses, names, values, jobs, label, options, source=cd.cube_scene) -> dict:
@@ -105,13 +117,24 @@ def evaluate_held_out(tosses, names, values, jobs, label, options, source=cd.cub
                 continue
             e = toss_errors(rec, run.q)
             errors.append(e)
-            rows.append({"toss": rec.name, "position": e[0], "rotation": e[1], "wall": run.wall,
-                         "events": run.events, "nonsmooth": run.nonsmooth})
+            rows.append(
+                {
+                    "toss": rec.name,
+                    "position": e[0],
+                    "rotation": e[1],
+                    "wall": run.wall,
+                    "events": run.events,
+                    "nonsmooth": run.nonsmooth,
+                }
+            )
         rows.sort(key=lambda r: -r["position"])
         out[start.value] = summary(errors) | {
-            "failed": failed, "worst": rows[:8], "not_differentiable": sum(bool(r["nonsmooth"]) for r in rows),
+            "failed": failed,
+            "worst": rows[:8],
+            "not_differentiable": sum(bool(r["nonsmooth"]) for r in rows),
             "wall_median": statistics.median([r["wall"] for r in rows]) if rows else None,
-            "per_toss": [[r["toss"], r["position"], r["rotation"]] for r in rows]}
+            "per_toss": [[r["toss"], r["position"], r["rotation"]] for r in rows],
+        }
         print(f"{label}, start {start.value}: " + _line(out[start.value]), file=sys.stderr, flush=True)
     return out
 
@@ -119,9 +142,11 @@ def evaluate_held_out(tosses, names, values, jobs, label, options, source=cd.cub
 def _line(s: dict) -> str:
     if not s.get("tosses"):
         return "no toss finished"
-    return (f"{s['tosses']} tosses: position {s['position_mean']:.1f} ± {s['position_std']:.1f} % "
-            f"(median {s['position_median']:.1f}), rotation {s['rotation_mean']:.1f} ± {s['rotation_std']:.1f} deg "
-            f"(median {s['rotation_median']:.1f}); {len(s['failed'])} failed")
+    return (
+        f"{s['tosses']} tosses: position {s['position_mean']:.1f} ± {s['position_std']:.1f} % "
+        f"(median {s['position_median']:.1f}), rotation {s['rotation_mean']:.1f} ± {s['rotation_std']:.1f} deg "
+        f"(median {s['rotation_median']:.1f}); {len(s['failed'])} failed"
+    )
 
 
 def length_check(tosses) -> dict:
@@ -137,9 +162,15 @@ def length_check(tosses) -> dict:
             g.append(-2.0 * np.polyfit(toss.t[:k], toss.position[:k, 2], 2)[0])
         rest.append(float(np.mean(toss.position[-20:, 2])))
     g_median, rest_median = statistics.median(g), statistics.median(rest)
-    return {"flights": len(g), "g_median": g_median, "g_quartiles": list(np.percentile(g, [25, 75])),
-            "g_ratio": g_median / NOMINAL.gravity, "rest_median": rest_median,
-            "rest_ratio": rest_median / (NOMINAL.edge / 2.0), "tosses": len(rest)}
+    return {
+        "flights": len(g),
+        "g_median": g_median,
+        "g_quartiles": list(np.percentile(g, [25, 75])),
+        "g_ratio": g_median / NOMINAL.gravity,
+        "rest_median": rest_median,
+        "rest_ratio": rest_median / (NOMINAL.edge / 2.0),
+        "tosses": len(rest),
+    }
 
 
 def jacobian_cost(recordings, scene, options, parameters, state: StateFit = StateFit.NONE) -> dict:
@@ -158,8 +189,14 @@ def jacobian_cost(recordings, scene, options, parameters, state: StateFit = Stat
         plain.append(rollout(scene, rec, values, options).wall)
     k = len(plan.names) + s
     ratio = statistics.median(e / p for e, p in zip(exact, plain))
-    return {"unknowns": k, "exact_over_plain": ratio, "forward_fd_over_plain": k + 1, "central_fd_over_plain": 2 * k,
-            "exact_median": statistics.median(exact), "plain_median": statistics.median(plain)}
+    return {
+        "unknowns": k,
+        "exact_over_plain": ratio,
+        "forward_fd_over_plain": k + 1,
+        "central_fd_over_plain": 2 * k,
+        "exact_median": statistics.median(exact),
+        "plain_median": statistics.median(plain),
+    }
 
 
 def main(argv=None) -> int:
@@ -170,26 +207,54 @@ def main(argv=None) -> int:
     parser.add_argument("--seed", type=int, default=0, help="seed of the split (default 0)")
     parser.add_argument("--max-evaluations", type=int, default=12, help="the fit's evaluations at most")
     parser.add_argument("--jobs", type=int, default=None, help="worker processes (default: one per core)")
-    parser.add_argument("--rtol", type=float, default=1e-6,
-                        help="the runs' relative tolerance (default 1e-6: the data's noise is ~1e-3 m on 0.1 m)")
+    parser.add_argument(
+        "--rtol",
+        type=float,
+        default=1e-6,
+        help="the runs' relative tolerance (default 1e-6: the data's noise is ~1e-3 m on 0.1 m)",
+    )
     parser.add_argument("--atol", type=float, default=1e-8, help="the runs' absolute tolerance (default 1e-8)")
-    parser.add_argument("--window", type=int, default=0, metavar="N",
-                        help="fit on windows of N samples that start in free flight before each touch, each "
-                             "window's start velocity fitted too (default 0: whole tosses)")
-    parser.add_argument("--lead", type=int, default=4,
-                        help="with --window: start each window this many free-flight samples before the last "
-                             "one before a touch (default 4)")
-    parser.add_argument("--policy", default="keep", choices=["keep", "exclude"],
-                        help="recordings not differentiable at the start: keep or exclude (default keep)")
+    parser.add_argument(
+        "--window",
+        type=int,
+        default=0,
+        metavar="N",
+        help="fit on windows of N samples that start in free flight before each touch, each "
+        "window's start velocity fitted too (default 0: whole tosses)",
+    )
+    parser.add_argument(
+        "--lead",
+        type=int,
+        default=4,
+        help="with --window: start each window this many free-flight samples before the last "
+        "one before a touch (default 4)",
+    )
+    parser.add_argument(
+        "--policy",
+        default="keep",
+        choices=["keep", "exclude"],
+        help="recordings not differentiable at the start: keep or exclude (default keep)",
+    )
     parser.add_argument("--no-gravity", action="store_true", help="keep g at 9.81 m/s² (do not fit it)")
-    parser.add_argument("--ground", type=float, default=0.0,
-                        help="the board's height (m) the fit starts from, or keeps with --no-offset (default 0)")
-    parser.add_argument("--length-scale", type=float, default=1.0,
-                        help="the model's edge and g times this (the data's lengths in units this much too "
-                             "small: 0.98 makes edge 0.1027 m and g 9.61 m/s²; default 1)")
+    parser.add_argument(
+        "--ground",
+        type=float,
+        default=0.0,
+        help="the board's height (m) the fit starts from, or keeps with --no-offset (default 0)",
+    )
+    parser.add_argument(
+        "--length-scale",
+        type=float,
+        default=1.0,
+        help="the model's edge and g times this (the data's lengths in units this much too "
+        "small: 0.98 makes edge 0.1027 m and g 9.61 m/s²; default 1)",
+    )
     parser.add_argument("--no-offset", action="store_true", help="keep the board's height at --ground (do not fit it)")
-    parser.add_argument("--length-check", action="store_true",
-                        help="only compare the data's free-flight g and rest height with the model's, and stop")
+    parser.add_argument(
+        "--length-check",
+        action="store_true",
+        help="only compare the data's free-flight g and rest height with the model's, and stop",
+    )
     parser.add_argument("--quick", action="store_true", help="2 shipped tosses to fit, 2 held out, 1 evaluation")
     parser.add_argument("--plot-dir", help="write plots of held-out tosses and the error distribution here")
     parser.add_argument("--json", action="store_true", help="print the report as JSON")
@@ -197,21 +262,28 @@ def main(argv=None) -> int:
     tosses = load_tosses(args.tosses)
     if args.length_check:
         c = length_check(tosses)
-        print(json.dumps(c, indent=2) if args.json else
-              f"free-flight g: median {c['g_median']:.3f} m/s² over {c['flights']} first flights (quartiles "
-              f"{c['g_quartiles'][0]:.3f}, {c['g_quartiles'][1]:.3f}), {c['g_ratio']:.4f} of 9.81; rest height: "
-              f"median {c['rest_median']:.5f} m over {c['tosses']} tosses, {c['rest_ratio']:.4f} of edge / 2")
+        print(
+            json.dumps(c, indent=2)
+            if args.json
+            else f"free-flight g: median {c['g_median']:.3f} m/s² over {c['flights']} first flights (quartiles "
+            f"{c['g_quartiles'][0]:.3f}, {c['g_quartiles'][1]:.3f}), {c['g_ratio']:.4f} of 9.81; rest height: "
+            f"median {c['rest_median']:.5f} m over {c['tosses']} tosses, {c['rest_ratio']:.4f} of edge / 2"
+        )
         return 0
     if args.quick:
         args.train, args.test, args.max_evaluations = 2, 2, 1
     jobs = args.jobs or 2
     train, held_out = split(tosses, args.train, args.seed)
-    held_out = held_out[:args.test] if args.test else held_out
+    held_out = held_out[: args.test] if args.test else held_out
     base = base_parameters(args)
     build = functools.partial(cd.cube_scene, base)
     scene = build()
-    report = {"train": len(train), "held_out": len(held_out), "seed": args.seed,
-              "base": {"edge": base.edge, "gravity": base.gravity, "ground": base.ground}}
+    report = {
+        "train": len(train),
+        "held_out": len(held_out),
+        "seed": args.seed,
+        "base": {"edge": base.edge, "gravity": base.gravity, "ground": base.ground},
+    }
 
     recs = training_recordings(tosses, train, args, scene)
     parameters = unknowns(scene, gravity=not args.no_gravity, offset=not args.no_offset)
@@ -220,9 +292,17 @@ def main(argv=None) -> int:
     weights = ResidualWeights(position=1.0, orientation=NOMINAL.edge / 2)  # a radian counts as a corner's travel
     started = time.perf_counter()
     options = {"rtol": args.rtol, "atol": args.atol}
-    result = fit(build if jobs > 1 else scene, recs, parameters, weights=weights, jobs=jobs,
-                 state=state, policy=args.policy,
-                 max_evaluations=args.max_evaluations, options=options)
+    result = fit(
+        build if jobs > 1 else scene,
+        recs,
+        parameters,
+        weights=weights,
+        jobs=jobs,
+        state=state,
+        policy=args.policy,
+        max_evaluations=args.max_evaluations,
+        options=options,
+    )
     report["fit"] = result.to_dict() | {"wall_time": time.perf_counter() - started}
     print(result.table(), file=sys.stderr, flush=True)
     fitted = {"group:cube:offset": args.ground} | FitPlan(scene, parameters).values(result.values)
@@ -271,7 +351,7 @@ def plot_report(report: dict, tosses, fitted: dict, folder: Path, scene) -> None
     for ax, name in zip(axes[:, 0], chosen):
         rec = toss_recording(tosses[name], Start.BEFORE_TOUCH)
         run = rollout(scene, rec, fitted, report["options"])
-        k = rec.compared[:len(run.q)]
+        k = rec.compared[: len(run.q)]
         for j, axis in enumerate("xyz"):
             ax.plot(rec.t, rec.q[:, j], ".", color=f"C{j}", markersize=2.5, label=f"{axis} measured")
             ax.plot(rec.t[k], run.q[:, j], "-", color=f"C{j}", linewidth=1.2, label=f"{axis} simulated")
@@ -287,26 +367,39 @@ def plot_report(report: dict, tosses, fitted: dict, folder: Path, scene) -> None
 
 def format_report(report: dict) -> str:
     fit_ = report["fit"]
-    shape = (f"{report['recordings']} windows of {report['window']} samples, lead {report['lead']}"
-             if report.get("window") else "whole tosses")
-    lines = [f"fit on {report['train']} tosses, {shape} ({fit_['iterations']} iterations, "
-             f"{fit_['evaluations']} evaluations, "
-             f"{fit_['wall_time']:.0f} s; not differentiable per evaluation: {fit_['nondifferentiable']}):"]
+    shape = (
+        f"{report['recordings']} windows of {report['window']} samples, lead {report['lead']}"
+        if report.get("window")
+        else "whole tosses"
+    )
+    lines = [
+        f"fit on {report['train']} tosses, {shape} ({fit_['iterations']} iterations, "
+        f"{fit_['evaluations']} evaluations, "
+        f"{fit_['wall_time']:.0f} s; not differentiable per evaluation: {fit_['nondifferentiable']}):"
+    ]
     for name, p in fit_["parameters"].items():
         lines.append(f"  {name:<26} {p['start']:>10.5g} -> {p['value']:>10.5g} ± {p['standard_error']:.2g}")
     lines.append(f"held out: {report['held_out']} tosses")
     for label in ("nominal", "fitted"):
         for start, s in report[label].items():
             lines.append(f"  {label:<8} from {start:<13} " + _line(s))
-    lines.append("anchors (tuned on all tosses, from before touch): " + "; ".join(
-        f"{k} {v[0]} ± {v[1]} %, {v[2]} ± {v[3]} deg" for k, v in report["anchors"].items()))
+    lines.append(
+        "anchors (tuned on all tosses, from before touch): "
+        + "; ".join(f"{k} {v[0]} ± {v[1]} %, {v[2]} ± {v[3]} deg" for k, v in report["anchors"].items())
+    )
     c = report["jacobian_cost"]
-    lines.append(f"exact Jacobian of {c['unknowns']} unknowns: {c['exact_over_plain']:.2f} plain runs "
-                 f"(forward FD {c['forward_fd_over_plain']}, central {c['central_fd_over_plain']}); plain run "
-                 f"median {c['plain_median'] * 1e3:.0f} ms per fitted recording")
+    lines.append(
+        f"exact Jacobian of {c['unknowns']} unknowns: {c['exact_over_plain']:.2f} plain runs "
+        f"(forward FD {c['forward_fd_over_plain']}, central {c['central_fd_over_plain']}); plain run "
+        f"median {c['plain_median'] * 1e3:.0f} ms per fitted recording"
+    )
     worst = report["fitted"][Start.BEFORE_TOUCH.value]["worst"]
-    lines.append("worst held-out tosses (fitted, from before touch): " + "; ".join(
-        f"{w['toss']} {w['position']:.0f} % {w['rotation']:.0f} deg {dict(Counter(w['events']))}" for w in worst[:5]))
+    lines.append(
+        "worst held-out tosses (fitted, from before touch): "
+        + "; ".join(
+            f"{w['toss']} {w['position']:.0f} % {w['rotation']:.0f} deg {dict(Counter(w['events']))}" for w in worst[:5]
+        )
+    )
     return "\n".join(lines)
 
 

@@ -40,20 +40,47 @@ from contactdiff.sweeps import sweep
 
 ROOT = Path(__file__).resolve().parents[1]
 MENAGERIE = ROOT.parent / "shared" / "data" / "menagerie"
-KINDS = {"unitree_go2": "quadruped", "agility_cassie": "biped", "berkeley_humanoid": "humanoid (legs)",
-         "wonik_allegro": "hand", "leap_hand": "hand", "kuka_iiwa_14": "arm", "universal_robots_ur5e": "arm",
-         "unitree_go1": "quadruped", "unitree_a1": "quadruped", "anybotics_anymal_b": "quadruped",
-         "anybotics_anymal_c": "quadruped", "boston_dynamics_spot": "quadruped", "google_barkour_v0": "quadruped",
-         "google_barkour_vb": "quadruped", "unitree_g1": "humanoid", "unitree_h1": "humanoid",
-         "robotis_op3": "humanoid", "booster_t1": "humanoid", "apptronik_apollo": "humanoid",
-         "fourier_n1": "humanoid", "pal_talos": "humanoid", "shadow_hand": "hand", "shadow_dexee": "hand",
-         "franka_emika_panda": "arm", "robotiq_2f85": "gripper"}
+KINDS = {
+    "unitree_go2": "quadruped",
+    "agility_cassie": "biped",
+    "berkeley_humanoid": "humanoid (legs)",
+    "wonik_allegro": "hand",
+    "leap_hand": "hand",
+    "kuka_iiwa_14": "arm",
+    "universal_robots_ur5e": "arm",
+    "unitree_go1": "quadruped",
+    "unitree_a1": "quadruped",
+    "anybotics_anymal_b": "quadruped",
+    "anybotics_anymal_c": "quadruped",
+    "boston_dynamics_spot": "quadruped",
+    "google_barkour_v0": "quadruped",
+    "google_barkour_vb": "quadruped",
+    "unitree_g1": "humanoid",
+    "unitree_h1": "humanoid",
+    "robotis_op3": "humanoid",
+    "booster_t1": "humanoid",
+    "apptronik_apollo": "humanoid",
+    "fourier_n1": "humanoid",
+    "pal_talos": "humanoid",
+    "shadow_hand": "hand",
+    "shadow_dexee": "hand",
+    "franka_emika_panda": "arm",
+    "robotiq_2f85": "gripper",
+}
 LEGGED_OR_HAND = ("quadruped", "biped", "humanoid", "hand")
 # The model's own file where a Menagerie folder holds several (variants, MJX versions, parts).
-MAIN_FILES = {"unitree_g1": "g1.xml", "franka_emika_panda": "panda.xml", "pal_talos": "talos.xml",
-              "shadow_hand": "right_hand.xml", "wonik_allegro": "right_hand.xml", "boston_dynamics_spot": "spot.xml",
-              "anybotics_anymal_c": "anymal_c.xml", "google_barkour_v0": "barkour_v0.xml",
-              "google_barkour_vb": "barkour_vb.xml", "leap_hand": "right_hand.xml"}
+MAIN_FILES = {
+    "unitree_g1": "g1.xml",
+    "franka_emika_panda": "panda.xml",
+    "pal_talos": "talos.xml",
+    "shadow_hand": "right_hand.xml",
+    "wonik_allegro": "right_hand.xml",
+    "boston_dynamics_spot": "spot.xml",
+    "anybotics_anymal_c": "anymal_c.xml",
+    "google_barkour_v0": "barkour_v0.xml",
+    "google_barkour_vb": "barkour_vb.xml",
+    "leap_hand": "right_hand.xml",
+}
 
 
 def menagerie_models(folder: Path, scenes: bool = False) -> list[tuple[str, str]]:
@@ -127,14 +154,19 @@ def atlas_row(scene, point, samples: int = 8) -> dict:
     worst = max(report.terms, key=lambda t: t.value, default=None)
     mass = max((t for t in report.terms if t.condition == "mass matrix"), key=lambda t: t.value, default=None)
     choice = scene.foot_choice
-    return {"floating": scene.robot.floating_base, "nv": scene.robot.nv,
-            "feet": ", ".join(scene.robot.feet) or "-", "rule": choice.rule.name.lower() if choice else "-",
-            "feet_shown": _feet_shown(scene.robot.feet, choice.limbs if choice else {}),
-            "coupling": report.max_coupling if report.pairs else None,
-            "within": max((p.max for p in report.within_limb), default=None),
-            "worst_term": f"{worst.condition} ({worst.where}): {worst.value:.2e}" if worst else "-",
-            "worst_mass_term": f"{mass.where}: {mass.value:.2e}" if mass else "-",
-            "verdict": report.verdict or f"none: {report.reason}", "notes": "; ".join(scene.atlas_notes)}
+    return {
+        "floating": scene.robot.floating_base,
+        "nv": scene.robot.nv,
+        "feet": ", ".join(scene.robot.feet) or "-",
+        "rule": choice.rule.name.lower() if choice else "-",
+        "feet_shown": _feet_shown(scene.robot.feet, choice.limbs if choice else {}),
+        "coupling": report.max_coupling if report.pairs else None,
+        "within": max((p.max for p in report.within_limb), default=None),
+        "worst_term": f"{worst.condition} ({worst.where}): {worst.value:.2e}" if worst else "-",
+        "worst_mass_term": f"{mass.where}: {mass.value:.2e}" if mass else "-",
+        "verdict": report.verdict or f"none: {report.reason}",
+        "notes": "; ".join(scene.atlas_notes),
+    }
 
 
 def _feet_shown(feet, limbs: dict) -> str:
@@ -148,10 +180,14 @@ def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--menagerie", type=Path, default=MENAGERIE)
     parser.add_argument("--extra", type=Path, help="a folder of downloaded Menagerie model folders")
-    parser.add_argument("--extra-source", default="downloaded",
-                        help="where the --extra models came from (e.g. 'mujoco_menagerie at commit abc1234')")
-    parser.add_argument("--quick", action="store_true",
-                        help="one Menagerie model and solo12, two poses each (a smoke run; give --out)")
+    parser.add_argument(
+        "--extra-source",
+        default="downloaded",
+        help="where the --extra models came from (e.g. 'mujoco_menagerie at commit abc1234')",
+    )
+    parser.add_argument(
+        "--quick", action="store_true", help="one Menagerie model and solo12, two poses each (a smoke run; give --out)"
+    )
     parser.add_argument("--samples", type=int, default=8, help="random poses of each check (default 8)")
     parser.add_argument("--jobs", type=int, default=1, help="worker processes (default 1: run times on one core)")
     parser.add_argument("--out", type=Path, default=ROOT / "docs" / "results" / "atlas.md")
@@ -167,16 +203,21 @@ def main(argv=None) -> None:
         models = [m for m in models if m[0] == "menagerie"][:1] + [m for m in models if m[1] == "solo12"]
     started = time.perf_counter()
     points = [{"arg:source": path, "arg:hand": KINDS.get(label.split("/")[0]) == "hand"} for _, label, path in models]
-    result = sweep(atlas_scene, points,
-                   lambda scene, point: atlas_row(scene, point, args.samples), n_jobs=args.jobs)
+    result = sweep(atlas_scene, points, lambda scene, point: atlas_row(scene, point, args.samples), n_jobs=args.jobs)
     wall = time.perf_counter() - started
-    lines = [_header(args, wall), "",
-             "| source | model | kind | loads | feet (rule) | max coupling | within a foot | worst decoupling term "
-             "| worst mass-matrix term | verdict | time [s] |", "|---|---|---|---|---|---|---|---|---|---|---|"]
+    lines = [
+        _header(args, wall),
+        "",
+        "| source | model | kind | loads | feet (rule) | max coupling | within a foot | worst decoupling term "
+        "| worst mass-matrix term | verdict | time [s] |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
     skipped, failed = [], []
     loaded: dict[str, tuple[str, bool]] = {}  # Menagerie folder: (kind, loaded and checked from some copy)
-    slowest = max(((row.run_time, label) for (origin, label, _), row in zip(models, result)
-                   if origin != "example-robot-data"), default=(0.0, "-"))
+    slowest = max(
+        ((row.run_time, label) for (origin, label, _), row in zip(models, result) if origin != "example-robot-data"),
+        default=(0.0, "-"),
+    )
     for (origin, label, _), row in zip(models, result):
         kind = KINDS.get(label.split("/")[0], "quadruped" if label in QUADRUPEDS else "")
         if row.error is not None:
@@ -198,13 +239,20 @@ def main(argv=None) -> None:
         coupling = "-" if out["coupling"] is None else f"{out['coupling']:.2e}"
         within = "-" if out["within"] is None else f"{out['within']:.2e}"
         loads = "yes" + (f" ({_cell(out['notes'])})" if out["notes"] else "")
-        lines.append(f"| {origin} | {label} | {kind} | {loads} | {out['feet_shown']} ({out['rule']}) | {coupling} | "
-                     f"{within} | "
-                     f"{_cell(out['worst_term'])} | {_cell(out['worst_mass_term'])} | "
-                     f"{_cell(out['verdict'].split(';')[0])} | {row.run_time:.2f} |")
-    lines += ["", _ratio(loaded) + f" Slowest Menagerie check: {slowest[1]}, {slowest[0]:.2f} s (load and check, "
-              "one worker process).", "", f"Not in the table: {len(skipped)} example-robot-data robots with fewer "
-              "than two feet (fixed bases, arms, flying arms): " + ", ".join(sorted(skipped)) + "."]
+        lines.append(
+            f"| {origin} | {label} | {kind} | {loads} | {out['feet_shown']} ({out['rule']}) | {coupling} | "
+            f"{within} | "
+            f"{_cell(out['worst_term'])} | {_cell(out['worst_mass_term'])} | "
+            f"{_cell(out['verdict'].split(';')[0])} | {row.run_time:.2f} |"
+        )
+    lines += [
+        "",
+        _ratio(loaded) + f" Slowest Menagerie check: {slowest[1]}, {slowest[0]:.2f} s (load and check, "
+        "one worker process).",
+        "",
+        f"Not in the table: {len(skipped)} example-robot-data robots with fewer "
+        "than two feet (fixed bases, arms, flying arms): " + ", ".join(sorted(skipped)) + ".",
+    ]
     if failed:
         lines += ["", f"example-robot-data robots that do not load ({len(failed)}): " + "; ".join(failed) + "."]
     args.out.write_text("\n".join(lines) + "\n")
@@ -218,8 +266,10 @@ def _ratio(loaded: dict[str, tuple[str, bool]]) -> str:
     counted = {name: ok for name, (kind, ok) in loaded.items() if kind.startswith(LEGGED_OR_HAND)}
     missed = sorted(name for name, ok in counted.items() if not ok)
     share = sum(counted.values()) / max(len(counted), 1)
-    return (f"Menagerie legged robots and hands that load and are checked: {sum(counted.values())} of "
-            f"{len(counted)} ({100 * share:.0f} %)" + (f"; not loaded: {', '.join(missed)}." if missed else "."))
+    return (
+        f"Menagerie legged robots and hands that load and are checked: {sum(counted.values())} of "
+        f"{len(counted)} ({100 * share:.0f} %)" + (f"; not loaded: {', '.join(missed)}." if missed else ".")
+    )
 
 
 def _header(args, wall: float) -> str:
@@ -232,7 +282,9 @@ def _header(args, wall: float) -> str:
             "repository (its XML files and the mesh files the download had), in a folder outside the repository "
             "(MENAGERIE_DOWNLOAD in the command); rows marked *menagerie* are the XML-only copies beside the "
             "repository. The share of legged robots and hands below counts each model once (loaded when one of "
-            "its copies loads); arms and grippers are not counted.", 100)
+            "its copies loads); arms and grippers are not counted.",
+            100,
+        )
     return f"""# Decoupling atlas
 
 Every MuJoCo Menagerie model beside the repository (`../shared/data/menagerie`, XML only) and every

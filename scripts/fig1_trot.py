@@ -22,8 +22,8 @@ import numpy as np
 import contactdiff as cd
 from contactdiff.paper import TROT_MODELS
 
-T = 1.25          # s: after the landing at t ≈ 1, during stance
-SPAN = 0.05       # rad: θ0 in [-SPAN, SPAN]
+T = 1.25  # s: after the landing at t ≈ 1, during stance
+SPAN = 0.05  # rad: θ0 in [-SPAN, SPAN]
 TOL = dict(rtol=1e-11, atol=1e-12, max_step=0.01)
 OUTCOMES = (("body_pitch", "v", "pitch rate at T (rad/s)"), ("body_z", "q", "body height at T"))
 
@@ -59,9 +59,16 @@ def one_sided_slopes(model: str, steps=(1e-2, 1e-3, 1e-4, 1e-5)) -> list[dict]:
         fp, _ = outcome(model, h)
         fm, _ = outcome(model, -h)
         right, left = (fp - f0) / h, (f0 - fm) / h
-        rows.append({"step": h, "pitch_rate_right": right[0], "pitch_rate_left": left[0],
-                     "height_right": right[1], "height_left": left[1],
-                     "height_gap": abs(right[1] - left[1])})
+        rows.append(
+            {
+                "step": h,
+                "pitch_rate_right": right[0],
+                "pitch_rate_left": left[0],
+                "height_right": right[1],
+                "height_left": left[1],
+                "height_gap": abs(right[1] - left[1]),
+            }
+        )
     return rows
 
 
@@ -70,8 +77,9 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--out", default="docs/fig1_trot.png")
     parser.add_argument("--points", type=int, default=41)
     parser.add_argument("--json", action="store_true")
-    parser.add_argument("--quick", action="store_true",
-                        help="a smoke run of seconds: 5 points, 3 tangents, steps h = 1e-2 and 1e-4")
+    parser.add_argument(
+        "--quick", action="store_true", help="a smoke run of seconds: 5 points, 3 tangents, steps h = 1e-2 and 1e-4"
+    )
     args = parser.parse_args(argv)
     points, n_tangents, steps = (5, 3, (1e-2, 1e-4)) if args.quick else (args.points, 7, (1e-2, 1e-3, 1e-4, 1e-5))
     thetas = np.linspace(-SPAN, SPAN, points)
@@ -80,8 +88,12 @@ def main(argv: list[str] | None = None) -> None:
     for model in TROT_MODELS:
         values = np.array([outcome(model, th)[0] for th in thetas])
         tangents = [(th, *outcome(model, th, jacobian=True)) for th in tangents_at if th != 0.0 or model == "soft"]
-        data[model] = {"theta": thetas, "values": values, "tangents": tangents,
-                       "slopes": one_sided_slopes(model, steps)}
+        data[model] = {
+            "theta": thetas,
+            "values": values,
+            "tangents": tangents,
+            "slopes": one_sided_slopes(model, steps),
+        }
     report = {m: d["slopes"] for m, d in data.items()}
     if args.json:
         print(json.dumps(report, indent=2))
@@ -89,11 +101,15 @@ def main(argv: list[str] | None = None) -> None:
         print(f"one-sided finite-difference slopes at θ0 = 0 of the outcomes at T = {T} s")
         for model, rows in report.items():
             print(f"  {model}:")
-            print(f"    {'step':>8}  {'pitch rate R':>14}  {'pitch rate L':>14}  "
-                  f"{'height R':>12}  {'height L':>12}  {'height gap':>11}")
+            print(
+                f"    {'step':>8}  {'pitch rate R':>14}  {'pitch rate L':>14}  "
+                f"{'height R':>12}  {'height L':>12}  {'height gap':>11}"
+            )
             for r in rows:
-                print(f"    {r['step']:8.0e}  {r['pitch_rate_right']:14.6g}  {r['pitch_rate_left']:14.6g}  "
-                      f"{r['height_right']:12.5g}  {r['height_left']:12.5g}  {r['height_gap']:11.3e}")
+                print(
+                    f"    {r['step']:8.0e}  {r['pitch_rate_right']:14.6g}  {r['pitch_rate_left']:14.6g}  "
+                    f"{r['height_right']:12.5g}  {r['height_left']:12.5g}  {r['height_gap']:11.3e}"
+                )
     plot(data, args.out)
     if not args.json:
         print(f"figure written to {args.out}")
@@ -114,12 +130,18 @@ def plot(data, path) -> None:
             half = 0.006
             for k, (th, value, slope) in enumerate(d["tangents"]):
                 xs = np.array([th - half, th + half])
-                ax.plot(xs, value[row] + slope[row] * (xs - th), color="tab:red", lw=1.6,
-                        label="flow-Jacobian tangent" if k == 0 else None)
+                ax.plot(
+                    xs,
+                    value[row] + slope[row] * (xs - th),
+                    color="tab:red",
+                    lw=1.6,
+                    label="flow-Jacobian tangent" if k == 0 else None,
+                )
             ax.set_ylabel(label)
             if row == 0:
-                ax.set_title(f"planar_trot_{model}" + (" (coupled: jumps)" if model == "rigid"
-                                                       else " (decoupled: smooth)"))
+                ax.set_title(
+                    f"planar_trot_{model}" + (" (coupled: jumps)" if model == "rigid" else " (decoupled: smooth)")
+                )
             if row == len(OUTCOMES) - 1:
                 ax.set_xlabel("initial pitch θ0 (rad)")
             ax.legend(fontsize=7, loc="best")

@@ -44,10 +44,14 @@ TROTS = ("solo12_trot", "anymal_trot")
 def counts(events, segments) -> dict:
     """Events by kind, bounces, Zeno-cascade cut-offs, slips and foot-seconds slipping."""
     kinds = Counter(e.kind for e in events)
-    return {"events": len(events), "kinds": {k: kinds.get(k, 0) for k in EVENT_KINDS},
-            "bounces": kinds.get("bounce", 0), "slips": kinds.get("slip", 0),
-            "zeno_cascades": sum(cd.NonSmooth.ZENO_CASCADE in e.nonsmooth for e in events),
-            "slip_time": sum((s.t1 - s.t0) * len(s.sliding) for s in segments)}
+    return {
+        "events": len(events),
+        "kinds": {k: kinds.get(k, 0) for k in EVENT_KINDS},
+        "bounces": kinds.get("bounce", 0),
+        "slips": kinds.get("slip", 0),
+        "zeno_cascades": sum(cd.NonSmooth.ZENO_CASCADE in e.nonsmooth for e in events),
+        "slip_time": sum((s.t1 - s.t0) * len(s.sliding) for s in segments),
+    }
 
 
 @contextmanager
@@ -67,8 +71,10 @@ def where_time_goes(record: list):
         def step(self):
             t_old, rejected, evals, start = self.t, self.n_rejected, self.n_accel, time.perf_counter()
             original(self)
-            record.append((t_old, self.t, self.n_rejected - rejected, time.perf_counter() - start,
-                           self.n_accel - evals))
+            record.append(
+                (t_old, self.t, self.n_rejected - rejected, time.perf_counter() - start, self.n_accel - evals)
+            )
+
         return step
 
     def timed_impact(*args, **kwargs):
@@ -77,6 +83,7 @@ def where_time_goes(record: list):
             return impact(*args, **kwargs)
         finally:
             record.append(("impact", time.perf_counter() - start))
+
     try:
         for cls, original in steps.items():
             cls.step = timed_step(original)
@@ -107,12 +114,20 @@ def time_shares(record: list, segments, wall: float, events=()) -> dict:
     starts = [seg.t0 for seg in segments]
     stop_times = {e.t for e in events if e.kind == "stick"}
     onset_times = {e.t for e in events if e.kind == "slip"}
-    out = {part: {"wall": 0.0, "steps": 0, "rejected": 0, "evaluations": 0, "sim_time": 0.0}
-           for part in ("slipping", "other")}
-    stops = {"segments": sum(bool(seg.sliding) and seg.t1 in stop_times for seg in segments),
-             "evaluations": 0, "by_time_left": Counter()}
-    onsets = {"segments": sum(bool(seg.sliding) and seg.t1 not in stop_times and seg.t0 in onset_times
-                              for seg in segments), "evaluations": 0, "by_time_since": Counter()}
+    out = {
+        part: {"wall": 0.0, "steps": 0, "rejected": 0, "evaluations": 0, "sim_time": 0.0}
+        for part in ("slipping", "other")
+    }
+    stops = {
+        "segments": sum(bool(seg.sliding) and seg.t1 in stop_times for seg in segments),
+        "evaluations": 0,
+        "by_time_left": Counter(),
+    }
+    onsets = {
+        "segments": sum(bool(seg.sliding) and seg.t1 not in stop_times and seg.t0 in onset_times for seg in segments),
+        "evaluations": 0,
+        "by_time_since": Counter(),
+    }
     impacts = 0.0
     for item in record:
         if item[0] == "impact":
@@ -141,11 +156,14 @@ def time_shares(record: list, segments, wall: float, events=()) -> dict:
     floor = out["slipping"]["segments"] * per_step / slip_time if slip_time > 0 else 0.0
     for part, key in ((stops, "by_time_left"), (onsets, "by_time_since")):
         part[key] = dict(sorted(part[key].items(), key=lambda kv: float(kv[0])))
-    return out | {"slip_to_other": rates[0] / rates[1] if rates[1] > 0 else float("nan"), "stops": stops,
-                  "one_step_floor": floor / rates[1] if rates[1] > 0 else float("nan"),
-                  "onsets": onsets,
-                  "impacts": {"wall": impacts}, "rest": {"wall": wall - impacts - out["slipping"]["wall"]
-                                                          - out["other"]["wall"]}}
+    return out | {
+        "slip_to_other": rates[0] / rates[1] if rates[1] > 0 else float("nan"),
+        "stops": stops,
+        "one_step_floor": floor / rates[1] if rates[1] > 0 else float("nan"),
+        "onsets": onsets,
+        "impacts": {"wall": impacts},
+        "rest": {"wall": wall - impacts - out["slipping"]["wall"] - out["other"]["wall"]},
+    }
 
 
 def run(scene: cd.Scene, t_final: float, repeats: int, profile: bool = False, jacobian: bool = False) -> dict:
@@ -162,22 +180,44 @@ def run(scene: cd.Scene, t_final: float, repeats: int, profile: bool = False, ja
         except Exception as exc:  # reported, not fixed
             last = loop.segments[-1] if loop.segments else None
             return counts(loop.events, loop.segments) | {
-                "error": f"{type(exc).__name__}: {exc}", "traceback": traceback.format_exc(),
-                "wall": time.perf_counter() - start, "t_reached": last.t1 if last else 0.0, "steps": reached[2],
-                "last_events": [dict(t=e.t, kind=e.kind, contacts=list(e.contacts), mode_after=list(e.mode_after),
-                                     sliding=list(e.sliding), nonsmooth=[r.name for r in e.nonsmooth])
-                                for e in loop.events[-8:]],
-                "last_mode": list(last.mode) if last else [], "last_sliding": list(last.sliding) if last else []}
+                "error": f"{type(exc).__name__}: {exc}",
+                "traceback": traceback.format_exc(),
+                "wall": time.perf_counter() - start,
+                "t_reached": last.t1 if last else 0.0,
+                "steps": reached[2],
+                "last_events": [
+                    dict(
+                        t=e.t,
+                        kind=e.kind,
+                        contacts=list(e.contacts),
+                        mode_after=list(e.mode_after),
+                        sliding=list(e.sliding),
+                        nonsmooth=[r.name for r in e.nonsmooth],
+                    )
+                    for e in loop.events[-8:]
+                ],
+                "last_mode": list(last.mode) if last else [],
+                "last_sliding": list(last.sliding) if last else [],
+            }
         walls.append(time.perf_counter() - start)
     up = pin.Quaternion(traj.q[6], *traj.q[3:6]).toRotationMatrix()[:, 2]
     tilt = float(np.degrees(np.arccos(np.clip(up[2], -1.0, 1.0))))
     height, start_height = float(traj.q[2]), float(scene.q0[2])
-    return counts(traj.events, traj.segments) | {
-        "wall": statistics.median(walls), "walls": walls, "steps": traj.stats.steps,
-        "rejected_steps": traj.stats.rejected_steps, "termination": str(traj.termination),
-        "base_height": height, "start_height": start_height, "tilt_deg": tilt,
-        "upright": height >= 0.5 * start_height and tilt < 45.0} \
+    return (
+        counts(traj.events, traj.segments)
+        | {
+            "wall": statistics.median(walls),
+            "walls": walls,
+            "steps": traj.stats.steps,
+            "rejected_steps": traj.stats.rejected_steps,
+            "termination": str(traj.termination),
+            "base_height": height,
+            "start_height": start_height,
+            "tilt_deg": tilt,
+            "upright": height >= 0.5 * start_height and tilt < 45.0,
+        }
         | (_profiled(scene, t_final, jacobian) if profile else {})
+    )
 
 
 def _profiled(scene: cd.Scene, t_final: float, jacobian: bool = False) -> dict:
@@ -191,71 +231,109 @@ def _profiled(scene: cd.Scene, t_final: float, jacobian: bool = False) -> dict:
 
 def table(rows: list[dict], t_final: float) -> str:
     """The rows as a table, then the failures' diagnoses."""
-    short = {"touchdown": "td", "lift-off": "lo", "slip": "slip", "stick": "stick", "bounce": "bnc",
-             "grazing": "graz", "zeno": "zeno", "bear": "bear"}
+    short = {
+        "touchdown": "td",
+        "lift-off": "lo",
+        "slip": "slip",
+        "stick": "stick",
+        "bounce": "bnc",
+        "grazing": "graz",
+        "zeno": "zeno",
+        "bear": "bear",
+    }
     head = " ".join(f"{short[k]:>5}" for k in EVENT_KINDS)
-    lines = [f"scene        friction events {head}  zenoC  slip s  wall s  steps  rej   base m (start)  "
-             f"tilt  upright"]
+    lines = [f"scene        friction events {head}  zenoC  slip s  wall s  steps  rej   base m (start)  tilt  upright"]
     fails = []
     for r in rows:
-        cells = (f"{r['scene']:<12} {r['friction']:>8} {r['events']:6d} "
-                 + " ".join(f"{r['kinds'][k]:5d}" for k in EVENT_KINDS)
-                 + f"  {r['zeno_cascades']:5d}  {r['slip_time']:6.3f}  {r['wall']:6.2f}  {r['steps']:5d}  ")
+        cells = (
+            f"{r['scene']:<12} {r['friction']:>8} {r['events']:6d} "
+            + " ".join(f"{r['kinds'][k]:5d}" for k in EVENT_KINDS)
+            + f"  {r['zeno_cascades']:5d}  {r['slip_time']:6.3f}  {r['wall']:6.2f}  {r['steps']:5d}  "
+        )
         if "error" in r:
             lines.append(cells + f"FAILED at t = {r['t_reached']:.6g} s: {r['error'].split(':')[0]} (below)")
             fails.append(r)
         else:
-            lines.append(cells + f"{r['rejected_steps']:4d}  {r['base_height']:.3f} ({r['start_height']:.3f})  "
-                         f"{r['tilt_deg']:4.1f}  {r['upright']}")
-    lines.append(f"{t_final:g} s each; td touchdown, lo lift-off, bnc bounce, graz grazing; zenoC: events with "
-                 "NonSmooth.ZENO_CASCADE; slip s: foot-seconds slipping; wall: median; rej: rejected steps; "
-                 "tilt: base z axis from vertical (deg); a FAILED row counts up to the failure")
+            lines.append(
+                cells + f"{r['rejected_steps']:4d}  {r['base_height']:.3f} ({r['start_height']:.3f})  "
+                f"{r['tilt_deg']:4.1f}  {r['upright']}"
+            )
+    lines.append(
+        f"{t_final:g} s each; td touchdown, lo lift-off, bnc bounce, graz grazing; zenoC: events with "
+        "NonSmooth.ZENO_CASCADE; slip s: foot-seconds slipping; wall: median; rej: rejected steps; "
+        "tilt: base z axis from vertical (deg); a FAILED row counts up to the failure"
+    )
     for r in rows:
         if "profile" in r:
             p = r["profile"]
-            lines.append(f"\n{r['scene']} friction={r['friction']}: where the time goes (one more run, "
-                         f"{p['total']['wall']:.2f} s with timers)")
+            lines.append(
+                f"\n{r['scene']} friction={r['friction']}: where the time goes (one more run, "
+                f"{p['total']['wall']:.2f} s with timers)"
+            )
             for part in ("slipping", "other"):
                 q = p[part]
-                lines.append(f"  steps in {part:>8} segments: {q['wall']:6.2f} s wall, {q['steps']:5d} steps "
-                             f"({q['rejected']} rejected), {q['evaluations']} evaluations, {q['sim_time']:.4f} s "
-                             f"simulated: {q['evaluations_per_s']:.4g} evaluations per simulated s")
-            lines.append(f"  evaluations per simulated s, slipping over other: {p['slip_to_other']:.3g} "
-                         f"({p['slipping']['segments']} slipping segments; one step each would give "
-                         f"{p['one_step_floor']:.3g})")
+                lines.append(
+                    f"  steps in {part:>8} segments: {q['wall']:6.2f} s wall, {q['steps']:5d} steps "
+                    f"({q['rejected']} rejected), {q['evaluations']} evaluations, {q['sim_time']:.4f} s "
+                    f"simulated: {q['evaluations_per_s']:.4g} evaluations per simulated s"
+                )
+            lines.append(
+                f"  evaluations per simulated s, slipping over other: {p['slip_to_other']:.3g} "
+                f"({p['slipping']['segments']} slipping segments; one step each would give "
+                f"{p['one_step_floor']:.3g})"
+            )
             st = p["stops"]
-            lines.append(f"  of the slipping steps, in the {st['segments']} segments that end in a stop: "
-                         f"{st['evaluations']} evaluations; by the time left to the stop (s): "
-                         + ", ".join(f"{k}: {n}" for k, n in st["by_time_left"].items()))
+            lines.append(
+                f"  of the slipping steps, in the {st['segments']} segments that end in a stop: "
+                f"{st['evaluations']} evaluations; by the time left to the stop (s): "
+                + ", ".join(f"{k}: {n}" for k, n in st["by_time_left"].items())
+            )
             on = p["onsets"]
-            lines.append(f"  in the {on['segments']} others that begin with a slip from sticking: {on['evaluations']} "
-                         "evaluations; by the time since the onset (s): "
-                         + ", ".join(f"{k}: {n}" for k, n in on["by_time_since"].items()))
-            lines.append(f"  impacts: {p['impacts']['wall']:.2f} s; "
-                         f"events, guards, the rest: {p['rest']['wall']:.2f} s")
+            lines.append(
+                f"  in the {on['segments']} others that begin with a slip from sticking: {on['evaluations']} "
+                "evaluations; by the time since the onset (s): "
+                + ", ".join(f"{k}: {n}" for k, n in on["by_time_since"].items())
+            )
+            lines.append(
+                f"  impacts: {p['impacts']['wall']:.2f} s; events, guards, the rest: {p['rest']['wall']:.2f} s"
+            )
     for r in fails:
-        lines += [f"\n--- {r['scene']} friction={r['friction']}: {r['error']}", r["traceback"].rstrip(),
-                  f"time reached {r['t_reached']!r} s; mode {r['last_mode']}, sliding {r['last_sliding']}; "
-                  "last events:"]
+        lines += [
+            f"\n--- {r['scene']} friction={r['friction']}: {r['error']}",
+            r["traceback"].rstrip(),
+            f"time reached {r['t_reached']!r} s; mode {r['last_mode']}, sliding {r['last_sliding']}; last events:",
+        ]
         lines += [f"  {e}" for e in r["last_events"]]
     return "\n".join(lines)
 
 
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--mu", type=float, nargs="+", default=[0.7, 0.8],
-                        help="Coulomb coefficients of the feet, one run each (default 0.7 0.8)")
+    parser.add_argument(
+        "--mu",
+        type=float,
+        nargs="+",
+        default=[0.7, 0.8],
+        help="Coulomb coefficients of the feet, one run each (default 0.7 0.8)",
+    )
     parser.add_argument("--t-final", type=float, default=3.0, help="simulated time of each run (s)")
     parser.add_argument("--repeats", type=int, default=1, help="timed runs per case (median kept)")
     parser.add_argument("--scenes", nargs="+", default=list(TROTS))
-    parser.add_argument("--profile", action="store_true",
-                        help="also time, in one more run of each Coulomb case, the steps in segments with a "
-                             "slipping foot, the other steps and the impacts")
-    parser.add_argument("--jacobian", action="store_true",
-                        help="carry the flow Jacobian in every run (simulate(..., jacobian=True))")
+    parser.add_argument(
+        "--profile",
+        action="store_true",
+        help="also time, in one more run of each Coulomb case, the steps in segments with a "
+        "slipping foot, the other steps and the impacts",
+    )
+    parser.add_argument(
+        "--jacobian", action="store_true", help="carry the flow Jacobian in every run (simulate(..., jacobian=True))"
+    )
     parser.add_argument("--json", action="store_true")
-    parser.add_argument("--quick", action="store_true",
-                        help="a smoke run of seconds: solo12_trot, μ = 0.7, 0.2 s, one repeat, --profile")
+    parser.add_argument(
+        "--quick",
+        action="store_true",
+        help="a smoke run of seconds: solo12_trot, μ = 0.7, 0.2 s, one repeat, --profile",
+    )
     args = parser.parse_args(argv)
     if args.quick:
         args.scenes, args.mu, args.t_final, args.repeats, args.profile = ["solo12_trot"], [0.7], 0.2, 1, True
@@ -263,8 +341,11 @@ def main(argv: list[str] | None = None) -> None:
     for name in args.scenes:
         stick = cd.load_scene(name)
         for friction, scene in [("stick", stick)] + [(mu, stick.with_friction(mu)) for mu in args.mu]:
-            print(f"running {name} friction={friction} for {args.t_final:g} s x {args.repeats} ...",
-                  file=sys.stderr, flush=True)
+            print(
+                f"running {name} friction={friction} for {args.t_final:g} s x {args.repeats} ...",
+                file=sys.stderr,
+                flush=True,
+            )
             profile = args.profile and friction != "stick"
             row = {"scene": name, "friction": friction} | run(scene, args.t_final, args.repeats, profile, args.jacobian)
             done = row.get("error") or f"{row['events']} events, {row['wall']:.2f} s wall"

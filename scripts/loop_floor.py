@@ -79,7 +79,9 @@ def _timed(parts: dict[str, float], **methods):
                 return fn(*args, **kwargs)
             finally:
                 parts[name] += time.perf_counter() - start
+
         return timed
+
     try:
         for name, (cls, attr) in methods.items():
             parts[name] = 0.0
@@ -139,12 +141,15 @@ def measure(name: str, quick: bool = False) -> dict:
                     if torques:
                         kin.update(q, v)
                     tau = scene.tau(kin, t) if torques else tau0
-                    K[s, nv:] = pin.constraintDynamics(model, rigid.data, q, v, tau, rigid.models,
-                                                       rigid.datas, SETTINGS)
+                    K[s, nv:] = pin.constraintDynamics(
+                        model, rigid.data, q, v, tau, rigid.models, rigid.datas, SETTINGS
+                    )
+
         return run
 
     def pin_call():
         pin.constraintDynamics(model, rigid.data, q0, v0, tau0, rigid.models, rigid.datas, SETTINGS)
+
     stepper = DOP853(lambda t, q, v: accel(q, v, t), group, t0, q0, v0)
     stepper._K[0] = K[0]
 
@@ -166,8 +171,13 @@ def measure(name: str, quick: bool = False) -> dict:
         out["rows"].append({"what": label, "us_per_eval": 1e6 * t / evals, "ratio": t / evals / reference})
     run = trot_speed(name, t_final, 1)
     # bench --speed's own reference: the run's modes weighted by time, timed after the run
-    out["rows"].append({"what": f"a whole simulate run, {t_final:g} s (bench --speed)", "us_per_eval":
-                        1e6 * run.per_evaluation, "ratio": run.overhead_ratio})
+    out["rows"].append(
+        {
+            "what": f"a whole simulate run, {t_final:g} s (bench --speed)",
+            "us_per_eval": 1e6 * run.per_evaluation,
+            "ratio": run.overhead_ratio,
+        }
+    )
     out["whole_run_shares"] = breakdown(name, t_final)
     return out
 
@@ -176,8 +186,9 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--scene", action="append", help="trot scene (repeatable; default both trots)")
     parser.add_argument("--json", action="store_true", help="print the rows as JSON")
-    parser.add_argument("--quick", action="store_true",
-                        help="a smoke run of seconds: solo12_trot unless --scene, one round, 0.2-s runs")
+    parser.add_argument(
+        "--quick", action="store_true", help="a smoke run of seconds: solo12_trot unless --scene, one round, 0.2-s runs"
+    )
     args = parser.parse_args(argv)
     default = ["solo12_trot"] if args.quick else ["solo12_trot", "anymal_trot"]
     results = [measure(name, args.quick) for name in (args.scene or default)]

@@ -69,7 +69,7 @@ def main(argv=None) -> None:
         args.states = 2
     print(f"| model | max rel. diff of M | max rel. diff of bias | MuJoCo's file, time ({args.states} random states) |")
     print("|---|---|---|---|")
-    for label, path in menagerie_models(args.menagerie)[:1 if args.quick else None]:
+    for label, path in menagerie_models(args.menagerie)[: 1 if args.quick else None]:
         started = time.perf_counter()
         with tempfile.TemporaryDirectory() as folder:
             try:

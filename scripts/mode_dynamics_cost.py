@@ -50,8 +50,13 @@ def report(name: str, number: int = 300, repeat: int = 3) -> None:
 
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("scenes", nargs="*", metavar="SCENE", default=["solo12_drop", "planar_trot_soft"],
-                        help="shipped scenes (default solo12_drop planar_trot_soft)")
+    parser.add_argument(
+        "scenes",
+        nargs="*",
+        metavar="SCENE",
+        default=["solo12_drop", "planar_trot_soft"],
+        help="shipped scenes (default solo12_drop planar_trot_soft)",
+    )
     parser.add_argument("--quick", action="store_true", help="one repeat of 3 calls per line: a smoke run")
     args = parser.parse_args(argv)
     for name in args.scenes:

@@ -41,8 +41,7 @@ def tcp_pose(model: pin.Model, data: pin.Data, q: np.ndarray) -> pin.SE3:
 def pose_error(model: pin.Model, data: pin.Data, q: np.ndarray, target: pin.SE3) -> np.ndarray:
     """``(p - p*, log3(R*^T R))``: position error (m, world) and orientation error (rad)."""
     here = tcp_pose(model, data, q)
-    return np.concatenate([here.translation - target.translation,
-                           pin.log3(target.rotation.T @ here.rotation)])
+    return np.concatenate([here.translation - target.translation, pin.log3(target.rotation.T @ here.rotation)])
 
 
 def lifted_pose(lift: float, *, damping: float = 1e-8, tol: float = 1e-13, max_iter: int = 50) -> np.ndarray:
@@ -81,12 +80,16 @@ def main() -> None:
     q0 = start_pose()
     q0[7:9] = 0.03  # fingers opened equally: the pads' midpoint lies on the hand's axis
     tcp = tcp_pose(robot.model, data, q0)
-    pads = [data.oMf[robot.model.getFrameId(f"panda_{side}finger")].act(np.array([0.0, 0.0, PAD_DEPTH]))
-            for side in ("left", "right")]
+    pads = [
+        data.oMf[robot.model.getFrameId(f"panda_{side}finger")].act(np.array([0.0, 0.0, PAD_DEPTH]))
+        for side in ("left", "right")
+    ]
     middle = 0.5 * (pads[0] + pads[1])
     print(f"# start: tool centre at {tcp.translation.tolist()}")
-    print(f"# pad centres' midpoint (the box's centre) at {middle.tolist()}; "
-          f"a 5 cm box's bottom face at z = {float(middle[2]) - 0.025!r}")
+    print(
+        f"# pad centres' midpoint (the box's centre) at {middle.tolist()}; "
+        f"a 5 cm box's bottom face at z = {float(middle[2]) - 0.025!r}"
+    )
     q1 = lifted_pose(args.lift)
     err = pose_error(robot.model, data, q1, pin.SE3(tcp.rotation, tcp.translation + [0.0, 0.0, args.lift]))
     print(f"# lifted by {args.lift} m: residual {np.linalg.norm(err[:3]):.1e} m, {np.linalg.norm(err[3:]):.1e} rad")

@@ -63,41 +63,48 @@ def measure(rounds: int, t_final: float = T_FINAL, counts: tuple[int, ...] = (1,
         return 1e-5 * (abs(values[name]) or 1.0)
 
     def central(name):
-        plus, minus = (cd.simulate(scene.with_parameters({name: values[name] + sign * step(name)}), t_final)
-                       for sign in (1, -1))
+        plus, minus = (
+            cd.simulate(scene.with_parameters({name: values[name] + sign * step(name)}), t_final) for sign in (1, -1)
+        )
         return np.concatenate([pin.difference(scene.model, minus.q, plus.q), plus.v - minus.v]) / (2 * step(name))
 
     def fd(names):
         def run():  # the 2p perturbed plain runs of a central difference
             for name in names:
                 central(name)
+
         return run
 
     jobs = {
         "plain": lambda: cd.simulate(scene, t_final),
         "jacobian": lambda: cd.simulate(scene, t_final, jacobian=True),
         f"{len(inertial)} inertial": lambda: cd.simulate(scene, t_final, parameters=inertial),
-        f"jacobian + {len(inertial)} inertial": lambda: cd.simulate(scene, t_final, jacobian=True,
-                                                                   parameters=inertial),
+        f"jacobian + {len(inertial)} inertial": lambda: cd.simulate(scene, t_final, jacobian=True, parameters=inertial),
     }
     for p in counts:
         names = base[:p]
-        jobs[f"{p} parameters"] = (lambda names=names: cd.simulate(scene, t_final, parameters=names))
+        jobs[f"{p} parameters"] = lambda names=names: cd.simulate(scene, t_final, parameters=names)
         jobs[f"FD, {2 * p} runs"] = fd(names)
     t = _interleaved(jobs, rounds)
-    rows = {"times_s": t, "events": len(cd.simulate(scene, t_final).events), "parameters": len(inertial),
-            "all_inertial_over_jacobian": t[f"{len(inertial)} inertial"] / t["jacobian"],
-            "both_over_jacobian": t[f"jacobian + {len(inertial)} inertial"] / t["jacobian"],
-            "fd_over_one_run": {p: t[f"FD, {2 * p} runs"] / t[f"{p} parameters"] for p in counts},
-            "t_final": t_final}
+    rows = {
+        "times_s": t,
+        "events": len(cd.simulate(scene, t_final).events),
+        "parameters": len(inertial),
+        "all_inertial_over_jacobian": t[f"{len(inertial)} inertial"] / t["jacobian"],
+        "both_over_jacobian": t[f"jacobian + {len(inertial)} inertial"] / t["jacobian"],
+        "fd_over_one_run": {p: t[f"FD, {2 * p} runs"] / t[f"{p} parameters"] for p in counts},
+        "t_final": t_final,
+    }
     checked = base[:2]
     reference = cd.simulate(scene, t_final, parameters=checked, rtol=1e-12, atol=1e-13).parameter_jacobian
     exact = cd.simulate(scene, t_final, parameters=checked).parameter_jacobian
     rows["accuracy"] = {}
     for k, name in enumerate(checked):
         size = np.abs(reference[:, k]).max()
-        rows["accuracy"][name] = {"exact": float(np.abs(exact[:, k] - reference[:, k]).max() / size),
-                                  "finite_difference": float(np.abs(central(name) - reference[:, k]).max() / size)}
+        rows["accuracy"][name] = {
+            "exact": float(np.abs(exact[:, k] - reference[:, k]).max() / size),
+            "finite_difference": float(np.abs(central(name) - reference[:, k]).max() / size),
+        }
     return rows
 
 
@@ -116,15 +123,18 @@ def main(argv: list[str] | None = None) -> None:
     print(f"tilted solo12 drop, {rows['t_final']} s, {rows['events']} events; median of {args.rounds} rounds")
     for name, t in rows["times_s"].items():
         print(f"  {name:<28} {t:7.3f} s")
-    print(f"parameter Jacobian of all {rows['parameters']} inertial parameters / state Jacobian alone: "
-          f"{rows['all_inertial_over_jacobian']:.2f} (aim <= 2); both / state Jacobian: "
-          f"{rows['both_over_jacobian']:.2f}")
+    print(
+        f"parameter Jacobian of all {rows['parameters']} inertial parameters / state Jacobian alone: "
+        f"{rows['all_inertial_over_jacobian']:.2f} (aim <= 2); both / state Jacobian: "
+        f"{rows['both_over_jacobian']:.2f}"
+    )
     for p, ratio in rows["fd_over_one_run"].items():
         print(f"  p = {p}: 2p FD runs / one run with p parameters: {ratio:.2f} (aim > 1 for p >= 2)")
     print("error of a column at the default tolerances, relative to its size (reference: rtol 1e-12):")
     for name, err in rows["accuracy"].items():
-        print(f"  {name:<28} exact {err['exact']:.1e}   central difference (h = 1e-5 |p|) "
-              f"{err['finite_difference']:.1e}")
+        print(
+            f"  {name:<28} exact {err['exact']:.1e}   central difference (h = 1e-5 |p|) {err['finite_difference']:.1e}"
+        )
 
 
 if __name__ == "__main__":

@@ -31,13 +31,18 @@ def main(argv: list[str] | None = None) -> None:
         row = {"robot": name}
         for armature in ARMATURES:
             report = cd.check_decoupling(scene, samples=args.samples, armature=armature)
-            row[armature] = {"max": report.max_coupling,
-                             "reference": max(p.reference for p in report.pairs),
-                             "verdict": report.verdict}
+            row[armature] = {
+                "max": report.max_coupling,
+                "reference": max(p.reference for p in report.pairs),
+                "verdict": report.verdict,
+            }
         rows.append(row)
     if args.json:
-        print(json.dumps([{k if isinstance(k, str) else f"armature={k:g}": v for k, v in r.items()}
-                          for r in rows], indent=2))
+        print(
+            json.dumps(
+                [{k if isinstance(k, str) else f"armature={k:g}": v for k, v in r.items()} for r in rows], indent=2
+            )
+        )
         return
     head = " | ".join(f"armature {a:g}" for a in ARMATURES)
     print(f"| robot | {head} |")
@@ -45,9 +50,11 @@ def main(argv: list[str] | None = None) -> None:
     for r in rows:
         cells = " | ".join(f"{r[a]['reference']:.1e} / {r[a]['max']:.1e}" for a in ARMATURES)
         print(f"| {r['robot']} | {cells} |")
-    print("\ncells: max coupling at the standing pose / max over standing + "
-          f"{args.samples} random poses; every verdict: "
-          + ", ".join(sorted({r[a]['verdict'] for r in rows for a in ARMATURES})))
+    print(
+        "\ncells: max coupling at the standing pose / max over standing + "
+        f"{args.samples} random poses; every verdict: "
+        + ", ".join(sorted({r[a]["verdict"] for r in rows for a in ARMATURES}))
+    )
 
 
 if __name__ == "__main__":

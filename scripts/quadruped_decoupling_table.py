@@ -77,10 +77,10 @@ ARMATURES = {
 }
 
 TREND_ROBOT = "solo12"
-TREND_ARMATURE = 3.6e-3                      # kg m², solo12's high bracket
+TREND_ARMATURE = 3.6e-3  # kg m², solo12's high bracket
 TREND_FOOT_MASSES = (1e-2, 3e-3, 1e-3, 3e-4)  # kg; solo12's shank (38 g) can give at most ~20 g at the foot
-TREND_STIFFNESSES = (1e3, 1e4, 1e5)          # N/m
-HORIZON = 0.02                               # s after the touchdown
+TREND_STIFFNESSES = (1e3, 1e4, 1e5)  # N/m
+HORIZON = 0.02  # s after the touchdown
 SIM = dict(rtol=1e-8, atol=1e-10)
 
 
@@ -96,7 +96,7 @@ TROT_MAX_PARTNER_GAP = 0.01
 # m/s: slower landings are the micro re-contacts that follow an impact, not a foot's touchdown
 # (the trots' feet land at tenths of a metre per second).
 TROT_MIN_SPEED = 0.02
-CLOSE_TOL = 1e-13            # m: partner gap left after closing it along its leg
+CLOSE_TOL = 1e-13  # m: partner gap left after closing it along its leg
 
 
 class TouchdownState(NamedTuple):
@@ -131,8 +131,10 @@ def touchdown_states(name: str, source: str = "trot"):
     if source not in STATE_SOURCES:
         raise cd.InvalidInputError(f"unknown state source {source!r}; valid: {', '.join(STATE_SOURCES)}")
     if source == "trot" and importlib.util.find_spec("contactdiff.control.trot_scenes") is None:
-        print(f"note: {name}: contactdiff.control.trot_scenes is missing; standing-pose touchdown instead",
-              file=sys.stderr)
+        print(
+            f"note: {name}: contactdiff.control.trot_scenes is missing; standing-pose touchdown instead",
+            file=sys.stderr,
+        )
     elif source == "trot":
         try:
             scene, states = trot_touchdowns(name)
@@ -200,8 +202,16 @@ def trot_touchdowns(name: str, strides: float = TROT_STRIDES):
                 continue
             kin.update(q, event.v_minus)
             if all(scene.contacts[k].rows(kin)[0] @ event.v_minus < -TROT_MIN_SPEED for k in pair):
-                states.append(TouchdownState(q, event.v_minus.copy(), pair, tuple(sorted(before - set(pair))),
-                                             float(event.t), float(partner_gap)))
+                states.append(
+                    TouchdownState(
+                        q,
+                        event.v_minus.copy(),
+                        pair,
+                        tuple(sorted(before - set(pair))),
+                        float(event.t),
+                        float(partner_gap),
+                    )
+                )
     return scene, states
 
 
@@ -213,8 +223,12 @@ def _close_gap(scene, q, contact: int):
     if not 0 <= c.gap(kin) <= TROT_MAX_PARTNER_GAP:
         return None
     joint = scene.model.frames[c.fid].parentJoint
-    cols = [k for j in scene.model.supports[joint] if j > 1
-            for k in range(scene.model.joints[j].idx_v, scene.model.joints[j].idx_v + scene.model.joints[j].nv)]
+    cols = [
+        k
+        for j in scene.model.supports[joint]
+        if j > 1
+        for k in range(scene.model.joints[j].idx_v, scene.model.joints[j].idx_v + scene.model.joints[j].nv)
+    ]
     for _ in range(50):
         kin.update(q, zero)
         gap = c.gap(kin)
@@ -240,17 +254,22 @@ def measure(scene, states, armature: float) -> dict:
     worst_mass = max(mass, key=lambda t: t.value)
     row["mass_term"], row["mass_term_where"] = worst_mass.value, worst_mass.where
     row["gap_term"] = max(t.value for t in report.terms if t.condition == "gap")
-    row["other_terms"] = max((t.value for t in report.terms if t.condition not in ("mass matrix", "gap")),
-                             default=0.0)
+    row["other_terms"] = max((t.value for t in report.terms if t.condition not in ("mass matrix", "gap")), default=0.0)
     row["verdict"] = report.verdict
     gaps = [order_gap(scene, s.q, s.v, s.pair, mode=s.mode, t=s.t) for s in states]
     row["outcome_gap"] = max(g.outcome for g in gaps)
     row["saltation_gap"] = max(g.saltation for g in gaps)
     row["saltation_spread"] = max(g.saltation_spread for g in gaps)
-    row["per_state"] = [{"outcome": g.outcome, "saltation": g.saltation, "saltation_spread": g.saltation_spread,
-                         "impact_jump": g.impact_jump, "mode_after": {"->".join(k): list(m)
-                                                                      for k, m in g.mode_after.items()}}
-                        for g in gaps]
+    row["per_state"] = [
+        {
+            "outcome": g.outcome,
+            "saltation": g.saltation,
+            "saltation_spread": g.saltation_spread,
+            "impact_jump": g.impact_jump,
+            "mode_after": {"->".join(k): list(m) for k, m in g.mode_after.items()},
+        }
+        for g in gaps
+    ]
     row["modes_after"] = sorted({m for g in gaps for m in map(tuple, g.mode_after.values())})
     return row
 
@@ -261,9 +280,15 @@ def describe_states(scene, states) -> list[dict]:
     out = []
     for s in states:
         kin.update(s.q, s.v)
-        out.append({"t": s.t, "pair": [names[k] for k in s.pair], "mode": [names[k] for k in s.mode],
-                    "partner_gap": s.partner_gap,
-                    "landing_speeds": [float(-scene.contacts[k].rows(kin)[0] @ s.v) for k in s.pair]})
+        out.append(
+            {
+                "t": s.t,
+                "pair": [names[k] for k in s.pair],
+                "mode": [names[k] for k in s.mode],
+                "partner_gap": s.partner_gap,
+                "landing_speeds": [float(-scene.contacts[k].rows(kin)[0] @ s.v) for k in s.pair],
+            }
+        )
     return out
 
 
@@ -281,16 +306,25 @@ def robot_rows(scene, point) -> dict:
     states, label = scene.touchdowns
     described = describe_states(scene, states)
     low, high = ARMATURES[point["arg:robot"]]
-    return {"rows": [measure(scene, states, armature) | dict(robot=point["arg:robot"], source=label,
-                                                              states=len(states), touchdowns=described)
-                     for armature in sorted({0.0, low, high})]}
+    return {
+        "rows": [
+            measure(scene, states, armature)
+            | dict(robot=point["arg:robot"], source=label, states=len(states), touchdowns=described)
+            for armature in sorted({0.0, low, high})
+        ]
+    }
 
 
 def robot_table(robots, source: str = "trot", n_jobs: int | None = None) -> list[dict]:
     """One row per robot and armature (0 and the robot's ARMATURES bracket), the robots
     run in parallel (`contactdiff.sweep`, ``n_jobs`` worker processes, default one per core)."""
-    result = sweep(touchdown_scene, [{"arg:robot": name} for name in robots], robot_rows,
-                   fixed={"arg:states": source}, n_jobs=n_jobs)
+    result = sweep(
+        touchdown_scene,
+        [{"arg:robot": name} for name in robots],
+        robot_rows,
+        fixed={"arg:states": source},
+        n_jobs=n_jobs,
+    )
     return [row for r in result.raise_failure() for row in r.outputs["rows"]]
 
 
@@ -317,11 +351,15 @@ def trend_row(scene, point) -> dict:
     report = cd.check_decoupling(scene, states=[(q, v)])
     names = {scene.contact_names[k] for k in pair}
     gap = order_gap(scene, q, v, pair, horizon=HORIZON if stick else None, jacobian=stick, simulate_options=SIM)
-    return {"pair_coupling": next(p.max for p in report.pairs if set(p.contacts) == names),
-            "max_coupling": report.max_coupling, "outcome_gap": gap.outcome,
-            "saltation_gap": gap.saltation, "saltation_spread": gap.saltation_spread,
-            "later_saltation_gap": gap.later_saltation,
-            "later_base_saltation_gap": gap.later_saltation_on(range(6)) if gap.horizon else None}
+    return {
+        "pair_coupling": next(p.max for p in report.pairs if set(p.contacts) == names),
+        "max_coupling": report.max_coupling,
+        "outcome_gap": gap.outcome,
+        "saltation_gap": gap.saltation,
+        "saltation_spread": gap.saltation_spread,
+        "later_saltation_gap": gap.later_saltation,
+        "later_base_saltation_gap": gap.later_saltation_on(range(6)) if gap.horizon else None,
+    }
 
 
 def trend_table(n_jobs: int | None = None, masses=TREND_FOOT_MASSES, stiffnesses=TREND_STIFFNESSES) -> list[dict]:
@@ -331,8 +369,15 @@ def trend_table(n_jobs: int | None = None, masses=TREND_FOOT_MASSES, stiffnesses
     cases = [(None, None)] + [(m, k) for m in masses for k in stiffnesses]
     points = [{"arg:friction": f, "arg:foot_mass": m, "arg:stiffness": k} for f in ("stick", "none") for m, k in cases]
     result = sweep(trend_scene, points, trend_row, n_jobs=n_jobs)
-    return [{"friction": r.point["arg:friction"], "foot_mass": r.point["arg:foot_mass"],
-             "stiffness": r.point["arg:stiffness"], **r.outputs} for r in result.raise_failure()]
+    return [
+        {
+            "friction": r.point["arg:friction"],
+            "foot_mass": r.point["arg:foot_mass"],
+            "stiffness": r.point["arg:stiffness"],
+            **r.outputs,
+        }
+        for r in result.raise_failure()
+    ]
 
 
 # -- output ----------------------------------------------------------------------------
@@ -342,31 +387,47 @@ def _e(x) -> str:
 
 def print_tables(rows, trend) -> None:
     sources = sorted({r["source"] for r in rows})
-    print("touchdown: " + "; ".join(sources) + "; a diagonal pair lands, sticking plastic feet; "
-          "states = touchdown states per robot (each number is the largest over them)\n")
-    print("| robot | states | armature (kg m²) | pair coupling | max coupling (6 pairs) | worst M term (body/limb) "
-          "| order gap: outcome | order gap: saltation | saltation spread |")
+    print(
+        "touchdown: " + "; ".join(sources) + "; a diagonal pair lands, sticking plastic feet; "
+        "states = touchdown states per robot (each number is the largest over them)\n"
+    )
+    print(
+        "| robot | states | armature (kg m²) | pair coupling | max coupling (6 pairs) | worst M term (body/limb) "
+        "| order gap: outcome | order gap: saltation | saltation spread |"
+    )
     print("|---|---|---|---|---|---|---|---|---|")
     for r in rows:
-        print(f"| {r['robot']} | {r['states']} | {_e(r['armature'])} | {_e(r['pair_coupling'])} "
-              f"| {_e(r['max_coupling'])} | {_e(r['mass_term'])} | {_e(r['outcome_gap'])} "
-              f"| {_e(r['saltation_gap'])} | {_e(r['saltation_spread'])} |")
+        print(
+            f"| {r['robot']} | {r['states']} | {_e(r['armature'])} | {_e(r['pair_coupling'])} "
+            f"| {_e(r['max_coupling'])} | {_e(r['mass_term'])} | {_e(r['outcome_gap'])} "
+            f"| {_e(r['saltation_gap'])} | {_e(r['saltation_spread'])} |"
+        )
     gap_terms = sorted({r["gap_term"] for r in rows})
-    print(f"\ngap term (foot height depends on coordinates outside its leg): {', '.join(map(_e, gap_terms))} "
-          f"on every robot; effort terms: {_e(max(r['other_terms'] for r in rows))}; verdicts: "
-          + ", ".join(sorted({r['verdict'] for r in rows})))
+    print(
+        f"\ngap term (foot height depends on coordinates outside its leg): {', '.join(map(_e, gap_terms))} "
+        f"on every robot; effort terms: {_e(max(r['other_terms'] for r in rows))}; verdicts: "
+        + ", ".join(sorted({r["verdict"] for r in rows}))
+    )
     print("\ntouchdown states (time; landing pair; partner gap closed; landing speeds; other pair's stance):")
     for r in {r["robot"]: r for r in rows}.values():
-        print(f"  {r['robot']}: " + "; ".join(
-            f"t={d['t']:.4f} s {'+'.join(d['pair'])} {d['partner_gap'] * 1e3:.1f} mm "
-            f"{'/'.join(f'{s:.2f}' for s in d['landing_speeds'])} m/s [{', '.join(d['mode'])}]"
-            for d in r["touchdowns"]))
+        print(
+            f"  {r['robot']}: "
+            + "; ".join(
+                f"t={d['t']:.4f} s {'+'.join(d['pair'])} {d['partner_gap'] * 1e3:.1f} mm "
+                f"{'/'.join(f'{s:.2f}' for s in d['landing_speeds'])} m/s [{', '.join(d['mode'])}]"
+                for d in r["touchdowns"]
+            )
+        )
     if not trend:
         return
-    print(f"\ncompliant feet on {TREND_ROBOT} (armature {TREND_ARMATURE:g} kg m², foot mass taken from the shank, "
-          f"spring along the shank; later = {HORIZON * 1e3:g} ms after touchdown)\n")
-    print("| foot mass (g) | stiffness (N/m) | pair coupling | order gap: outcome | saltation (stick) "
-          "| saltation (frictionless) | base derivatives later (stick) |")
+    print(
+        f"\ncompliant feet on {TREND_ROBOT} (armature {TREND_ARMATURE:g} kg m², foot mass taken from the shank, "
+        f"spring along the shank; later = {HORIZON * 1e3:g} ms after touchdown)\n"
+    )
+    print(
+        "| foot mass (g) | stiffness (N/m) | pair coupling | order gap: outcome | saltation (stick) "
+        "| saltation (frictionless) | base derivatives later (stick) |"
+    )
     print("|---|---|---|---|---|---|---|")
     by_key = {(r["friction"], r["foot_mass"], r["stiffness"]): r for r in trend}
     for (friction, mass, k), r in by_key.items():
@@ -374,8 +435,10 @@ def print_tables(rows, trend) -> None:
             continue
         free = by_key[("none", mass, k)]
         label = "rigid" if mass is None else f"{mass * 1e3:g}"
-        print(f"| {label} | {'-' if k is None else f'{k:g}'} | {_e(r['pair_coupling'])} | {_e(r['outcome_gap'])} "
-              f"| {_e(r['saltation_gap'])} | {_e(free['saltation_gap'])} | {_e(r['later_base_saltation_gap'])} |")
+        print(
+            f"| {label} | {'-' if k is None else f'{k:g}'} | {_e(r['pair_coupling'])} | {_e(r['outcome_gap'])} "
+            f"| {_e(r['saltation_gap'])} | {_e(free['saltation_gap'])} | {_e(r['later_base_saltation_gap'])} |"
+        )
 
 
 def plot_trend(trend, path: str) -> None:
@@ -401,8 +464,11 @@ def trend_figure(trend):
     rigid = {r["friction"]: r for r in trend if r["foot_mass"] is None}
 
     def series(friction, key, k=k0):
-        return [next(r[key] for r in trend if r["friction"] == friction and r["foot_mass"] == m
-                     and r["stiffness"] == k) for m in foot_masses]
+        return [
+            next(r[key] for r in trend if r["friction"] == friction and r["foot_mass"] == m and r["stiffness"] == k)
+            for m in foot_masses
+        ]
+
     ax = axes[0]
     ax.loglog(masses, series("stick", "pair_coupling"), "o-", label="pair coupling")
     ax.loglog(masses, series("stick", "saltation_gap"), "s-", label="saltation gap, sticking feet")
@@ -429,15 +495,25 @@ def trend_figure(trend):
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--robots", nargs="+", default=list(cd.QUADRUPEDS), choices=list(cd.QUADRUPEDS))
-    parser.add_argument("--states", choices=STATE_SOURCES, default="trot",
-                        help="touchdown states: the simulated trot's (default), or one built from the standing pose")
+    parser.add_argument(
+        "--states",
+        choices=STATE_SOURCES,
+        default="trot",
+        help="touchdown states: the simulated trot's (default), or one built from the standing pose",
+    )
     parser.add_argument("--no-trend", action="store_true", help="skip the compliant-feet trend on solo12")
     parser.add_argument("--json", action="store_true")
     parser.add_argument("--plot", metavar="PNG", help="draw the compliant-feet trend")
-    parser.add_argument("--jobs", type=int, default=None, metavar="N",
-                        help="worker processes (default: one per core; 1 runs in this process)")
-    parser.add_argument("--quick", action="store_true",
-                        help="a smoke run of seconds: solo12, one process, a 2 x 2 trend")
+    parser.add_argument(
+        "--jobs",
+        type=int,
+        default=None,
+        metavar="N",
+        help="worker processes (default: one per core; 1 runs in this process)",
+    )
+    parser.add_argument(
+        "--quick", action="store_true", help="a smoke run of seconds: solo12, one process, a 2 x 2 trend"
+    )
     args = parser.parse_args(argv)
     grid = {}
     if args.quick:
@@ -447,8 +523,13 @@ def main(argv=None) -> int:
     trend = [] if args.no_trend else trend_table(args.jobs, **grid)
     if args.json:
         clean = lambda x: None if isinstance(x, float) and not math.isfinite(x) else x  # noqa: E731
-        print(json.dumps({"armatures": ARMATURES, "robots": rows, "trend": trend},
-                         indent=2, default=lambda o: o.tolist() if hasattr(o, "tolist") else clean(o)))
+        print(
+            json.dumps(
+                {"armatures": ARMATURES, "robots": rows, "trend": trend},
+                indent=2,
+                default=lambda o: o.tolist() if hasattr(o, "tolist") else clean(o),
+            )
+        )
     else:
         print_tables(rows, trend)
     if args.plot and trend:

@@ -26,8 +26,15 @@ import tempfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-BINARIES = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable", "chrome",
-            "chrome-headless-shell", "headless_shell")
+BINARIES = (
+    "chromium",
+    "chromium-browser",
+    "google-chrome",
+    "google-chrome-stable",
+    "chrome",
+    "chrome-headless-shell",
+    "headless_shell",
+)
 GL_ARGS = ["--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--ignore-gpu-blocklist"]
 
 
@@ -49,8 +56,10 @@ def open_page(playwright, width: int, height: int):
     except Exception as exc:  # noqa: BLE001 - playwright's browser not installed: try PATH
         binary = chromium_binary()
         if binary is None:
-            raise NoBrowserError(f"no headless Chromium: playwright has none ({str(exc).splitlines()[0]}) "
-                                 f"and none of {', '.join(BINARIES)} is on PATH") from None
+            raise NoBrowserError(
+                f"no headless Chromium: playwright has none ({str(exc).splitlines()[0]}) "
+                f"and none of {', '.join(BINARIES)} is on PATH"
+            ) from None
         browser = playwright.chromium.launch(executable_path=binary, args=GL_ARGS)
     page = browser.new_page(viewport={"width": width, "height": height})
     blocked: list[str] = []
@@ -72,16 +81,17 @@ def load_replay(page, html: Path, timeout_ms: float = 60_000) -> dict:
     errors: list[str] = []
     page.on("pageerror", lambda e: errors.append(str(e)))
     page.goto(html.resolve().as_uri())
-    page.wait_for_function("window.viewer && viewer.animator && viewer.animator.actions.length > 0",
-                           timeout=timeout_ms)
+    page.wait_for_function("window.viewer && viewer.animator && viewer.animator.actions.length > 0", timeout=timeout_ms)
     facts = page.evaluate("({actions: viewer.animator.actions.length, duration: viewer.animator.duration})")
     return facts | {"errors": errors}
 
 
 def seek(page, time: float) -> None:
     """Pause the animation at ``time`` (s after the run's start) and let it render."""
-    page.evaluate(f"viewer.animator.pause(); viewer.animator.seek({time!r}); "
-                  f"viewer.animator.display_progress({time!r}); viewer.set_dirty();")
+    page.evaluate(
+        f"viewer.animator.pause(); viewer.animator.seek({time!r}); "
+        f"viewer.animator.display_progress({time!r}); viewer.set_dirty();"
+    )
     page.wait_for_timeout(800)
 
 
@@ -102,17 +112,28 @@ def screenshot(html: Path, out: Path, time: float, width: int, height: int) -> N
             browser.close()
     if facts["errors"] or blocked:
         raise RuntimeError(f"the page raised {facts['errors']} and asked for {blocked}")
-    print(f"{out}: frame at t0 + {time} s of {html} ({facts['actions']} animated nodes, "
-          f"{facts['duration']:.3f} s)")
+    print(f"{out}: frame at t0 + {time} s of {html} ({facts['actions']} animated nodes, {facts['duration']:.3f} s)")
 
 
 def _screenshot_with_binary(html: Path, out: Path, width: int, height: int) -> None:
     binary = chromium_binary()
     if binary is None:
         raise NoBrowserError(f"no headless browser: install playwright, or one of {', '.join(BINARIES)}")
-    subprocess.run([binary, "--headless", "--no-sandbox", *GL_ARGS, f"--window-size={width},{height}",
-                    "--virtual-time-budget=3000", f"--screenshot={out.resolve()}", html.resolve().as_uri()],
-                   check=True, capture_output=True, timeout=120)
+    subprocess.run(
+        [
+            binary,
+            "--headless",
+            "--no-sandbox",
+            *GL_ARGS,
+            f"--window-size={width},{height}",
+            "--virtual-time-budget=3000",
+            f"--screenshot={out.resolve()}",
+            html.resolve().as_uri(),
+        ],
+        check=True,
+        capture_output=True,
+        timeout=120,
+    )
     print(f"{out}: {html} as first shown (no playwright: no seeking)")
 
 
@@ -122,8 +143,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=ROOT / "docs" / "replay_solo12.png", help="PNG to write")
     parser.add_argument("--time", type=float, default=1.5, help="animation time of the frame, s (default 1.5)")
     parser.add_argument("--size", default="1000x650", help="viewport WIDTHxHEIGHT in pixels")
-    parser.add_argument("--quick", action="store_true",
-                        help="without --html, the page of a 0.3-s trot instead of 3 s, at t = 0.2 s: a smoke run")
+    parser.add_argument(
+        "--quick",
+        action="store_true",
+        help="without --html, the page of a 0.3-s trot instead of 3 s, at t = 0.2 s: a smoke run",
+    )
     args = parser.parse_args(argv)
     if args.quick:
         args.time = min(args.time, 0.2)

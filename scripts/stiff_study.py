@@ -39,11 +39,15 @@ def plot(damped, undamped, path: Path) -> None:
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(2, 2, figsize=(10, 7), sharex=True)
-    for col, (rows, title) in enumerate(((damped, "legs with damping ratio 1 (stiff)"),
-                                         (undamped, "undamped legs (ringing after touchdown)"))):
+    for col, (rows, title) in enumerate(
+        ((damped, "legs with damping ratio 1 (stiff)"), (undamped, "undamped legs (ringing after touchdown)"))
+    ):
         for method, color in COLORS.items():
-            pts = [(float(r.parameter.split("x ")[1]), r) for r in rows if r.method == method
-                   and not r.outcome.startswith("skipped") and r.steps > 0]
+            pts = [
+                (float(r.parameter.split("x ")[1]), r)
+                for r in rows
+                if r.method == method and not r.outcome.startswith("skipped") and r.steps > 0
+            ]
             if not pts:
                 continue
             xs = [p[0] for p in pts]
@@ -53,8 +57,7 @@ def plot(damped, undamped, path: Path) -> None:
         ref = [r for r in rows if r.method == "DOP853" and r.steps > 0]
         if ref:  # sqrt(k) guide through DOP853's stiffest point
             e0, s0 = ref[-1].evaluations, float(ref[-1].parameter.split("x ")[1])
-            axes[1, col].loglog(xs, [e0 * math.sqrt(s / s0) for s in xs], ":", color="gray",
-                                label="∝ sqrt(k)")
+            axes[1, col].loglog(xs, [e0 * math.sqrt(s / s0) for s in xs], ":", color="gray", label="∝ sqrt(k)")
         axes[0, col].set_title(title, fontsize=10)
         axes[0, col].set_ylabel("run time (s)")
         axes[1, col].set_ylabel("dynamics evaluations")
@@ -71,8 +74,11 @@ def plot(damped, undamped, path: Path) -> None:
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--quick", action="store_true",
-                        help="stiffness 1 and 10 x only, a smoke run; the figure only if --figure is given")
+    parser.add_argument(
+        "--quick",
+        action="store_true",
+        help="stiffness 1 and 10 x only, a smoke run; the figure only if --figure is given",
+    )
     parser.add_argument("--all", action="store_true", help="also the other studies and the footprint")
     parser.add_argument("--json", metavar="PATH", help="write every row as JSON")
     parser.add_argument("--figure", help=f"figure path (default {FIGURE})")
@@ -80,17 +86,26 @@ def main(argv=None) -> int:
     scales = SCALES[:2] if args.quick else SCALES
     damped = studies.stiffness_sweep(scales=scales, damping_ratio=1.0)
     undamped = studies.stiffness_sweep(
-        scales=scales, damping_ratio=0.0,
-        skip=lambda s, m: "ringing: ~10x DOP853 cost" if m == "Radau" and s > 1e4 else None)
+        scales=scales,
+        damping_ratio=0.0,
+        skip=lambda s, m: "ringing: ~10x DOP853 cost" if m == "Radau" and s > 1e4 else None,
+    )
     result = studies.StudyResult(damped + undamped)
     print(result.format())
     for rows, label in ((damped, "damped"), (undamped, "undamped")):
-        print(f"{label}: steps by method of auto: "
-              + "; ".join(f"{r.parameter}: {r.details.get('steps_by_method')}" for r in rows if r.method == "auto"))
+        print(
+            f"{label}: steps by method of auto: "
+            + "; ".join(f"{r.parameter}: {r.details.get('steps_by_method')}" for r in rows if r.method == "auto")
+        )
     if args.all:
-        rest = studies.StudyResult(studies.tiny_mass_study() + studies.grazing_study()
-                                   + studies.simultaneous_study() + studies.zeno_study()
-                                   + studies.elastic_study(impacts=10_000) + studies.bad_input_study())
+        rest = studies.StudyResult(
+            studies.tiny_mass_study()
+            + studies.grazing_study()
+            + studies.simultaneous_study()
+            + studies.zeno_study()
+            + studies.elastic_study(impacts=10_000)
+            + studies.bad_input_study()
+        )
         print(rest.format())
         result.rows += rest.rows
         fp = measure_footprint(quick=False)

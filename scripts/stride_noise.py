@@ -65,8 +65,11 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--method", default="DOP853")
     parser.add_argument("--events", action="store_true", help="where the runs with and without the Jacobian part")
     parser.add_argument("--json", action="store_true")
-    parser.add_argument("--quick", action="store_true",
-                        help="a smoke run of seconds: no warm-up, one moved start, rtol 1e-8, atol 1e-10, --events")
+    parser.add_argument(
+        "--quick",
+        action="store_true",
+        help="a smoke run of seconds: no warm-up, one moved start, rtol 1e-8, atol 1e-10, --events",
+    )
     args = parser.parse_args(argv)
     if args.quick:
         args.warmup, args.perturb, args.rtol, args.atol, args.events = 0.0, 1, 1e-8, 1e-10, True
@@ -98,8 +101,12 @@ def main(argv: list[str] | None = None) -> None:
         c = time.perf_counter()
         s = stride_map(scene, args.foot, q, v, t, jacobian=jacobian, rtol=rtol, atol=atol, method=args.method)
         strides[name] = s
-        runs[name] = {"residual": residual(s), "seconds": time.perf_counter() - c,
-                      "events": len(s.trajectory.events), "stride_time": s.stride_time}
+        runs[name] = {
+            "residual": residual(s),
+            "seconds": time.perf_counter() - c,
+            "events": len(s.trajectory.events),
+            "stride_time": s.stride_time,
+        }
 
     run("Jacobian", jacobian=True)
     run("no Jacobian")
@@ -111,38 +118,66 @@ def main(argv: list[str] | None = None) -> None:
         d = rng.standard_normal(B.shape[1])
         step = B @ (d * args.size / np.linalg.norm(d))
         q1 = onto_section(scene, args.foot, pin.integrate(scene.model, q, step[:nv]))
-        run(f"moved #{j}", q1, v + step[nv:2 * nv], t + (step[2 * nv] if period is not None else 0.0))
+        run(f"moved #{j}", q1, v + step[nv : 2 * nv], t + (step[2 * nv] if period is not None else 0.0))
 
     names = list(runs)
-    diffs = [float(np.linalg.norm(runs[a]["residual"] - runs[b]["residual"]))
-             for i, a in enumerate(names) for b in names[i + 1:]]
+    diffs = [
+        float(np.linalg.norm(runs[a]["residual"] - runs[b]["residual"]))
+        for i, a in enumerate(names)
+        for b in names[i + 1 :]
+    ]
     A = B.T @ strides["Jacobian"].extended_jacobian() @ B - np.eye(B.shape[1])
     linear = float(np.linalg.norm(A, 2)) * args.size
-    result = {"scene": args.scene, "foot": args.foot, "warmup": args.warmup, "t": t, "rtol": args.rtol,
-              "atol": args.atol, "setup_seconds": setup,
-              "runs": {n: {"norm": float(np.linalg.norm(r["residual"])), "seconds": r["seconds"],
-                           "events": r["events"], "stride_time": r["stride_time"]} for n, r in runs.items()},
-              "pairwise": {"min": min(diffs), "median": statistics.median(diffs), "max": max(diffs)},
-              "A_norm": float(np.linalg.norm(A, 2)), "linear_change": linear, "perturbation": args.size}
+    result = {
+        "scene": args.scene,
+        "foot": args.foot,
+        "warmup": args.warmup,
+        "t": t,
+        "rtol": args.rtol,
+        "atol": args.atol,
+        "setup_seconds": setup,
+        "runs": {
+            n: {
+                "norm": float(np.linalg.norm(r["residual"])),
+                "seconds": r["seconds"],
+                "events": r["events"],
+                "stride_time": r["stride_time"],
+            }
+            for n, r in runs.items()
+        },
+        "pairwise": {"min": min(diffs), "median": statistics.median(diffs), "max": max(diffs)},
+        "A_norm": float(np.linalg.norm(A, 2)),
+        "linear_change": linear,
+        "perturbation": args.size,
+    }
     if args.json:
         print(json.dumps(result, indent=2))
         return
-    print(f"{args.scene}, stride map of {args.foot} from its touchdown at t = {t:.12g} s "
-          f"(warm-up {args.warmup:g} s, {setup:.1f} s), rtol {args.rtol:g}, atol {args.atol:g}, {args.method}")
+    print(
+        f"{args.scene}, stride map of {args.foot} from its touchdown at t = {t:.12g} s "
+        f"(warm-up {args.warmup:g} s, {setup:.1f} s), rtol {args.rtol:g}, atol {args.atol:g}, {args.method}"
+    )
     for n, r in result["runs"].items():
-        print(f"  {n:<20} |r| = {r['norm']:.3e}   stride {r['stride_time']:.12f} s, "
-              f"{r['events']} events, {r['seconds']:.1f} s")
+        print(
+            f"  {n:<20} |r| = {r['norm']:.3e}   stride {r['stride_time']:.12f} s, "
+            f"{r['events']} events, {r['seconds']:.1f} s"
+        )
     p = result["pairwise"]
     print(f"  pairwise |Δr| over {len(diffs)} pairs: min {p['min']:.2e}, median {p['median']:.2e}, max {p['max']:.2e}")
     print(f"  ‖A‖ = {result['A_norm']:.3g}: a move of {args.size:g} changes r by at most {linear:.1e} (linear)")
     if args.events:
         print("  event by event, with against without the Jacobian:")
         for x, y in zip(strides["Jacobian"].trajectory.events, strides["no Jacobian"].trajectory.events):
-            same = ("" if x.contacts == y.contacts and x.kind == y.kind
-                    else f"  (other run: {y.kind} {'+'.join(y.contacts)})")
-            print(f"    {x.t:.12f}  {x.kind:<9} {'+'.join(x.contacts):<24} Δt {abs(x.t - y.t):.1e} s  "
-                  f"|Δv-| {np.abs(x.v_minus - y.v_minus).max():.1e}  "
-                  f"|Δv+| {np.abs(x.v_plus - y.v_plus).max():.1e}{same}")
+            same = (
+                ""
+                if x.contacts == y.contacts and x.kind == y.kind
+                else f"  (other run: {y.kind} {'+'.join(y.contacts)})"
+            )
+            print(
+                f"    {x.t:.12f}  {x.kind:<9} {'+'.join(x.contacts):<24} Δt {abs(x.t - y.t):.1e} s  "
+                f"|Δv-| {np.abs(x.v_minus - y.v_minus).max():.1e}  "
+                f"|Δv+| {np.abs(x.v_plus - y.v_plus).max():.1e}{same}"
+            )
         for event in strides["Jacobian"].trajectory.events:
             if NonSmooth.ZENO_CASCADE in event.nonsmooth:
                 print(f"    {event.nonsmooth[NonSmooth.ZENO_CASCADE]}")

@@ -77,8 +77,14 @@ def machine() -> dict:
         pass
     import joblib
 
-    return {"cpu": cpu, "cores": os.cpu_count(), "system": platform.platform(), "python": platform.python_version(),
-            "numpy": np.__version__, "joblib": joblib.__version__}
+    return {
+        "cpu": cpu,
+        "cores": os.cpu_count(),
+        "system": platform.platform(),
+        "python": platform.python_version(),
+        "numpy": np.__version__,
+        "joblib": joblib.__version__,
+    }
 
 
 def busy_seconds() -> float:
@@ -126,16 +132,25 @@ def measure(n: int, t_final: float, repeats: int, dask: bool) -> dict:
                 raise SystemExit("rows differ between runs of the same sweep")
     median = {k: statistics.median(v) for k, v in walls.items()}
     per_run = statistics.median(direct_times)
-    out = {"scene": SCENE, "points": n, "t_final": t_final, "repeats": repeats, "machine": machine(),
-           "median_wall_s": median, "median_busy_cores": {k: statistics.median(v) for k, v in busy.items()},
-           "median_run_s": per_run,
-           "speedup_cold": statistics.median(ratios["cold"]), "speedup_warm": statistics.median(ratios["warm"]),
-           "overhead_in_process": (median["1 worker"] - median["direct"]) / n / per_run,
-           "overhead_two_workers": (2 * median["2 workers, warm"] - statistics.median(run_times)) / n / per_run,
-           "worker_start_up_s": median["2 workers, cold"] - median["2 workers, warm"]}
+    out = {
+        "scene": SCENE,
+        "points": n,
+        "t_final": t_final,
+        "repeats": repeats,
+        "machine": machine(),
+        "median_wall_s": median,
+        "median_busy_cores": {k: statistics.median(v) for k, v in busy.items()},
+        "median_run_s": per_run,
+        "speedup_cold": statistics.median(ratios["cold"]),
+        "speedup_warm": statistics.median(ratios["warm"]),
+        "overhead_in_process": (median["1 worker"] - median["direct"]) / n / per_run,
+        "overhead_two_workers": (2 * median["2 workers, warm"] - statistics.median(run_times)) / n / per_run,
+        "worker_start_up_s": median["2 workers, cold"] - median["2 workers, warm"],
+    }
     if dask:
-        rows, wall, _ = phase(lambda: sweep(SCENE, points(n), t_final=t_final, progress=False, backend="dask",
-                                            n_jobs=2))
+        rows, wall, _ = phase(
+            lambda: sweep(SCENE, points(n), t_final=t_final, progress=False, backend="dask", n_jobs=2)
+        )
         out["dask_wall_s"] = wall
         out["dask_rows_identical"] = [r.to_dict(run_time=False) for r in rows] == reference
     return out
@@ -148,8 +163,9 @@ def main(argv=None) -> int:
     parser.add_argument("--repeats", type=int, default=3, help="repeats, medians kept (default 3)")
     parser.add_argument("--no-dask", action="store_true", help="skip the Dask run")
     parser.add_argument("--json", action="store_true")
-    parser.add_argument("--quick", action="store_true",
-                        help="a smoke run of seconds: 2 trots of 0.05 s, one repeat, no Dask")
+    parser.add_argument(
+        "--quick", action="store_true", help="a smoke run of seconds: 2 trots of 0.05 s, one repeat, no Dask"
+    )
     args = parser.parse_args(argv)
     if args.quick:
         args.points, args.t_final, args.repeats, args.no_dask = 2, 0.05, 1, True
@@ -158,20 +174,28 @@ def main(argv=None) -> int:
         print(json.dumps(result, indent=2))
         return 0
     m = result["machine"]
-    print(f"{result['points']} {SCENE} runs of {result['t_final']:g} s, median of {result['repeats']} "
-          f"(median run {result['median_run_s']:.3f} s); {m['cpu']}, {m['cores']} cores, Python {m['python']}, "
-          f"numpy {m['numpy']}, joblib {m['joblib']}")
+    print(
+        f"{result['points']} {SCENE} runs of {result['t_final']:g} s, median of {result['repeats']} "
+        f"(median run {result['median_run_s']:.3f} s); {m['cpu']}, {m['cores']} cores, Python {m['python']}, "
+        f"numpy {m['numpy']}, joblib {m['joblib']}"
+    )
     print("  variant           wall   cores busy (all processes; above 1 in a one-process variant: other work)")
     for name, wall in result["median_wall_s"].items():
         print(f"  {name:<16} {wall:6.2f} s  {result['median_busy_cores'][name]:.2f}")
-    print(f"speed-up of 2 workers over 1 (median of the repeats' ratios): {result['speedup_cold']:.2f} cold "
-          f"(workers started by the sweep), {result['speedup_warm']:.2f} warm (workers kept)")
-    print(f"engine cost per point, over the run time: {100 * result['overhead_in_process']:.2f} % in this process, "
-          f"{100 * result['overhead_two_workers']:.2f} % with 2 workers; worker start-up "
-          f"{result['worker_start_up_s']:.2f} s per sweep")
+    print(
+        f"speed-up of 2 workers over 1 (median of the repeats' ratios): {result['speedup_cold']:.2f} cold "
+        f"(workers started by the sweep), {result['speedup_warm']:.2f} warm (workers kept)"
+    )
+    print(
+        f"engine cost per point, over the run time: {100 * result['overhead_in_process']:.2f} % in this process, "
+        f"{100 * result['overhead_two_workers']:.2f} % with 2 workers; worker start-up "
+        f"{result['worker_start_up_s']:.2f} s per sweep"
+    )
     if "dask_wall_s" in result:
-        print(f"Dask, local cluster of 2: {result['dask_wall_s']:.2f} s (cluster start included), rows "
-              + ("identical" if result["dask_rows_identical"] else "DIFFERENT"))
+        print(
+            f"Dask, local cluster of 2: {result['dask_wall_s']:.2f} s (cluster start included), rows "
+            + ("identical" if result["dask_rows_identical"] else "DIFFERENT")
+        )
     return 0
 
 

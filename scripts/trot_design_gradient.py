@@ -34,16 +34,16 @@ from contactdiff.integration.hybrid import simulate
 
 PARAMETERS = ["trot:kp", "trot:kd", "body:base_link:mass"]
 OPTIONS = dict(rtol=1e-10, atol=1e-12, method="DOP853")
-GAIT_TOL = 1e-8     # residual at which a gait counts as converged
-WARMUP = 20         # clock periods simulated before the first search
+GAIT_TOL = 1e-8  # residual at which a gait counts as converged
+WARMUP = 20  # clock periods simulated before the first search
 # --quick: a smoke run of the same steps, its numbers meaningless (loose tolerances, kp only, a shorter warm-up)
-QUICK = dict(parameters=PARAMETERS[:1], options=dict(rtol=1e-7, atol=1e-9, method="DOP853"), gait_tol=1e-4,
-             warmup=10)
+QUICK = dict(parameters=PARAMETERS[:1], options=dict(rtol=1e-7, atol=1e-9, method="DOP853"), gait_tol=1e-4, warmup=10)
 
 
 def _gait(scene, q, v, t, period):
-    gait = find_periodic_gait(scene, scene.contact_names[0], q, v, t, iterations=6, tol=GAIT_TOL,
-                              t_max=4 * period, **OPTIONS)
+    gait = find_periodic_gait(
+        scene, scene.contact_names[0], q, v, t, iterations=6, tol=GAIT_TOL, t_max=4 * period, **OPTIONS
+    )
     if not gait.converged:
         raise SystemExit(f"the gait did not converge (residual {gait.residuals[-1]:.3g})")
     return gait
@@ -61,8 +61,11 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--plot", default=None, help="write the plot (PNG) here")
     parser.add_argument("--no-check", action="store_true", help="skip the finite-difference check")
     parser.add_argument("--json", action="store_true")
-    parser.add_argument("--quick", action="store_true",
-                        help="a smoke run: kp only, 10 periods of warm-up, loose tolerances, no step (the check kept)")
+    parser.add_argument(
+        "--quick",
+        action="store_true",
+        help="a smoke run: kp only, 10 periods of warm-up, loose tolerances, no step (the check kept)",
+    )
     args = parser.parse_args(argv)
     if args.quick:
         PARAMETERS, OPTIONS, GAIT_TOL, WARMUP = (QUICK[k] for k in ("parameters", "options", "gait_tol", "warmup"))
@@ -80,21 +83,31 @@ def main(argv: list[str] | None = None) -> None:
     check = None
     for step in range(args.steps + 1):
         values = scene.parameter_values(PARAMETERS)
-        sens = gait_sensitivity(scene, gait, PARAMETERS, which=(0,), t_max=4 * period, tol=1e-2 * GAIT_TOL,
-                                **OPTIONS)
+        sens = gait_sensitivity(scene, gait, PARAMETERS, which=(0,), t_max=4 * period, tol=1e-2 * GAIT_TOL, **OPTIONS)
         grad = sens.modulus_gradient(0)
-        history.append({"step": step, "values": values.tolist(), "largest_modulus": _largest(gait),
-                        "multiplier": [float(gait.multipliers[0].real), float(gait.multipliers[0].imag)],
-                        "gradient": grad.tolist(), "run_time": time.perf_counter() - started})
+        history.append(
+            {
+                "step": step,
+                "values": values.tolist(),
+                "largest_modulus": _largest(gait),
+                "multiplier": [float(gait.multipliers[0].real), float(gait.multipliers[0].imag)],
+                "gradient": grad.tolist(),
+                "run_time": time.perf_counter() - started,
+            }
+        )
         if step == 0 and not args.no_check:
             fd = []
             for name, value in zip(PARAMETERS, values):
                 h = 1e-3 * abs(value)
-                moduli = [_largest(_gait(scene.with_parameters({name: value + s * h}), gait.q, gait.v, gait.t,
-                                         period)) for s in (1, -1)]
+                moduli = [
+                    _largest(_gait(scene.with_parameters({name: value + s * h}), gait.q, gait.v, gait.t, period))
+                    for s in (1, -1)
+                ]
                 fd.append((moduli[0] - moduli[1]) / (2 * h))
-            check = {"finite_differences": fd, "relative_error": [abs(a - b) / max(abs(b), 1e-12)
-                                                                  for a, b in zip(grad, fd)]}
+            check = {
+                "finite_differences": fd,
+                "relative_error": [abs(a - b) / max(abs(b), 1e-12) for a, b in zip(grad, fd)],
+            }
         if step == args.steps:
             break
         g_log = values * grad
@@ -102,8 +115,13 @@ def main(argv: list[str] | None = None) -> None:
         scene = scene.with_parameters(dict(zip(PARAMETERS, new.tolist())))
         gait = _gait(scene, gait.q, gait.v, gait.t, period)
 
-    out = {"parameters": PARAMETERS, "history": history, "check": check, "options": OPTIONS,
-           "run_time": time.perf_counter() - started}
+    out = {
+        "parameters": PARAMETERS,
+        "history": history,
+        "check": check,
+        "options": OPTIONS,
+        "run_time": time.perf_counter() - started,
+    }
     if args.plot:
         _plot(out, args.plot)
     if args.json:
@@ -113,12 +131,18 @@ def main(argv: list[str] | None = None) -> None:
     for row in history:
         vals = ", ".join(f"{v:.6g}" for v in row["values"])
         grads = ", ".join(f"{g:.4g}" for g in row["gradient"])
-        print(f"  step {row['step']}: p = ({vals})  |λ_max| = {row['largest_modulus']:.6f}  "
-              f"d|λ|/dp = ({grads})  [{row['run_time']:.0f} s]")
+        print(
+            f"  step {row['step']}: p = ({vals})  |λ_max| = {row['largest_modulus']:.6f}  "
+            f"d|λ|/dp = ({grads})  [{row['run_time']:.0f} s]"
+        )
     if check:
-        print("check at step 0, central differences of |λ_max| of re-converged gaits (h = 1e-3 |p|): "
-              + ", ".join(f"{n}: {fd:.4g} (relative error {e:.1e})" for n, fd, e in
-                          zip(PARAMETERS, check["finite_differences"], check["relative_error"])))
+        print(
+            "check at step 0, central differences of |λ_max| of re-converged gaits (h = 1e-3 |p|): "
+            + ", ".join(
+                f"{n}: {fd:.4g} (relative error {e:.1e})"
+                for n, fd, e in zip(PARAMETERS, check["finite_differences"], check["relative_error"])
+            )
+        )
     print(f"total {out['run_time']:.0f} s" + (f"; plot written to {args.plot}" if args.plot else ""))
 
 

@@ -48,8 +48,11 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--method", default="DOP853")
     parser.add_argument("--no-period-map", action="store_true", help="skip the stroboscopic check")
     parser.add_argument("--json", action="store_true")
-    parser.add_argument("--quick", action="store_true",
-                        help="a smoke run of seconds: no warm-up, one Newton iteration, rtol 1e-8, atol 1e-10")
+    parser.add_argument(
+        "--quick",
+        action="store_true",
+        help="a smoke run of seconds: no warm-up, one Newton iteration, rtol 1e-8, atol 1e-10",
+    )
     args = parser.parse_args(argv)
     if args.quick:
         args.warmup, args.newton, args.rtol, args.atol = 0, 1, 1e-8, 1e-10
@@ -66,10 +69,13 @@ def main(argv: list[str] | None = None) -> None:
     t, q, v = first_touchdown(scene, foot, q, v, t, t_max=4 * period, **options)
     warmup_time = time.perf_counter() - started
 
-    gait = find_periodic_gait(scene, foot, q, v, t, iterations=args.newton, tol=args.tol,
-                              t_max=4 * period, **options)
-    result = gait.to_dict() | {"robot": args.robot, "warmup_periods": args.warmup,
-                               "warmup_run_time": warmup_time, **options}
+    gait = find_periodic_gait(scene, foot, q, v, t, iterations=args.newton, tol=args.tol, t_max=4 * period, **options)
+    result = gait.to_dict() | {
+        "robot": args.robot,
+        "warmup_periods": args.warmup,
+        "warmup_run_time": warmup_time,
+        **options,
+    }
     if not args.no_period_map:
         began = time.perf_counter()
         mid = gait.t + 0.5 * gait.stride.stride_time
@@ -81,23 +87,29 @@ def main(argv: list[str] | None = None) -> None:
             result["period_map"] = {"t0": mid, "error": str(exc)}
         else:
             lam = pm.multipliers
-            result["period_map"] = {"t0": mid, "multipliers": [[float(x.real), float(x.imag)] for x in lam],
-                                    "moduli": [float(abs(x)) for x in lam],
-                                    "run_time": time.perf_counter() - began}
+            result["period_map"] = {
+                "t0": mid,
+                "multipliers": [[float(x.real), float(x.imag)] for x in lam],
+                "moduli": [float(abs(x)) for x in lam],
+                "run_time": time.perf_counter() - began,
+            }
     if args.json:
         print(json.dumps(result, indent=2))
         return
-    print(f"{args.robot} trot, clock period {period:g} s, warm-up {args.warmup} periods "
-          f"({warmup_time:.2f} s), rtol {args.rtol:g}, atol {args.atol:g}, {args.method}")
+    print(
+        f"{args.robot} trot, clock period {period:g} s, warm-up {args.warmup} periods "
+        f"({warmup_time:.2f} s), rtol {args.rtol:g}, atol {args.atol:g}, {args.method}"
+    )
     print(gait.format())
     if "period_map" in result and "error" in result["period_map"]:
         print(f"\nstroboscopic map: {result['period_map']['error']}")
     elif "period_map" in result:
         pmr = result["period_map"]
         nonzero = [m for m in pmr["moduli"] if m > 1e-6]
-        print(f"\nstroboscopic map over one period from t = {pmr['t0']:.6g} s ({pmr['run_time']:.2f} s): "
-              f"{len(nonzero)} multipliers with |λ| > 1e-6; largest moduli "
-              + ", ".join(f"{m:.6g}" for m in nonzero[:8]))
+        print(
+            f"\nstroboscopic map over one period from t = {pmr['t0']:.6g} s ({pmr['run_time']:.2f} s): "
+            f"{len(nonzero)} multipliers with |λ| > 1e-6; largest moduli " + ", ".join(f"{m:.6g}" for m in nonzero[:8])
+        )
         ours = np.sort([abs(m) for m in gait.multipliers if abs(m) > 1e-6])[::-1]
         print("stride-map moduli > 1e-6: " + ", ".join(f"{m:.6g}" for m in ours[:8]))
 

@@ -40,14 +40,23 @@ def row(name: str, t_final: float) -> dict:
     # touchdowns: stances that begin after the start (pair A starts on the ground)
     touchdowns = [sum(1 for t0, _ in stance_intervals(traj, c.name) if t0 > 0.0) for c in scene.contacts]
     kinds = Counter(e.kind for e in traj.events)
-    return {"robot": name, "events": len(traj.events), "kinds": dict(kinds),
-            "same_events_dense": [(e.kind, e.contacts) for e in dense.events] == [(e.kind, e.contacts)
-                                                                                for e in traj.events],
-            "touchdowns_per_foot": [min(touchdowns), max(touchdowns)], "slips": kinds.get("slip", 0),
-            "lift_offs": kinds.get("lift-off", 0), "base_height": [float(qs[:, 2].min()), float(qs[:, 2].max())],
-            "start_height": float(scene.q0[2]), "max_roll": float(np.abs(rpy[:, 0]).max()),
-            "max_pitch": float(np.abs(rpy[:, 1]).max()), "steps": traj.stats.steps,
-            "rejected_over_accepted": traj.stats.rejected_steps / traj.stats.steps, "run_time": wall}
+    return {
+        "robot": name,
+        "events": len(traj.events),
+        "kinds": dict(kinds),
+        "same_events_dense": [(e.kind, e.contacts) for e in dense.events]
+        == [(e.kind, e.contacts) for e in traj.events],
+        "touchdowns_per_foot": [min(touchdowns), max(touchdowns)],
+        "slips": kinds.get("slip", 0),
+        "lift_offs": kinds.get("lift-off", 0),
+        "base_height": [float(qs[:, 2].min()), float(qs[:, 2].max())],
+        "start_height": float(scene.q0[2]),
+        "max_roll": float(np.abs(rpy[:, 0]).max()),
+        "max_pitch": float(np.abs(rpy[:, 1]).max()),
+        "steps": traj.stats.steps,
+        "rejected_over_accepted": traj.stats.rejected_steps / traj.stats.steps,
+        "run_time": wall,
+    }
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -63,14 +72,18 @@ def main(argv: list[str] | None = None) -> None:
     if args.json:
         print(json.dumps(rows, indent=2))
         return
-    print("robot    events  touchdowns/foot  slips/lift-offs  base height (m)        max|roll| max|pitch|  steps  "
-          "rejected  run time (s)")
+    print(
+        "robot    events  touchdowns/foot  slips/lift-offs  base height (m)        max|roll| max|pitch|  steps  "
+        "rejected  run time (s)"
+    )
     for r in rows:
         lo, hi = r["base_height"]
-        print(f"{r['robot']:<8} {r['events']:6d}  {r['touchdowns_per_foot'][0]}-{r['touchdowns_per_foot'][1]:<13} "
-              f"{r['slips']:5d}/{r['lift_offs']:<9d}  {lo:.3f}-{hi:.3f} ({r['start_height']:.3f})  "
-              f"{r['max_roll']:8.3f} {r['max_pitch']:9.3f}  {r['steps']:5d}  {r['rejected_over_accepted']:7.1%}  "
-              f"{r['run_time']:8.2f}")
+        print(
+            f"{r['robot']:<8} {r['events']:6d}  {r['touchdowns_per_foot'][0]}-{r['touchdowns_per_foot'][1]:<13} "
+            f"{r['slips']:5d}/{r['lift_offs']:<9d}  {lo:.3f}-{hi:.3f} ({r['start_height']:.3f})  "
+            f"{r['max_roll']:8.3f} {r['max_pitch']:9.3f}  {r['steps']:5d}  {r['rejected_over_accepted']:7.1%}  "
+            f"{r['run_time']:8.2f}"
+        )
         print(f"         kinds: {r['kinds']}; same events with dense output: {r['same_events_dense']}")
 
 

@@ -68,6 +68,7 @@ def leg_lift_jacobian(q, v, t):
 def leg_lift_rate(q, v, t):
     return np.array([0.0, LEG_RAMP if t > LEG_RAMP_START else 0.0, 0.0])
 
+
 FD_ERRORS: dict[str, float] = {}
 
 
@@ -81,8 +82,7 @@ def _report() -> None:  # pragma: no cover - diagnostics only
 atexit.register(_report)
 
 
-def fd_dq(f: Callable[[np.ndarray], np.ndarray], model: pin.Model, q: np.ndarray,
-          eps: float = EPS) -> np.ndarray:
+def fd_dq(f: Callable[[np.ndarray], np.ndarray], model: pin.Model, q: np.ndarray, eps: float = EPS) -> np.ndarray:
     """Central FD of ``f(q)`` on the manifold; result has shape ``f.shape + (nv,)``."""
     cols = []
     for k in range(model.nv):
@@ -114,25 +114,37 @@ def assert_fd(category: str, analytic, reference, value=None, rtol: float = RTOL
     analytic = np.asarray(analytic, dtype=float)
     reference = np.asarray(reference, dtype=float)
     assert analytic.shape == reference.shape, (category, analytic.shape, reference.shape)
-    scale = max(np.abs(reference).max(initial=0.0), np.abs(analytic).max(initial=0.0),
-                0.0 if value is None else np.abs(np.asarray(value, dtype=float)).max(initial=0.0),
-                1e-300)
+    scale = max(
+        np.abs(reference).max(initial=0.0),
+        np.abs(analytic).max(initial=0.0),
+        0.0 if value is None else np.abs(np.asarray(value, dtype=float)).max(initial=0.0),
+        1e-300,
+    )
     err = float(np.abs(analytic - reference).max(initial=0.0) / scale)
     FD_ERRORS[category] = max(FD_ERRORS.get(category, 0.0), err)
-    assert err < rtol, f"{category}: relative FD error {err:.3e} >= {rtol:g} (scale {scale:.3e})\n" \
-                       f"analytic=\n{analytic}\nreference=\n{reference}"
+    assert err < rtol, (
+        f"{category}: relative FD error {err:.3e} >= {rtol:g} (scale {scale:.3e})\n"
+        f"analytic=\n{analytic}\nreference=\n{reference}"
+    )
     return err
 
 
-def random_state(model: pin.Model, q_ref: np.ndarray, rng: np.random.Generator,
-                 q_scale: float = 0.3, v_scale: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+def random_state(
+    model: pin.Model, q_ref: np.ndarray, rng: np.random.Generator, q_scale: float = 0.3, v_scale: float = 1.0
+) -> tuple[np.ndarray, np.ndarray]:
     """``q = q_ref ⊕ q_scale·N(0, I)``, ``v = v_scale·N(0, I)``."""
     q = pin.integrate(model, q_ref, q_scale * rng.standard_normal(model.nv))
     return q, v_scale * rng.standard_normal(model.nv)
 
 
-def second_derivative_along(f: Callable[[np.ndarray], float], model: pin.Model, q: np.ndarray,
-                            v: np.ndarray, ddq: np.ndarray | None = None, h: float = 1e-4) -> float:
+def second_derivative_along(
+    f: Callable[[np.ndarray], float],
+    model: pin.Model,
+    q: np.ndarray,
+    v: np.ndarray,
+    ddq: np.ndarray | None = None,
+    h: float = 1e-4,
+) -> float:
     """``d²/dt² f(q(t))`` at t = 0 for the curve with ``q(0) = q``, velocity ``v`` and
     acceleration ``ddq`` (0 if None), by the central second difference of
     ``f(q ⊕ (t v + t²/2 ddq))``.
@@ -179,19 +191,36 @@ class ContactEvaluator:
         c, model = self.c, self.robot.model
         kin = self.at(q, v, derivatives=True)
         drift_dq, drift_dv = c.drift_derivatives(kin)
-        d = dict(rows_velocity_dq=c.rows_velocity_dq(kin).copy(), drift_dq=drift_dq.copy(),
-                 drift_dv=drift_dv.copy(), rows_times_dq=c.rows_times_dq(kin, x).copy(),
-                 rows_transpose_dq=c.rows_transpose_dq(kin, lam).copy(),
-                 rows_times_v_dq=c.rows_times_dq(kin, v).copy())
-        assert_fd(f"{prefix} rows_velocity_dq", d["rows_velocity_dq"], fd_dq(lambda qq: self.rows(qq) @ v, model, q),
-                  value=self.rows(q) @ v)
-        assert_fd(f"{prefix} drift_dq", d["drift_dq"], fd_dq(lambda qq: self.drift(qq, v), model, q),
-                  value=self.drift(q, v))
+        d = dict(
+            rows_velocity_dq=c.rows_velocity_dq(kin).copy(),
+            drift_dq=drift_dq.copy(),
+            drift_dv=drift_dv.copy(),
+            rows_times_dq=c.rows_times_dq(kin, x).copy(),
+            rows_transpose_dq=c.rows_transpose_dq(kin, lam).copy(),
+            rows_times_v_dq=c.rows_times_dq(kin, v).copy(),
+        )
+        assert_fd(
+            f"{prefix} rows_velocity_dq",
+            d["rows_velocity_dq"],
+            fd_dq(lambda qq: self.rows(qq) @ v, model, q),
+            value=self.rows(q) @ v,
+        )
+        assert_fd(
+            f"{prefix} drift_dq", d["drift_dq"], fd_dq(lambda qq: self.drift(qq, v), model, q), value=self.drift(q, v)
+        )
         assert_fd(f"{prefix} drift_dv", d["drift_dv"], fd_dv(lambda vv: self.drift(q, vv), v), value=self.drift(q, v))
-        assert_fd(f"{prefix} rows_times_dq", d["rows_times_dq"], fd_dq(lambda qq: self.rows(qq) @ x, model, q),
-                  value=self.rows(q) @ x)
-        assert_fd(f"{prefix} rows_transpose_dq", d["rows_transpose_dq"],
-                  fd_dq(lambda qq: self.rows(qq).T @ lam, model, q), value=self.rows(q).T @ lam)
+        assert_fd(
+            f"{prefix} rows_times_dq",
+            d["rows_times_dq"],
+            fd_dq(lambda qq: self.rows(qq) @ x, model, q),
+            value=self.rows(q) @ x,
+        )
+        assert_fd(
+            f"{prefix} rows_transpose_dq",
+            d["rows_transpose_dq"],
+            fd_dq(lambda qq: self.rows(qq).T @ lam, model, q),
+            value=self.rows(q).T @ lam,
+        )
         return d
 
 

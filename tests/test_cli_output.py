@@ -17,12 +17,15 @@ class _Terminal(io.StringIO):
         return True
 
 
-@pytest.mark.parametrize("stream, progress, drawn", [
-    (io.StringIO, None, False),   # a file or a pipe: no bar
-    (_Terminal, None, True),      # a terminal: the bar
-    (io.StringIO, True, True),    # forced
-    (_Terminal, False, False),    # hidden
-])
+@pytest.mark.parametrize(
+    "stream, progress, drawn",
+    [
+        (io.StringIO, None, False),  # a file or a pipe: no bar
+        (_Terminal, None, True),  # a terminal: the bar
+        (io.StringIO, True, True),  # forced
+        (_Terminal, False, False),  # hidden
+    ],
+)
 def test_the_bench_bar_draws_only_on_a_terminal(monkeypatch, stream, progress, drawn):
     err = stream()
     monkeypatch.setattr(sys, "stderr", err)
@@ -56,6 +59,6 @@ def test_bench_quick_help_names_the_scenes_it_runs(capsys):
         code = exc.code
     assert code == 0
     text = " ".join(capsys.readouterr().out.split())
-    quick = text[text.index("--quick"):]
+    quick = text[text.index("--quick") :]
     assert all(name in quick for name in QUICK_SCENES)
     assert "default all; with --quick: " + " and ".join(QUICK_SCENES) in text

@@ -32,9 +32,13 @@ BENCH = ["bench", "--quick", "--scenes", "ball"]
 
 def _outputs(folder: Path) -> list[list[str]]:
     """Each command with one output file inside ``folder``."""
-    return [SIMULATE + ["--plot", str(folder / "run.png")], SIMULATE + ["--html", str(folder / "run.html")],
-            SWEEP + ["--out", str(folder / "rows.csv")], SWEEP + ["--plot", str(folder / "rows.png")],
-            BENCH + ["--plot", str(folder / "bench.png")]]
+    return [
+        SIMULATE + ["--plot", str(folder / "run.png")],
+        SIMULATE + ["--html", str(folder / "run.html")],
+        SWEEP + ["--out", str(folder / "rows.csv")],
+        SWEEP + ["--plot", str(folder / "rows.png")],
+        BENCH + ["--plot", str(folder / "bench.png")],
+    ]
 
 
 def _needs(argv: list[str]) -> None:
@@ -45,6 +49,7 @@ def _needs(argv: list[str]) -> None:
 def _no_run(monkeypatch) -> None:
     def never(*args, **kwargs):
         raise AssertionError("the run started before the output file was checked")
+
     monkeypatch.setattr(contactdiff.integration.hybrid, "simulate", never)
     monkeypatch.setattr(contactdiff.bench.runner, "run_bench", never)
     monkeypatch.setattr(contactdiff.sweeps.runner, "run_point", never)
@@ -125,11 +130,12 @@ def test_simulate_prints_its_run_when_its_files_fail_after_it(tmp_path, capsys, 
         traj = simulate(*args, **kwargs)
         _break(folder)
         return traj
+
     monkeypatch.setattr(contactdiff.integration.hybrid, "simulate", run_then_break)
     assert main(SIMULATE + ["--plot", str(folder / "run.png"), "--html", str(folder / "run.html"), "--json"]) == 2
     captured = capsys.readouterr()
     run = json.loads(captured.out)  # the run, printed whole: one bounce at sqrt(2) s, within the event tolerance
-    assert [e["kind"] for e in run["events"]] == ["bounce"] and run["events"][0]["t"] == pytest.approx(2 ** 0.5)
+    assert [e["kind"] for e in run["events"]] == ["bounce"] and run["events"][0]["t"] == pytest.approx(2**0.5)
     assert captured.err.count("\n") == 1 and "--plot" in captured.err and "--html" in captured.err
     assert captured.err.startswith("contactdiff simulate: error:") and "results above are complete" in captured.err
 
@@ -144,6 +150,7 @@ def test_bench_prints_its_table_when_its_plot_fails_after_it(tmp_path, capsys, m
         result = run_bench(*args, **kwargs)
         _break(folder)
         return result
+
     monkeypatch.setattr(contactdiff.bench.runner, "run_bench", run_then_break)
     assert main(BENCH + ["--plot", str(folder / "bench.png")]) == 2
     captured = capsys.readouterr()

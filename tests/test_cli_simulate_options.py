@@ -49,12 +49,15 @@ def test_grazing_speed_and_on_grazing(capsys):
     assert "grazing touchdown of ball" in err and "grazing_speed 2" in err
 
 
-@pytest.mark.parametrize("argv, message", [
-    (["--zeno-speed", "-1"], "zeno_speed must be >= 0, got -1.0"),
-    (["--grazing-speed", "-1"], "grazing_speed must be >= 0, got -1.0"),
-    (["--grazing-gap", "-1"], "grazing_gap must be >= 0, got -1.0"),
-    (["--max-events", "-1"], "--max-events: must be an integer >= 0, got '-1'"),
-])
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["--zeno-speed", "-1"], "zeno_speed must be >= 0, got -1.0"),
+        (["--grazing-speed", "-1"], "grazing_speed must be >= 0, got -1.0"),
+        (["--grazing-gap", "-1"], "grazing_gap must be >= 0, got -1.0"),
+        (["--max-events", "-1"], "--max-events: must be an integer >= 0, got '-1'"),
+    ],
+)
 def test_bad_run_options_are_one_named_line(capsys, argv, message):
     assert main(["simulate", "ball", "--t-final", "1"] + argv) == 2
     err = capsys.readouterr().err

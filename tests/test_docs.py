@@ -39,12 +39,15 @@ def _blocks(path: Path):
     i = 0
     while i < len(lines):
         line = lines[i]
-        slow = i > 0 and bool(_SLOW.match(lines[i - 1].strip())) or (
-            i > 1 and not lines[i - 1].strip() and bool(_SLOW.match(lines[i - 2].strip())))
+        slow = (
+            i > 0
+            and bool(_SLOW.match(lines[i - 1].strip()))
+            or (i > 1 and not lines[i - 1].strip() and bool(_SLOW.match(lines[i - 2].strip())))
+        )
         fence = re.match(r"^```(\w*)", line)
         if fence:
             end = next(j for j in range(i + 1, len(lines)) if lines[j].startswith("```"))
-            yield fence.group(1), "\n".join(lines[i + 1:end]), slow, i + 1
+            yield fence.group(1), "\n".join(lines[i + 1 : end]), slow, i + 1
             i = end + 1
             continue
         if line.startswith("    ") and line.strip() and (i == 0 or not lines[i - 1].strip()):

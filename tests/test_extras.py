@@ -44,49 +44,66 @@ def test_require_extra_returns_the_module_or_names_the_extra(monkeypatch):
 
 def _plotting():
     from contactdiff.plotting import _pyplot
+
     _pyplot()
 
 
 def _plot_option():
     from contactdiff.cli_args import check_plot_path
+
     check_plot_path("out.png")
 
 
 def _pandas():
     from contactdiff.sweeps.rows import SweepResult
+
     SweepResult([], ()).to_pandas()
 
 
 def _dask_backend():
     from contactdiff.sweeps.engines import Engine
+
     Engine.of("dask", 2)
 
 
 def _ray_backend():
     from contactdiff.sweeps.engines import Engine
+
     Engine.of("ray", 2)
 
 
 def _mujoco():
     from contactdiff.bench.gradients_mujoco import mujoco
+
     mujoco()
 
 
 def _mjx():
     from contactdiff.bench.gradients_mujoco import mjx_gradient
+
     mjx_gradient(None, None, None, 1, [0], [0])
 
 
 def _replay():
     from contactdiff.replay import require_meshcat
+
     require_meshcat()
 
 
-@pytest.mark.parametrize("call, hidden", [
-    (_plotting, "matplotlib"), (_plot_option, "matplotlib.figure"), (_pandas, "pandas"),
-    (_dask_backend, "distributed"), (_ray_backend, "ray"), (_mujoco, "mujoco"), (_mjx, "jax"),
-    (_replay, "meshcat"),
-], ids=lambda x: getattr(x, "__name__", x))
+@pytest.mark.parametrize(
+    "call, hidden",
+    [
+        (_plotting, "matplotlib"),
+        (_plot_option, "matplotlib.figure"),
+        (_pandas, "pandas"),
+        (_dask_backend, "distributed"),
+        (_ray_backend, "ray"),
+        (_mujoco, "mujoco"),
+        (_mjx, "jax"),
+        (_replay, "meshcat"),
+    ],
+    ids=lambda x: getattr(x, "__name__", x),
+)
 def test_every_optional_import_raises_the_one_type_with_a_declared_extra(monkeypatch, call, hidden):
     monkeypatch.setitem(sys.modules, hidden, None)
     with pytest.raises(MissingExtraError) as info:

@@ -31,11 +31,16 @@ def test_time_shares_counts(friction_trots):
     over 1 s, so 100 per s, and 100 / 24 over the sticking rate; one 24-evaluation step (the
     sticking steps' mean) in each of the two slipping segments would give 48 per s, 2 times the
     sticking rate. An impact's wall time is kept apart."""
-    segments = [NS(t0=0.0, t1=1.0, sliding=()), NS(t0=1.0, t1=1.5, sliding=("a",)),
-                NS(t0=1.5, t1=2.0, sliding=("b",))]
+    segments = [NS(t0=0.0, t1=1.0, sliding=()), NS(t0=1.0, t1=1.5, sliding=("a",)), NS(t0=1.5, t1=2.0, sliding=("b",))]
     events = [NS(t=1.0, kind="slip"), NS(t=1.5, kind="lift-off"), NS(t=2.0, kind="stick")]
-    record = [(0.0, 1.0, 0, 0.1, 24), (1.0, 1.25, 1, 0.1, 10), (1.25, 1.6, 0, 0.1, 30), ("impact", 0.05),
-              (1.5, 1.995, 2, 0.1, 12), (1.995, 2.0, 3, 0.1, 48)]
+    record = [
+        (0.0, 1.0, 0, 0.1, 24),
+        (1.0, 1.25, 1, 0.1, 10),
+        (1.25, 1.6, 0, 0.1, 30),
+        ("impact", 0.05),
+        (1.5, 1.995, 2, 0.1, 12),
+        (1.995, 2.0, 3, 0.1, 48),
+    ]
     shares = friction_trots.time_shares(record, segments, 1.0, events)
     slipping, other = shares["slipping"], shares["other"]
     assert (slipping["steps"], slipping["rejected"], slipping["evaluations"]) == (4, 6, 100)

@@ -9,8 +9,13 @@ import re
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-FILES = [ROOT / "README.md", *(ROOT / "docs").rglob("*.md"), *(ROOT / "robots").glob("*.toml"),
-         *(ROOT / "scripts").glob("*.py"), *(ROOT / "contactdiff").rglob("*.py")]
+FILES = [
+    ROOT / "README.md",
+    *(ROOT / "docs").rglob("*.md"),
+    *(ROOT / "robots").glob("*.toml"),
+    *(ROOT / "scripts").glob("*.py"),
+    *(ROOT / "contactdiff").rglob("*.py"),
+]
 NAME = re.compile(r"\bcontactdiff(?:\.[A-Za-z_][A-Za-z0-9_]*)+")
 # packages that pyproject.toml's package-dir maps from another folder of the repository: from a
 # checkout (the tests' own folder first on sys.path) they import only once installed
@@ -35,8 +40,11 @@ def _resolves(name: str) -> bool:
 
 
 def test_every_dotted_contactdiff_name_exists():
-    found = {(m.group(0).rstrip("."), path.relative_to(ROOT).as_posix()) for path in FILES
-             for m in NAME.finditer(path.read_text(encoding="utf-8"))}
+    found = {
+        (m.group(0).rstrip("."), path.relative_to(ROOT).as_posix())
+        for path in FILES
+        for m in NAME.finditer(path.read_text(encoding="utf-8"))
+    }
     names = {name for name, _ in found}
     assert len(names) > 20  # the search is not vacuous
     missing = sorted(f"{where}: {name}" for name, where in found if not _resolves(name))

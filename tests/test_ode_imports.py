@@ -33,9 +33,13 @@ def _imported_modules(path: Path) -> set[str]:
 
 def _outside(imports: dict[str, set[str]]) -> set[tuple[str, str]]:
     """The (file, module) pairs that import a part of contactdiff other than `ALLOWED`."""
-    return {(name, module) for name, found in imports.items() for module in found
-            if (module == "contactdiff" or module.startswith("contactdiff."))
-            and not any(module == a or module.startswith(a + ".") for a in ALLOWED)}
+    return {
+        (name, module)
+        for name, found in imports.items()
+        for module in found
+        if (module == "contactdiff" or module.startswith("contactdiff."))
+        and not any(module == a or module.startswith(a + ".") for a in ALLOWED)
+    }
 
 
 def test_ode_imports_nothing_of_the_contact_model():
@@ -55,14 +59,23 @@ def test_scanner_resolves_a_relative_import_of_the_contact_model(tmp_path):
     """The scan itself: relative imports two levels up resolve to the contact model's
     modules, and the check above reports them (and not the allowed errors module)."""
     path = tmp_path / "probe.py"
-    path.write_text("from ..model import scene\nfrom ..integration.hybrid import simulate\n"
-                    "from ..errors import InvalidInputError\nimport contactdiff.dynamics.mode\n", encoding="utf-8")
+    path.write_text(
+        "from ..model import scene\nfrom ..integration.hybrid import simulate\n"
+        "from ..errors import InvalidInputError\nimport contactdiff.dynamics.mode\n",
+        encoding="utf-8",
+    )
     found = _imported_modules(path)
-    assert found == {"contactdiff.model", "contactdiff.integration.hybrid", "contactdiff.errors",
-                     "contactdiff.dynamics.mode"}
-    assert _outside({"probe.py": found}) == {("probe.py", "contactdiff.model"),
-                                             ("probe.py", "contactdiff.integration.hybrid"),
-                                             ("probe.py", "contactdiff.dynamics.mode")}
+    assert found == {
+        "contactdiff.model",
+        "contactdiff.integration.hybrid",
+        "contactdiff.errors",
+        "contactdiff.dynamics.mode",
+    }
+    assert _outside({"probe.py": found}) == {
+        ("probe.py", "contactdiff.model"),
+        ("probe.py", "contactdiff.integration.hybrid"),
+        ("probe.py", "contactdiff.dynamics.mode"),
+    }
 
 
 def test_steppers_former_path_gives_the_same_objects():

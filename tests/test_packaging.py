@@ -16,8 +16,7 @@ SCENE_FILES = sorted(p.name for p in (ROOT / "robots").iterdir() if p.suffix in 
 
 
 def test_python_m_contactdiff_help():
-    out = subprocess.run([sys.executable, "-m", "contactdiff", "--help"], capture_output=True, text=True,
-                         timeout=120)
+    out = subprocess.run([sys.executable, "-m", "contactdiff", "--help"], capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr
     assert "check" in out.stdout and "simulate" in out.stdout
 
@@ -27,8 +26,12 @@ def wheel(tmp_path_factory) -> Path:
     """A wheel built from the checkout as a user builds it: ``pip wheel .`` (its own
     build environment with the newest setuptools; the dependencies are not built)."""
     out = tmp_path_factory.mktemp("wheel")
-    build = subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-w", str(out), str(ROOT)],
-                           capture_output=True, text=True, timeout=600)
+    build = subprocess.run(
+        [sys.executable, "-m", "pip", "wheel", "--no-deps", "-w", str(out), str(ROOT)],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert build.returncode == 0, build.stderr
     (path,) = out.glob("contactdiff-*.whl")
     return path
@@ -46,13 +49,25 @@ def test_scenes_load_from_a_non_editable_install(wheel, tmp_path):
     """Installed into a folder of its own and imported from elsewhere (not the
     checkout), the package finds ball.toml and its URDF inside itself."""
     site = tmp_path / "site"
-    install = subprocess.run([sys.executable, "-m", "pip", "install", "--no-deps", "--no-index", "--target",
-                              str(site), str(wheel)], capture_output=True, text=True, timeout=600)
+    install = subprocess.run(
+        [sys.executable, "-m", "pip", "install", "--no-deps", "--no-index", "--target", str(site), str(wheel)],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert install.returncode == 0, install.stderr
-    code = ("import contactdiff, pathlib; s = contactdiff.load_scene('ball'); "
-            "print(pathlib.Path(contactdiff.__file__).parent, s.name, len(s.contacts))")
-    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
-                         cwd=tmp_path, env={"PYTHONPATH": str(site), "PATH": "/usr/bin:/bin"})
+    code = (
+        "import contactdiff, pathlib; s = contactdiff.load_scene('ball'); "
+        "print(pathlib.Path(contactdiff.__file__).parent, s.name, len(s.contacts))"
+    )
+    run = subprocess.run(
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        cwd=tmp_path,
+        env={"PYTHONPATH": str(site), "PATH": "/usr/bin:/bin"},
+    )
     assert run.returncode == 0, run.stderr
     package, name, contacts = run.stdout.split()
     assert Path(package) == site / "contactdiff" and name == "ball" and contacts == "1"

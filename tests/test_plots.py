@@ -34,8 +34,11 @@ def test_bench_tick_labels_do_not_overlap(times):
     """Run times spanning 1.2 decades (the bench --quick panel whose minor labels read
     2×10⁻³3×10⁻³...), 0.28 decades and 5.5 decades: at least two labels on the x axis, and no
     two labels' boxes intersect."""
-    runs = [{"scene": "ball", "method": m, "time": t, "error": e, "failed": False}
-            for m in METHODS[:2] for t, e in zip(np.geomspace(*times, 5), np.geomspace(1e-3, 1e-12, 5))]
+    runs = [
+        {"scene": "ball", "method": m, "time": t, "error": e, "failed": False}
+        for m in METHODS[:2]
+        for t, e in zip(np.geomspace(*times, 5), np.geomspace(1e-3, 1e-12, 5))
+    ]
     fig = bench_figure(SimpleNamespace(references={"ball": None}, runs=runs))
     ax = fig.axes[0]
     for axis in (ax.xaxis, ax.yaxis):

@@ -96,8 +96,7 @@ def test_contact_markers_show_only_while_closed(run, page):
     scene, traj = run
     _, text = page
     times, _ = frame_times(traj, FPS)
-    tracks = {a["path"].rsplit("/", 1)[-1]: a["clip"]["tracks"] for a in _animation(text)
-              if "/contacts/" in a["path"]}
+    tracks = {a["path"].rsplit("/", 1)[-1]: a["clip"]["tracks"] for a in _animation(text) if "/contacts/" in a["path"]}
     assert set(tracks) == {"rear_foot", "front_foot"}
     touchdown = next(e for e in traj.events if e.kind == "touchdown")
     for name, clip in tracks.items():
@@ -163,7 +162,7 @@ def test_cli_html_writes_the_page(tmp_path, capsys):
     info = json.loads(re.search(r'id="contactdiff-replay">(.*?)</script>', text, re.S).group(1))
     # the ball (g = 1, from z = 1) bounces at t = sqrt(2): 17 grid frames at 10 fps, plus that one
     assert info["scene"] == "ball" and [e["kind"] for e in info["events"]] == ["bounce"]
-    assert info["events"][0]["t"] == pytest.approx(2 ** 0.5) and info["frames"] == 18
+    assert info["events"][0]["t"] == pytest.approx(2**0.5) and info["frames"] == 18
 
 
 def test_cli_html_refuses_a_missing_folder(tmp_path, capsys):
@@ -211,24 +210,34 @@ def test_objects_are_drawn_as_their_shapes_where_the_run_puts_them(tmp_path):
     traj = simulate(scene, 0.3, dense=True)
     path = traj.to_html(tmp_path / "cradle.html", scene, fps=FPS)
     commands = _commands(path.read_text())
-    shapes = {c["path"].rsplit("/", 1)[-1]: c["object"]["geometries"][0] for c in commands
-              if c["type"] == "set_object" and "/visuals/" in c["path"]}
+    shapes = {
+        c["path"].rsplit("/", 1)[-1]: c["object"]["geometries"][0]
+        for c in commands
+        if c["type"] == "set_object" and "/visuals/" in c["path"]
+    }
     assert set(shapes) == {"ball1_sphere", "ball2_sphere", "ball3_sphere"}
     assert all(g["type"] == "SphereGeometry" and g["radius"] == 0.02 for g in shapes.values())
-    last = {a["path"].rsplit("/", 1)[-1]: a["clip"]["tracks"][0]["keys"][-1]["value"]
-            for a in _animation(path.read_text())}
+    last = {
+        a["path"].rsplit("/", 1)[-1]: a["clip"]["tracks"][0]["keys"][-1]["value"] for a in _animation(path.read_text())
+    }
     for k, name in enumerate(("ball1", "ball2", "ball3")):
         start = scene.robot.model.joints[scene.robot.joint_id(name)].idx_q
-        assert last[f"{name}_sphere"] == pytest.approx(traj.q[start:start + 3].tolist(), abs=1e-12)
+        assert last[f"{name}_sphere"] == pytest.approx(traj.q[start : start + 3].tolist(), abs=1e-12)
     assert last["ball1_sphere"][0] == pytest.approx(-0.04 - 0.2 / 3, abs=1e-9)
 
 
 def _surfaces(commands: list[dict]) -> dict[str, tuple[dict, np.ndarray]]:
     """The drawn contact planes: name -> (geometry, 4 x 4 pose)."""
-    objects = {c["path"].rsplit("/", 1)[-1]: c["object"]["geometries"][0] for c in commands
-               if c["type"] == "set_object" and "/surfaces/" in c["path"]}
-    poses = {c["path"].rsplit("/", 1)[-1]: np.array(c["matrix"], dtype=float).reshape(4, 4).T for c in commands
-             if c["type"] == "set_transform" and "/surfaces/" in c["path"]}
+    objects = {
+        c["path"].rsplit("/", 1)[-1]: c["object"]["geometries"][0]
+        for c in commands
+        if c["type"] == "set_object" and "/surfaces/" in c["path"]
+    }
+    poses = {
+        c["path"].rsplit("/", 1)[-1]: np.array(c["matrix"], dtype=float).reshape(4, 4).T
+        for c in commands
+        if c["type"] == "set_transform" and "/surfaces/" in c["path"]
+    }
     return {name: (objects[name], poses[name]) for name in objects}
 
 
@@ -260,8 +269,10 @@ def test_the_floor_is_drawn_under_the_feet(run, page):
         pin.framesForwardKinematics(scene.robot.model, data, q)
         feet += [data.oMf[c.fid].translation.copy() for c in scene.contacts]
     _slab_covers(*surfaces["ground"], np.array(feet), 0.0)
-    assert any(c["type"] == "set_property" and c["path"] == "/Grid" and c["property"] == "visible"
-               and c["value"] is False for c in commands)
+    assert any(
+        c["type"] == "set_property" and c["path"] == "/Grid" and c["property"] == "visible" and c["value"] is False
+        for c in commands
+    )
 
 
 def test_the_panda_table_is_drawn_under_the_box(tmp_path):
@@ -301,8 +312,11 @@ def test_contact_markers_show_from_the_default_distance(run, page):
 
     _, text = page
     commands = _commands(text)
-    (camera,) = [c for c in commands if c["type"] == "set_property" and c["path"].startswith("/Cameras")
-                 and c["property"] == "position"]
+    (camera,) = [
+        c
+        for c in commands
+        if c["type"] == "set_property" and c["path"].startswith("/Cameras") and c["property"] == "position"
+    ]
     distance = float(np.linalg.norm(camera["value"]))
     markers = [c["object"] for c in commands if c["type"] == "set_object" and "/contacts/" in c["path"]]
     assert len(markers) == 2
@@ -349,8 +363,11 @@ def test_package_meshes_are_found_in_the_given_package_folders(package_robot, tm
     with pytest.raises(InvalidInputError, match="package://mypkg/meshes/tetra.obj.*--package-dir"):
         traj.to_html(tmp_path / "no.html", scene)
     path = traj.to_html(tmp_path / "arm.html", scene, package_dirs=[pkgs])
-    meshes = [c["object"]["geometries"][0] for c in _commands(path.read_text())
-              if c["type"] == "set_object" and "/visuals/" in c["path"]]
+    meshes = [
+        c["object"]["geometries"][0]
+        for c in _commands(path.read_text())
+        if c["type"] == "set_object" and "/visuals/" in c["path"]
+    ]
     assert len(meshes) == 1 and meshes[0]["format"] == "obj"
     data = meshes[0]["data"]
     assert "f 2 3 4" in (data.decode() if isinstance(data, bytes) else data)  # the package's file, inlined

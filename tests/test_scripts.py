@@ -20,20 +20,28 @@ PNG = b"\x89PNG\r\n\x1a\n"
 
 # script -> (arguments, files it must write, text its output must hold); "{tmp}" is the test's folder
 SMOKE = {
-    "bench_error_vs_time.py": (["--quick", "--out", "{tmp}/bench.png", "--json", "{tmp}/bench.json"],
-                               ["bench.png", "bench.json"], "plot written to"),
+    "bench_error_vs_time.py": (
+        ["--quick", "--out", "{tmp}/bench.png", "--json", "{tmp}/bench.json"],
+        ["bench.png", "bench.json"],
+        "plot written to",
+    ),
     "cube_toss_runs.py": (["--quick", "--jobs", "1"], [], "3 tosses x 1 settings"),
-    "cube_tosses.py": (["--quick", "--jobs", "1", "--plot-dir", "{tmp}"],
-                       ["cube_toss_errors.png", "cube_toss_rollouts.png"], "held out: 2 tosses"),
+    "cube_tosses.py": (
+        ["--quick", "--jobs", "1", "--plot-dir", "{tmp}"],
+        ["cube_toss_errors.png", "cube_toss_rollouts.png"],
+        "held out: 2 tosses",
+    ),
     "decoupling_atlas.py": (["--quick", "--out", "{tmp}/atlas.md"], ["atlas.md"], "atlas written"),
     "fig1_trot.py": (["--quick", "--out", "{tmp}/fig1.png"], ["fig1.png"], "figure written to"),
     "friction_trots.py": (["--quick"], [], "where the time goes"),
     "loop_floor.py": (["--quick"], [], "the whole run's time"),
     "loop_share.py": (["--quick"], [], "two_limb"),
-    "gradient_bench.py": (["--quick", "--plots", "{tmp}", "--json", "{tmp}/gradients.json"],
-                          [f"task_{t}.png" for t in ("1_bounce", "2_wall", "2_wall_friction", "3_two_balls",
-                                                     "4_brax", "5_cube")] + ["gradients.json"],
-                          "no MuJoCo variant reaches"),
+    "gradient_bench.py": (
+        ["--quick", "--plots", "{tmp}", "--json", "{tmp}/gradients.json"],
+        [f"task_{t}.png" for t in ("1_bounce", "2_wall", "2_wall_friction", "3_two_balls", "4_brax", "5_cube")]
+        + ["gradients.json"],
+        "no MuJoCo variant reaches",
+    ),
     "mjcf_vs_mujoco.py": (["--quick"], [], "max rel. diff of M"),
     "mode_dynamics_cost.py": (["--quick", "planar_trot_soft"], [], "pin.aba"),
     "panda_lift_targets.py": ([], [], "residual"),  # its whole run takes well under a second
@@ -41,8 +49,11 @@ SMOKE = {
     "quadruped_coupling.py": (["--quick"], [], "| solo12 |"),
     "quadruped_decoupling_table.py": (["--quick", "--plot", "{tmp}/trend.png"], ["trend.png"], "compliant feet"),
     "replay_screenshot.py": (["--quick", "--out", "{tmp}/replay.png"], ["replay.png"], "replay.png"),
-    "stiff_study.py": (["--quick", "--figure", "{tmp}/stiff.png", "--json", "{tmp}/stiff.json"],
-                       ["stiff.png", "stiff.json"], "steps by method of auto"),
+    "stiff_study.py": (
+        ["--quick", "--figure", "{tmp}/stiff.png", "--json", "{tmp}/stiff.json"],
+        ["stiff.png", "stiff.json"],
+        "steps by method of auto",
+    ),
     "stride_noise.py": (["--quick"], [], "pairwise |Δr|"),
     "sweep_bench.py": (["--quick"], [], "speed-up of 2 workers over 1"),
     "trot_design_gradient.py": (["--quick", "--plot", "{tmp}/gradient.png"], ["gradient.png"], "check at step 0"),
@@ -67,8 +78,14 @@ def test_script_runs(script, tmp_path):
     argv = [a.replace("{tmp}", str(tmp_path)) for a in args]
     env = dict(os.environ, MPLBACKEND="Agg")
     docs = {p: p.stat().st_mtime_ns for p in (ROOT / "docs").rglob("*")}
-    done = subprocess.run([sys.executable, str(SCRIPTS / script), *argv], cwd=tmp_path, env=env,
-                          capture_output=True, text=True, timeout=300)
+    done = subprocess.run(
+        [sys.executable, str(SCRIPTS / script), *argv],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     if script == "replay_screenshot.py" and done.returncode == 1 and "no headless" in done.stderr:
         # no Chromium on this machine: the page is still written, and the missing browser is one line
         assert "Traceback" not in done.stderr and len(done.stderr.strip().splitlines()) == 1

@@ -144,13 +144,17 @@ class DecouplingReport:
 
     def format(self) -> str:
         """A readable multi-line report."""
-        lines = [f"decoupling check: scene {self.scene} (robot {self.robot}"
-                 + (f", armature {self.armature:g}" if self.armature else "") + ")"]
+        lines = [
+            f"decoupling check: scene {self.scene} (robot {self.robot}"
+            + (f", armature {self.armature:g}" if self.armature else "")
+            + ")"
+        ]
         if self.feet:
             lines.append(f"  {self.feet}")
         if self.verdict is None:
-            return "\n".join(lines + ["", f"verdict: none - nothing to check: {self.reason}"]
-                             + [f"  note: {n}" for n in self.notes])
+            return "\n".join(
+                lines + ["", f"verdict: none - nothing to check: {self.reason}"] + [f"  note: {n}" for n in self.notes]
+            )
         lines.append(f"  body: {', '.join(self.body) or '(none)'}")
         for name, coords in self.limbs.items():
             points = self.limb_contacts.get(name, [name])
@@ -159,8 +163,7 @@ class DecouplingReport:
         lines.append("")
         header = ("pair", "reference", "max", "median", "verdict")
         if self.pairs:
-            lines.append("orthogonality  |G_ij| / sqrt(G_ii G_jj) at closed contacts "
-                         f"({self.pairs[0].samples} poses)")
+            lines.append(f"orthogonality  |G_ij| / sqrt(G_ii G_jj) at closed contacts ({self.pairs[0].samples} poses)")
             lines += _table(header, _pair_rows(self.pairs))
             if self.within_limb:
                 lines.append("within one limb (points of one foot; not part of the verdict)")
@@ -169,9 +172,10 @@ class DecouplingReport:
             lines.append("orthogonality: fewer than two contacts, nothing to couple")
         lines.append("")
         lines.append(f"limbs decoupled through the body (relative sizes, tol {self.tol:g})")
-        lines += _table(("condition", "where", "size", "ok"),
-                        [(t.condition, t.where, f"{t.value:.3e}", "yes" if t.ok else "NO")
-                         for t in self.terms])
+        lines += _table(
+            ("condition", "where", "size", "ok"),
+            [(t.condition, t.where, f"{t.value:.3e}", "yes" if t.ok else "NO") for t in self.terms],
+        )
         lines.append("")
         lines.append(f"verdict: {self.verdict.upper()} - " + _VERDICT_MEANING[self.verdict])
         for t in self.failed_terms()[:5]:
@@ -188,8 +192,10 @@ _VERDICT_MEANING = {
 
 
 def _pair_rows(pairs: list[PairCoupling]) -> list[tuple[str, ...]]:
-    return [(f"{p.contacts[0]} / {p.contacts[1]}", f"{p.reference:.3e}", f"{p.max:.3e}",
-             f"{p.median:.3e}", p.verdict) for p in pairs]
+    return [
+        (f"{p.contacts[0]} / {p.contacts[1]}", f"{p.reference:.3e}", f"{p.max:.3e}", f"{p.median:.3e}", p.verdict)
+        for p in pairs
+    ]
 
 
 def _table(header, rows) -> list[str]:
@@ -199,9 +205,16 @@ def _table(header, rows) -> list[str]:
 
 
 # -- the checker ------------------------------------------------------------------------
-def check_decoupling(source: Scene | Robot | str | Path, *, samples: int = 20, seed: int = 0,
-                     armature: float = 0.0, tol: float = 1e-9, spread: float = 0.4,
-                     states: Sequence[tuple[ArrayLike, ArrayLike, float]] | None = None) -> DecouplingReport:
+def check_decoupling(
+    source: Scene | Robot | str | Path,
+    *,
+    samples: int = 20,
+    seed: int = 0,
+    armature: float = 0.0,
+    tol: float = 1e-9,
+    spread: float = 0.4,
+    states: Sequence[tuple[ArrayLike, ArrayLike, float]] | None = None,
+) -> DecouplingReport:
     """Check a scene (or a robot on its feet) against the paper's assumptions.
 
     Args:
@@ -236,9 +249,20 @@ def check_decoupling(source: Scene | Robot | str | Path, *, samples: int = 20, s
     groups = _limb_groups(scene)
     if len(groups) < 2:
         return DecouplingReport(
-            scene=scene.name, robot=scene.robot.name, armature=float(armature), tol=float(tol),
-            samples=0, seed=int(seed), body=[], limbs={}, pairs=[], terms=[], verdict=None,
-            feet=feet, reason=_nothing_to_check(scene, groups))
+            scene=scene.name,
+            robot=scene.robot.name,
+            armature=float(armature),
+            tol=float(tol),
+            samples=0,
+            seed=int(seed),
+            body=[],
+            limbs={},
+            pairs=[],
+            terms=[],
+            verdict=None,
+            feet=feet,
+            reason=_nothing_to_check(scene, groups),
+        )
     checker = _Checker(scene, np.random.default_rng(seed), spread, groups)
     notes = []
     if states is not None:
@@ -249,8 +273,10 @@ def check_decoupling(source: Scene | Robot | str | Path, *, samples: int = 20, s
         notes.append(f"robot {scene.robot.name!r} has no actuated joints: armature changes nothing")
     poses = None if states is None else [q for q, _, _ in states]
     limb_of = checker.limb_of
-    all_pairs = [(limb_of[i] == limb_of[j], checker.pair_coupling(i, j, samples, poses))
-                 for i, j in itertools.combinations(range(len(scene.contacts)), 2)]
+    all_pairs = [
+        (limb_of[i] == limb_of[j], checker.pair_coupling(i, j, samples, poses))
+        for i, j in itertools.combinations(range(len(scene.contacts)), 2)
+    ]
     pairs = [p for within, p in all_pairs if not within]
     within_limb = [p for within, p in all_pairs if within]
     terms = checker.assumption_terms(samples, states)
@@ -265,9 +291,11 @@ def check_decoupling(source: Scene | Robot | str | Path, *, samples: int = 20, s
     for limb, members in groups:
         worst = max((p.max for p in within_limb if p.contacts[0] in members), default=0.0)
         if len(members) > 1 and worst > tol:
-            notes.append(f"the points of limb {limb} ({', '.join(members)}) are coupled to each other "
-                         f"(up to {worst:.3g}): the order in which they touch changes outcomes; "
-                         "the verdict is about limbs")
+            notes.append(
+                f"the points of limb {limb} ({', '.join(members)}) are coupled to each other "
+                f"(up to {worst:.3g}): the order in which they touch changes outcomes; "
+                "the verdict is about limbs"
+            )
     if any(p.verdict == COUPLED for p in pairs):
         verdict = COUPLED
     elif all(t.ok for t in terms):
@@ -276,13 +304,25 @@ def check_decoupling(source: Scene | Robot | str | Path, *, samples: int = 20, s
         verdict = ORTHOGONAL_ONLY
     model = scene.model
     return DecouplingReport(
-        scene=scene.name, robot=scene.robot.name, armature=float(armature), tol=float(tol),
-        samples=samples, seed=int(seed),
+        scene=scene.name,
+        robot=scene.robot.name,
+        armature=float(armature),
+        tol=float(tol),
+        samples=samples,
+        seed=int(seed),
         body=[model.names[j] for j in checker.joints_of(checker.body)],
-        limbs={limb: [model.names[j] for j in checker.joints_of(coords)]
-               for (limb, _), coords in zip(groups, checker.limbs)},
-        pairs=pairs, terms=terms, verdict=verdict, notes=notes, feet=feet,
-        within_limb=within_limb, limb_contacts={limb: list(members) for limb, members in groups})
+        limbs={
+            limb: [model.names[j] for j in checker.joints_of(coords)]
+            for (limb, _), coords in zip(groups, checker.limbs)
+        },
+        pairs=pairs,
+        terms=terms,
+        verdict=verdict,
+        notes=notes,
+        feet=feet,
+        within_limb=within_limb,
+        limb_contacts={limb: list(members) for limb, members in groups},
+    )
 
 
 def _limb_groups(scene: Scene) -> list[tuple[str, tuple[str, ...]]]:
@@ -307,11 +347,15 @@ def _nothing_to_check(scene: Scene, groups) -> str:
     text = f"fewer than two contacts ({len(names)}{': ' + ', '.join(names) if names else ''})"
     rule = scene.foot_choice.rule if scene.foot_choice else None
     if rule is FootRule.FIXED_BASE:
-        text += (f"; robot {scene.robot.name!r} has a fixed base and gets no feet: load it with a "
-                 "floating base (--floating-base, floating_base=True) or choose feet (--feet, feet=)")
+        text += (
+            f"; robot {scene.robot.name!r} has a fixed base and gets no feet: load it with a "
+            "floating base (--floating-base, floating_base=True) or choose feet (--feet, feet=)"
+        )
     elif rule is FootRule.LOWEST_END_FRAMES:
-        text += (f"; {'no limb of the robot ends' if not names else 'no other limb ends'} near the ground "
-                 "at the reference pose: choose feet by hand (--feet, feet=) to check other frames")
+        text += (
+            f"; {'no limb of the robot ends' if not names else 'no other limb ends'} near the ground "
+            "at the reference pose: choose feet by hand (--feet, feet=) to check other frames"
+        )
     return text
 
 
@@ -323,17 +367,21 @@ def _given_states(scene: Scene, states) -> list[tuple[np.ndarray, np.ndarray, fl
         given = [tuple(s) for s in states]
         if any(len(s) not in (2, 3) for s in given):
             raise ValueError
-        triples = [(np.array(s[0], dtype=float), np.array(s[1], dtype=float),
-                    float(s[2]) if len(s) == 3 else 0.0) for s in given]
+        triples = [
+            (np.array(s[0], dtype=float), np.array(s[1], dtype=float), float(s[2]) if len(s) == 3 else 0.0)
+            for s in given
+        ]
     except (TypeError, ValueError):
-        raise InvalidInputError(f"states must be (q, v) pairs or (q, v, t) triples of numbers, "
-                                f"got {states!r}") from None
+        raise InvalidInputError(
+            f"states must be (q, v) pairs or (q, v, t) triples of numbers, got {states!r}"
+        ) from None
     if not triples:
         raise InvalidInputError("states must hold at least one (q, v) pair, got none")
     for k, (q, v, t) in enumerate(triples):
         if q.shape != (nq,) or v.shape != (nv,):
-            raise InvalidInputError(f"states[{k}]: q must have shape ({nq},) and v ({nv},); "
-                                    f"got {q.shape} and {v.shape}")
+            raise InvalidInputError(
+                f"states[{k}]: q must have shape ({nq},) and v ({nv},); got {q.shape} and {v.shape}"
+            )
         if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v)) and np.isfinite(t)):
             raise InvalidInputError(f"states[{k}] has non-finite entries: q={q}, v={v}, t={t}")
     return triples
@@ -363,8 +411,7 @@ class _Checker:
         self.limb_names = [limb for limb, _ in groups]
         self.limb_of = {i: g for g, members in enumerate(self.members) for i in members}
         supports = [set().union(*(self._support(scene.contacts[i]) for i in members)) for members in self.members]
-        self.limbs = [s - set().union(*(o for k, o in enumerate(supports) if k != i))
-                      for i, s in enumerate(supports)]
+        self.limbs = [s - set().union(*(o for k, o in enumerate(supports) if k != i)) for i, s in enumerate(supports)]
         self.body = set(range(self.model.nv)) - set().union(*self.limbs)
         self.v_joint = {}  # tangent index -> joint id
         for jid in range(1, self.model.njoints):
@@ -424,8 +471,7 @@ class _Checker:
         values = [self._coupling(q, i, j) for q in poses]
         names = self.scene.contact_names
         ref = values[0] if poses and poses[0] is not None else float("nan")
-        return PairCoupling((names[i], names[j]), ref, float(np.max(values)),
-                            float(np.median(values)), len(values))
+        return PairCoupling((names[i], names[j]), ref, float(np.max(values)), float(np.median(values)), len(values))
 
     # -- limb assumption -----------------------------------------------------------------
     def _effort_jacobian(self, q: np.ndarray, v: np.ndarray, t: float = 0.0) -> np.ndarray:
@@ -490,24 +536,29 @@ class _Checker:
             if body:
                 for i, j in itertools.combinations(range(len(self.limbs)), 2):
                     if not (self.limbs[i] and self.limbs[j]):  # a contact of the body alone (an object
-                        continue                               # on the ground): no mixed derivative
+                        continue  # on the ground): no mixed derivative
                     value = self._mixed_body_derivative(q, v, t, body, self.limbs[i], self.limbs[j]) / fscale
                     additive[(i, j)] = max(additive.get((i, j), 0.0), value)
         terms = []
         for (ia, ib), value in mass.items():
-            terms.append(Term("mass matrix", f"block {blocks[ia][0]} / {blocks[ib][0]}", value,
-                              owners[ia] + owners[ib]))
+            terms.append(
+                Term("mass matrix", f"block {blocks[ia][0]} / {blocks[ib][0]}", value, owners[ia] + owners[ib])
+            )
         for ib, value in dep.items():
-            terms.append(Term("mass matrix", f"block {blocks[ib][0]} depends on other coordinates",
-                              value, owners[ib]))
+            terms.append(Term("mass matrix", f"block {blocks[ib][0]} depends on other coordinates", value, owners[ib]))
         for i, value in enumerate(gap):
-            terms.append(Term("gap", f"{names[i]} depends on coordinates outside its limb", float(value),
-                              (names[i],)))
+            terms.append(Term("gap", f"{names[i]} depends on coordinates outside its limb", float(value), (names[i],)))
         for i, value in effort.items():
             terms.append(Term("limb effort", f"limb {limb_names[i]} depends on other limbs", value, owners[i + 1]))
         for (i, j), value in additive.items():
-            terms.append(Term("body effort", f"not additive in limbs {limb_names[i]} and {limb_names[j]}", value,
-                              owners[i + 1] + owners[j + 1]))
+            terms.append(
+                Term(
+                    "body effort",
+                    f"not additive in limbs {limb_names[i]} and {limb_names[j]}",
+                    value,
+                    owners[i + 1] + owners[j + 1],
+                )
+            )
         return terms
 
     def _mass_derivative(self, q: np.ndarray) -> np.ndarray:
@@ -517,8 +568,10 @@ class _Checker:
         for k in range(nv):
             e = np.zeros(nv)
             e[k] = _FD_STEP
-            dM[:, :, k] = (pin.crba(self.model, self.data, self.robot.integrate(q, e))
-                           - pin.crba(self.model, self.data, self.robot.integrate(q, -e))) / (2 * _FD_STEP)
+            dM[:, :, k] = (
+                pin.crba(self.model, self.data, self.robot.integrate(q, e))
+                - pin.crba(self.model, self.data, self.robot.integrate(q, -e))
+            ) / (2 * _FD_STEP)
         return dM
 
     def _mixed_body_derivative(self, q, v, t, body, limb_i, limb_j) -> float:
@@ -532,7 +585,9 @@ class _Checker:
             e = np.zeros(nv)
             e[k] = _FD_STEP
             for (q_plus, v_plus), (q_minus, v_minus) in (
-                    ((self.robot.integrate(q, e), v), (self.robot.integrate(q, -e), v)), ((q, v + e), (q, v - e))):
+                ((self.robot.integrate(q, e), v), (self.robot.integrate(q, -e), v)),
+                ((q, v + e), (q, v - e)),
+            ):
                 diff = self._effort_jacobian(q_plus, v_plus, t) - self._effort_jacobian(q_minus, v_minus, t)
                 worst = max(worst, float(np.max(np.abs(diff[np.ix_(body, cols)]))) / (2 * _FD_STEP))
         return worst

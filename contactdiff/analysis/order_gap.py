@@ -134,17 +134,29 @@ class OrderGap:
 
     def to_dict(self, matrices: bool = False) -> dict:
         """JSON-ready summary (the matrices only if asked)."""
+
         def key(order):
             return "->".join(order)
-        d = {"contacts": list(self.contacts), "t": self.t, "q": self.q.tolist(),
-             "v_minus": self.v_minus.tolist(), "v_simultaneous": self.v_simultaneous.tolist(),
-             "v_after": {key(k): v.tolist() for k, v in self.v_after.items()},
-             "mode_after": {key(k): list(m) for k, m in self.mode_after.items()},
-             "impact_jump": self.impact_jump, "outcome": self.outcome,
-             "outcome_vs_simultaneous": self.outcome_vs_simultaneous, "outcome_abs": self.outcome_abs,
-             "outcome_max": self.outcome_max, "saltation": self.saltation,
-             "saltation_spread": self.saltation_spread, "horizon": self.horizon, "later": self.later,
-             "later_saltation": self.later_saltation}
+
+        d = {
+            "contacts": list(self.contacts),
+            "t": self.t,
+            "q": self.q.tolist(),
+            "v_minus": self.v_minus.tolist(),
+            "v_simultaneous": self.v_simultaneous.tolist(),
+            "v_after": {key(k): v.tolist() for k, v in self.v_after.items()},
+            "mode_after": {key(k): list(m) for k, m in self.mode_after.items()},
+            "impact_jump": self.impact_jump,
+            "outcome": self.outcome,
+            "outcome_vs_simultaneous": self.outcome_vs_simultaneous,
+            "outcome_abs": self.outcome_abs,
+            "outcome_max": self.outcome_max,
+            "saltation": self.saltation,
+            "saltation_spread": self.saltation_spread,
+            "horizon": self.horizon,
+            "later": self.later,
+            "later_saltation": self.later_saltation,
+        }
         if self.horizon is not None:
             d["v_later"] = {(k if isinstance(k, str) else key(k)): v.tolist() for k, v in self.v_later.items()}
         if matrices:
@@ -163,13 +175,23 @@ def _index(scene: Scene, contact) -> int:
     if not 0 <= k < len(scene.contacts):
         raise InvalidInputError(
             f"order_gap: contact index {k} out of range; the scene has {len(scene.contacts)} contacts: "
-            + ", ".join(scene.contact_names))
+            + ", ".join(scene.contact_names)
+        )
     return k
 
 
-def order_gap(scene: Scene, q: ArrayLike, v_minus: ArrayLike, contacts: Sequence = (0, 1), *, mode: Sequence = (),
-              t: float = 0.0, horizon: float | None = None, jacobian: bool = False,
-              simulate_options: dict | None = None) -> OrderGap:
+def order_gap(
+    scene: Scene,
+    q: ArrayLike,
+    v_minus: ArrayLike,
+    contacts: Sequence = (0, 1),
+    *,
+    mode: Sequence = (),
+    t: float = 0.0,
+    horizon: float | None = None,
+    jacobian: bool = False,
+    simulate_options: dict | None = None,
+) -> OrderGap:
     """Order gap of the simultaneous touchdown of two contacts at ``(q, v-)``.
 
     Args:
@@ -197,8 +219,10 @@ def order_gap(scene: Scene, q: ArrayLike, v_minus: ArrayLike, contacts: Sequence
     q = np.array(q, dtype=float)
     v_minus = np.array(v_minus, dtype=float)
     if q.shape != (scene.robot.nq,) or v_minus.shape != (scene.nv,):
-        raise InvalidInputError(f"order_gap: q must have shape ({scene.robot.nq},) and v_minus ({scene.nv},); "
-                                f"got {q.shape} and {v_minus.shape}")
+        raise InvalidInputError(
+            f"order_gap: q must have shape ({scene.robot.nq},) and v_minus ({scene.nv},); "
+            f"got {q.shape} and {v_minus.shape}"
+        )
     if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v_minus))):
         raise InvalidInputError(f"order_gap: q and v_minus must be finite, got q={q}, v_minus={v_minus}")
     t = check_number("order_gap", "t", t)
@@ -222,11 +246,13 @@ def order_gap(scene: Scene, q: ArrayLike, v_minus: ArrayLike, contacts: Sequence
         c = scene.contacts[k]
         gap, speed = c.gap(kin), float(c.rows(kin)[0] @ v_minus)
         if abs(gap) > GAP_TOL:
-            raise InvalidInputError(f"order_gap: contact {names[k]!r} is not closed at q: gap {gap:.3g} m "
-                                    f"(|gap| must be <= {GAP_TOL:g})")
+            raise InvalidInputError(
+                f"order_gap: contact {names[k]!r} is not closed at q: gap {gap:.3g} m (|gap| must be <= {GAP_TOL:g})"
+            )
         if not speed < 0.0:
-            raise InvalidInputError(f"order_gap: contact {names[k]!r} does not approach: normal velocity "
-                                    f"{speed:.3g} m/s (must be < 0)")
+            raise InvalidInputError(
+                f"order_gap: contact {names[k]!r} does not approach: normal velocity {speed:.3g} m/s (must be < 0)"
+            )
 
     # the two one-sided outcomes: sequential impacts at the same configuration
     v_after, mode_after = {}, {}
@@ -253,21 +279,31 @@ def order_gap(scene: Scene, q: ArrayLike, v_minus: ArrayLike, contacts: Sequence
         return tuple(names[k] for k in order)
 
     result = OrderGap(
-        contacts=(names[i], names[j]), t=t, q=q, v_minus=v_minus, v_simultaneous=v_sim,
+        contacts=(names[i], names[j]),
+        t=t,
+        q=q,
+        v_minus=v_minus,
+        v_simultaneous=v_sim,
         v_after={named(o): v for o, v in v_after.items()},
         mode_after={named(o): tuple(_key_name(names, k) for k in m) for o, m in mode_after.items()},
-        saltation_orders={named(o): X for o, X in sal.orders.items()}, saltation_paper=sal.paper,
-        impact_jump=jump, outcome=m_norm(dv) / scale,
+        saltation_orders={named(o): X for o, X in sal.orders.items()},
+        saltation_paper=sal.paper,
+        impact_jump=jump,
+        outcome=m_norm(dv) / scale,
         outcome_vs_simultaneous=max(m_norm(v - v_sim) for v in v_after.values()) / scale,
-        outcome_abs=m_norm(dv), outcome_max=float(np.max(np.abs(dv))),
-        saltation=_relative_gap(Xa, Xb), saltation_spread=sal.spread)
+        outcome_abs=m_norm(dv),
+        outcome_max=float(np.max(np.abs(dv))),
+        saltation=_relative_gap(Xa, Xb),
+        saltation_spread=sal.spread,
+    )
     if horizon is not None:
         _carry_forward(scene, result, horizon, bool(jacobian), dict(simulate_options or {}), m_norm, scale)
     return result
 
 
-def landings(dyn: ModeDynamics, t: float, q: np.ndarray, v_minus: np.ndarray, mode: tuple[int, ...],
-             order: Sequence[int]):
+def landings(
+    dyn: ModeDynamics, t: float, q: np.ndarray, v_minus: np.ndarray, mode: tuple[int, ...], order: Sequence[int]
+):
     """The impacts of one landing order at ``q``: for each contact of ``order`` that still
     approaches after the earlier ones (one sent away does not land), ``(v before, its
     `touchdown`)``, each on the mode and velocity the earlier impacts left."""
@@ -281,8 +317,9 @@ def landings(dyn: ModeDynamics, t: float, q: np.ndarray, v_minus: np.ndarray, mo
         v, current = step.v_plus, step.mode_after
 
 
-def _carry_forward(scene: Scene, result: OrderGap, horizon: float, jacobian: bool, options: dict,
-                   m_norm, scale) -> None:
+def _carry_forward(
+    scene: Scene, result: OrderGap, horizon: float, jacobian: bool, options: dict, m_norm, scale
+) -> None:
     """Simulate each outcome ``horizon`` seconds from the event (the simulator picks
     the mode from the closed contacts and the post-impact velocity)."""
     from ..integration.hybrid import simulate  # the integrator imports much; only needed here
@@ -292,8 +329,7 @@ def _carry_forward(scene: Scene, result: OrderGap, horizon: float, jacobian: boo
     starts["simultaneous"] = result.v_simultaneous
     for key, v in starts.items():
         with_jacobian = jacobian and key != "simultaneous"
-        traj = simulate(scene, result.t + horizon, q0=result.q, v0=v, t0=result.t, jacobian=with_jacobian,
-                        **options)
+        traj = simulate(scene, result.t + horizon, q0=result.q, v0=v, t0=result.t, jacobian=with_jacobian, **options)
         result.q_later[key], result.v_later[key] = traj.q.copy(), traj.v.copy()
         if with_jacobian:
             result.jacobian_later[key] = traj.jacobian @ result.saltation_orders[key]
@@ -315,8 +351,10 @@ def diagonal_pairs(scene: Scene) -> tuple[tuple[int, int], tuple[int, int]]:
     ``(front-left, hind-right)`` and ``(front-right, hind-left)``, from the contact
     points in the base frame at the reference pose (x forward, y left)."""
     if len(scene.contacts) != 4:
-        raise InvalidInputError(f"diagonal pairs need four contacts, scene {scene.name!r} has "
-                                f"{len(scene.contacts)}: {', '.join(scene.contact_names)}")
+        raise InvalidInputError(
+            f"diagonal pairs need four contacts, scene {scene.name!r} has "
+            f"{len(scene.contacts)}: {', '.join(scene.contact_names)}"
+        )
     model, robot = scene.model, scene.robot
     data = model.createData()
     pin.framesForwardKinematics(model, data, robot.q_ref)
@@ -325,8 +363,10 @@ def diagonal_pairs(scene: Scene) -> tuple[tuple[int, int], tuple[int, int]]:
     front = [k for k in range(4) if local[k][0] > 0]
     left = [k for k in range(4) if local[k][1] > 0]
     if len(front) != 2 or len(left) != 2:
-        raise InvalidInputError(f"cannot tell front/hind and left/right feet of scene {scene.name!r} from "
-                                f"their base-frame positions {[p.round(3).tolist() for p in local]}")
+        raise InvalidInputError(
+            f"cannot tell front/hind and left/right feet of scene {scene.name!r} from "
+            f"their base-frame positions {[p.round(3).tolist() for p in local]}"
+        )
     fl = next(k for k in front if k in left)
     fr = next(k for k in front if k not in left)
     hl = next(k for k in left if k not in front)
@@ -346,8 +386,9 @@ def _leg_coordinates(scene: Scene, contact: int) -> list[int]:
     return coords
 
 
-def diagonal_touchdown(scene: Scene, *, down_speed: float = 0.2, forward_speed: float = 0.4,
-                       lift: float = 0.03) -> tuple[np.ndarray, np.ndarray, tuple[int, int]]:
+def diagonal_touchdown(
+    scene: Scene, *, down_speed: float = 0.2, forward_speed: float = 0.4, lift: float = 0.03
+) -> tuple[np.ndarray, np.ndarray, tuple[int, int]]:
     """A trot-like touchdown of the front-left/hind-right pair, built from the standing pose.
 
     The base keeps the reference pose and moves forward at ``forward_speed`` and

@@ -62,14 +62,26 @@ class OrderGapGradient:
 
     def to_dict(self) -> dict:
         """JSON-ready data."""
-        return {"parameter_names": list(self.parameter_names), "outcome": self.gap.outcome,
-                "d_outcome": self.outcome.tolist(), "d_outcome_abs": self.outcome_abs.tolist(),
-                "d_v_after": {" > ".join(k): m.tolist() for k, m in self.v_after.items()},
-                "d_v_simultaneous": self.v_simultaneous.tolist()}
+        return {
+            "parameter_names": list(self.parameter_names),
+            "outcome": self.gap.outcome,
+            "d_outcome": self.outcome.tolist(),
+            "d_outcome_abs": self.outcome_abs.tolist(),
+            "d_v_after": {" > ".join(k): m.tolist() for k, m in self.v_after.items()},
+            "d_v_simultaneous": self.v_simultaneous.tolist(),
+        }
 
 
-def order_gap_gradient(scene: Scene, q: ArrayLike, v_minus: ArrayLike, contacts: Sequence = (0, 1),
-                       parameters: Sequence[str] = (), *, mode: Sequence = (), t: float = 0.0) -> OrderGapGradient:
+def order_gap_gradient(
+    scene: Scene,
+    q: ArrayLike,
+    v_minus: ArrayLike,
+    contacts: Sequence = (0, 1),
+    parameters: Sequence[str] = (),
+    *,
+    mode: Sequence = (),
+    t: float = 0.0,
+) -> OrderGapGradient:
     """`order_gap` at ``(q, v-)`` and the derivatives of its outcome with respect to
     ``parameters`` (module doc). Arguments as `order_gap` (no horizon).
 
@@ -83,8 +95,10 @@ def order_gap_gradient(scene: Scene, q: ArrayLike, v_minus: ArrayLike, contacts:
     names = [parameters] if isinstance(parameters, str) else list(parameters)
     params = resolve(scene, names)
     if gap.outcome <= ZERO_GAP:
-        raise InvalidInputError(f"order_gap_gradient: the two orders agree (outcome {gap.outcome:.3g}): a norm "
-                                "at 0 has no derivative (the robot is decoupled there)")
+        raise InvalidInputError(
+            f"order_gap_gradient: the two orders agree (outcome {gap.outcome:.3g}): a norm "
+            "at 0 has no derivative (the robot is decoupled there)"
+        )
     q, v_minus = gap.q, gap.v_minus
     dyn = ModeDynamics(scene)
     forces = ParameterForces(scene, params)
@@ -122,8 +136,14 @@ def order_gap_gradient(scene: Scene, q: ArrayLike, v_minus: ArrayLike, contacts:
     top, d_top = norm_and_gradient(a - b, da - db)
     jump, d_jump = norm_and_gradient(gap.v_simultaneous - v_minus, d_sim)
     d_outcome = (d_top * jump - top * d_jump) / jump**2
-    return OrderGapGradient(gap=gap, parameter_names=tuple(names), outcome=d_outcome, outcome_abs=d_top,
-                            v_after=d_after, v_simultaneous=d_sim)
+    return OrderGapGradient(
+        gap=gap,
+        parameter_names=tuple(names),
+        outcome=d_outcome,
+        outcome_abs=d_top,
+        v_after=d_after,
+        v_simultaneous=d_sim,
+    )
 
 
 __all__ = ["OrderGapGradient", "order_gap_gradient", "ZERO_GAP"]

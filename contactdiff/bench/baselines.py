@@ -85,8 +85,13 @@ class _Counted:
 
     def solve(self, q, v, t, mode):
         last = self._last
-        if last is not None and last[0] == t and last[3] == mode and np.array_equal(last[1], q) \
-                and np.array_equal(last[2], v):
+        if (
+            last is not None
+            and last[0] == t
+            and last[3] == mode
+            and np.array_equal(last[1], q)
+            and np.array_equal(last[2], v)
+        ):
             return last[4]
         self.n += 1
         sol = self.dyn.solve(q, v, t, mode)
@@ -94,9 +99,16 @@ class _Counted:
         return sol
 
 
-def solve_ivp_baseline(scene: Scene, t_final: float, rtol: float = 1e-8, atol: float = 1e-10,
-                       method: str = "DOP853", *, contact_tol: float = 1e-8,
-                       max_events: int = 1000) -> BaselineResult:
+def solve_ivp_baseline(
+    scene: Scene,
+    t_final: float,
+    rtol: float = 1e-8,
+    atol: float = 1e-10,
+    method: str = "DOP853",
+    *,
+    contact_tol: float = 1e-8,
+    max_events: int = 1000,
+) -> BaselineResult:
     """Event-driven simulation with plain `scipy.integrate.solve_ivp` (see the module doc).
 
     Raises:
@@ -107,7 +119,8 @@ def solve_ivp_baseline(scene: Scene, t_final: float, rtol: float = 1e-8, atol: f
         raise InvalidInputError(
             f"solve_ivp_baseline needs a vector-space configuration (nq == nv); scene "
             f"{scene.name!r} has nq = {scene.robot.nq}, nv = {scene.nv} (free-flyer or "
-            "continuous joints): use time_stepping_baseline or simulate")
+            "continuous joints): use time_stepping_baseline or simulate"
+        )
     nv, contacts, names = scene.nv, scene.contacts, scene.contact_names
     f = _Counted(scene)
     kin = f.dyn.kin
@@ -119,6 +132,7 @@ def solve_ivp_baseline(scene: Scene, t_final: float, rtol: float = 1e-8, atol: f
     def make_rhs(mode):
         def rhs(t, y):
             return np.concatenate([y[nv:], f.solve(y[:nv], y[nv:], t, mode).ddq])
+
         return rhs
 
     def guards(mode):
@@ -126,6 +140,7 @@ def solve_ivp_baseline(scene: Scene, t_final: float, rtol: float = 1e-8, atol: f
         of `contactdiff.dynamics.mode`: a sliding contact's force guard has its sliding key)."""
         events = []
         for k, key in enumerate(mode):
+
             def ev(t, y, k=k, mode=mode):
                 return f.solve(y[:nv], y[nv:], t, mode).normal_forces()[k]
 
@@ -146,8 +161,15 @@ def solve_ivp_baseline(scene: Scene, t_final: float, rtol: float = 1e-8, atol: f
     while t < t_final:
         mode = tuple(sorted(mode))
         evs = guards(mode)
-        sol = solve_ivp(make_rhs(mode), (t, t_final), np.concatenate([q, v]), method=method, rtol=rtol,
-                        atol=atol, events=[e for _, e in evs])
+        sol = solve_ivp(
+            make_rhs(mode),
+            (t, t_final),
+            np.concatenate([q, v]),
+            method=method,
+            rtol=rtol,
+            atol=atol,
+            events=[e for _, e in evs],
+        )
         nfev += sol.nfev
         steps += len(sol.t) - 1
         if sol.status == -1:
@@ -173,8 +195,9 @@ def solve_ivp_baseline(scene: Scene, t_final: float, rtol: float = 1e-8, atol: f
             impact = resolve_impact(f.dyn, q, v, closed)
             v = impact.v_plus
             speed = max(1.0, float(np.max(np.abs(impact.normal_speeds_before))))
-            staying = [i for i, s in zip(closed, impact.normal_speeds_after)
-                       if s <= 1e-12 * speed and i not in releasing]
+            staying = [
+                i for i, s in zip(closed, impact.normal_speeds_after) if s <= 1e-12 * speed and i not in releasing
+            ]
             mode = choose_mode(f.dyn, q, v, t, staying)
             fired = touching + releasing
         else:
@@ -184,13 +207,21 @@ def solve_ivp_baseline(scene: Scene, t_final: float, rtol: float = 1e-8, atol: f
         fired_names.append(tuple(names[i] for i in sorted(set(f.dyn.contacts_of(fired)))))
         if len(times) > max_events:
             raise IntegrationError(f"solve_ivp_baseline: more than {max_events} events by t = {t}")
-    return BaselineResult(t, q, v, times, fired_names,
-                          RunStats(dynamics_evaluations=f.n, stepper_evaluations=nfev, steps=steps,
-                                   events=len(times), method="solve_ivp"))
+    return BaselineResult(
+        t,
+        q,
+        v,
+        times,
+        fired_names,
+        RunStats(
+            dynamics_evaluations=f.n, stepper_evaluations=nfev, steps=steps, events=len(times), method="solve_ivp"
+        ),
+    )
 
 
-def time_stepping_baseline(scene: Scene, t_final: float, dt: float, *,
-                           gap_threshold: float = 0.0, gap_term: bool = True) -> BaselineResult:
+def time_stepping_baseline(
+    scene: Scene, t_final: float, dt: float, *, gap_threshold: float = 0.0, gap_term: bool = True
+) -> BaselineResult:
     """Fixed-step impulse-based time stepping (see the module doc) from 0 to ``t_final``.
 
     The last step is shortened to end exactly at ``t_final``.
@@ -211,8 +242,11 @@ def time_stepping_baseline(scene: Scene, t_final: float, dt: float, *,
         v_star = v + h * a_free
         A_all = [c.rows(kin) for c in contacts]
         gaps = np.array([c.gap(kin) for c in contacts])
-        cand = [i for i in range(len(contacts))
-                if gaps[i] <= gap_threshold or gaps[i] + h * float(A_all[i][0] @ v_star) < 0.0]
+        cand = [
+            i
+            for i in range(len(contacts))
+            if gaps[i] <= gap_threshold or gaps[i] + h * float(A_all[i][0] @ v_star) < 0.0
+        ]
         now = np.zeros(len(contacts), dtype=bool)
         if cand:
             A = np.vstack([A_all[i] for i in cand])
@@ -238,14 +272,21 @@ def time_stepping_baseline(scene: Scene, t_final: float, dt: float, *,
             fired_names.append(tuple(names[i] for i in sorted(started + ended)))
         carrying = np.where(now, carrying + 1, 0)
         if not np.all(np.isfinite(v_next)) or np.max(np.abs(v_next)) > 1e8:
-            raise IntegrationError(f"time_stepping_baseline diverged at t = {t:.6g} with dt = {dt:g} "
-                                   "(explicit efforts too stiff for this step)")
+            raise IntegrationError(
+                f"time_stepping_baseline diverged at t = {t:.6g} with dt = {dt:g} "
+                "(explicit efforts too stiff for this step)"
+            )
         q = pin.integrate(model, q, h * v_next)
         v = v_next
         t = t_final if n == n_steps - 1 else t + h
-    return BaselineResult(t, q, v, times, fired_names,
-                          RunStats(dynamics_evaluations=n_steps, steps=n_steps, events=len(times),
-                                   method="time-stepping"))
+    return BaselineResult(
+        t,
+        q,
+        v,
+        times,
+        fired_names,
+        RunStats(dynamics_evaluations=n_steps, steps=n_steps, events=len(times), method="time-stepping"),
+    )
 
 
 __all__ = ["BaselineResult", "solve_ivp_baseline", "time_stepping_baseline"]

@@ -32,8 +32,9 @@ def slow_drop(speed: float, height: float = 1e-6) -> Scene:
     ``speed`` (m/s): g = speed² / (2 height); it lands at t = 2 height / speed."""
     robot = load_scene("ball").robot
     g = speed * speed / (2.0 * height)
-    return Scene(robot, [Contact("ball", restitution=0.0)], gravity=[0, 0, -g], q0={"z": height},
-                 name=f"ball drop u={speed:g}")
+    return Scene(
+        robot, [Contact("ball", restitution=0.0)], gravity=[0, 0, -g], q0={"z": height}, name=f"ball drop u={speed:g}"
+    )
 
 
 def tangent_approach(dip: float, amplitude: float = 1.0) -> tuple[Scene, float, float]:
@@ -49,16 +50,24 @@ def tangent_approach(dip: float, amplitude: float = 1.0) -> tuple[Scene, float, 
     """
     robot = load_scene("ball").robot
     r = amplitude - dip
-    scene = Scene(robot, [Contact("ball")], [JointSpring("z", 1.0, 0.0, r)], gravity=[0, 0, 0],
-                  q0={"z": r + amplitude}, name=f"tangent approach dip={dip:g}")
+    scene = Scene(
+        robot,
+        [Contact("ball")],
+        [JointSpring("z", 1.0, 0.0, r)],
+        gravity=[0, 0, 0],
+        q0={"z": r + amplitude},
+        name=f"tangent approach dip={dip:g}",
+    )
     if r > amplitude:  # a clear miss
         return scene, math.nan, math.nan
-    return scene, math.acos(-r / amplitude), math.sqrt(max(amplitude ** 2 - r * r, 0.0))
+    return scene, math.acos(-r / amplitude), math.sqrt(max(amplitude**2 - r * r, 0.0))
 
 
-def grazing_study(speeds=(1e-3, 1e-5, 1e-7, 1e-9, 1e-10, 1e-12),
-                  dips=(1e-2, 1e-6, 1e-8, 1e-10, 1e-12, 1e-14, 0.0),
-                  tol: dict | None = None) -> list[StudyRow]:
+def grazing_study(
+    speeds=(1e-3, 1e-5, 1e-7, 1e-9, 1e-10, 1e-12),
+    dips=(1e-2, 1e-6, 1e-8, 1e-10, 1e-12, 1e-14, 0.0),
+    tol: dict | None = None,
+) -> list[StudyRow]:
     """Near-grazing touchdowns: correct, or a named grazing event / error; never silent.
 
     Slow drop (transversal, `slow_drop`): the event time against 2h/u (relative
@@ -90,8 +99,13 @@ def grazing_study(speeds=(1e-3, 1e-5, 1e-7, 1e-9, 1e-10, 1e-12),
             expected = set(outcomes.values())
         else:
             expected = {outcomes[u < GRAZING_SPEED]}
-        base: dict[str, Any] = dict(study="grazing", case="slow drop from 1e-6 m", parameter=f"u = {u:g} m/s",
-                    method="auto", reference="event time 2h/u (relative)")
+        base: dict[str, Any] = dict(
+            study="grazing",
+            case="slow drop from 1e-6 m",
+            parameter=f"u = {u:g} m/s",
+            method="auto",
+            reference="event time 2h/u (relative)",
+        )
         if isinstance(traj, ContactDiffError):
             rows.append(_failed(base, traj, elapsed))
             continue
@@ -101,8 +115,17 @@ def grazing_study(speeds=(1e-3, 1e-5, 1e-7, 1e-9, 1e-10, 1e-12),
         raise_outcome = _error_name(raised)
         ok = ev is not None and err is not None and err <= 1e-9 and (kind, raise_outcome) in expected
         steps, evals = _counts(traj)
-        rows.append(StudyRow(**base, error=err, time=elapsed, steps=steps, evaluations=evals,
-                             outcome=f"{kind}; on_grazing=raise: {raise_outcome}", ok=ok))
+        rows.append(
+            StudyRow(
+                **base,
+                error=err,
+                time=elapsed,
+                steps=steps,
+                evaluations=evals,
+                outcome=f"{kind}; on_grazing=raise: {raise_outcome}",
+                ok=ok,
+            )
+        )
     for dip in dips:
         scene, t_c, u = tangent_approach(dip)
         t_final = 4.0
@@ -110,8 +133,13 @@ def grazing_study(speeds=(1e-3, 1e-5, 1e-7, 1e-9, 1e-10, 1e-12),
         z_ref, v_ref = r * (1 - math.cos(t_final - t_c)), r * math.sin(t_final - t_c)
         traj, elapsed = _run(scene, t_final, **tol)
         raised, _ = _run(scene, t_final, on_grazing="raise", **tol)
-        base = dict(study="grazing", case="tangent approach, swing 1 m", parameter=f"dip {dip:g} m",
-                    method="auto", reference="closed form with the touch")
+        base = dict(
+            study="grazing",
+            case="tangent approach, swing 1 m",
+            parameter=f"dip {dip:g} m",
+            method="auto",
+            reference="closed form with the touch",
+        )
         if isinstance(traj, ContactDiffError):
             rows.append(_failed(base, traj, elapsed))
             continue
@@ -129,9 +157,18 @@ def grazing_study(speeds=(1e-3, 1e-5, 1e-7, 1e-9, 1e-10, 1e-12),
             outcome = "no event"
         ok = (err <= bound) or (flagged and raise_outcome == "GrazingError")
         steps, evals = _counts(traj)
-        rows.append(StudyRow(**base, error=err, time=elapsed, steps=steps, evaluations=evals,
-                             outcome=f"{outcome}; on_grazing=raise: {raise_outcome}", ok=ok,
-                             details={"touch_speed": u, "bound_if_found": bound, "near_grazing_misses": misses}))
+        rows.append(
+            StudyRow(
+                **base,
+                error=err,
+                time=elapsed,
+                steps=steps,
+                evaluations=evals,
+                outcome=f"{outcome}; on_grazing=raise: {raise_outcome}",
+                ok=ok,
+                details={"touch_speed": u, "bound_if_found": bound, "near_grazing_misses": misses},
+            )
+        )
     return rows
 
 
@@ -156,8 +193,13 @@ def pitch_for_gap_time(model: str, dt: float) -> float:
     return float(brentq(lambda p: touchdown_gap_time(model, p) - dt, 0.0, 0.5, xtol=1e-300, rtol=1e-15))
 
 
-def simultaneous_study(gaps=(1e-2, 1e-4, 1e-6, 1e-8, 1e-10, 1e-12, 1e-14), t_final: float = 1.5,
-                       tol: dict | None = None, rigid: bool = True, n_jobs: int | None = None) -> list[StudyRow]:
+def simultaneous_study(
+    gaps=(1e-2, 1e-4, 1e-6, 1e-8, 1e-10, 1e-12, 1e-14),
+    t_final: float = 1.5,
+    tol: dict | None = None,
+    rigid: bool = True,
+    n_jobs: int | None = None,
+) -> list[StudyRow]:
     """Feet landing Δt apart versus together.
 
     Soft (decoupled) trot: the final state x(Δt) and the flow Jacobian J(Δt)
@@ -176,12 +218,14 @@ def simultaneous_study(gaps=(1e-2, 1e-4, 1e-6, 1e-8, 1e-10, 1e-12, 1e-14), t_fin
     tol = dict(TIGHT_TOL if tol is None else tol)
     models = ("soft", "rigid") if rigid else ("soft",)
     cases = [(model, dt) for model in models for dt in (0.0,) + tuple(gaps)]
-    points = point_list([{"arg:model": model, "arg:pitch": pitch_for_gap_time(model, dt) if dt else 0.0}
-                         for model, dt in cases])
+    points = point_list(
+        [{"arg:model": model, "arg:pitch": pitch_for_gap_time(model, dt) if dt else 0.0} for model, dt in cases]
+    )
     result = sweep(trot_touchdown, points, job=gap_run, t_final=t_final, options=tol, n_jobs=n_jobs, progress=False)
     runs: dict[tuple[str, float], dict[str, Any]] = {
         case: {k: np.asarray(v) if isinstance(v, list) else v for k, v in row.outputs.items()}
-            for case, row in zip(cases, result.raise_failure())}
+        for case, row in zip(cases, result.raise_failure())
+    }
     rows = []
     for model in models:
         jac, ref, robot = model == "soft", runs[model, 0.0], trot_touchdown(model, 0.0).model
@@ -201,9 +245,22 @@ def simultaneous_study(gaps=(1e-2, 1e-4, 1e-6, 1e-8, 1e-10, 1e-12, 1e-14), t_fin
                 grouped = details["events"] == ["simultaneous touchdown"]
                 ok = grouped or err > 1e-2
                 outcome = "grouped as simultaneous" if grouped else f"jump of {err:.3g} (order changes outcome)"
-            rows.append(StudyRow("near-simultaneous", f"{model} trot", f"dt = {dt:g} s", "auto", err,
-                                 "the simultaneous run (dt = 0)", run["time"], run["steps"], run["evaluations"],
-                                 outcome, ok, details))
+            rows.append(
+                StudyRow(
+                    "near-simultaneous",
+                    f"{model} trot",
+                    f"dt = {dt:g} s",
+                    "auto",
+                    err,
+                    "the simultaneous run (dt = 0)",
+                    run["time"],
+                    run["steps"],
+                    run["evaluations"],
+                    outcome,
+                    ok,
+                    details,
+                )
+            )
     return rows
 
 
@@ -216,15 +273,24 @@ def gap_run(scene: Scene, point: dict) -> dict:
     if isinstance(traj, ContactDiffError):
         raise traj
     steps, evals = _counts(traj)
-    return {"pitch": point["arg:pitch"], "q0": scene.q0, "v0": scene.v0, "q": traj.q, "v": traj.v,
-            "jacobian": traj.jacobian if jac else None, "time": elapsed, "steps": steps, "evaluations": evals,
-            "touchdowns": [("simultaneous " if e.simultaneous else "") + e.kind
-                           for e in traj.events if e.kind == "touchdown"]}
+    return {
+        "pitch": point["arg:pitch"],
+        "q0": scene.q0,
+        "v0": scene.v0,
+        "q": traj.q,
+        "v": traj.v,
+        "jacobian": traj.jacobian if jac else None,
+        "time": elapsed,
+        "steps": steps,
+        "evaluations": evals,
+        "touchdowns": [
+            ("simultaneous " if e.simultaneous else "") + e.kind for e in traj.events if e.kind == "touchdown"
+        ],
+    }
 
 
 # -- Zeno ---------------------------------------------------------------------------------
-def zeno_study(restitutions=(0.5, 0.9, 0.99), zeno_speed: float = 1e-6,
-               tol: dict | None = None) -> list[StudyRow]:
+def zeno_study(restitutions=(0.5, 0.9, 0.99), zeno_speed: float = 1e-6, tol: dict | None = None) -> list[StudyRow]:
     """Balls dropped from 1 (g = 1) end their bounces cleanly at the limit time.
 
     First impact at t1 = sqrt(2); the flights form a geometric series that
@@ -246,13 +312,24 @@ def zeno_study(restitutions=(0.5, 0.9, 0.99), zeno_speed: float = 1e-6,
         gap = t_inf - last.t
         lo, hi = 2 * e * e * zeno_speed / (1 - e) - 1e-9, 2 * e * zeno_speed / (1 - e) + 1e-9
         at_rest = abs(traj.q[0]) <= 1e-12 and abs(traj.v[0]) <= 1e-12
-        ok = last.kind == "zeno" and lo <= gap <= hi and at_rest and \
-            all(ev.kind == "bounce" for ev in traj.events[:-1])
+        ok = last.kind == "zeno" and lo <= gap <= hi and at_rest and all(ev.kind == "bounce" for ev in traj.events[:-1])
         steps, evals = _counts(traj)
-        rows.append(StudyRow("zeno", "ball dropped from 1", f"e = {e:g}", "auto", abs(gap),
-                             "limit time sqrt(2)(1+e)/(1-e)", elapsed, steps, evals,
-                             f"zeno after {len(traj.events)} impacts, then at rest" if ok else "NOT clean",
-                             ok, {"t_inf": t_inf, "t_zeno": last.t, "bound": [lo, hi]}))
+        rows.append(
+            StudyRow(
+                "zeno",
+                "ball dropped from 1",
+                f"e = {e:g}",
+                "auto",
+                abs(gap),
+                "limit time sqrt(2)(1+e)/(1-e)",
+                elapsed,
+                steps,
+                evals,
+                f"zeno after {len(traj.events)} impacts, then at rest" if ok else "NOT clean",
+                ok,
+                {"t_inf": t_inf, "t_zeno": last.t, "bound": [lo, hi]},
+            )
+        )
     return rows
 
 
@@ -271,8 +348,10 @@ def elastic_study(impacts: int = 1000, tol: dict | None = None, samples_per_flig
     scene = Scene(robot, [Contact("ball", restitution=1.0)], gravity=[0, 0, -1], q0={"z": 1.0})
     t_final = SQ2 * (2 * impacts - 1) + SQ2  # up to the top after the last impact
     traj, elapsed = _run(scene, t_final, max_events=impacts + 10, dense=True, **tol)
-    energy_events = max(max(abs(0.5 * ev.v_minus[0] ** 2 + ev.q[0] - 1.0),
-                            abs(0.5 * ev.v_plus[0] ** 2 + ev.q[0] - 1.0)) for ev in traj.events)
+    energy_events = max(
+        max(abs(0.5 * ev.v_minus[0] ** 2 + ev.q[0] - 1.0), abs(0.5 * ev.v_plus[0] ** 2 + ev.q[0] - 1.0))
+        for ev in traj.events
+    )
     gaps_at_impacts = [float(traj.at(ev.t, side="left")[0][0]) for ev in traj.events]
     times = np.concatenate([np.linspace(s.t0, s.t1, samples_per_flight + 2)[1:-1] for s in traj.segments])
     qs, vs = traj.sample(times)
@@ -280,19 +359,41 @@ def elastic_study(impacts: int = 1000, tol: dict | None = None, samples_per_flig
     t_ref = SQ2 * (1 + 2 * np.arange(len(traj.events)))
     time_drift = float(np.max(np.abs(np.array([ev.t for ev in traj.events]) - t_ref)))
     energy = max(energy_events, energy_flow)
-    details = {"energy_drift_events": energy_events, "energy_drift_flights": energy_flow,
-               "gap_at_impacts_max": float(np.max(np.abs(gaps_at_impacts))),
-               "lowest_gap": float(min(0.0, qs[:, 0].min())), "impact_time_drift": time_drift,
-               "impacts": len(traj.events), "final_time": traj.t}
+    details = {
+        "energy_drift_events": energy_events,
+        "energy_drift_flights": energy_flow,
+        "gap_at_impacts_max": float(np.max(np.abs(gaps_at_impacts))),
+        "lowest_gap": float(min(0.0, qs[:, 0].min())),
+        "impact_time_drift": time_drift,
+        "impacts": len(traj.events),
+        "final_time": traj.t,
+    }
     # bounds: energy and gaps a few 1e3 rounding units of t ~ 3 impacts (eps t v g per impact,
     # random-walk growth), impact times drift by the energy error over the flights
-    ok = (len(traj.events) == impacts and energy <= 1e-8 and details["gap_at_impacts_max"] <= 1e-10
-          and details["lowest_gap"] >= -1e-10)
+    ok = (
+        len(traj.events) == impacts
+        and energy <= 1e-8
+        and details["gap_at_impacts_max"] <= 1e-10
+        and details["lowest_gap"] >= -1e-10
+    )
     steps, evals = _counts(traj)
-    return [StudyRow("elastic", "ball e = 1", f"{impacts} impacts", "auto", energy,
-                     "energy 1 (exact); gap 0 at impacts", elapsed, steps, evals,
-                     f"energy drift {energy:.1e}, gap at impacts {details['gap_at_impacts_max']:.1e}, "
-                     f"time drift {time_drift:.1e}", ok, details)]
+    return [
+        StudyRow(
+            "elastic",
+            "ball e = 1",
+            f"{impacts} impacts",
+            "auto",
+            energy,
+            "energy 1 (exact); gap 0 at impacts",
+            elapsed,
+            steps,
+            evals,
+            f"energy drift {energy:.1e}, gap at impacts {details['gap_at_impacts_max']:.1e}, "
+            f"time drift {time_drift:.1e}",
+            ok,
+            details,
+        )
+    ]
 
 
 # -- bad numbers ---------------------------------------------------------------------------------
@@ -335,8 +436,19 @@ def bad_input_study() -> list[StudyRow]:
             outcome = f"{type(exc).__name__}: {text[:60]}"
         except Exception as exc:  # noqa: BLE001 - an unnamed error is what this study looks for
             outcome, ok = f"unnamed {type(exc).__name__}: {exc}", False
-        rows.append(StudyRow("bad-input", "ball", label, "-", None, "refused up front: a named error showing the value",
-                             time.perf_counter() - start, 0, 0, outcome, ok))
+        rows.append(
+            StudyRow(
+                "bad-input",
+                "ball",
+                label,
+                "-",
+                None,
+                "refused up front: a named error showing the value",
+                time.perf_counter() - start,
+                0,
+                0,
+                outcome,
+                ok,
+            )
+        )
     return rows
-
-

@@ -73,8 +73,7 @@ def run_studies(quick: bool = True) -> StudyResult:
         result.rows += elastic_study(impacts=200)
     else:
         result.rows += stiffness_sweep(damping_ratio=1.0)
-        result.rows += stiffness_sweep(scales=(1, 10, 1e2, 1e3, 1e4, 1e5), damping_ratio=0.0,
-                                       skip=_skip_radau_ringing)
+        result.rows += stiffness_sweep(scales=(1, 10, 1e2, 1e3, 1e4, 1e5), damping_ratio=0.0, skip=_skip_radau_ringing)
         result.rows += tiny_mass_study()
         result.rows += grazing_study()
         result.rows += simultaneous_study()
@@ -84,7 +83,24 @@ def run_studies(quick: bool = True) -> StudyResult:
     return result
 
 
-__all__ = ["StudyRow", "StudyResult", "run_studies", "stiffness_sweep", "tiny_mass_study", "grazing_study",
-           "simultaneous_study", "zeno_study", "elastic_study", "bad_input_study", "stiff_trot",
-           "settled_stance", "two_limb_with_mass", "two_limb_closed_form", "slow_drop",
-           "tangent_approach", "touchdown_gap_time", "pitch_for_gap_time", "state_error"]
+__all__ = [
+    "StudyRow",
+    "StudyResult",
+    "run_studies",
+    "stiffness_sweep",
+    "tiny_mass_study",
+    "grazing_study",
+    "simultaneous_study",
+    "zeno_study",
+    "elastic_study",
+    "bad_input_study",
+    "stiff_trot",
+    "settled_stance",
+    "two_limb_with_mass",
+    "two_limb_closed_form",
+    "slow_drop",
+    "tangent_approach",
+    "touchdown_gap_time",
+    "pitch_for_gap_time",
+    "state_error",
+]

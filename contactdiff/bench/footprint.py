@@ -43,14 +43,26 @@ from ..model.scene import Scene
 from ..scenes.scene_file import load_scene
 
 DERIVATIVE_FUNCTIONS = (
-    "computeABADerivatives", "computeRNEADerivatives", "computeGeneralizedGravityDerivatives",
-    "computeForwardKinematicsDerivatives", "computeJointKinematicHessians", "computeConstraintDynamicsDerivatives",
-    "getPointVelocityDerivatives", "getPointClassicAccelerationDerivatives", "getFrameKinematicHessian",
+    "computeABADerivatives",
+    "computeRNEADerivatives",
+    "computeGeneralizedGravityDerivatives",
+    "computeForwardKinematicsDerivatives",
+    "computeJointKinematicHessians",
+    "computeConstraintDynamicsDerivatives",
+    "getPointVelocityDerivatives",
+    "getPointClassicAccelerationDerivatives",
+    "getFrameKinematicHessian",
 )
 """Pinocchio's derivative algorithms and getters (any call is derivative work)."""
 
-FRAME_QUERIES = ("position", "jacobian", "classical_acceleration", "velocity_derivative",
-                 "acceleration_derivatives", "hessian")
+FRAME_QUERIES = (
+    "position",
+    "jacobian",
+    "classical_acceleration",
+    "velocity_derivative",
+    "acceleration_derivatives",
+    "hessian",
+)
 """The `Kinematics` methods that compute something for one frame."""
 
 PLOTTING_MODULES = ("matplotlib", "plotly", "seaborn", "bokeh", "pyqtgraph", "PIL")
@@ -65,31 +77,41 @@ class Footprint(dict):
         out = ["== only what a scene needs"]
         d = self.get("derivatives")
         if d:
-            out.append("  derivative work in simulate (calls of pinocchio derivative algorithms / "
-                       "mode solves with derivatives):")
+            out.append(
+                "  derivative work in simulate (calls of pinocchio derivative algorithms / "
+                "mode solves with derivatives):"
+            )
             for run in d["runs"]:
-                out.append(f"    {run['scene']:<18} method {run['method']:<6} jacobian={str(run['jacobian']):<5} "
-                           f"{run['pinocchio_derivative_calls']:>7d} / {run['derivative_solves']:>6d}   "
-                           f"(of {run['dynamics_solves']} mode solves)")
+                out.append(
+                    f"    {run['scene']:<18} method {run['method']:<6} jacobian={str(run['jacobian']):<5} "
+                    f"{run['pinocchio_derivative_calls']:>7d} / {run['derivative_solves']:>6d}   "
+                    f"(of {run['dynamics_solves']} mode solves)"
+                )
         g = self.get("loading")
         if g:
-            out.append(f"  loading {g['robot']} (median of {g['repeats']}): load_robot {1e3 * g['load_robot']:.1f} ms "
-                       f"(geometry objects: {g['geometry_objects_ours']}), example_robot_data.load "
-                       f"{1e3 * g['example_robot_data']:.1f} ms (geometry objects: visual "
-                       f"{g['geometry_objects_erd']['visual']}, collision {g['geometry_objects_erd']['collision']}): "
-                       f"{g['example_robot_data'] / g['load_robot']:.0f}x")
+            out.append(
+                f"  loading {g['robot']} (median of {g['repeats']}): load_robot {1e3 * g['load_robot']:.1f} ms "
+                f"(geometry objects: {g['geometry_objects_ours']}), example_robot_data.load "
+                f"{1e3 * g['example_robot_data']:.1f} ms (geometry objects: visual "
+                f"{g['geometry_objects_erd']['visual']}, collision {g['geometry_objects_erd']['collision']}): "
+                f"{g['example_robot_data'] / g['load_robot']:.0f}x"
+            )
         f = self.get("frames")
         if f:
-            out.append(f"  {f['scene']}: frames queried {', '.join(sorted(f['queried']))} "
-                       f"(listed: {', '.join(sorted(f['listed']))}; {f['frames_in_model']} frames in the model)")
+            out.append(
+                f"  {f['scene']}: frames queried {', '.join(sorted(f['queried']))} "
+                f"(listed: {', '.join(sorted(f['listed']))}; {f['frames_in_model']} frames in the model)"
+            )
             out.append("    per frame: " + ", ".join(f"{k} {v}" for k, v in sorted(f["queries_per_frame"].items())))
             out.append("    efforts evaluated: " + ", ".join(f"{k} {v}" for k, v in f["effort_evaluations"].items()))
         m = self.get("imports")
         if m:
             loaded = [k for k, v in m["plotting_modules_loaded"].items() if v]
-            out.append(f"  import contactdiff: {1e3 * m['import_time']:.0f} ms in a fresh interpreter; "
-                       f"plotting modules loaded: {', '.join(loaded) if loaded else 'none'} "
-                       f"(checked: {', '.join(m['plotting_modules_loaded'])})")
+            out.append(
+                f"  import contactdiff: {1e3 * m['import_time']:.0f} ms in a fresh interpreter; "
+                f"plotting modules loaded: {', '.join(loaded) if loaded else 'none'} "
+                f"(checked: {', '.join(m['plotting_modules_loaded'])})"
+            )
         return "\n".join(out)
 
 
@@ -106,6 +128,7 @@ def counting(targets):
         def wrapper(*args, _original=original, _name=name, **kwargs):
             counts[_name] += 1
             return _original(*args, **kwargs)
+
         setattr(owner, name, wrapper)
     try:
         yield counts
@@ -120,11 +143,13 @@ def counting_derivative_work():
     derivatives: keys ``"derivative_solves"`` and ``"dynamics_solves"``."""
     original_solve = ModeDynamics.solve
     with counting([(pin, name) for name in DERIVATIVE_FUNCTIONS if hasattr(pin, name)]) as counts:
+
         def solve(self, q, v, t, active=(), *, derivatives=False, **options):
             counts["dynamics_solves"] += 1
             if derivatives:
                 counts["derivative_solves"] += 1
             return original_solve(self, q, v, t, active, derivatives=derivatives, **options)
+
         ModeDynamics.solve = solve
         try:
             yield counts
@@ -137,10 +162,15 @@ def derivative_work(scene: Scene, t_final: float, **options) -> dict:
     with counting_derivative_work() as counts:
         simulate(scene, t_final, **options)
     pin_calls = sum(counts[name] for name in DERIVATIVE_FUNCTIONS)
-    return {"scene": scene.name, "method": options.get("method", "auto"),
-            "jacobian": bool(options.get("jacobian", False)), "pinocchio_derivative_calls": pin_calls,
-            "derivative_solves": counts["derivative_solves"], "dynamics_solves": counts["dynamics_solves"],
-            "by_function": {name: counts[name] for name in DERIVATIVE_FUNCTIONS if counts[name]}}
+    return {
+        "scene": scene.name,
+        "method": options.get("method", "auto"),
+        "jacobian": bool(options.get("jacobian", False)),
+        "pinocchio_derivative_calls": pin_calls,
+        "derivative_solves": counts["derivative_solves"],
+        "dynamics_solves": counts["dynamics_solves"],
+        "by_function": {name: counts[name] for name in DERIVATIVE_FUNCTIONS if counts[name]},
+    }
 
 
 def loading(robot: str = "solo12", repeats: int = 5) -> dict:
@@ -158,12 +188,18 @@ def loading(robot: str = "solo12", repeats: int = 5) -> dict:
         theirs.append(time.perf_counter() - start)
     assert loaded is not None  # one repeat at least
     geometry = sum(1 for a in ("visual_model", "collision_model") if getattr(mine, a, None) is not None)
-    return {"robot": robot, "repeats": max(1, repeats), "load_robot": statistics.median(ours),
-            "example_robot_data": statistics.median(theirs), "geometry_objects_ours": geometry,
-            "geometry_objects_erd": {"visual": loaded.visual_model.ngeoms,
-                                     "collision": loaded.collision_model.ngeoms},
-            "same_dynamics": bool(mine.model.nv == loaded.model.nv and np.isclose(
-                sum(i.mass for i in mine.model.inertias), sum(i.mass for i in loaded.model.inertias)))}
+    return {
+        "robot": robot,
+        "repeats": max(1, repeats),
+        "load_robot": statistics.median(ours),
+        "example_robot_data": statistics.median(theirs),
+        "geometry_objects_ours": geometry,
+        "geometry_objects_erd": {"visual": loaded.visual_model.ngeoms, "collision": loaded.collision_model.ngeoms},
+        "same_dynamics": bool(
+            mine.model.nv == loaded.model.nv
+            and np.isclose(sum(i.mass for i in mine.model.inertias), sum(i.mass for i in loaded.model.inertias))
+        ),
+    }
 
 
 def two_feet_scene() -> Scene:
@@ -173,8 +209,9 @@ def two_feet_scene() -> Scene:
     base = load_scene("solo12_drop")
     contacts = [c for c in base.contact_specs if c.frame in ("FL_FOOT", "HR_FOOT")]
     spring = Spring("base_link", "FR_FOOT", stiffness=50.0, damping=1.0, rest_length=0.336)  # ~ its length at q0
-    return Scene(robot, contacts, [spring], gravity=[0, 0, -9.81], q0=base.q0, v0=base.v0,
-                 name="solo12 two feet + spring")
+    return Scene(
+        robot, contacts, [spring], gravity=[0, 0, -9.81], q0=base.q0, v0=base.v0, name="solo12 two feet + spring"
+    )
 
 
 def frame_queries(t_final: float = 0.3, jacobian: bool = True) -> dict:
@@ -184,9 +221,11 @@ def frame_queries(t_final: float = 0.3, jacobian: bool = True) -> dict:
     per_frame: Counter = Counter()
     saved = [(name, getattr(Kinematics, name)) for name in FRAME_QUERIES]
     for name, original in saved:
+
         def query(self, fid, *args, _original=original, **kwargs):
             per_frame[model.frames[fid].name] += 1
             return _original(self, fid, *args, **kwargs)
+
         setattr(Kinematics, name, query)
     effort_calls: Counter = Counter()
     for effort in scene.efforts:
@@ -197,6 +236,7 @@ def frame_queries(t_final: float = 0.3, jacobian: bool = True) -> dict:
             def call(*args, _original=original, _label=label, **kwargs):
                 effort_calls[_label] += 1
                 return _original(*args, **kwargs)
+
             setattr(effort, method, call)
     try:
         traj = simulate(scene, t_final, jacobian=jacobian)
@@ -204,16 +244,25 @@ def frame_queries(t_final: float = 0.3, jacobian: bool = True) -> dict:
         for name, original in saved:
             setattr(Kinematics, name, original)
     listed = {c.frame for c in scene.contact_specs} | {"base_link", "FR_FOOT"}
-    return {"scene": scene.name, "listed": sorted(listed), "queried": sorted(per_frame),
-            "queries_per_frame": dict(per_frame), "frames_in_model": len(model.frames),
-            "effort_evaluations": dict(effort_calls), "events": len(traj.events), "jacobian": jacobian}
+    return {
+        "scene": scene.name,
+        "listed": sorted(listed),
+        "queried": sorted(per_frame),
+        "queries_per_frame": dict(per_frame),
+        "frames_in_model": len(model.frames),
+        "effort_evaluations": dict(effort_calls),
+        "events": len(traj.events),
+        "jacobian": jacobian,
+    }
 
 
 def imports() -> dict:
     """Modules loaded by ``import contactdiff`` in a fresh interpreter, and its time (s)."""
-    code = ("import sys, time; t = time.perf_counter(); import contactdiff; "
-            "print(time.perf_counter() - t); "
-            f"print(','.join(m for m in {PLOTTING_MODULES!r} if m in sys.modules))")
+    code = (
+        "import sys, time; t = time.perf_counter(); import contactdiff; "
+        "print(time.perf_counter() - t); "
+        f"print(','.join(m for m in {PLOTTING_MODULES!r} if m in sys.modules))"
+    )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split("\n")
     loaded = set(filter(None, out[1].split(",")))
     return {"import_time": float(out[0]), "plotting_modules_loaded": {m: m in loaded for m in PLOTTING_MODULES}}
@@ -227,9 +276,23 @@ def measure_footprint(quick: bool = True) -> Footprint:
         for method in ("auto", "DOP853"):
             for jac in (False, True):
                 runs.append(derivative_work(scene, t_final, method=method, jacobian=jac))
-    return Footprint(derivatives={"runs": runs}, loading=loading(repeats=3 if quick else 7),
-                     frames=frame_queries(), imports=imports())
+    return Footprint(
+        derivatives={"runs": runs},
+        loading=loading(repeats=3 if quick else 7),
+        frames=frame_queries(),
+        imports=imports(),
+    )
 
 
-__all__ = ["Footprint", "measure_footprint", "derivative_work", "loading", "frame_queries", "imports",
-           "two_feet_scene", "counting", "counting_derivative_work", "DERIVATIVE_FUNCTIONS"]
+__all__ = [
+    "Footprint",
+    "measure_footprint",
+    "derivative_work",
+    "loading",
+    "frame_queries",
+    "imports",
+    "two_feet_scene",
+    "counting",
+    "counting_derivative_work",
+    "DERIVATIVE_FUNCTIONS",
+]

@@ -136,7 +136,7 @@ def ball_outcome(task: BallTask, velocity=None, max_impacts: int = 20) -> np.nda
         x, z, vx, vz, wy = state
         s = np.sqrt(vz * vz + 2.0 * g * (z - r))
         t_ground = (vz + s) / g
-        t_wall = ((task.wall - r - x) / vx if task.wall is not None and vx.real > 0.0 else math.inf + 0j)
+        t_wall = (task.wall - r - x) / vx if task.wall is not None and vx.real > 0.0 else math.inf + 0j
         t_hit = t_ground if t_ground.real <= t_wall.real else t_wall
         if t_hit.real >= t_left.real:
             return np.array(_flight(state, t_left, g))
@@ -173,8 +173,7 @@ def bounce_gradient(task: BallTask = BOUNCE) -> np.ndarray:
     t1 = (vz + s) / g
     tau = big_t - t1
     if not 0.0 < tau < 2.0 * e * s / g:
-        raise InvalidInputError(f"bounce_gradient: the task needs one bounce before T: t1 = {t1:.6g} s, "
-                                f"T = {big_t} s")
+        raise InvalidInputError(f"bounce_gradient: the task needs one bounce before T: t1 = {t1:.6g} s, T = {big_t} s")
     return np.array([[big_t, 0.0], [0.0, e * tau * vz / s - (e * s - g * tau) * t1 / s]])
 
 
@@ -234,6 +233,7 @@ def brax_outcome(task: FallingBall, z0: float) -> tuple[float, float | None]:
 
 # -- contactdiff's gradients ----------------------------------------------------------------
 
+
 def _sphere(name: str, radius: float, mass: float, x: float, z: float) -> SceneObject:
     return SceneObject(name, shape="sphere", radius=radius, mass=mass, position=(x, 0.0, z))
 
@@ -247,9 +247,17 @@ def ball_scene(task: BallTask) -> Scene:
     x0, z0 = task.position
     contacts = [Contact("ball", restitution=task.restitution, friction=_friction(task.friction), name="ground")]
     if task.wall is not None:
-        contacts.append(Contact("ball", normal=(-1.0, 0.0, 0.0), offset=-task.wall, radius=task.radius,
-                                restitution=task.wall_restitution, friction=_friction(task.wall_friction),
-                                name="wall"))
+        contacts.append(
+            Contact(
+                "ball",
+                normal=(-1.0, 0.0, 0.0),
+                offset=-task.wall,
+                radius=task.radius,
+                restitution=task.wall_restitution,
+                friction=_friction(task.wall_friction),
+                name="wall",
+            )
+        )
     robot = add_objects(empty_robot(), [_sphere("ball", task.radius, task.mass, x0, z0)])
     return Scene(robot, contacts, gravity=(0.0, 0.0, -task.gravity), name="ball_task")
 
@@ -257,9 +265,13 @@ def ball_scene(task: BallTask) -> Scene:
 def _rotation(q: np.ndarray) -> np.ndarray:
     """World rotation of a free-flyer configuration ``[x y z qx qy qz qw]``."""
     x, y, z, w = q[3:7] / np.linalg.norm(q[3:7])
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
 
 
 @dataclass(frozen=True)
@@ -317,21 +329,29 @@ def contactdiff_ball(task: BallTask, velocity=None, rtol: float = 1e-12, atol: f
     vx, vz = task.velocity if velocity is None else velocity
     scene = ball_scene(task)
     watch = Stopwatch()
-    traj = simulate(scene, task.horizon, v0=np.array([vx, 0.0, vz, 0.0, 0.0, 0.0]), jacobian=True,
-                    rtol=rtol, atol=atol)
+    traj = simulate(scene, task.horizon, v0=np.array([vx, 0.0, vz, 0.0, 0.0, 0.0]), jacobian=True, rtol=rtol, atol=atol)
     cost = watch.read()
     assert traj.jacobian is not None  # asked for
     world = _rotation(traj.q) @ traj.jacobian[0:3, 6:9]
-    return Run(world[np.ix_([0, 2], [0, 2])], cost, traj.differentiable, traj.q[[0, 2]].copy(),
-               traj.why_not_differentiable())
+    return Run(
+        world[np.ix_([0, 2], [0, 2])], cost, traj.differentiable, traj.q[[0, 2]].copy(), traj.why_not_differentiable()
+    )
 
 
 def two_ball_scene(task: TwoBalls = NIMBLE) -> Scene:
     """Task 3 as a `Scene`: objects ``ball1``, ``ball2`` and their contact ``balls``."""
-    robot = add_objects(empty_robot(), [_sphere("ball1", task.radius, task.mass, task.x1, 0.0),
-                                        _sphere("ball2", task.radius, task.mass, task.x2, 0.0)])
-    contacts = [Contact("ball2", against="ball1", normal=(1.0, 0.0, 0.0), offset=2.0 * task.radius,
-                        restitution=1.0, name="balls")]
+    robot = add_objects(
+        empty_robot(),
+        [
+            _sphere("ball1", task.radius, task.mass, task.x1, 0.0),
+            _sphere("ball2", task.radius, task.mass, task.x2, 0.0),
+        ],
+    )
+    contacts = [
+        Contact(
+            "ball2", against="ball1", normal=(1.0, 0.0, 0.0), offset=2.0 * task.radius, restitution=1.0, name="balls"
+        )
+    ]
     return Scene(robot, contacts, gravity=(0.0, 0.0, 0.0), name="two_balls")
 
 
@@ -344,15 +364,19 @@ def contactdiff_two_balls(task: TwoBalls = NIMBLE, rtol: float = 1e-12, atol: fl
     traj = simulate(scene, task.horizon, v0=v0, jacobian=True, rtol=rtol, atol=atol)
     cost = watch.read()
     assert traj.jacobian is not None  # asked for
-    return Run(traj.jacobian[np.ix_([0, 6], [0, 6, 12, 18])], cost, traj.differentiable,
-               traj.q[[0, 7]].copy(), traj.why_not_differentiable())
+    return Run(
+        traj.jacobian[np.ix_([0, 6], [0, 6, 12, 18])],
+        cost,
+        traj.differentiable,
+        traj.q[[0, 7]].copy(),
+        traj.why_not_differentiable(),
+    )
 
 
 def falling_scene(task: FallingBall = BRAX) -> Scene:
     """Task 4 as a `Scene`: object ``ball`` (starting at 1 m; `contactdiff_brax` sets z0)."""
     robot = add_objects(empty_robot(), [_sphere("ball", task.radius, task.mass, 0.0, 1.0)])
-    return Scene(robot, [Contact("ball", restitution=1.0, name="ground")], gravity=(0.0, 0.0, 0.0),
-                 name="falling_ball")
+    return Scene(robot, [Contact("ball", restitution=1.0, name="ground")], gravity=(0.0, 0.0, 0.0), name="falling_ball")
 
 
 def contactdiff_brax(task: FallingBall, z0: float, rtol: float = 1e-12, atol: float = 1e-13) -> Run:
@@ -362,9 +386,17 @@ def contactdiff_brax(task: FallingBall, z0: float, rtol: float = 1e-12, atol: fl
     q0 = scene.q0.copy()
     q0[2] = z0
     watch = Stopwatch()
-    traj = simulate(scene, task.horizon, q0=q0, v0=np.array([0.0, 0.0, -task.speed, 0.0, 0.0, 0.0]),
-                    jacobian=True, rtol=rtol, atol=atol)
+    traj = simulate(
+        scene,
+        task.horizon,
+        q0=q0,
+        v0=np.array([0.0, 0.0, -task.speed, 0.0, 0.0, 0.0]),
+        jacobian=True,
+        rtol=rtol,
+        atol=atol,
+    )
     cost = watch.read()
     assert traj.jacobian is not None  # asked for
-    return Run(traj.jacobian[2:3, 2:3].copy(), cost, traj.differentiable, traj.q[2:3].copy(),
-               traj.why_not_differentiable())
+    return Run(
+        traj.jacobian[2:3, 2:3].copy(), cost, traj.differentiable, traj.q[2:3].copy(), traj.why_not_differentiable()
+    )

@@ -45,8 +45,9 @@ def toss_scene() -> Scene:
     return cube_scene().with_state(*load_tosses()[TOSS].state(0))
 
 
-def contactdiff_cube(scene: Scene | None = None, rtol: float = 1e-12, atol: float = 1e-13,
-                     horizon: float = HORIZON) -> Run:
+def contactdiff_cube(
+    scene: Scene | None = None, rtol: float = 1e-12, atol: float = 1e-13, horizon: float = HORIZON
+) -> Run:
     """``d pose(T) / d(μ, e)`` (6 × 2, the pose's tangent at T = ``horizon`` s: the centre's
     displacement and rotation in the cube's frame, Pinocchio's ``integrate``) from one run."""
     scene = toss_scene() if scene is None else scene
@@ -54,20 +55,23 @@ def contactdiff_cube(scene: Scene | None = None, rtol: float = 1e-12, atol: floa
     traj = simulate(scene, horizon, jacobian=False, parameters=list(PARAMETERS), rtol=rtol, atol=atol)
     cost = watch.read()
     assert traj.parameter_jacobian is not None  # asked for (parameters)
-    return Run(traj.parameter_jacobian[0:6].copy(), cost, traj.differentiable, traj.q.copy(),
-               traj.why_not_differentiable())
+    return Run(
+        traj.parameter_jacobian[0:6].copy(), cost, traj.differentiable, traj.q.copy(), traj.why_not_differentiable()
+    )
 
 
-def pose_difference(scene: Scene, q_nominal: np.ndarray, q_plus: np.ndarray, q_minus: np.ndarray,
-                    step: float) -> np.ndarray:
+def pose_difference(
+    scene: Scene, q_nominal: np.ndarray, q_plus: np.ndarray, q_minus: np.ndarray, step: float
+) -> np.ndarray:
     """Central difference of two final poses in the tangent space at ``q_nominal``
     (``(q+ ⊖ q) - (q- ⊖ q)) / 2h``): second order in ``step``."""
     model = scene.robot.model
     return (pin.difference(model, q_nominal, q_plus) - pin.difference(model, q_nominal, q_minus)) / (2.0 * step)
 
 
-def cube_reference(step: float, rtol: float = 1e-12, atol: float = 1e-13,
-                   horizon: float = HORIZON) -> tuple[np.ndarray, Cost]:
+def cube_reference(
+    step: float, rtol: float = 1e-12, atol: float = 1e-13, horizon: float = HORIZON
+) -> tuple[np.ndarray, Cost]:
     """Central difference (6 × 2) of contactdiff's final pose at ``horizon`` s in (μ, e) with
     ``step``, and its `Cost` (four runs and the nominal one).
 
@@ -80,8 +84,10 @@ def cube_reference(step: float, rtol: float = 1e-12, atol: float = 1e-13,
     values = scene.parameter_values(list(PARAMETERS))
     columns = []
     for k, name in enumerate(PARAMETERS):
-        ends = [simulate(scene.with_parameters({name: values[k] + sign * step}), horizon, rtol=rtol, atol=atol).q
-                for sign in (1.0, -1.0)]
+        ends = [
+            simulate(scene.with_parameters({name: values[k] + sign * step}), horizon, rtol=rtol, atol=atol).q
+            for sign in (1.0, -1.0)
+        ]
         columns.append(pose_difference(scene, q_nominal, ends[0], ends[1], step))
     return np.array(columns).T, watch.read()
 
@@ -89,7 +95,7 @@ def cube_reference(step: float, rtol: float = 1e-12, atol: float = 1e-13,
 def extrapolated(coarse: np.ndarray, fine: np.ndarray, ratio: float = 10.0) -> np.ndarray:
     """Richardson extrapolation of two central differences whose steps differ by ``ratio``:
     their ``O(step²)`` terms cancel."""
-    return (ratio ** 2 * fine - coarse) / (ratio ** 2 - 1.0)
+    return (ratio**2 * fine - coarse) / (ratio**2 - 1.0)
 
 
 def horizon_study(horizons, steps=REFERENCE_STEPS) -> list[dict]:
@@ -108,8 +114,16 @@ def horizon_study(horizons, steps=REFERENCE_STEPS) -> list[dict]:
             coarse, fine = sorted(steps, reverse=True)
             best = extrapolated(fds[coarse], fds[fine], ratio=coarse / fine)
             errors["extrapolated"] = float(np.linalg.norm(best - run.gradient)) / norm
-        out.append({"horizon": horizon, "differentiable": run.differentiable, "events": len(traj.events),
-                    "reasons": sorted({r.name for e in traj.events for r in e.nonsmooth}
-                                      | {r.name for r in traj.final_nonsmooth}),
-                    "jacobian_norm": norm, "errors": errors})
+        out.append(
+            {
+                "horizon": horizon,
+                "differentiable": run.differentiable,
+                "events": len(traj.events),
+                "reasons": sorted(
+                    {r.name for e in traj.events for r in e.nonsmooth} | {r.name for r in traj.final_nonsmooth}
+                ),
+                "jacobian_norm": norm,
+                "errors": errors,
+            }
+        )
     return out

@@ -60,25 +60,31 @@ def solref(timeconst: float, restitution: float) -> str:
     if not 0.0 < restitution <= 1.0:
         raise InvalidInputError(f"solref: restitution must be in (0, 1], got {restitution!r}")
     log_e = math.log(restitution)
-    zeta = -log_e / math.sqrt(math.pi ** 2 + log_e ** 2)
-    return f"{-1.0 / timeconst ** 2:.17g} {-2.0 * zeta / timeconst:.17g}"
+    zeta = -log_e / math.sqrt(math.pi**2 + log_e**2)
+    return f"{-1.0 / timeconst**2:.17g} {-2.0 * zeta / timeconst:.17g}"
 
 
 def _contact(timeconst: float, restitution: float, friction: float) -> str:
     condim = 3 if friction > 0 else 1
-    return (f'condim="{condim}" friction="{max(friction, 0.0):.17g} 0 0" solref="{solref(timeconst, restitution)}" '
-            f'solimp="{SOLIMP}"')
+    return (
+        f'condim="{condim}" friction="{max(friction, 0.0):.17g} 0 0" solref="{solref(timeconst, restitution)}" '
+        f'solimp="{SOLIMP}"'
+    )
 
 
 def _model(variant: Variant, gravity: float, world: str):
-    xml = (f'<mujoco><option timestep="{variant.timestep:.17g}" gravity="0 0 {-gravity:.17g}"/>'
-           f"<worldbody>{world}</worldbody></mujoco>")
+    xml = (
+        f'<mujoco><option timestep="{variant.timestep:.17g}" gravity="0 0 {-gravity:.17g}"/>'
+        f"<worldbody>{world}</worldbody></mujoco>"
+    )
     return mujoco().MjModel.from_xml_string(xml)
 
 
 def _ball(name: str, radius: float, mass: float, x: float, z: float, contact: str) -> str:
-    return (f'<body name="{name}" pos="{x:.17g} 0 {z:.17g}"><freejoint/>'
-            f'<geom type="sphere" size="{radius:.17g}" mass="{mass:.17g}" {contact}/></body>')
+    return (
+        f'<body name="{name}" pos="{x:.17g} 0 {z:.17g}"><freejoint/>'
+        f'<geom type="sphere" size="{radius:.17g}" mass="{mass:.17g}" {contact}/></body>'
+    )
 
 
 def ball_model(task: BallTask, variant: Variant):
@@ -97,8 +103,9 @@ def ball_model(task: BallTask, variant: Variant):
 def two_ball_model(task: TwoBalls, variant: Variant):
     """Task 3: two balls, elastic, frictionless, no gravity."""
     contact = _contact(variant.timeconst, 1.0, 0.0)
-    world = (_ball("ball1", task.radius, task.mass, task.x1, 0.0, contact)
-             + _ball("ball2", task.radius, task.mass, task.x2, 0.0, contact))
+    world = _ball("ball1", task.radius, task.mass, task.x1, 0.0, contact) + _ball(
+        "ball2", task.radius, task.mass, task.x2, 0.0, contact
+    )
     return _model(variant, 0.0, world)
 
 
@@ -142,13 +149,12 @@ def fd_gradient(model, qpos, qvel, steps: int, rows, columns, h: float) -> tuple
         for sign in (1.0, -1.0):
             x = base.copy()
             x[k] += sign * h
-            ends.append(rollout(model, x[:model.nq], x[model.nq:], steps)[list(rows)])
+            ends.append(rollout(model, x[: model.nq], x[model.nq :], steps)[list(rows)])
         out.append((ends[0] - ends[1]) / (2.0 * h))
     return np.array(out).T, watch.read()
 
 
-def transition_gradient(model, qpos, qvel, steps: int, rows, columns,
-                        eps: float = 1e-6) -> tuple[np.ndarray, Cost]:
+def transition_gradient(model, qpos, qvel, steps: int, rows, columns, eps: float = 1e-6) -> tuple[np.ndarray, Cost]:
     """The product of ``mjd_transitionFD``'s centred one-step Jacobians along the rollout:
     ``d x_N[rows] / d x_0[columns]`` on MuJoCo's tangent state ``(dqpos, qvel)`` (indices
     ``< nv`` positions, ``nv + j`` velocities), and its `Cost`."""
@@ -180,8 +186,9 @@ def _method(model, qpos, qvel, steps, method: str, fd: tuple, tangent: tuple, h:
     raise InvalidInputError(f"method must be 'fd' or 'transition', got {method!r}")
 
 
-def mujoco_ball(task: BallTask, variant: Variant, method: str, velocity=None,
-                h: float = FD_STEP) -> tuple[np.ndarray, Cost]:
+def mujoco_ball(
+    task: BallTask, variant: Variant, method: str, velocity=None, h: float = FD_STEP
+) -> tuple[np.ndarray, Cost]:
     """MuJoCo's ``d(x, z)(T)/d(vx, vz)`` (2 × 2) by ``method`` (``"fd"`` or ``"transition"``)
     and its `Cost`."""
     vx, vz = task.velocity if velocity is None else velocity
@@ -211,8 +218,9 @@ def mujoco_two_balls(task: TwoBalls, variant: Variant, method: str, h: float = F
     return _method(model, qpos, qvel, steps, method, ((0, 7), (0, 7, 14, 20)), ((0, 6), (0, 6, 12, 18)), h)
 
 
-def mujoco_brax(task: FallingBall, variant: Variant, z0: float, method: str,
-                h: float = FD_STEP) -> tuple[np.ndarray, Cost, float]:
+def mujoco_brax(
+    task: FallingBall, variant: Variant, z0: float, method: str, h: float = FD_STEP
+) -> tuple[np.ndarray, Cost, float]:
     """MuJoCo's ``dz(T)/dz0`` (1 × 1), its `Cost` and ``z(T)`` (m) at initial height ``z0``."""
     model = falling_model(task, variant)
     qpos = np.array([0.0, 0.0, z0, 1.0, 0.0, 0.0, 0.0])
@@ -226,19 +234,26 @@ def cube_model(variant: Variant, friction: float, restitution: float):
     """Task 5: `contactdiff.cube_scene`'s cube (edge, mass, moment of `CubeParameters`) on
     a board at ``z = 0`` with friction ``friction`` and restitution ``restitution``."""
     from ..data.cube_tosses import NOMINAL
+
     p = NOMINAL
     contact = _contact(variant.timeconst, restitution, friction)
     inertia = f"{p.moment:.17g} " * 3
-    world = (f'<geom type="plane" size="0 0 1" {contact}/><body name="cube"><freejoint/>'
-             f'<inertial pos="0 0 0" mass="{p.mass:.17g}" diaginertia="{inertia.strip()}"/>'
-             f'<geom type="box" size="{p.edge / 2:.17g} {p.edge / 2:.17g} {p.edge / 2:.17g}" {contact}/></body>')
+    world = (
+        f'<geom type="plane" size="0 0 1" {contact}/><body name="cube"><freejoint/>'
+        f'<inertial pos="0 0 0" mass="{p.mass:.17g}" diaginertia="{inertia.strip()}"/>'
+        f'<geom type="box" size="{p.edge / 2:.17g} {p.edge / 2:.17g} {p.edge / 2:.17g}" {contact}/></body>'
+    )
     return _model(variant, p.gravity, world)
 
 
 def _quaternion_matrix(w, x, y, z) -> np.ndarray:
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
 
 
 def mujoco_cube(variant: Variant, h: float = 1e-4) -> tuple[np.ndarray, Cost]:
@@ -246,15 +261,20 @@ def mujoco_cube(variant: Variant, h: float = 1e-4) -> tuple[np.ndarray, Cost]:
     central differences of rollouts with models at ``μ ± h``, ``e ± h``) and its `Cost`."""
     from ..data.cube_tosses import NOMINAL
     from .gradients_cube import HORIZON, pose_difference, toss_scene
+
     scene = toss_scene()
-    q, v = scene.q0, scene.v0                     # Pinocchio: [x y z qx qy qz qw], body-frame v
+    q, v = scene.q0, scene.v0  # Pinocchio: [x y z qx qy qz qw], body-frame v
     qpos = np.concatenate([q[:3], [q[6]], q[3:6]])
     qvel = np.concatenate([_quaternion_matrix(q[6], *q[3:6]) @ v[:3], v[3:6]])
     steps = steps_of(HORIZON, variant.timestep)
 
-    settings = [(NOMINAL.friction, NOMINAL.restitution), (NOMINAL.friction + h, NOMINAL.restitution),
-                (NOMINAL.friction - h, NOMINAL.restitution), (NOMINAL.friction, NOMINAL.restitution + h),
-                (NOMINAL.friction, NOMINAL.restitution - h)]
+    settings = [
+        (NOMINAL.friction, NOMINAL.restitution),
+        (NOMINAL.friction + h, NOMINAL.restitution),
+        (NOMINAL.friction - h, NOMINAL.restitution),
+        (NOMINAL.friction, NOMINAL.restitution + h),
+        (NOMINAL.friction, NOMINAL.restitution - h),
+    ]
     models = {setting: cube_model(variant, *setting) for setting in settings}  # compiled outside the timer
 
     def final(mu, e):
@@ -263,8 +283,10 @@ def mujoco_cube(variant: Variant, h: float = 1e-4) -> tuple[np.ndarray, Cost]:
 
     watch = Stopwatch()  # the rollouts alone, as contactdiff's runs (its scene is built before its timer)
     nominal = final(*settings[0])
-    columns = [pose_difference(scene, nominal, final(*settings[1]), final(*settings[2]), h),
-               pose_difference(scene, nominal, final(*settings[3]), final(*settings[4]), h)]
+    columns = [
+        pose_difference(scene, nominal, final(*settings[1]), final(*settings[2]), h),
+        pose_difference(scene, nominal, final(*settings[3]), final(*settings[4]), h),
+    ]
     return np.array(columns).T, watch.read()
 
 

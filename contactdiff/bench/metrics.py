@@ -48,10 +48,9 @@ def time_at_error(points: Sequence[tuple[float, float]], target: float) -> tuple
     note = f"not reached (best {best[1]:.1e} at {1e3 * best[0]:.1f} ms"
     (t0, e0), (t1, e1) = pts[-2:] if len(pts) > 1 else (pts[0], pts[0])
     if len(pts) > 1 and e1 < e0 and t1 > t0:  # extend the last segment of the curve
-        t_x = math.exp(math.log(t1) + (math.log(target) - math.log(e1))
-                       * (math.log(t1) - math.log(t0)) / (math.log(e1) - math.log(e0)))
+        t_x = math.exp(
+            math.log(t1)
+            + (math.log(target) - math.log(e1)) * (math.log(t1) - math.log(t0)) / (math.log(e1) - math.log(e0))
+        )
         note += f"; its last segment extended reaches it at ~{t_x:.3g} s"
     return None, note + ")"
-
-
-

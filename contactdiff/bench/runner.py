@@ -91,6 +91,7 @@ def solo12_tilted() -> Scene:
     q[2] += 0.01
     return scene.with_state(q)
 
+
 FULL_SWEEP = {
     "ours-DOP853": [1e-3, 1e-4, 1e-6, 1e-8, 1e-10, 1e-12],
     "ours-Radau": [1e-4, 1e-6, 1e-8, 1e-10],
@@ -121,9 +122,14 @@ class Reference:
 
     def to_dict(self) -> dict:
         """JSON-ready form: ``q`` and ``v`` as lists, event times in s."""
-        return {"kind": self.kind, "q": self.q.tolist(), "v": self.v.tolist(),
-                "event_times": list(self.event_times), "convergence": self.convergence,
-                "convergence_events": self.convergence_events}
+        return {
+            "kind": self.kind,
+            "q": self.q.tolist(),
+            "v": self.v.tolist(),
+            "event_times": list(self.event_times),
+            "convergence": self.convergence,
+            "convergence_events": self.convergence_events,
+        }
 
 
 @dataclass
@@ -162,20 +168,28 @@ class BenchResult:
             extra["studies"] = self.studies.to_dict()
         if self.footprint is not None:
             extra["footprint"] = dict(self.footprint)
-        return {"repeats": self.repeats, "runs": [to_jsonable(r) for r in self.runs],
-                "references": {k: to_jsonable(r.to_dict()) for k, r in self.references.items()},
-                "derivatives": [to_jsonable(d) for d in self.derivatives],
-                "ratios": [to_jsonable(r) for r in self.ratios]} | extra
+        return {
+            "repeats": self.repeats,
+            "runs": [to_jsonable(r) for r in self.runs],
+            "references": {k: to_jsonable(r.to_dict()) for k, r in self.references.items()},
+            "derivatives": [to_jsonable(d) for d in self.derivatives],
+            "ratios": [to_jsonable(r) for r in self.ratios],
+        } | extra
 
     def format(self) -> str:
         """The tables as text."""
         out = []
         for scene, ref in self.references.items():
-            conv = "" if ref.convergence is None else \
-                f"; vs rtol 1e-12: state {ref.convergence:.1e}, events {_num(ref.convergence_events)}"
+            conv = (
+                ""
+                if ref.convergence is None
+                else f"; vs rtol 1e-12: state {ref.convergence:.1e}, events {_num(ref.convergence_events)}"
+            )
             out.append(f"== {scene}  (reference: {ref.kind}, {len(ref.event_times)} events{conv})")
-            out.append(f"  {'method':<17} {'param':>9} {'state err':>10} {'event err':>10} "
-                       f"{'events':>7} {'time (ms)':>10} {'dyn evals':>10} {'steps':>7}")
+            out.append(
+                f"  {'method':<17} {'param':>9} {'state err':>10} {'event err':>10} "
+                f"{'events':>7} {'time (ms)':>10} {'dyn evals':>10} {'steps':>7}"
+            )
             for r in self.runs:
                 if r["scene"] != scene:
                     continue
@@ -183,33 +197,41 @@ class BenchResult:
                     out.append(f"  {r['method']:<17} {r['param']:>9.0e}  failed: {r['failed']}")
                     continue
                 ev = f"{r['n_events']}/{r['n_events_ref']}"
-                out.append(f"  {r['method']:<17} {r['param']:>9.0e} {r['error']:>10.2e} "
-                           f"{_num(r['event_error']):>10} {ev:>7} {1e3 * r['time']:>10.2f} "
-                           f"{r['dynamics_evaluations']:>10d} {r['steps']:>7d}")
+                out.append(
+                    f"  {r['method']:<17} {r['param']:>9.0e} {r['error']:>10.2e} "
+                    f"{_num(r['event_error']):>10} {ev:>7} {1e3 * r['time']:>10.2f} "
+                    f"{r['dynamics_evaluations']:>10d} {r['steps']:>7d}"
+                )
             out.append("")
         if self.derivatives:
             out.append("== derivatives: flow Jacobian vs plain run vs central FD (4 nv runs)")
-            out.append(f"  {'scene':<18} {'nv':>3} {'plain (ms)':>11} {'jac (ms)':>10} {'FD (ms)':>10} "
-                       f"{'jac/plain':>10} {'FD/jac':>8} {'|J-FD|/|J|':>11} {'steps plain/jac':>16}")
+            out.append(
+                f"  {'scene':<18} {'nv':>3} {'plain (ms)':>11} {'jac (ms)':>10} {'FD (ms)':>10} "
+                f"{'jac/plain':>10} {'FD/jac':>8} {'|J-FD|/|J|':>11} {'steps plain/jac':>16}"
+            )
             for d in self.derivatives:
                 steps = f"{d['steps_plain']}/{d['steps_jacobian']}"
                 fd = d["time_fd"] is not None
                 t_fd = f"{1e3 * d['time_fd']:.1f}" if fd else "-"
                 fd_ratio = f"{d['fd_over_jacobian']:.1f}" if fd else "-"
                 fd_err = f"{d['jacobian_vs_fd']:.1e}" if fd else "-"
-                out.append(f"  {d['scene']:<18} {d['nv']:>3} {1e3 * d['time_plain']:>11.2f} "
-                           f"{1e3 * d['time_jacobian']:>10.2f} {t_fd:>10} "
-                           f"{d['jacobian_over_plain']:>10.2f} {fd_ratio:>8} {fd_err:>11} {steps:>16}"
-                           + ("" if fd else f"  (FD skipped: {d['fd_skipped']})")
-                           + ("" if d["differentiable"] else "  (not differentiable: simultaneous "
-                              "event whose landing orders differ; FD meaningless)"))
+                out.append(
+                    f"  {d['scene']:<18} {d['nv']:>3} {1e3 * d['time_plain']:>11.2f} "
+                    f"{1e3 * d['time_jacobian']:>10.2f} {t_fd:>10} "
+                    f"{d['jacobian_over_plain']:>10.2f} {fd_ratio:>8} {fd_err:>11} {steps:>16}"
+                    + ("" if fd else f"  (FD skipped: {d['fd_skipped']})")
+                    + (
+                        ""
+                        if d["differentiable"]
+                        else "  (not differentiable: simultaneous event whose landing orders differ; FD meaningless)"
+                    )
+                )
             out.append("")
         if self.ratios:
             out.append("== time of a baseline / ours at equal final-state error (log-log interpolation)")
             for r in self.ratios:
                 ratio = "n/a" if r["ratio"] is None else f"{r['ratio']:.3g}"
-                out.append(f"  {r['scene']:<18} {r['baseline']:<17} err {r['target']:.0e}: "
-                           f"{ratio:>8}  {r['note']}")
+                out.append(f"  {r['scene']:<18} {r['baseline']:<17} err {r['target']:.0e}: {ratio:>8}  {r['note']}")
         if self.studies is not None:
             out += ["", self.studies.format()]
         if self.footprint is not None:
@@ -242,7 +264,7 @@ def ball_closed_form(scene: Scene, t_final: float) -> Reference:
         s = t_final - times[-1]
         height, vz = u * e ** len(times) * s - 0.5 * g * s * s, u * e ** len(times) - g * s
     else:
-        height, vz = z0 - 0.5 * g * t_final ** 2, -g * t_final
+        height, vz = z0 - 0.5 * g * t_final**2, -g * t_final
     q = scene.q0.copy()
     q[-1] += height - z0  # the ball's height coordinate (prismatic z)
     return Reference("closed-form", q, np.array([vz]), times)
@@ -254,9 +276,14 @@ def reference(name: str, scene: Scene, t_final: float) -> Reference:
     ref = simulate(scene, t_final, **REF_TOL)
     chk = simulate(scene, t_final, **CHECK_TOL)
     times = [e.t for e in ref.events]
-    return Reference("DOP853 rtol=1e-13", ref.q.copy(), ref.v.copy(), times,
-                     state_error(scene, chk.q, chk.v, ref.q, ref.v),
-                     event_error([e.t for e in chk.events], times))
+    return Reference(
+        "DOP853 rtol=1e-13",
+        ref.q.copy(),
+        ref.v.copy(),
+        times,
+        state_error(scene, chk.q, chk.v, ref.q, ref.v),
+        event_error([e.t for e in chk.events], times),
+    )
 
 
 # -- runs -----------------------------------------------------------------------------
@@ -273,12 +300,15 @@ def _timed(fn, repeats: int):
 
 def _run_one(name, scene, t_final, method, param, repeats):
     if method.startswith("ours-"):
+
         def fn():
             return simulate(scene, t_final, rtol=param, atol=param * 1e-2, method=method[5:])
     elif method == "solve_ivp-DOP853":
+
         def fn():
             return solve_ivp_baseline(scene, t_final, rtol=param, atol=param * 1e-2)
     elif method == "time-stepping":
+
         def fn():
             return time_stepping_baseline(scene, t_final, param)
     else:
@@ -292,9 +322,11 @@ def _run_one(name, scene, t_final, method, param, repeats):
 
 
 def _curve(runs, scene, method):
-    return sorted((r["time"], r["error"]) for r in runs
-                  if r["scene"] == scene and r["method"] == method and not r["failed"]
-                  and math.isfinite(r["error"]))
+    return sorted(
+        (r["time"], r["error"])
+        for r in runs
+        if r["scene"] == scene and r["method"] == method and not r["failed"] and math.isfinite(r["error"])
+    )
 
 
 def _derivatives(name, scene, t_final, tol, repeats) -> dict:
@@ -318,20 +350,36 @@ def _derivatives(name, scene, t_final, tol, repeats) -> dict:
             cols.append(np.concatenate([pin.difference(model, m.q, p.q), p.v - m.v]) / (2 * FD_EPS))
         return np.array(cols).T
 
-    row = {"scene": name, "nv": nv, "tol": dict(tol), "time_plain": t_plain, "time_jacobian": t_jac,
-           "steps_plain": int(plain.stats.steps), "steps_jacobian": int(jac.stats.steps),
-           "derivative_evaluations": int(jac.stats.derivative_evaluations),
-           "fd_runs": 4 * nv, "jacobian_over_plain": t_jac / t_plain,
-           "differentiable": bool(jac.differentiable), "fd_skipped": None}
+    row = {
+        "scene": name,
+        "nv": nv,
+        "tol": dict(tol),
+        "time_plain": t_plain,
+        "time_jacobian": t_jac,
+        "steps_plain": int(plain.stats.steps),
+        "steps_jacobian": int(jac.stats.steps),
+        "derivative_evaluations": int(jac.stats.derivative_evaluations),
+        "fd_runs": 4 * nv,
+        "jacobian_over_plain": t_jac / t_plain,
+        "differentiable": bool(jac.differentiable),
+        "fd_skipped": None,
+    }
     closed = [c.name for c, g in zip(scene.contacts, scene.gaps(scene.q0)) if g <= 2 * FD_EPS]
     if closed:  # perturbations q0 ⊕ ±ε e_k would push these through the ground
-        row.update(time_fd=None, fd_over_jacobian=None, jacobian_vs_fd=None,
-                   fd_skipped=f"starts in contact ({', '.join(closed)}): FD perturbations are not admissible")
+        row.update(
+            time_fd=None,
+            fd_over_jacobian=None,
+            jacobian_vs_fd=None,
+            fd_skipped=f"starts in contact ({', '.join(closed)}): FD perturbations are not admissible",
+        )
         return row
     J_fd, t_fd = _timed(fd, 1)
     J = jac.jacobian
-    row.update(time_fd=t_fd, fd_over_jacobian=t_fd / t_jac,
-               jacobian_vs_fd=float(np.max(np.abs(J - J_fd)) / max(np.max(np.abs(J)), 1e-300)))
+    row.update(
+        time_fd=t_fd,
+        fd_over_jacobian=t_fd / t_jac,
+        jacobian_vs_fd=float(np.max(np.abs(J - J_fd)) / max(np.max(np.abs(J)), 1e-300)),
+    )
     return row
 
 
@@ -350,16 +398,21 @@ class _Progress:
         if self.enabled:
             width = 30
             fill = int(width * self.done / max(self.total, 1))
-            sys.stderr.write(f"\r[{'#' * fill}{'.' * (width - fill)}] {self.done}/{self.total} "
-                             f"{label[:50]:<50}")
+            sys.stderr.write(f"\r[{'#' * fill}{'.' * (width - fill)}] {self.done}/{self.total} {label[:50]:<50}")
             if self.done == self.total:
                 sys.stderr.write("\n")
             sys.stderr.flush()
 
 
-def run_bench(scenes: Sequence[str] | None = None, methods: Sequence[str] | None = None,
-              repeats: int = 3, progress: bool | None = None, quick: bool = False,
-              derivatives: bool = True, studies: bool = False) -> BenchResult:
+def run_bench(
+    scenes: Sequence[str] | None = None,
+    methods: Sequence[str] | None = None,
+    repeats: int = 3,
+    progress: bool | None = None,
+    quick: bool = False,
+    derivatives: bool = True,
+    studies: bool = False,
+) -> BenchResult:
     """Measure error against run time for each scene and method (see the module doc).
 
     Args:
@@ -388,8 +441,13 @@ def run_bench(scenes: Sequence[str] | None = None, methods: Sequence[str] | None
     deriv_tol = QUICK_DERIV_TOL if quick else FULL_DERIV_TOL
     result = BenchResult(repeats=int(repeats))
     built = {s: (SCENES[s][0](), SCENES[s][1]) for s in scenes}
-    tasks = [(s, m, p) for s in scenes for m in methods for p in sweep[m]
-             if not (m == "solve_ivp-DOP853" and built[s][0].robot.nq != built[s][0].nv)]
+    tasks = [
+        (s, m, p)
+        for s in scenes
+        for m in methods
+        for p in sweep[m]
+        if not (m == "solve_ivp-DOP853" and built[s][0].robot.nq != built[s][0].nv)
+    ]
     bar = _Progress(len(scenes) + len(tasks) + (len(scenes) if derivatives else 0), progress)
     for s in scenes:
         scene, t_final = built[s]
@@ -398,18 +456,35 @@ def run_bench(scenes: Sequence[str] | None = None, methods: Sequence[str] | None
     for s, m, p in tasks:
         scene, t_final = built[s]
         ref = result.references[s]
-        row = {"scene": s, "method": m, "param": p,
-               "param_name": "dt" if m == "time-stepping" else "rtol", "n_events_ref": len(ref.event_times)}
+        row = {
+            "scene": s,
+            "method": m,
+            "param": p,
+            "param_name": "dt" if m == "time-stepping" else "rtol",
+            "n_events_ref": len(ref.event_times),
+        }
         try:
             out, times, elapsed = _run_one(s, scene, t_final, m, p, repeats)
             stats = out.stats
-            row.update(error=state_error(scene, out.q, out.v, ref.q, ref.v),
-                       event_error=event_error(times, ref.event_times), n_events=len(times),
-                       time=elapsed, dynamics_evaluations=int(stats.dynamics_evaluations),
-                       steps=int(stats.steps), failed=None)
+            row.update(
+                error=state_error(scene, out.q, out.v, ref.q, ref.v),
+                event_error=event_error(times, ref.event_times),
+                n_events=len(times),
+                time=elapsed,
+                dynamics_evaluations=int(stats.dynamics_evaluations),
+                steps=int(stats.steps),
+                failed=None,
+            )
         except ContactDiffError as exc:
-            row.update(error=math.inf, event_error=None, n_events=0, time=math.nan,
-                       dynamics_evaluations=0, steps=0, failed=str(exc))
+            row.update(
+                error=math.inf,
+                event_error=None,
+                n_events=0,
+                time=math.nan,
+                dynamics_evaluations=0,
+                steps=0,
+                failed=str(exc),
+            )
         result.runs.append(row)
         bar.step(f"{s}: {m} {p:g}")
     if derivatives:
@@ -440,9 +515,18 @@ def run_bench(scenes: Sequence[str] | None = None, methods: Sequence[str] | None
                     note = f"baseline {1e3 * t_b:.2f} ms vs {best_m} {1e3 * best:.2f} ms"
                 elif ratio is not None and t_b is not None and best is not None:
                     note = f"baseline {1e3 * t_b:.2f} ms ({note}) vs {best_m} {1e3 * best:.2f} ms"
-                result.ratios.append({"scene": s, "baseline": b, "target": target, "time_baseline": t_b,
-                                      "time_ours": best, "ours_method": best_m, "ratio": ratio,
-                                      "note": note})
+                result.ratios.append(
+                    {
+                        "scene": s,
+                        "baseline": b,
+                        "target": target,
+                        "time_baseline": t_b,
+                        "time_ours": best,
+                        "ours_method": best_m,
+                        "ratio": ratio,
+                        "note": note,
+                    }
+                )
     if studies:
         from .extreme_cases import run_studies
         from .footprint import measure_footprint
@@ -452,5 +536,14 @@ def run_bench(scenes: Sequence[str] | None = None, methods: Sequence[str] | None
     return result
 
 
-__all__ = ["BenchResult", "Reference", "run_bench", "time_at_error", "state_error", "event_error",
-           "ball_closed_form", "SCENES", "METHODS"]
+__all__ = [
+    "BenchResult",
+    "Reference",
+    "run_bench",
+    "time_at_error",
+    "state_error",
+    "event_error",
+    "ball_closed_form",
+    "SCENES",
+    "METHODS",
+]

@@ -73,8 +73,11 @@ class TrotSpeed:
 
     def to_dict(self) -> dict:
         """The fields and the three ratios (what ``--json`` prints)."""
-        return asdict(self) | {"real_time_ratio": self.real_time_ratio, "rejected_ratio": self.rejected_ratio,
-                               "overhead_ratio": self.overhead_ratio}
+        return asdict(self) | {
+            "real_time_ratio": self.real_time_ratio,
+            "rejected_ratio": self.rejected_ratio,
+            "overhead_ratio": self.overhead_ratio,
+        }
 
 
 @dataclass
@@ -103,26 +106,36 @@ class SpeedReport:
 
     def to_dict(self) -> dict:
         """The rows (what ``--json`` prints)."""
-        return {"trots": [t.to_dict() for t in self.trots],
-                "memory": None if self.memory is None else self.memory.to_dict()}
+        return {
+            "trots": [t.to_dict() for t in self.trots],
+            "memory": None if self.memory is None else self.memory.to_dict(),
+        }
 
     def format(self) -> str:
         """The rows as a table, with a line on what each column means."""
-        lines = ["scene          sim s  wall s  wall/sim  events  steps  rejected  evals   us/eval  "
-                 "pin us  us/eval / pin  (cD all feet us, aba us)"]
+        lines = [
+            "scene          sim s  wall s  wall/sim  events  steps  rejected  evals   us/eval  "
+            "pin us  us/eval / pin  (cD all feet us, aba us)"
+        ]
         for r in self.trots:
-            lines.append(f"{r.scene:<14} {r.t_final:5.2f}  {r.wall:6.2f}  {r.real_time_ratio:8.2f}  "
-                         f"{r.events:6d}  {r.steps:5d}  {r.rejected_ratio:7.1%}  {r.evaluations:6d}  "
-                         f"{1e6 * r.per_evaluation:7.1f}  {1e6 * r.pinocchio:6.1f}  {r.overhead_ratio:13.2f}  "
-                         f"({1e6 * r.constraint_dynamics:.1f}, {1e6 * r.aba:.1f})")
-        lines.append("wall/sim <= 1: faster than real time; rejected: over accepted steps; pin: Pinocchio's own "
-                     "call for the modes evaluated (constraintDynamics with the mode's feet, aba in flight), "
-                     "weighted by the time in each, timed in this process")
+            lines.append(
+                f"{r.scene:<14} {r.t_final:5.2f}  {r.wall:6.2f}  {r.real_time_ratio:8.2f}  "
+                f"{r.events:6d}  {r.steps:5d}  {r.rejected_ratio:7.1%}  {r.evaluations:6d}  "
+                f"{1e6 * r.per_evaluation:7.1f}  {1e6 * r.pinocchio:6.1f}  {r.overhead_ratio:13.2f}  "
+                f"({1e6 * r.constraint_dynamics:.1f}, {1e6 * r.aba:.1f})"
+            )
+        lines.append(
+            "wall/sim <= 1: faster than real time; rejected: over accepted steps; pin: Pinocchio's own "
+            "call for the modes evaluated (constraintDynamics with the mode's feet, aba in flight), "
+            "weighted by the time in each, timed in this process"
+        )
         if self.memory is not None:
             m = self.memory
-            lines.append(f"memory: {m.scene} for {m.t_final:g} s with events only (dense=False): peak "
-                         f"{m.peak_mb:.0f} MB, {m.before_mb:.0f} MB before the run ({m.events} events, "
-                         f"{m.wall:.1f} s wall)")
+            lines.append(
+                f"memory: {m.scene} for {m.t_final:g} s with events only (dense=False): peak "
+                f"{m.peak_mb:.0f} MB, {m.before_mb:.0f} MB before the run ({m.events} events, "
+                f"{m.wall:.1f} s wall)"
+            )
         return "\n".join(lines)
 
 
@@ -163,6 +176,7 @@ class _PinocchioCosts:
 
                 def call():
                     return pin.aba(model, data, q, v, tau)
+
             self._cost[mode] = _median_call(call, CALLS)
         return self._cost[mode]
 
@@ -187,10 +201,19 @@ def trot_speed(name: str, t_final: float = 3.0, repeats: int = 3) -> TrotSpeed:
     assert traj is not None  # repeats >= 1
     s = traj.stats
     costs = _PinocchioCosts(scene, traj.q, traj.v)
-    return TrotSpeed(scene=name, t_final=t_final, wall=wall, events=len(traj.events), steps=s.steps,
-                     rejected_steps=s.rejected_steps, evaluations=s.dynamics_evaluations,
-                     per_evaluation=wall / s.dynamics_evaluations, pinocchio=costs.weighted(traj),
-                     constraint_dynamics=costs(tuple(scene.contact_names)), aba=costs(()))
+    return TrotSpeed(
+        scene=name,
+        t_final=t_final,
+        wall=wall,
+        events=len(traj.events),
+        steps=s.steps,
+        rejected_steps=s.rejected_steps,
+        evaluations=s.dynamics_evaluations,
+        per_evaluation=wall / s.dynamics_evaluations,
+        pinocchio=costs.weighted(traj),
+        constraint_dynamics=costs(tuple(scene.contact_names)),
+        aba=costs(()),
+    )
 
 
 _CHILD = """
@@ -212,15 +235,23 @@ print(json.dumps(dict(before=before / 1024, peak=peak / 1024, wall=wall, events=
 def memory_peak(name: str = "solo12_trot", t_final: float = 60.0) -> MemoryPeak:
     """Peak resident memory of a fresh process that loads ``name`` and simulates it for
     ``t_final`` s keeping events only (Linux reports ``ru_maxrss`` in kB)."""
-    out = subprocess.run([sys.executable, "-c", _CHILD, name, repr(float(t_final))], capture_output=True,
-                         text=True, check=True)
+    out = subprocess.run(
+        [sys.executable, "-c", _CHILD, name, repr(float(t_final))], capture_output=True, text=True, check=True
+    )
     row = json.loads(out.stdout.strip().splitlines()[-1])
-    return MemoryPeak(scene=name, t_final=t_final, before_mb=row["before"], peak_mb=row["peak"], wall=row["wall"],
-                      events=row["events"])
+    return MemoryPeak(
+        scene=name,
+        t_final=t_final,
+        before_mb=row["before"],
+        peak_mb=row["peak"],
+        wall=row["wall"],
+        events=row["events"],
+    )
 
 
-def run_speed(scenes: Sequence[str] | None = None, t_final: float = 3.0, repeats: int = 3,
-              memory_seconds: float | None = None) -> SpeedReport:
+def run_speed(
+    scenes: Sequence[str] | None = None, t_final: float = 3.0, repeats: int = 3, memory_seconds: float | None = None
+) -> SpeedReport:
     """The speed report (module doc).
 
     Args:
@@ -237,6 +268,7 @@ def run_speed(scenes: Sequence[str] | None = None, t_final: float = 3.0, repeats
     rows = [trot_speed(name, t_final, repeats) for name in (scenes or TROTS)]
     memory = None
     if memory_seconds is not None:
-        memory = memory_peak("solo12_trot", check_number("bench --speed", "memory_seconds", memory_seconds,
-                                                         minimum=1e-3))
+        memory = memory_peak(
+            "solo12_trot", check_number("bench --speed", "memory_seconds", memory_seconds, minimum=1e-3)
+        )
     return SpeedReport(rows, memory)

@@ -26,9 +26,16 @@ def stiff_trot(scale: float, damping_ratio: float = 0.0) -> Scene:
     The fastest motion has ``ω ≈ sqrt(2 k)`` (body on two legs, or foot against body).
     """
     base = load_scene("planar_trot_soft")
-    efforts = [Spring(s.frame_a, s.frame_b, s.stiffness * scale,
-                      2.0 * damping_ratio * math.sqrt(s.stiffness * scale), s.rest_length)
-               for s in base.effort_specs]
+    efforts = [
+        Spring(
+            s.frame_a,
+            s.frame_b,
+            s.stiffness * scale,
+            2.0 * damping_ratio * math.sqrt(s.stiffness * scale),
+            s.rest_length,
+        )
+        for s in base.effort_specs
+    ]
     name = f"planar_trot_soft k x {scale:g}" + (f", zeta {damping_ratio:g}" if damping_ratio else "")
     return Scene(base.robot, base.contact_specs, efforts, None, base.q0, base.v0, name=name)
 
@@ -79,10 +86,16 @@ def _event_time_error(traj, ref, resolution: float) -> float:
     return max((abs(a - b) for (_, a), (_, b) in zip(modes[1:], ref_modes[1:])), default=0.0)
 
 
-def stiffness_sweep(scales=(1, 10, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7), damping_ratio: float = 1.0,
-                    methods=("auto", "DOP853", "Radau"), t_final: float | None = None,
-                    tol: dict | None = None, reference_method: str | None = None,
-                    reference_tol: dict | None = None, skip=None) -> list[StudyRow]:
+def stiffness_sweep(
+    scales=(1, 10, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7),
+    damping_ratio: float = 1.0,
+    methods=("auto", "DOP853", "Radau"),
+    t_final: float | None = None,
+    tol: dict | None = None,
+    reference_method: str | None = None,
+    reference_tol: dict | None = None,
+    skip=None,
+) -> list[StudyRow]:
     """planar_trot_soft with stiffer legs: the cost of each method and its error.
 
     Error: the larger of the final-state error and the largest error in the times the
@@ -153,17 +166,31 @@ def stiffness_sweep(scales=(1, 10, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7), damping_ratio:
         if damping_ratio > 0:
             # slowest stance motion: body on two legs, omega_b = sqrt(2k), damping 2c
             zeta_b = 2.0 * damping_ratio * math.sqrt(k) / math.sqrt(2.0 * k)
-            slow = omega * (zeta_b - math.sqrt(zeta_b ** 2 - 1.0)) if zeta_b >= 1 else omega * zeta_b
+            slow = omega * (zeta_b - math.sqrt(zeta_b**2 - 1.0)) if zeta_b >= 1 else omega * zeta_b
             if math.exp(-slow * (t_final - 1.1)) < 1e-12:
                 rest = settled_stance(scene)
         for method in methods:
             reason = skip(scale, method) if skip else None
-            base = dict(study="stiffness", case=case, parameter=f"k x {scale:g}", method=method,
-                        reference=f"{reference_method} rtol = atol = {reference_tol['rtol']:g} "
-                                  "(final state and event times)")
+            base = dict(
+                study="stiffness",
+                case=case,
+                parameter=f"k x {scale:g}",
+                method=method,
+                reference=f"{reference_method} rtol = atol = {reference_tol['rtol']:g} (final state and event times)",
+            )
             if reason:
-                rows.append(StudyRow(**base, error=None, time=math.nan, steps=0, evaluations=0,
-                                     outcome=f"skipped: {reason}", ok=True, details={"omega": omega}))
+                rows.append(
+                    StudyRow(
+                        **base,
+                        error=None,
+                        time=math.nan,
+                        steps=0,
+                        evaluations=0,
+                        outcome=f"skipped: {reason}",
+                        ok=True,
+                        details={"omega": omega},
+                    )
+                )
                 continue
             traj, elapsed = _run(scene, t_final, method=method, max_events=1000, **tol)
             if isinstance(traj, ContactDiffError):
@@ -173,16 +200,31 @@ def stiffness_sweep(scales=(1, 10, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7), damping_ratio:
             state_err = state_error(scene, traj, ref.q, ref.v)
             events_err = _event_time_error(traj, ref, 1e3 * tol["rtol"])
             err = max(state_err, events_err)
-            details = {"omega": omega, "reference_spread": spread, "state_error": state_err,
-                       "event_time_error": events_err,
-                       "steps_by_method": traj.stats.steps_by_method,
-                       "events": [e.kind for e in traj.events], "rejected_steps": traj.stats.rejected_steps}
+            details = {
+                "omega": omega,
+                "reference_spread": spread,
+                "state_error": state_err,
+                "event_time_error": events_err,
+                "steps_by_method": traj.stats.steps_by_method,
+                "events": [e.kind for e in traj.events],
+                "rejected_steps": traj.stats.rejected_steps,
+            }
             if rest is not None:
                 details["error_vs_rest"] = state_error(scene, traj, *rest)
             ok = err <= 1e3 * tol["rtol"] + ringing + 10 * spread
             outcome = "ok" if ok else ("mode sequence differs" if math.isinf(events_err) else "error above bound")
-            rows.append(StudyRow(**base, error=err, time=elapsed, steps=steps, evaluations=evals,
-                                 outcome=outcome, ok=ok, details=details))
+            rows.append(
+                StudyRow(
+                    **base,
+                    error=err,
+                    time=elapsed,
+                    steps=steps,
+                    evaluations=evals,
+                    outcome=outcome,
+                    ok=ok,
+                    details=details,
+                )
+            )
     return rows
 
 
@@ -195,8 +237,9 @@ def two_limb_with_mass(mass: float) -> Scene:
         j = robot.model.getJointId(name)
         inertia = robot.model.inertias[j]
         robot.model.inertias[j] = pin.Inertia(float(mass), inertia.lever, inertia.inertia)
-    return Scene(robot, base.contact_specs, base.effort_specs, None, base.q0, base.v0,
-                 name=f"two_limb limb mass {mass:g}")
+    return Scene(
+        robot, base.contact_specs, base.effort_specs, None, base.q0, base.v0, name=f"two_limb limb mass {mass:g}"
+    )
 
 
 def two_limb_closed_form(t: float, mass: float, k: float = 10.0, g: float = 1.0, body: float = 1.0):
@@ -221,10 +264,11 @@ def two_limb_closed_form(t: float, mass: float, k: float = 10.0, g: float = 1.0,
     w = math.sqrt(2.0 * k / body)
 
     def x(tau):
-        return (g / w ** 2) * (math.cos(w * tau) - 1.0) - math.sin(w * tau) / w
+        return (g / w**2) * (math.cos(w * tau) - 1.0) - math.sin(w * tau) / w
 
     def xd(tau):
         return -(g / w) * math.sin(w * tau) - math.cos(w * tau)
+
     s0 = mass * g / k
     tau0 = (2.0 * math.pi - 2.0 * math.atan(w / g)) / w  # x = 0 again, rising
     tau1 = tau0 + 0.5 * math.pi / w
@@ -248,9 +292,13 @@ def two_limb_closed_form(t: float, mass: float, k: float = 10.0, g: float = 1.0,
     return zb, vb, zb - 0.5 - s, vb - sd, t_lo
 
 
-def tiny_mass_study(masses=(1e-1, 1e-3, 1e-6), t_final: float = 1.9,
-                    methods=("auto", "DOP853", "Radau"), tol: dict | None = None,
-                    skip=None) -> list[StudyRow]:
+def tiny_mass_study(
+    masses=(1e-1, 1e-3, 1e-6),
+    t_final: float = 1.9,
+    methods=("auto", "DOP853", "Radau"),
+    tol: dict | None = None,
+    skip=None,
+) -> list[StudyRow]:
     """two_limb with light limbs against its exact solution (`two_limb_closed_form`).
 
     After lift-off (t ≈ 1.80) each limb rings against the body at ``sqrt(k/m)``
@@ -268,12 +316,27 @@ def tiny_mass_study(masses=(1e-1, 1e-3, 1e-6), t_final: float = 1.9,
         zb, vb, zf, vf, t_lo = two_limb_closed_form(t_final, m)
         ratio = math.sqrt((10.0 / m + 20.0) / 20.0)
         for method in methods:
-            base = dict(study="tiny-mass", case="two_limb", parameter=f"limb mass {m:g}", method=method,
-                        reference="closed form (stance, lift-off at m g/k, ringing flight)")
+            base = dict(
+                study="tiny-mass",
+                case="two_limb",
+                parameter=f"limb mass {m:g}",
+                method=method,
+                reference="closed form (stance, lift-off at m g/k, ringing flight)",
+            )
             reason = skip(m, method) if skip else None
             if reason:
-                rows.append(StudyRow(**base, error=None, time=math.nan, steps=0, evaluations=0,
-                                     outcome=f"skipped: {reason}", ok=True, details={"stiffness_ratio": ratio}))
+                rows.append(
+                    StudyRow(
+                        **base,
+                        error=None,
+                        time=math.nan,
+                        steps=0,
+                        evaluations=0,
+                        outcome=f"skipped: {reason}",
+                        ok=True,
+                        details={"stiffness_ratio": ratio},
+                    )
+                )
                 continue
             traj, elapsed = _run(scene, t_final, method=method, **tol)
             if isinstance(traj, ContactDiffError):
@@ -286,11 +349,22 @@ def tiny_mass_study(masses=(1e-1, 1e-3, 1e-6), t_final: float = 1.9,
             limb_err = max(abs(traj.q[1] - zf), abs(traj.v[1] - vf), abs(traj.q[2] - zf), abs(traj.v[2] - vf))
             err = max(body_err, limb_err, abs(lift - t_lo))
             ok = kinds == ["touchdown", "lift-off"] and err <= 1e3 * tol["rtol"]
-            rows.append(StudyRow(**base, error=err, time=elapsed, steps=steps, evaluations=evals,
-                                 outcome="ok" if ok else f"events {kinds}" if len(kinds) != 2 else "error above bound",
-                                 ok=ok, details={"body_error": body_err, "limb_error": limb_err,
-                                                 "liftoff_error": lift - t_lo, "stiffness_ratio": ratio,
-                                                 "steps_by_method": traj.stats.steps_by_method}))
+            rows.append(
+                StudyRow(
+                    **base,
+                    error=err,
+                    time=elapsed,
+                    steps=steps,
+                    evaluations=evals,
+                    outcome="ok" if ok else f"events {kinds}" if len(kinds) != 2 else "error above bound",
+                    ok=ok,
+                    details={
+                        "body_error": body_err,
+                        "limb_error": limb_err,
+                        "liftoff_error": lift - t_lo,
+                        "stiffness_ratio": ratio,
+                        "steps_by_method": traj.stats.steps_by_method,
+                    },
+                )
+            )
     return rows
-
-

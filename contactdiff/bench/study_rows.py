@@ -64,8 +64,7 @@ class StudyResult:
 
     def to_dict(self) -> dict:
         """JSON-ready form: the rows and ``all_ok`` (every row's outcome the right one)."""
-        return {"rows": [r.to_dict() for r in self.rows],
-                "all_ok": all(r.ok for r in self.rows)}
+        return {"rows": [r.to_dict() for r in self.rows], "all_ok": all(r.ok for r in self.rows)}
 
     def format(self) -> str:
         """One table per study (run times in ms), each with what its errors are measured against."""
@@ -73,13 +72,17 @@ class StudyResult:
         for study in dict.fromkeys(r.study for r in self.rows):
             rows = [r for r in self.rows if r.study == study]
             out.append(f"== study: {study}")
-            out.append(f"  {'case':<30} {'parameter':<24} {'method':<7} {'error':>9} {'time (ms)':>10} "
-                       f"{'steps':>7} {'evals':>8}  outcome")
+            out.append(
+                f"  {'case':<30} {'parameter':<24} {'method':<7} {'error':>9} {'time (ms)':>10} "
+                f"{'steps':>7} {'evals':>8}  outcome"
+            )
             for r in rows:
                 err = "-" if r.error is None else f"{r.error:.2e}"
                 mark = "" if r.ok else "  <-- NOT OK"
-                out.append(f"  {r.case[:30]:<30} {r.parameter[:24]:<24} {r.method:<7} {err:>9} "
-                           f"{1e3 * r.time:>10.1f} {r.steps:>7d} {r.evaluations:>8d}  {r.outcome}{mark}")
+                out.append(
+                    f"  {r.case[:30]:<30} {r.parameter[:24]:<24} {r.method:<7} {err:>9} "
+                    f"{1e3 * r.time:>10.1f} {r.steps:>7d} {r.evaluations:>8d}  {r.outcome}{mark}"
+                )
             refs = sorted({r.reference for r in rows if r.reference})
             out.append("  error against: " + "; ".join(refs))
             out.append("")
@@ -98,8 +101,9 @@ def _run(scene, t_final, **options):
 
 def _failed(base: dict, error: ContactDiffError, elapsed: float) -> StudyRow:
     """The row of a run that ended in a named error."""
-    return StudyRow(**base, error=None, time=elapsed, steps=0, evaluations=0,
-                    outcome=f"{type(error).__name__}: {error}", ok=False)
+    return StudyRow(
+        **base, error=None, time=elapsed, steps=0, evaluations=0, outcome=f"{type(error).__name__}: {error}", ok=False
+    )
 
 
 def _error_name(out) -> str:
@@ -114,5 +118,3 @@ def _counts(traj) -> tuple[int, int]:
 def state_error(scene: Scene, traj, q_ref, v_ref) -> float:
     """``max(|q ⊖ q_ref|_inf, |v - v_ref|_inf)`` of a trajectory's final state (`bench.state_error`)."""
     return bench_state_error(scene, traj.q, traj.v, np.asarray(q_ref, dtype=float), np.asarray(v_ref))
-
-

@@ -26,7 +26,7 @@ _IK_ITERATIONS = 50
 
 def smooth_step(u):
     """Quintic ``S(u) = 10u³ - 15u⁴ + 6u⁵``: 0 -> 1 on [0, 1] with zero slope and curvature at both ends."""
-    return u ** 3 * (10.0 - 15.0 * u + 6.0 * u ** 2)
+    return u**3 * (10.0 - 15.0 * u + 6.0 * u**2)
 
 
 def _ramp(x, a: float, b: float):
@@ -43,13 +43,17 @@ def foot_offset(spec, psi):
     u = np.where(stance, psi / s.duty, (psi - s.duty) / (1.0 - s.duty))
     dx = np.where(stance, s.step_length * (0.5 - smooth_step(u)), s.step_length * (smooth_step(u) - 0.5))
     top, final = s.duty + SWING_RISE * (1.0 - s.duty), 1.0 - s.approach
-    up = (s.step_height * _ramp(psi, s.duty, top) - (s.step_height - s.approach_height) * _ramp(psi, top, final)
-          - s.approach_height * _ramp(psi, final, 1.0))
+    up = (
+        s.step_height * _ramp(psi, s.duty, top)
+        - (s.step_height - s.approach_height) * _ramp(psi, top, final)
+        - s.approach_height * _ramp(psi, final, 1.0)
+    )
     return dx, np.where(stance, 0.0, up)
 
 
-def reference_spline(spec, robot: Robot, legs: list[Leg], offsets: list[float], q_stance: np.ndarray,
-                     n_joints: int) -> CubicSpline:
+def reference_spline(
+    spec, robot: Robot, legs: list[Leg], offsets: list[float], q_stance: np.ndarray, n_joints: int
+) -> CubicSpline:
     """The periodic cubic spline, over the gait phase, of the leg joints (legs in order,
     ``n_joints`` columns) that place each foot on its path: exact inverse kinematics at
     ``spec.samples`` equally spaced phases, leg ``k`` at leg phase ``phi + offsets[k]``."""
@@ -90,4 +94,5 @@ def _inverse_kinematics(spec, robot: Robot, q, leg: Leg, fid: int, target, data)
     raise InvalidInputError(
         f"trot controller: foot {leg.foot!r} cannot reach {np.round(target, 4).tolist()} m (base frame) "
         f"with step_height={spec.step_height} m, step_length={spec.step_length} m "
-        f"(residual {np.linalg.norm(error):.3g} m); lower them")
+        f"(residual {np.linalg.norm(error):.3g} m); lower them"
+    )

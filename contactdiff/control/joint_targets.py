@@ -60,8 +60,10 @@ def _times(owner: str, value) -> tuple[float, ...]:
         raise InvalidInputError(f"{owner}: times[{k}] is {float(times[k])!r}; knot times must be finite")
     if np.any(np.diff(times) <= 0.0):
         k = int(np.flatnonzero(np.diff(times) <= 0.0)[0])
-        raise InvalidInputError(f"{owner}: times must increase strictly, got times[{k}] = {float(times[k])!r} "
-                                f"then times[{k + 1}] = {float(times[k + 1])!r} in {value!r}")
+        raise InvalidInputError(
+            f"{owner}: times must increase strictly, got times[{k}] = {float(times[k])!r} "
+            f"then times[{k + 1}] = {float(times[k + 1])!r} in {value!r}"
+        )
     return tuple(times.tolist())
 
 
@@ -70,15 +72,19 @@ def _targets(owner: str, value, joints: tuple[str, ...], n_knots: int) -> tuple[
     try:
         rows = np.array(value, dtype=float)
     except (TypeError, ValueError):
-        raise InvalidInputError(f"{owner}: targets must be {shape[0]} rows (one a knot) of {shape[1]} numbers "
-                                f"(one a joint), got {value!r}") from None
+        raise InvalidInputError(
+            f"{owner}: targets must be {shape[0]} rows (one a knot) of {shape[1]} numbers (one a joint), got {value!r}"
+        ) from None
     if rows.shape != shape:
-        raise InvalidInputError(f"{owner}: targets have shape {rows.shape}; expected {shape} (one row a knot, "
-                                f"one column a joint), got {value!r}")
+        raise InvalidInputError(
+            f"{owner}: targets have shape {rows.shape}; expected {shape} (one row a knot, "
+            f"one column a joint), got {value!r}"
+        )
     if not np.isfinite(rows).all():
         k, j = (int(i) for i in np.argwhere(~np.isfinite(rows))[0])
-        raise InvalidInputError(f"{owner}: targets[{k}][{j}] ({joints[j]}) is {float(rows[k, j])!r}; "
-                                "targets must be finite")
+        raise InvalidInputError(
+            f"{owner}: targets[{k}][{j}] ({joints[j]}) is {float(rows[k, j])!r}; targets must be finite"
+        )
     return tuple(tuple(row) for row in rows.tolist())
 
 
@@ -91,10 +97,12 @@ def _gains(owner: str, name: str, value, joints: tuple[str, ...]) -> float | tup
     if items is None:
         return check_number(owner, name, value, minimum=0.0)
     if len(items) != len(joints):
-        raise InvalidInputError(f"{owner}: {name} must be a number or one number per joint ({len(joints)}), "
-                                f"got {value!r}")
-    return tuple(check_number(owner, f"{name}[{i}] ({joint})", x, minimum=0.0)
-                 for i, (joint, x) in enumerate(zip(joints, items)))
+        raise InvalidInputError(
+            f"{owner}: {name} must be a number or one number per joint ({len(joints)}), got {value!r}"
+        )
+    return tuple(
+        check_number(owner, f"{name}[{i}] ({joint})", x, minimum=0.0) for i, (joint, x) in enumerate(zip(joints, items))
+    )
 
 
 @dataclass(frozen=True)
@@ -122,8 +130,15 @@ class JointTargets:
     gravity_compensation: bool = False
     name: str = "joint targets"
 
-    KEYS: ClassVar[tuple[str, ...]] = ("joints", "times", "targets", "stiffness", "damping",
-                                       "gravity_compensation", "name")
+    KEYS: ClassVar[tuple[str, ...]] = (
+        "joints",
+        "times",
+        "targets",
+        "stiffness",
+        "damping",
+        "gravity_compensation",
+        "name",
+    )
     """The keys a scene-file table of this effort may hold (its field names)."""
 
     def __post_init__(self) -> None:
@@ -132,12 +147,17 @@ class JointTargets:
         owner = self.name
         joints = check_names(owner, "joints", self.joints)
         times = _times(owner, self.times)
-        values = {"joints": joints, "times": times, "targets": _targets(owner, self.targets, joints, len(times)),
-                  "stiffness": _gains(owner, "stiffness", self.stiffness, joints),
-                  "damping": _gains(owner, "damping", self.damping, joints)}
+        values = {
+            "joints": joints,
+            "times": times,
+            "targets": _targets(owner, self.targets, joints, len(times)),
+            "stiffness": _gains(owner, "stiffness", self.stiffness, joints),
+            "damping": _gains(owner, "damping", self.damping, joints),
+        }
         if not isinstance(self.gravity_compensation, (bool, np.bool_)):
-            raise InvalidInputError(f"{owner}: gravity_compensation must be true or false, "
-                                    f"got {self.gravity_compensation!r}")
+            raise InvalidInputError(
+                f"{owner}: gravity_compensation must be true or false, got {self.gravity_compensation!r}"
+            )
         values["gravity_compensation"] = bool(self.gravity_compensation)
         for key, value in values.items():
             object.__setattr__(self, key, value)
@@ -165,7 +185,8 @@ def _check_limits(spec: JointTargets, robot: Robot, iq: list[int]) -> None:
             if not lower - _LIMIT_TOL <= row[j] <= upper + _LIMIT_TOL:
                 raise InvalidInputError(
                     f"{spec.name}: targets[{k}][{j}] of joint {joint!r} is {row[j]!r}, outside the joint's "
-                    f"position limits [{lower:g}, {upper:g}] (the model's); targets must lie within them")
+                    f"position limits [{lower:g}, {upper:g}] (the model's); targets must lie within them"
+                )
 
 
 class JointTargetsEvaluator:
@@ -199,7 +220,7 @@ class JointTargetsEvaluator:
             return row.copy(), zero, zero.copy()
         width, step = self.widths[k], self.steps[k]
         u = (t - self.times[k]) / width
-        s = u ** 3 * (10.0 - 15.0 * u + 6.0 * u * u)
+        s = u**3 * (10.0 - 15.0 * u + 6.0 * u * u)
         ds = 30.0 * (u * (1.0 - u)) ** 2
         dds = 60.0 * u * (1.0 - u) * (1.0 - 2.0 * u)
         return self.rows[k] + step * s, step * (ds / width), step * (dds / (width * width))

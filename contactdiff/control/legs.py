@@ -65,18 +65,28 @@ def find_legs(robot: Robot, q_stance: np.ndarray | None = None) -> list[Leg]:
             if model.joints[jid].nq != 1 or model.joints[jid].nv != 1:
                 raise InvalidInputError(
                     f"leg of foot {foot!r}: joint {model.names[jid]!r} has nq={model.joints[jid].nq}; "
-                    "the trot controller needs one-coordinate (revolute or prismatic) leg joints")
+                    "the trot controller needs one-coordinate (revolute or prismatic) leg joints"
+                )
             chain.append(jid)
             jid = model.parents[jid]
         chain.reverse()
         p = data.oMf[fid].translation
-        legs.append(Leg(foot, tuple(model.names[j] for j in chain), tuple(model.joints[j].idx_q for j in chain),
-                        tuple(model.joints[j].idx_v for j in chain), bool(p[0] > 0), bool(p[1] > 0)))
+        legs.append(
+            Leg(
+                foot,
+                tuple(model.names[j] for j in chain),
+                tuple(model.joints[j].idx_q for j in chain),
+                tuple(model.joints[j].idx_v for j in chain),
+                bool(p[0] > 0),
+                bool(p[1] > 0),
+            )
+        )
     quadrants = sorted(leg.label for leg in legs)
     if quadrants != ["front-left", "front-right", "hind-left", "hind-right"]:
         raise InvalidInputError(
             f"robot {robot.name!r}: the feet {list(robot.feet)} are not one per quadrant of the base "
-            f"frame at the stance pose (found {quadrants}); a trot needs front/hind x left/right feet")
+            f"frame at the stance pose (found {quadrants}); a trot needs front/hind x left/right feet"
+        )
     return legs
 
 
@@ -85,7 +95,8 @@ def check_quadruped(robot: Robot) -> None:
     if not robot.floating_base or len(robot.feet) != 4:
         raise InvalidInputError(
             f"a trot needs a floating-base robot with four feet; {robot.name!r} has "
-            f"floating_base={robot.floating_base} and feet {list(robot.feet)}")
+            f"floating_base={robot.floating_base} and feet {list(robot.feet)}"
+        )
 
 
 def base_at_origin(q: np.ndarray) -> np.ndarray:

@@ -35,8 +35,13 @@ class PiecewisePolynomial:
 
     def __init__(self, breaks: ArrayLike, sample: Callable[[np.ndarray], np.ndarray], degree: int):
         breaks = np.asarray(breaks, dtype=float)
-        if breaks.ndim != 1 or not breaks.size or breaks[0] != 0.0 or np.any(np.diff(breaks) <= 0.0) \
-                or breaks[-1] >= 1.0:
+        if (
+            breaks.ndim != 1
+            or not breaks.size
+            or breaks[0] != 0.0
+            or np.any(np.diff(breaks) <= 0.0)
+            or breaks[-1] >= 1.0
+        ):
             raise InvalidInputError(f"breaks must rise strictly from 0 to below 1, got {breaks!r}")
         n = degree + 1
         nodes = np.cos(np.pi * (np.arange(n) + 0.5) / n)  # Chebyshev: a well-conditioned interpolation

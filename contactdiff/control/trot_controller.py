@@ -185,14 +185,27 @@ class TrotController:
     def __post_init__(self) -> None:
         owner = "trot controller"
         set_ = object.__setattr__
-        for name, minimum in (("period", 0.0), ("duty", 0.0), ("lag", 0.0), ("step_height", 0.0),
-                              ("approach_height", 0.0), ("approach", 0.0), ("step_length", None),
-                              ("transfer", 0.0), ("touchdown_load", 0.0), ("liftoff_pull", 0.0),
-                              ("release_gain", 0.0), ("kp", 0.0), ("kd", 0.0), ("t_start", None)):
+        for name, minimum in (
+            ("period", 0.0),
+            ("duty", 0.0),
+            ("lag", 0.0),
+            ("step_height", 0.0),
+            ("approach_height", 0.0),
+            ("approach", 0.0),
+            ("step_length", None),
+            ("transfer", 0.0),
+            ("touchdown_load", 0.0),
+            ("liftoff_pull", 0.0),
+            ("release_gain", 0.0),
+            ("kp", 0.0),
+            ("kd", 0.0),
+            ("t_start", None),
+        ):
             set_(self, name, check_number(owner, name, getattr(self, name), minimum=minimum))
 
         def bad(message: str):
             raise InvalidInputError(f"{owner}: {message}")
+
         if self.period == 0:
             bad(f"period must be > 0 s, got {self.period!r}")
         if not 0.0 < self.duty < 1.0:
@@ -213,8 +226,10 @@ class TrotController:
             bad("transfer must be > 0, got 0")
         start, end = _unload_window(self)
         if start < self.transfer or end + self.transfer > 1.0 - self.transfer:
-            bad(f"transfer = {self.transfer!r} is too long for duty = {self.duty!r}: the load transitions "
-                "(see TrotControllerEvaluator.load) must not overlap; shorten it")
+            bad(
+                f"transfer = {self.transfer!r} is too long for duty = {self.duty!r}: the load transitions "
+                "(see TrotControllerEvaluator.load) must not overlap; shorten it"
+            )
         if not isinstance(self.feedforward, bool):
             bad(f"feedforward must be true or false, got {self.feedforward!r}")
         if isinstance(self.samples, bool) or not isinstance(self.samples, (int, np.integer)) or self.samples < 16:
@@ -224,8 +239,11 @@ class TrotController:
             pairs = tuple((str(name), value) for name, value in stance)
         except (TypeError, ValueError):
             bad(f"stance must map joint names to angles (rad), got {self.stance!r}")
-        set_(self, "stance", tuple((name, check_number(owner, f"stance angle of {name!r}", value))
-                                   for name, value in pairs))
+        set_(
+            self,
+            "stance",
+            tuple((name, check_number(owner, f"stance angle of {name!r}", value)) for name, value in pairs),
+        )
 
     def named_parameters(self) -> EffortParameters:
         """``trot:<field>`` for each of `NUMBERS`."""
@@ -270,8 +288,9 @@ class TrotControllerEvaluator(TrotParameterDerivatives):
         self.iv = np.array([i for leg in self.legs for i in leg.iv])
         self._sizes = [len(leg.iv) for leg in self.legs]
         c = 0.5 * (spec.duty + spec.lag)
-        self._offsets = [c - (0.0 if leg.pair == PAIR_A else 0.5) - (0.0 if leg.front else spec.lag)
-                         for leg in self.legs]
+        self._offsets = [
+            c - (0.0 if leg.pair == PAIR_A else 0.5) - (0.0 if leg.front else spec.lag) for leg in self.legs
+        ]
         self._unload = _unload_window(spec)  # fixed by the spec: a 60-step bisection, once
         self._spline = reference_spline(spec, robot, self.legs, self._offsets, q_stance, self.iq.size)
         # the spline's pieces, evaluated by hand in `reference` (Horner, as SciPy does, to the
@@ -282,8 +301,7 @@ class TrotControllerEvaluator(TrotParameterDerivatives):
         # both legs of each pair share the weight (c_front + c_hind = 1): two pairs
         self.load_scale = 1.0 / (2.0 * np.trapezoid([self.load(p % 1.0) for p in grid], grid))
         # the torques' time-only terms, one polynomial between breakpoints: a table
-        self._schedule = PiecewisePolynomial(self._breakpoint_phases(), self._schedule_terms_at_phases,
-                                             self._DEGREE)
+        self._schedule = PiecewisePolynomial(self._breakpoint_phases(), self._schedule_terms_at_phases, self._DEGREE)
         # tau reads q on the tangent indices: each leg joint's configuration entry
         # (the base's entries have zero gains; any index will do)
         self._q_of_v = np.zeros(self.nv, dtype=int)
@@ -451,8 +469,7 @@ class TrotControllerEvaluator(TrotParameterDerivatives):
         v_ref = self._spline(phis, 1) / s.period
         psis = [(phis + offset) % 1.0 for offset in self._offsets]
         g = np.repeat(np.array([[self.gain(p) for p in psi] for psi in psis]).T, self._sizes, axis=1)
-        loads = (np.array([[self.load(p) for p in psi] for psi in psis]).T if s.feedforward
-                 else np.zeros((len(phis), 4)))
+        loads = np.array([[self.load(p) for p in psi] for psi in psis]).T if s.feedforward else np.zeros((len(phis), 4))
         return q_ref, v_ref, g, loads
 
     def _schedule_terms_at_phases(self, phis: np.ndarray) -> np.ndarray:
@@ -481,7 +498,7 @@ class TrotControllerEvaluator(TrotParameterDerivatives):
         `PiecewisePolynomial`; `tau_by_formula` evaluates the formulas themselves)."""
         nv = self.nv
         terms = self._terms(t)
-        return terms[:nv] - terms[nv:2 * nv] * kin.q[self._q_of_v] - terms[2 * nv:] * kin.v
+        return terms[:nv] - terms[nv : 2 * nv] * kin.q[self._q_of_v] - terms[2 * nv :] * kin.v
 
     def tau_by_formula(self, kin: Kinematics, t: float) -> np.ndarray:
         """`tau` from the schedule's formulas (reference, gains, feed-forward), the oracle
@@ -489,8 +506,9 @@ class TrotControllerEvaluator(TrotParameterDerivatives):
         s = self.spec
         q_ref, v_ref = self.reference(t)
         out = np.zeros(self.nv)
-        out[self.iv] = (self.gains(t) * (s.kp * (q_ref - kin.q[self.iq]) + s.kd * (v_ref - kin.v[self.iv]))
-                        + self.feedforward(t))
+        out[self.iv] = self.gains(t) * (
+            s.kp * (q_ref - kin.q[self.iq]) + s.kd * (v_ref - kin.v[self.iv])
+        ) + self.feedforward(t)
         return out
 
     def time_derivative(self, kin: Kinematics, t: float) -> np.ndarray:
@@ -503,8 +521,16 @@ class TrotControllerEvaluator(TrotParameterDerivatives):
         the diagonal of the leg joints, zero elsewhere."""
         nv = self.nv
         terms = self._terms(t)
-        return np.diag(-terms[nv:2 * nv]), np.diag(-terms[2 * nv:])
+        return np.diag(-terms[nv : 2 * nv]), np.diag(-terms[2 * nv :])
 
 
-__all__ = ["TrotController", "TrotControllerEvaluator", "Leg", "find_legs", "smooth_step", "PAIR_A", "PAIR_B",
-           "SWING_RISE"]
+__all__ = [
+    "TrotController",
+    "TrotControllerEvaluator",
+    "Leg",
+    "find_legs",
+    "smooth_step",
+    "PAIR_A",
+    "PAIR_B",
+    "SWING_RISE",
+]

@@ -77,9 +77,11 @@ class TrotParameterDerivatives:
         parameters are never differentiated pays nothing)."""
         table = self.__dict__.get("_parameter_table")
         if table is None:
+
             def sample(phis):
                 q_ref, v_ref, g, loads = self._phase_terms(phis)
                 return np.hstack([g * q_ref, g, g * v_ref, loads])
+
             table = self._parameter_table = PiecewisePolynomial(self._schedule.starts, sample, self._DEGREE)
         return table(self.phase(t))
 
@@ -111,16 +113,17 @@ class TrotParameterDerivatives:
             if field in ("kp", "kd"):
                 assert terms is not None  # computed above for kp and kd
                 if field == "kp":
-                    out[iv, col] = terms[:n] - terms[n:2 * n] * kin.q[self.iq]
+                    out[iv, col] = terms[:n] - terms[n : 2 * n] * kin.q[self.iq]
                 else:
-                    out[iv, col] = terms[2 * n:3 * n] - terms[n:2 * n] * kin.v[iv]
+                    out[iv, col] = terms[2 * n : 3 * n] - terms[n : 2 * n] * kin.v[iv]
             elif field == "t_start":
                 out[:, col] = -self.time_derivative(kin, t)
             elif field in type(self.spec).NUMBERS:
                 out[:, col] = self._schedule_difference(field, kin, t)
             else:
-                raise InvalidInputError(f"trot controller has no parameter {field!r}; its parameters: "
-                                        f"{', '.join(type(self.spec).NUMBERS)}")
+                raise InvalidInputError(
+                    f"trot controller has no parameter {field!r}; its parameters: {', '.join(type(self.spec).NUMBERS)}"
+                )
         return out
 
     def _schedule_difference(self, field: str, kin: Kinematics, t: float) -> np.ndarray:
@@ -143,6 +146,7 @@ class TrotParameterDerivatives:
                 return replace(self.spec, **{field: x}).bind(self.robot)
             except InvalidInputError:
                 return None
+
         plus, minus = bound(value + h), bound(value - h)
         if plus is not None and minus is not None:
             step = (value + h) - (value - h)
@@ -151,8 +155,10 @@ class TrotParameterDerivatives:
             far = bound(value + 2.0 * sign * h) if near is not None else None
             if far is not None:  # (-3 f(p) + 4 f(p + h) - f(p + 2h)) / (2h), h signed
                 return [-1.5 / (sign * h), 2.0 / (sign * h), -0.5 / (sign * h)], [None, near, far]
-        raise InvalidInputError(f"trot controller: cannot differentiate in {field} = {value!r}: neither "
-                                f"{field} +- {h:.3g} nor two steps to one side make a valid controller")
+        raise InvalidInputError(
+            f"trot controller: cannot differentiate in {field} = {value!r}: neither "
+            f"{field} +- {h:.3g} nor two steps to one side make a valid controller"
+        )
 
     def model_parameter_derivatives(self, kin: Kinematics, t: float, perturbed) -> np.ndarray:
         """``d tau/dp`` (nv × len(perturbed)) for parameters of the robot's model (a body's
@@ -189,7 +195,8 @@ class TrotParameterDerivatives:
                 d_carry[:, :, col] = (c_plus - c_minus) / (2.0 * step)
             stacked = self._model_derivatives = (perturbed, d_gravity, d_carry.reshape(4, -1))
         _, gravity_derivative, carry_derivative = stacked  # carry's reshaped to (4, joints × parameters)
-        loads = self._parameter_terms(t)[3 * self.iv.size:]
+        loads = self._parameter_terms(t)[3 * self.iv.size :]
         out[self.iv] = gravity_derivative + self.load_scale * (loads @ carry_derivative).reshape(
-            gravity_derivative.shape)
+            gravity_derivative.shape
+        )
         return out

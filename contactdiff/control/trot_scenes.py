@@ -99,7 +99,8 @@ def trot_scene(robot: str | Robot, *, name: str | None = None, **overrides) -> S
     if missing:
         raise InvalidInputError(
             f"robot {robot.name!r} has no entry in TROT_PARAMETERS; give {', '.join(missing)} "
-            f"(robots with an entry: {', '.join(TROT_PARAMETERS)})")
+            f"(robots with an entry: {', '.join(TROT_PARAMETERS)})"
+        )
     controller = TrotController(**parameters)
     # ground: each foot's height in the stance pose, the base at its reference placement
     stance = robot.q_ref.copy()
@@ -107,10 +108,12 @@ def trot_scene(robot: str | Robot, *, name: str | None = None, **overrides) -> S
         stance[robot.scalar_joint(joint)[0]] = value
     kin = Kinematics(robot.model)
     kin.update(stance, np.zeros(robot.nv))
-    contacts = [Contact(foot, offset=float(kin.position(robot.frame_id(foot))[2]), friction="stick")
-                for foot in robot.feet]
-    scene = Scene(robot, contacts, [controller], gravity=[0.0, 0.0, -GRAVITY], q0=stance,
-                  name=name or f"{robot.name}_trot")
+    contacts = [
+        Contact(foot, offset=float(kin.position(robot.frame_id(foot))[2]), friction="stick") for foot in robot.feet
+    ]
+    scene = Scene(
+        robot, contacts, [controller], gravity=[0.0, 0.0, -GRAVITY], q0=stance, name=name or f"{robot.name}_trot"
+    )
     evaluator = next(e for e in scene.efforts if isinstance(e, TrotControllerEvaluator))
     q0 = stance.copy()
     q0[evaluator.iq] = evaluator.reference(0.0)[0]

@@ -65,8 +65,10 @@ def free_flight_velocity(toss: Toss, k0: int, k_touch: int, first: int = 0) -> n
     """
     flight = np.arange(first, max(k_touch, first))
     if len(flight) < 3:
-        raise InvalidInputError(f"{toss.name}: {len(flight)} samples of free flight before the cube can touch; "
-                                "a parabola needs three (use the first sample's velocity)")
+        raise InvalidInputError(
+            f"{toss.name}: {len(flight)} samples of free flight before the cube can touch; "
+            "a parabola needs three (use the first sample's velocity)"
+        )
     t = toss.t[flight]
     V = np.vander(t - toss.t[k0], 3)  # columns (t - t0)^2, (t - t0), 1
     coefficients, *_ = np.linalg.lstsq(V, toss.position[flight], rcond=None)
@@ -78,8 +80,7 @@ def free_flight_velocity(toss: Toss, k0: int, k_touch: int, first: int = 0) -> n
     return np.r_[rotation.T @ velocity, omega]
 
 
-def toss_recording(toss: Toss, start: Start | str = Start.FIRST,
-                   parameters: CubeParameters = NOMINAL) -> Recording:
+def toss_recording(toss: Toss, start: Start | str = Start.FIRST, parameters: CubeParameters = NOMINAL) -> Recording:
     """The toss as a `Recording` of the cube scene from the chosen `Start`.
 
     Raises:
@@ -88,8 +89,9 @@ def toss_recording(toss: Toss, start: Start | str = Start.FIRST,
     try:
         start = Start(start)
     except ValueError:
-        raise InvalidInputError(f"toss start must be one of {', '.join(s.value for s in Start)}, "
-                                f"got {start!r}") from None
+        raise InvalidInputError(
+            f"toss start must be one of {', '.join(s.value for s in Start)}, got {start!r}"
+        ) from None
     q = toss.configurations()
     if start is Start.FIRST:
         k0 = 0
@@ -118,8 +120,14 @@ def lowest_corner(toss: Toss, parameters: CubeParameters = NOMINAL) -> np.ndarra
     return toss.position[:, 2] - parameters.ground - parameters.edge / 2.0 * np.abs(R[:, 2, :]).sum(axis=1)
 
 
-def toss_windows(toss: Toss, windows: Windows, parameters: CubeParameters = NOMINAL,
-                 clearance: float = WINDOW_CLEARANCE, lead: int = 0, model=None) -> list[Recording]:
+def toss_windows(
+    toss: Toss,
+    windows: Windows,
+    parameters: CubeParameters = NOMINAL,
+    clearance: float = WINDOW_CLEARANCE,
+    lead: int = 0,
+    model=None,
+) -> list[Recording]:
     """The toss cut into windows (`contactdiff.fit.windows`) that start in free flight just
     before a touch: one ``lead`` samples before the last sample of every run of at least three
     free-flight samples (`lowest_corner` above ``clearance``) that a touch ends (not before
@@ -191,12 +199,25 @@ def toss_errors(recording: Recording, q_simulated: np.ndarray, edge: float = NOM
     (``q_simulated``, one row per `Recording.compared` sample)."""
     measured = recording.q[recording.compared]
     if q_simulated.shape != measured.shape:
-        raise InvalidInputError(f"{recording.name}: {len(q_simulated)} simulated samples for "
-                                f"{len(measured)} measured ones")
-    return (position_error(q_simulated[:, :3], measured[:, :3], scale=edge),
-            rotation_error(q_simulated[:, 3:7], measured[:, 3:7]))
+        raise InvalidInputError(
+            f"{recording.name}: {len(q_simulated)} simulated samples for {len(measured)} measured ones"
+        )
+    return (
+        position_error(q_simulated[:, :3], measured[:, :3], scale=edge),
+        rotation_error(q_simulated[:, 3:7], measured[:, 3:7]),
+    )
 
 
-__all__ = ["MARGIN_SAMPLES", "WINDOW_CLEARANCE", "Start", "lowest_corner", "toss_windows",
-           "duplicate_groups", "first_touch_sample", "free_flight_velocity", "split",
-           "toss_errors", "toss_recording"]
+__all__ = [
+    "MARGIN_SAMPLES",
+    "WINDOW_CLEARANCE",
+    "Start",
+    "lowest_corner",
+    "toss_windows",
+    "duplicate_groups",
+    "first_touch_sample",
+    "free_flight_velocity",
+    "split",
+    "toss_errors",
+    "toss_recording",
+]

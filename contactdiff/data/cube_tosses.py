@@ -90,12 +90,20 @@ def cube_scene(parameters: CubeParameters = NOMINAL, **changes) -> Scene:
     for name in ("edge", "mass", "moment", "gravity"):
         if not check_number("cube_scene", name, getattr(p, name)) > 0.0:
             raise InvalidInputError(f"cube_scene: {name} must be > 0, got {getattr(p, name)!r}")
-    cube = SceneObject("cube", shape="box", size=(p.edge,) * 3, mass=p.mass, moments=p.moment,
-                       position=(0.0, 0.0, p.ground + p.edge / 2))
-    corners = ["cube/" + "".join(s + axis for s, axis in zip(signs, "xyz"))
-               for signs in itertools.product("+-", repeat=3)]
-    contacts = [Contact(name, friction=p.friction, restitution=p.restitution, offset=p.ground, group="cube")
-                for name in corners]
+    cube = SceneObject(
+        "cube",
+        shape="box",
+        size=(p.edge,) * 3,
+        mass=p.mass,
+        moments=p.moment,
+        position=(0.0, 0.0, p.ground + p.edge / 2),
+    )
+    corners = [
+        "cube/" + "".join(s + axis for s, axis in zip(signs, "xyz")) for signs in itertools.product("+-", repeat=3)
+    ]
+    contacts = [
+        Contact(name, friction=p.friction, restitution=p.restitution, offset=p.ground, group="cube") for name in corners
+    ]
     return Scene(add_objects(empty_robot(), [cube]), contacts, gravity=(0.0, 0.0, -p.gravity), name="cube")
 
 
@@ -141,8 +149,9 @@ class Toss:
         steps = np.diff(a[:, 0])
         if np.any(steps <= 0.0):
             k = int(np.argmax(steps <= 0.0))
-            raise InvalidInputError(f"{label}: times must increase; sample {k + 1} at {a[k + 1, 0]} s "
-                                    f"follows {a[k, 0]} s")
+            raise InvalidInputError(
+                f"{label}: times must increase; sample {k + 1} at {a[k + 1, 0]} s follows {a[k, 0]} s"
+            )
         norms = np.linalg.norm(a[:, 4:8], axis=1)
         if np.any(norms < 1e-9):
             raise InvalidInputError(f"{label}: sample {int(np.argmin(norms))} has a quaternion of zero norm")

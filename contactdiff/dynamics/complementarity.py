@@ -80,8 +80,16 @@ from .lcp_problem import (
     _validate,
 )
 
-__all__ = ["ContactRows", "LCPSolution", "impact_rhs", "solve_contact_lcp", "DEFAULT_TOL",
-           "AUTO_ENUMERATE_MAX", "ENUMERATE_MAX", "RELAX_ENUMERATE_MAX"]
+__all__ = [
+    "ContactRows",
+    "LCPSolution",
+    "impact_rhs",
+    "solve_contact_lcp",
+    "DEFAULT_TOL",
+    "AUTO_ENUMERATE_MAX",
+    "ENUMERATE_MAX",
+    "RELAX_ENUMERATE_MAX",
+]
 
 
 def impact_rhs(
@@ -114,8 +122,7 @@ def impact_rhs(
         e_c = e[list(rows.normal)]
     else:
         raise InvalidInputError(
-            f"restitution has shape {e.shape}; valid: scalar, ({n},) per contact "
-            f"or ({rows.n_rows},) per row"
+            f"restitution has shape {e.shape}; valid: scalar, ({n},) per contact or ({rows.n_rows},) per row"
         )
     bad = ~np.isfinite(e_c) | (e_c < 0.0) | (e_c > 1.0)
     if bad.any():
@@ -192,9 +199,7 @@ def solve_contact_lcp(
             f"got tangential rows {rows.tangential}; valid methods: {', '.join(_METHODS)}"
         )
     if method == "enumerate" and n > ENUMERATE_MAX:
-        raise InvalidInputError(
-            f"method='enumerate' accepts at most {ENUMERATE_MAX} contacts; got {n}"
-        )
+        raise InvalidInputError(f"method='enumerate' accepts at most {ENUMERATE_MAX} contacts; got {n}")
     if n == 0:
         return LCPSolution(np.zeros(0), np.zeros(0), (), 0.0, "closed-form")
     if n == 1 and rows.n_rows == 1 and G[0, 0] > 0.0:
@@ -204,9 +209,7 @@ def solve_contact_lcp(
             return LCPSolution(np.zeros(1), b.copy(), (), 0.0, "closed-form")
         x0 = -b0 / g
         w0 = g * x0 + b0
-        return LCPSolution(
-            np.array([x0]), np.array([w0]), (0,), abs(w0) / (abs(b0) + g * x0), "closed-form"
-        )
+        return LCPSolution(np.array([x0]), np.array([w0]), (0,), abs(w0) / (abs(b0) + g * x0), "closed-form")
     prob = _Problem(G, b, rows, tol)
     out = _solve(prob, method)
     if out is None and on_infeasible == "relax" and n <= RELAX_ENUMERATE_MAX:

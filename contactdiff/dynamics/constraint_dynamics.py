@@ -34,7 +34,8 @@ def eligible(contacts: Sequence) -> bool:
     A round contact (radius > 0) is not: its rolling point is not fixed in the frame,
     while Pinocchio's contacts hold frame-fixed points."""
     return bool(contacts) and all(
-        c.sticking and c.against_fid is None and c.n_rows == 3 and not c.radius for c in contacts)
+        c.sticking and c.against_fid is None and c.n_rows == 3 and not c.radius for c in contacts
+    )
 
 
 class RigidContactMode:
@@ -46,8 +47,9 @@ class RigidContactMode:
         self.datas = pin.StdVec_RigidConstraintData()
         for c in contacts:
             frame = model.frames[c.fid]
-            cm = pin.RigidConstraintModel(pin.ContactType.CONTACT_3D, model, frame.parentJoint,
-                                          frame.placement, pin.LOCAL_WORLD_ALIGNED)
+            cm = pin.RigidConstraintModel(
+                pin.ContactType.CONTACT_3D, model, frame.parentJoint, frame.placement, pin.LOCAL_WORLD_ALIGNED
+            )
             self.models.append(cm)
             self.datas.append(cm.createData())
         self.data = model.createData()
@@ -56,7 +58,7 @@ class RigidContactMode:
         # world force components -> row forces, block diagonal of each contact's D
         self.rotation = np.zeros((n, n))
         for k, c in enumerate(contacts):
-            self.rotation[3 * k:3 * k + 3, 3 * k:3 * k + 3] = c.directions
+            self.rotation[3 * k : 3 * k + 3, 3 * k : 3 * k + 3] = c.directions
 
     def accelerations(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray) -> np.ndarray | None:
         """``ddq``, or None when Pinocchio's factorisation fails (redundant contacts), so
@@ -80,8 +82,15 @@ class RigidContactMode:
         ``(ddq_dq, ddq_dv, forces_dq, forces_dv, ddq_dtau, forces_dtau)`` in the tangent
         space, the last two the responses to a generalised force (row forces)."""
         ddq_dq, ddq_dv, ddq_dtau, lam_dq, lam_dv, lam_dtau = pin.computeConstraintDynamicsDerivatives(
-            self.model, self.data, self.models, self.datas, _SETTINGS)
+            self.model, self.data, self.models, self.datas, _SETTINGS
+        )
         R = self.rotation
         forces_dtau = R @ lam_dtau
-        return (ddq_dq + ddq_dtau @ dtau_dq, ddq_dv + ddq_dtau @ dtau_dv,
-                R @ lam_dq + forces_dtau @ dtau_dq, R @ lam_dv + forces_dtau @ dtau_dv, ddq_dtau, forces_dtau)
+        return (
+            ddq_dq + ddq_dtau @ dtau_dq,
+            ddq_dv + ddq_dtau @ dtau_dv,
+            R @ lam_dq + forces_dtau @ dtau_dq,
+            R @ lam_dv + forces_dtau @ dtau_dv,
+            ddq_dtau,
+            forces_dtau,
+        )

@@ -361,7 +361,7 @@ class SlipDirections:
         groups: list[list[tuple[np.ndarray, float]]] = []
         firsts = np.empty((len(roots), len(spatial)))  # each group's first copy
         for theta, merit in roots:
-            gaps = np.abs(_wrap(theta - firsts[:len(groups)])).max(axis=1) if groups else np.zeros(0)
+            gaps = np.abs(_wrap(theta - firsts[: len(groups)])).max(axis=1) if groups else np.zeros(0)
             if not (gaps < _DUPLICATE).any():
                 firsts[len(groups)] = theta
                 groups.append([(theta, merit)])
@@ -380,8 +380,7 @@ class SlipDirections:
         ups = self.fixed_point()[1]
         starts.append(np.array([np.arctan2(ups[self.tang[k][1]], ups[self.tang[k][0]]) for k in spatial]))
         free = self.evaluate(states, dirs, lay)  # sliders without their friction columns
-        starts.append(np.array([np.arctan2(free.up[self.tang[k][1]], free.up[self.tang[k][0]])
-                                for k in spatial]))
+        starts.append(np.array([np.arctan2(free.up[self.tang[k][1]], free.up[self.tang[k][0]]) for k in spatial]))
         per_axis, grid, turns = self.grid_turns(fmap, spatial, pre)
         ns = len(spatial)
         f, _, feas, _, vscale = fmap(grid, jac=False, turns=turns)
@@ -433,8 +432,9 @@ class SlipDirections:
         # a root next to a pole: no sign change over their interval, so the scan
         # is also split just beside each pole
         poles = pre + np.mod(fmap.poles() - pre, 2.0 * np.pi)
-        th = np.unique(np.concatenate([th, np.clip(np.concatenate([poles - _POLE_GAP, poles + _POLE_GAP]),
-                                                   th[0], th[-1])]))
+        th = np.unique(
+            np.concatenate([th, np.clip(np.concatenate([poles - _POLE_GAP, poles + _POLE_GAP]), th[0], th[-1])])
+        )
         scan = fmap(th[:, None], jac=False)
         gs, feasible = scan[0][:, 0], scan[2][:-1]
         g0, g1 = gs[:-1], gs[1:]
@@ -484,8 +484,18 @@ class SlipDirections:
             friction = float(mu) if t.size and mu > 0.0 and mu < np.inf else None
             dg = float(self.G[r[:, None], r].diagonal().max())
             at = slice(int(r[0]), int(r[-1]) + 1) if np.array_equal(r, np.arange(r[0], r[-1] + 1)) else r
-            sweep.append((at, self.u[r], self.G[r], self.e[k] * self.u[self.normal[k]], friction,
-                          t.size and mu > 0.0, dg, mu if t.size else 0.0))
+            sweep.append(
+                (
+                    at,
+                    self.u[r],
+                    self.G[r],
+                    self.e[k] * self.u[self.normal[k]],
+                    friction,
+                    t.size and mu > 0.0,
+                    dg,
+                    mu if t.size else 0.0,
+                )
+            )
         recent = [lam.copy()]  # the iterates after the last sweeps (L_0 first), at most _FP_CYCLE
         for done in range(1, _FP_SWEEPS + 1):
             old = lam.copy()
@@ -529,8 +539,7 @@ class SlipDirections:
         self._fp = (lam, self.u + self.G @ lam)
         return self._fp
 
-    def newton(self, fmap, theta0: np.ndarray,
-               max_iter: int = _NEWTON_MAX_ITER) -> list[tuple[np.ndarray, float]]:
+    def newton(self, fmap, theta0: np.ndarray, max_iter: int = _NEWTON_MAX_ITER) -> list[tuple[np.ndarray, float]]:
         """Newton's method on f from each row of theta0 (all at once), with steps
         capped at _NEWTON_MAX_STEP and a backtracking line search on ||f|| (the
         largest fraction in _LINE_SEARCH that decreases it, else the smallest).

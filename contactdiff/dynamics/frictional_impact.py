@@ -140,7 +140,6 @@ FRICTION_ENUMERATE_MAX = 8
 _GUESS_ZERO = 1e-6
 
 
-
 class ContactState(enum.Enum):
     """State of a contact after the impact."""
 
@@ -235,15 +234,11 @@ def solve_frictional_impact(
     bad = np.isnan(mu) | (mu < 0.0)
     if bad.any():
         k = int(np.flatnonzero(bad)[0])
-        raise InvalidInputError(
-            f"friction coefficient of contact {k} is {float(mu[k])!r}; valid: mu >= 0 or inf"
-        )
+        raise InvalidInputError(f"friction coefficient of contact {k} is {float(mu[k])!r}; valid: mu >= 0 or inf")
     if on_energy_gain not in ("flag", "raise"):
         raise InvalidInputError(f"on_energy_gain is {on_energy_gain!r}; valid: 'flag', 'raise'")
     if n > FRICTION_ENUMERATE_MAX:
-        raise InvalidInputError(
-            f"solve_frictional_impact accepts at most {FRICTION_ENUMERATE_MAX} contacts; got {n}"
-        )
+        raise InvalidInputError(f"solve_frictional_impact accepts at most {FRICTION_ENUMERATE_MAX} contacts; got {n}")
     normal = np.array(rows.normal, dtype=np.intp)
     e = np.where(u[normal] < 0.0, e, 0.0)
     if n == 0:
@@ -280,7 +275,6 @@ def _describe(states: Sequence[ContactState], signs: dict[int, float] | None = N
             txt += f" ({'+' if signs[k] > 0 else '-'})"
         parts.append(f"{k}: {txt}")
     return "{" + ", ".join(parts) + "}"
-
 
 
 class _Impact(SlipDirections):

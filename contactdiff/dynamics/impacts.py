@@ -99,8 +99,9 @@ def _rows(dyn: ModeDynamics, contacts: Sequence[int]):
     return A, ContactRows.from_sizes([c.n_rows for c in bound])
 
 
-def _solve_sliding_where_needed(dyn: ModeDynamics, keys: tuple[int, ...], G: np.ndarray, b: np.ndarray,
-                                rows: ContactRows):
+def _solve_sliding_where_needed(
+    dyn: ModeDynamics, keys: tuple[int, ...], G: np.ndarray, b: np.ndarray, rows: ContactRows
+):
     """Solve the contact problem of ``keys``; if no sticking solution exists, with
     the fewest sticking contacts sliding (module doc).
 
@@ -115,23 +116,29 @@ def _solve_sliding_where_needed(dyn: ModeDynamics, keys: tuple[int, ...], G: np.
     sticking = [k for k in range(len(keys)) if len(rows.tangential[k])]
     for size in range(1, len(sticking) + 1):
         for group in itertools.combinations(sticking, size):
-            kept = np.concatenate([rows.rows_of([k])[:1] if k in group else rows.rows_of([k])
-                                   for k in range(len(keys))])
-            sub = ContactRows.from_sizes([1 if k in group else 1 + len(rows.tangential[k])
-                                          for k in range(len(keys))])
+            kept = np.concatenate(
+                [rows.rows_of([k])[:1] if k in group else rows.rows_of([k]) for k in range(len(keys))]
+            )
+            sub = ContactRows.from_sizes([1 if k in group else 1 + len(rows.tangential[k]) for k in range(len(keys))])
             try:
                 solution = solve_contact_lcp(G[np.ix_(kept, kept)], b[kept], sub)
             except SolverError:
                 continue
-            slid = tuple(dyn.sliding_key(dyn.contact_index(key)) if k in group else key
-                         for k, key in enumerate(keys))
+            slid = tuple(dyn.sliding_key(dyn.contact_index(key)) if k in group else key for k, key in enumerate(keys))
             return solution, slid
-    raise SolverError(f"no solution for contacts {keys}, even with every sticking one sliding "
-                      f"(Delassus matrix {G.tolist()}, b {b.tolist()})")
+    raise SolverError(
+        f"no solution for contacts {keys}, even with every sticking one sliding "
+        f"(Delassus matrix {G.tolist()}, b {b.tolist()})"
+    )
 
 
-def resolve_impact(dyn: ModeDynamics, q: np.ndarray, v_minus: np.ndarray, contacts: Sequence[int],
-                   restitution: Sequence[float] | None = None) -> ImpactResult:
+def resolve_impact(
+    dyn: ModeDynamics,
+    q: np.ndarray,
+    v_minus: np.ndarray,
+    contacts: Sequence[int],
+    restitution: Sequence[float] | None = None,
+) -> ImpactResult:
     """Apply the impact law at configuration ``q`` to the closed ``contacts``.
 
     Args:
@@ -149,8 +156,11 @@ def resolve_impact(dyn: ModeDynamics, q: np.ndarray, v_minus: np.ndarray, contac
     if coulomb:  # every contact takes part with all its rows (module doc)
         contacts = tuple(dyn.contact_index(k) if dyn.contact(k).spec.coulomb else k for k in contacts)
     A, rows = _rows(dyn, contacts)
-    e = np.array([dyn.contact(k).restitution for k in contacts]) if restitution is None \
+    e = (
+        np.array([dyn.contact(k).restitution for k in contacts])
+        if restitution is None
         else np.array(restitution, dtype=float)
+    )
     MinvAT = pin.computeMinverse(dyn.model, dyn.data, q) @ A.T
     Av = A @ v_minus
     G = A @ MinvAT
@@ -160,20 +170,43 @@ def resolve_impact(dyn: ModeDynamics, q: np.ndarray, v_minus: np.ndarray, contac
         solution = solve_frictional_impact(0.5 * (G + G.T), Av, rows, e, mu)
         v_plus = v_minus + MinvAT @ solution.impulses
         active = tuple(k for k, state in enumerate(solution.states) if state is not ContactState.OPEN)
-        return ImpactResult(v_plus, solution.impulses[normal].copy(), solution.impulses, contacts, Av[normal],
-                            (A @ v_plus)[normal], solution.restitution, active, rows, (), solution.states,
-                            solution.slide_directions, mu)
+        return ImpactResult(
+            v_plus,
+            solution.impulses[normal].copy(),
+            solution.impulses,
+            contacts,
+            Av[normal],
+            (A @ v_plus)[normal],
+            solution.restitution,
+            active,
+            rows,
+            (),
+            solution.states,
+            solution.slide_directions,
+            mu,
+        )
     # Restitution restores compression only: a closed contact that is not approaching
     # takes part plastically (with its own e, Newton's law could add energy).
     e[Av[normal] >= 0.0] = 0.0
     lcp = solve_contact_lcp(G, impact_rhs(Av, e, rows), rows, on_infeasible="relax")
     v_plus = v_minus + MinvAT @ lcp.x
-    return ImpactResult(v_plus, lcp.x[normal].copy(), lcp.x, contacts, Av[normal],
-                        (A @ v_plus)[normal], e, lcp.active, rows, lcp.tangential_only)
+    return ImpactResult(
+        v_plus,
+        lcp.x[normal].copy(),
+        lcp.x,
+        contacts,
+        Av[normal],
+        (A @ v_plus)[normal],
+        e,
+        lcp.active,
+        rows,
+        lcp.tangential_only,
+    )
 
 
-def choose_mode(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float,
-                candidates: Sequence[int]) -> tuple[int, ...]:
+def choose_mode(
+    dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float, candidates: Sequence[int]
+) -> tuple[int, ...]:
     """Active set among the closed, non-separating ``candidates`` (acceleration-level LCP).
 
     Args:
@@ -223,8 +256,15 @@ def _sliding_set(dyn: ModeDynamics, q, v, t, staying) -> tuple[int, ...] | None:
     return mode if normal.min() >= -PULL_SHARE * max(float(normal.max()), 0.0) else None
 
 
-def liftoff_mode(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float, mode: Sequence[int],
-                 releasing: Sequence[int], resting: Sequence[int] = ()) -> tuple[int, ...]:
+def liftoff_mode(
+    dyn: ModeDynamics,
+    q: np.ndarray,
+    v: np.ndarray,
+    t: float,
+    mode: Sequence[int],
+    releasing: Sequence[int],
+    resting: Sequence[int] = (),
+) -> tuple[int, ...]:
     """The mode after the normal forces of ``releasing`` (keys of ``mode``) reach zero.
 
     The releasing contacts leave, unless a sticking one would then sink: at zero
@@ -243,8 +283,7 @@ def liftoff_mode(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float, mode
         return new_mode
     ddq = dyn.solve(q, v, t, new_mode).ddq  # also moves the kinematics to (q, v)
     tol = ACCEL_TOL * max(1.0, float(np.linalg.norm(dyn.model.gravity.linear)))
-    sinking = [k for k in released
-               if dyn.contact(k).rows(dyn.kin)[0] @ ddq + dyn.contact(k).drift(dyn.kin)[0] < -tol]
+    sinking = [k for k in released if dyn.contact(k).rows(dyn.kin)[0] @ ddq + dyn.contact(k).drift(dyn.kin)[0] < -tol]
     if not sinking:
         return new_mode
     return choose_mode(dyn, q, v, t, staying + [dyn.sliding_key(k) for k in sinking])

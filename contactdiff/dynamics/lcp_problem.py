@@ -68,9 +68,7 @@ class ContactRows:
 
     def __post_init__(self) -> None:
         normal = tuple(_as_index(i, "ContactRows.normal") for i in self.normal)
-        tang = tuple(
-            tuple(_as_index(i, "ContactRows.tangential") for i in t) for t in self.tangential
-        )
+        tang = tuple(tuple(_as_index(i, "ContactRows.tangential") for i in t) for t in self.tangential)
         if len(tang) != len(normal):
             raise InvalidInputError(
                 f"ContactRows: {len(normal)} normal rows but {len(tang)} tangential "
@@ -79,8 +77,7 @@ class ContactRows:
         used = list(normal) + [i for t in tang for i in t]
         if sorted(used) != list(range(len(used))):
             raise InvalidInputError(
-                f"ContactRows: rows must be 0..{len(used) - 1}, each once; "
-                f"got normal={normal}, tangential={tang}"
+                f"ContactRows: rows must be 0..{len(used) - 1}, each once; got normal={normal}, tangential={tang}"
             )
         object.__setattr__(self, "normal", normal)
         object.__setattr__(self, "tangential", tang)
@@ -108,9 +105,7 @@ class ContactRows:
         row = 0
         for k, s in enumerate(sizes):
             if isinstance(s, bool) or not isinstance(s, (int, np.integer)) or s not in (1, 2, 3):
-                raise InvalidInputError(
-                    f"ContactRows.from_sizes: size of contact {k} is {_show(s)}; valid: 1, 2, 3"
-                )
+                raise InvalidInputError(f"ContactRows.from_sizes: size of contact {k} is {_show(s)}; valid: 1, 2, 3")
             normal.append(row)
             tang.append(tuple(range(row + 1, row + s)))
             row += s
@@ -258,9 +253,7 @@ class _Problem:
             self.best = (cand.residual, *key)
         return cand
 
-    def residual(
-        self, S: tuple[int, ...], T: tuple[int, ...], x: np.ndarray, w: np.ndarray
-    ) -> float:
+    def residual(self, S: tuple[int, ...], T: tuple[int, ...], x: np.ndarray, w: np.ndarray) -> float:
         """Scaled violation of the conditions (0 when all hold exactly)."""
         xmax = float(np.abs(x).max())
         s_w = self.bmax + self.gmax * xmax
@@ -278,9 +271,7 @@ class _Problem:
             viol_w = max(viol_w, -float(w[self.normal[out]].min()))
         return max(viol_x / xmax if viol_x > 0.0 else 0.0, viol_w / s_w)
 
-    def finish(
-        self, S: tuple[int, ...], T: tuple[int, ...], cand: _Candidate, method: str
-    ) -> LCPSolution:
+    def finish(self, S: tuple[int, ...], T: tuple[int, ...], cand: _Candidate, method: str) -> LCPSolution:
         """Clip round-off negatives of x_n to 0 and package the solution."""
         x, w, res = cand.x.copy(), cand.w, cand.residual
         xn = x[self.normal]
@@ -360,9 +351,7 @@ def _as_real_array(a: object, name: str) -> np.ndarray:
     except Exception as exc:  # noqa: BLE001 - ragged lists and the like
         raise InvalidInputError(f"{name} must be an array of real numbers; got {a!r}") from exc
     if arr.dtype.kind not in "biuf":
-        raise InvalidInputError(
-            f"{name} must be an array of real numbers; got dtype {arr.dtype}: {a!r}"
-        )
+        raise InvalidInputError(f"{name} must be an array of real numbers; got dtype {arr.dtype}: {a!r}")
     return arr.astype(float, copy=False)
 
 
@@ -398,8 +387,7 @@ def _validate(G, b, rows: ContactRows, tol: float, method: str) -> tuple[np.ndar
     m = rows.n_rows
     if G.shape != (m, m):
         raise InvalidInputError(
-            f"G has shape {G.shape}; expected ({m}, {m}) for {rows.n_contacts} contacts "
-            f"with {m} rows"
+            f"G has shape {G.shape}; expected ({m}, {m}) for {rows.n_contacts} contacts with {m} rows"
         )
     if not np.isfinite(G).all():
         i, j = np.argwhere(~np.isfinite(G))[0]

@@ -117,8 +117,10 @@ class ModeDynamics:
         self.data = self.model.createData()
         self._modes: dict[tuple[int, ...], tuple] = {}
         self.n_contacts = len(scene.contacts)
-        self._views: list[BoundContact | None] = [*scene.contacts, *(c.sliding_view() if c.sticking else None
-                                                                      for c in scene.contacts)]
+        self._views: list[BoundContact | None] = [
+            *scene.contacts,
+            *(c.sliding_view() if c.sticking else None for c in scene.contacts),
+        ]
         self.slip_reference: dict[int, np.ndarray] = {}
         """Per slipping contact (scene index), the unit direction (tangent coordinates)
         its slip is continued along: a planar contact's slip sign, a spatial contact's
@@ -137,8 +139,10 @@ class ModeDynamics:
         """The bound contact (or sliding view) of a contact key."""
         view = self._views[key]
         if view is None:
-            raise InvalidInputError(f"contact {self.scene.contacts[key - self.n_contacts].name!r} is not "
-                                    "sticking, so it has no sliding state")
+            raise InvalidInputError(
+                f"contact {self.scene.contacts[key - self.n_contacts].name!r} is not "
+                "sticking, so it has no sliding state"
+            )
         return view
 
     def contact_index(self, key: int) -> int:
@@ -201,8 +205,14 @@ class ModeDynamics:
     def _check_mode(self, active: tuple) -> None:
         """Refuse a mode that is not a tuple of distinct valid contact keys."""
         n = self.n_contacts
-        valid = (f"keys 0..{n - 1} (contacts {', '.join(self.scene.contact_names)}) and "
-                 f"n + i = {n}..{2 * n - 1} for sticking contact i sliding") if n else "none: the scene has no contacts"
+        valid = (
+            (
+                f"keys 0..{n - 1} (contacts {', '.join(self.scene.contact_names)}) and "
+                f"n + i = {n}..{2 * n - 1} for sticking contact i sliding"
+            )
+            if n
+            else "none: the scene has no contacts"
+        )
         for key in active:
             if isinstance(key, bool) or not isinstance(key, (int, np.integer)) or not 0 <= key < 2 * n:
                 raise InvalidInputError(f"mode {active!r}: {key!r} is not a contact key; valid: {valid}")
@@ -217,29 +227,59 @@ class ModeDynamics:
         for name, x, size in checked:
             arr = np.asarray(x)
             if arr.shape != (size,) or not np.issubdtype(arr.dtype, np.number):
-                raise InvalidInputError(f"ModeDynamics.solve: {name} must be {size} numbers, got shape "
-                                        f"{arr.shape} ({x!r})")
+                raise InvalidInputError(
+                    f"ModeDynamics.solve: {name} must be {size} numbers, got shape {arr.shape} ({x!r})"
+                )
             if not np.all(np.isfinite(arr)):
                 raise InvalidInputError(f"ModeDynamics.solve: {name} must be finite, got {x!r}")
         check_number("ModeDynamics.solve", "t", t)
 
     @overload
-    def solve(self, q: np.ndarray, v: np.ndarray, t: float, active: Sequence[int] = (),
-              *, derivatives: Literal[False] = False, tau: np.ndarray | None = None) -> ModeSolution: ...
+    def solve(
+        self,
+        q: np.ndarray,
+        v: np.ndarray,
+        t: float,
+        active: Sequence[int] = (),
+        *,
+        derivatives: Literal[False] = False,
+        tau: np.ndarray | None = None,
+    ) -> ModeSolution: ...
 
     @overload
-    def solve(self, q: np.ndarray, v: np.ndarray, t: float, active: Sequence[int] = (),
-              *, derivatives: Literal[True], tau: np.ndarray | None = None
-              ) -> tuple[ModeSolution, ModeDerivatives]: ...
+    def solve(
+        self,
+        q: np.ndarray,
+        v: np.ndarray,
+        t: float,
+        active: Sequence[int] = (),
+        *,
+        derivatives: Literal[True],
+        tau: np.ndarray | None = None,
+    ) -> tuple[ModeSolution, ModeDerivatives]: ...
 
     @overload
-    def solve(self, q: np.ndarray, v: np.ndarray, t: float, active: Sequence[int] = (),
-              *, derivatives: bool, tau: np.ndarray | None = None
-              ) -> ModeSolution | tuple[ModeSolution, ModeDerivatives]: ...
+    def solve(
+        self,
+        q: np.ndarray,
+        v: np.ndarray,
+        t: float,
+        active: Sequence[int] = (),
+        *,
+        derivatives: bool,
+        tau: np.ndarray | None = None,
+    ) -> ModeSolution | tuple[ModeSolution, ModeDerivatives]: ...
 
-    def solve(self, q: np.ndarray, v: np.ndarray, t: float, active: Sequence[int] = (),
-              *, derivatives: bool = False, tau: np.ndarray | None = None
-              ) -> ModeSolution | tuple[ModeSolution, ModeDerivatives]:
+    def solve(
+        self,
+        q: np.ndarray,
+        v: np.ndarray,
+        t: float,
+        active: Sequence[int] = (),
+        *,
+        derivatives: bool = False,
+        tau: np.ndarray | None = None,
+    ) -> ModeSolution | tuple[ModeSolution, ModeDerivatives]:
         """Accelerations and forces in mode ``active`` at ``(q, v)`` (see `_solve`).
 
         Raises:
@@ -256,9 +296,15 @@ class ModeDynamics:
             self._check_state(q, v, t, tau)
             raise
 
-    def _solve(self, q: np.ndarray, v: np.ndarray, t: float, active: Sequence[int] = (),
-               derivatives: bool = False, tau: np.ndarray | None = None
-               ) -> ModeSolution | tuple[ModeSolution, ModeDerivatives]:
+    def _solve(
+        self,
+        q: np.ndarray,
+        v: np.ndarray,
+        t: float,
+        active: Sequence[int] = (),
+        derivatives: bool = False,
+        tau: np.ndarray | None = None,
+    ) -> ModeSolution | tuple[ModeSolution, ModeDerivatives]:
         """Accelerations and forces in mode ``active`` at ``(q, v)``.
 
         Args:
@@ -284,8 +330,9 @@ class ModeDynamics:
                 solution = ModeSolution(data.ddq.copy(), np.zeros(0), active, slices)
                 dtau_dq, dtau_dv = self.scene.tau_derivatives(kin, t)
                 empty = np.zeros((0, model.nv))
-                return solution, ModeDerivatives(ddq_dq + Minv @ dtau_dq, ddq_dv + Minv @ dtau_dv,
-                                                 empty, empty, Minv, empty)
+                return solution, ModeDerivatives(
+                    ddq_dq + Minv @ dtau_dq, ddq_dv + Minv @ dtau_dv, empty, empty, Minv, empty
+                )
             return ModeSolution(pin.aba(model, data, q, v, tau), np.zeros(0), active, slices)
         solved = rigid.solve(q, v, tau) if rigid is not None else None
         if solved is not None:
@@ -316,8 +363,7 @@ class ModeDynamics:
         solution = ModeSolution(a_free + MinvFT @ forces, forces, active, slices)
         if not derivatives:
             return solution
-        return solution, self._derivatives(q, v, t, solution, contacts, A, Minv, MinvAT, MinvFT, G, slips,
-                                             solve, U)
+        return solution, self._derivatives(q, v, t, solution, contacts, A, Minv, MinvAT, MinvFT, G, slips, solve, U)
 
     def _solver(self, slips, U, delassus, contacts):
         """``solve(G, b)`` of the mode's force problem: Cholesky for independent rows
@@ -338,12 +384,16 @@ class ModeDynamics:
                 if not slips:
                     raise
                 names = ", ".join(scene.contacts[s.index].name for s in slips)
-                raise PainleveError(f"the sliding problem of {names} has no unique force even among the loads "
-                                    f"of compatible support deflections ({exc}): Painlevé's paradox") from None
+                raise PainleveError(
+                    f"the sliding problem of {names} has no unique force even among the loads "
+                    f"of compatible support deflections ({exc}): Painlevé's paradox"
+                ) from None
+
         return solve
 
-    def _derivatives(self, q, v, t, sol: ModeSolution, contacts, A, Minv, MinvAT, MinvFT, G, slips,
-                     solve, U) -> ModeDerivatives:
+    def _derivatives(
+        self, q, v, t, sol: ModeSolution, contacts, A, Minv, MinvAT, MinvFT, G, slips, solve, U
+    ) -> ModeDerivatives:
         """Differentiate the KKT system implicitly.
 
         With ``r(q, v, ddq) = M ddq + nle`` (RNEA), both sides differentiated give
@@ -386,8 +436,9 @@ class ModeDynamics:
         dddq = MinvR + MinvFT @ dlam
         # a generalised force d: lam moves by -G^-1 A M^-1 d, ddq by M^-1 (d + F^T dlam)
         dlam_dtau = -solve(G, MinvAT.T)
-        return ModeDerivatives(dddq[:, :nv], dddq[:, nv:], dlam[:, :nv], dlam[:, nv:],
-                               Minv + MinvFT @ dlam_dtau, dlam_dtau)
+        return ModeDerivatives(
+            dddq[:, :nv], dddq[:, nv:], dlam[:, :nv], dlam[:, nv:], Minv + MinvFT @ dlam_dtau, dlam_dtau
+        )
 
 
 class ModeAccelerator:
@@ -412,7 +463,7 @@ class ModeAccelerator:
             # row k picks contact k's normal force out of the stacked world forces
             self._normals = np.zeros((len(contacts), 3 * len(contacts)))
             for k, c in enumerate(contacts):
-                self._normals[k, 3 * k:3 * k + 3] = c.directions[0]
+                self._normals[k, 3 * k : 3 * k + 3] = c.directions[0]
 
     def __call__(self, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
         """Joint accelerations (nv,) in the mode at ``(q, v)`` and time ``t`` (s)."""
@@ -439,13 +490,14 @@ class ModeAccelerator:
         """Row forces (N) of the mode's contacts (order of the mode) at the last call, as
         `ModeSolution.row_forces`."""
         if self._raw is not None:
-            return [c.directions @ self._raw[3 * k:3 * k + 3] for k, c in enumerate(self._contacts)]
+            return [c.directions @ self._raw[3 * k : 3 * k + 3] for k, c in enumerate(self._contacts)]
         assert self._solution is not None  # set by __call__ whenever _raw is None
         return self._solution.row_forces()
 
 
-def _solve_general(G: np.ndarray, b: np.ndarray, slips, scene, delassus: np.ndarray | None = None,
-                   contacts=()) -> np.ndarray:
+def _solve_general(
+    G: np.ndarray, b: np.ndarray, slips, scene, delassus: np.ndarray | None = None, contacts=()
+) -> np.ndarray:
     """Solve ``G x = b`` for the non-symmetric ``G = A M^-1 F^T`` of a mode with slipping
     contacts (LU); a slipping contact whose own block of ``G`` is not positive, or a
     singular ``G``, is Painlevé's paradox (`PainleveError`), unless the rows themselves
@@ -461,8 +513,10 @@ def _solve_general(G: np.ndarray, b: np.ndarray, slips, scene, delassus: np.ndar
         try:
             rank = np.linalg.matrix_rank(delassus) if delassus is not None else len(G)
         except np.linalg.LinAlgError:  # not finite: a trial stage far outside the mode's domain
-            raise OutsideDomainError(f"the sliding problem of {names} has no finite solution at this state "
-                                     "(its Delassus matrix is not finite)") from None
+            raise OutsideDomainError(
+                f"the sliding problem of {names} has no finite solution at this state "
+                "(its Delassus matrix is not finite)"
+            ) from None
         if rank < len(G):
             held = ", ".join(dict.fromkeys(c.name for c in contacts))
             # rows of distinct contacts that were independent where the mode began become dependent
@@ -472,9 +526,12 @@ def _solve_general(G: np.ndarray, b: np.ndarray, slips, scene, delassus: np.ndar
                 f"the rows of contacts {held} are dependent at this state (rank {rank} of {len(G)}) but "
                 f"were not where the mode began, so the friction of sliding {names} has no unique force "
                 "(rows that hold the same motion everywhere, as a face's corners, are solved by the "
-                "compatible-load principle: contactdiff.dynamics.redundant)")
-        raise PainleveError(f"the sliding problem of {names} is singular (G = A M^-1 F^T = {G.tolist()}): "
-                            "no force makes the contacts' normal accelerations zero (Painlevé's paradox)")
+                "compatible-load principle: contactdiff.dynamics.redundant)"
+            )
+        raise PainleveError(
+            f"the sliding problem of {names} is singular (G = A M^-1 F^T = {G.tolist()}): "
+            "no force makes the contacts' normal accelerations zero (Painlevé's paradox)"
+        )
     return x
 
 

@@ -123,8 +123,9 @@ class ParameterForces:
             if contact and par.field == "friction":
                 for i in par.members:
                     self.friction_columns.setdefault(i, []).append(col)
-            if not contact and (kind not in (ParameterKind.BODY, ParameterKind.JOINT, ParameterKind.SCENE)
-                                or model_dependent):
+            if not contact and (
+                kind not in (ParameterKind.BODY, ParameterKind.JOINT, ParameterKind.SCENE) or model_dependent
+            ):
                 self._efforts.append(col)
         self._effort_parameters = [self.parameters[k] for k in self._efforts]
         # ∂π/∂p of the inertial columns as one matrix (10 per body × their count): one product
@@ -132,13 +133,14 @@ class ParameterForces:
         self._inertial_columns = [col for col, _, _ in inertial]
         self._dpi = np.zeros((10 * (model.njoints - 1), len(inertial)))
         for k, (_, j, dpi) in enumerate(inertial):
-            self._dpi[10 * (j - 1):10 * j, k] = dpi
+            self._dpi[10 * (j - 1) : 10 * j, k] = dpi
         # a few inertial columns: RNEA is linear in the inertias, so a column is the difference
         # of two RNEA calls on models holding only its body (π + ∂π/∂p against π), a few µs
         # each, where the regressor computes every body's ten columns
         self._by_rnea = None
         bodies = sorted({j for _, j, _ in inertial})
         if inertial and len(bodies) + len(inertial) <= _RNEA_COLUMNS:
+
             def alone(j, pi):
                 m = model.copy()
                 for k in range(1, m.njoints):
@@ -146,9 +148,12 @@ class ParameterForces:
                 m.inertias[j] = pin.Inertia.FromDynamicParameters(pi)
                 m.armature[:] = 0.0
                 return m, m.createData()
+
             own = {j: model.inertias[j].toDynamicParameters() for j in bodies}
-            self._by_rnea = ({j: alone(j, own[j]) for j in bodies},
-                             [(col, j, *alone(j, own[j] + dpi)) for col, j, dpi in inertial])
+            self._by_rnea = (
+                {j: alone(j, own[j]) for j in bodies},
+                [(col, j, *alone(j, own[j] + dpi)) for col, j, dpi in inertial],
+            )
         self._still = model.copy()  # no gravity: the regressor of M dv alone
         self._still.gravity = pin.Motion.Zero()
         self._still_data = self._still.createData()
@@ -195,8 +200,9 @@ class ParameterForces:
         """``-∂(M(q) dv)/∂p`` (nv × p) of an impact's balance, ``dv = v+ - v-`` (m/s, rad/s)."""
         out = np.zeros((self.nv, self.p))
         if self._inertial_columns:
-            Y = np.reshape(pin.computeJointTorqueRegressor(self._still, self._still_data, q, np.zeros(self.nv), dv),
-                           (self.nv, -1))
+            Y = np.reshape(
+                pin.computeJointTorqueRegressor(self._still, self._still_data, q, np.zeros(self.nv), dv), (self.nv, -1)
+            )
             out[:, self._inertial_columns] = -(Y @ self._dpi)
         for col, iv in self._armature:
             out[iv, col] = -dv[iv]

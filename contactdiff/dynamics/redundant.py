@@ -109,6 +109,7 @@ def solve_in_range(G: np.ndarray, b: np.ndarray, U: np.ndarray) -> np.ndarray:
     except np.linalg.LinAlgError:
         y = None
     if y is None or not np.all(np.isfinite(y)):
-        raise SolverError(f"the compatible-load problem of redundant contact rows is singular "
-                          f"(U^T G U = {reduced.tolist()})")
+        raise SolverError(
+            f"the compatible-load problem of redundant contact rows is singular (U^T G U = {reduced.tolist()})"
+        )
     return U @ y

@@ -87,8 +87,9 @@ def _turn(x: float) -> tuple[float, float]:
     return p / total, p * m * (1.0 / (x * x) + 1.0 / ((1.0 - x) ** 2)) / (total * total)
 
 
-def slip_direction(slip_velocity: np.ndarray, reference: np.ndarray | None, floor: float = SLIP_SPEED_EPS
-                   ) -> tuple[np.ndarray, np.ndarray | None]:
+def slip_direction(
+    slip_velocity: np.ndarray, reference: np.ndarray | None, floor: float = SLIP_SPEED_EPS
+) -> tuple[np.ndarray, np.ndarray | None]:
     """Unit slip direction ``s`` (tangent coordinates) and ``ds/du_T`` (module doc).
 
     Args:
@@ -216,4 +217,5 @@ def painleve_check(G: np.ndarray, slips, names) -> None:
             raise PainleveError(
                 f"contact {names[slip.index]!r} slipping with mu = {slip.mu:g} along {slip.direction.tolist()}: "
                 f"A_n M^-1 (A_n - mu s^T A_T)^T = {g:.6g} <= 0, so a pushing normal force accelerates it into the "
-                "ground: the sliding problem has no solution or two (Painlevé's paradox)")
+                "ground: the sliding problem has no solution or two (Painlevé's paradox)"
+            )

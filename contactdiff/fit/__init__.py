@@ -1,17 +1,17 @@
 """Fitting scene parameters to measured trajectories with exact derivatives (docs/fit.md).
 
-    observations       Observations, toss_observations (a measured trajectory of a scene)
-    observation_files  load_observations, save_observations (CSV and .npz; docs/observations.md)
-    column_files       write_columns (named columns as a CSV or .npz file)
-    recordings         Recording (a measured trajectory and its rollout's start)
-    residuals          PoseResidual, ResidualWeights (residuals on the configuration manifold)
-    parameters         FitPlan, Scaled (the unknowns and the scene parameters they set)
-    evaluation         evaluate (one recording's residuals and Jacobian from one run), StateFit
-    problem            fit, FitResult, NonDifferentiablePolicy
-    windows            Windows, cut (windowed residuals: multiple shooting over short windows)
-    rollouts           rollouts (plain runs for held-out evaluation)
-    metrics            position_error, rotation_error (the published cube-toss metrics)
-    cli, plot          the ``contactdiff fit`` command and its figure
+observations       Observations, toss_observations (a measured trajectory of a scene)
+observation_files  load_observations, save_observations (CSV and .npz; docs/observations.md)
+column_files       write_columns (named columns as a CSV or .npz file)
+recordings         Recording (a measured trajectory and its rollout's start)
+residuals          PoseResidual, ResidualWeights (residuals on the configuration manifold)
+parameters         FitPlan, Scaled (the unknowns and the scene parameters they set)
+evaluation         evaluate (one recording's residuals and Jacobian from one run), StateFit
+problem            fit, FitResult, NonDifferentiablePolicy
+windows            Windows, cut (windowed residuals: multiple shooting over short windows)
+rollouts           rollouts (plain runs for held-out evaluation)
+metrics            position_error, rotation_error (the published cube-toss metrics)
+cli, plot          the ``contactdiff fit`` command and its figure
 """
 
 from .evaluation import StateFit
@@ -25,8 +25,30 @@ from .residuals import PoseResidual, ResidualWeights
 from .rollouts import Rollout, rollouts
 from .windows import Windows, cut
 
-__all__ = ["fit", "FitResult", "FitPlan", "NonDifferentiablePolicy", "NotDifferentiableWarning", "PoseResidual",
-           "Recording", "RecordingFit", "ResidualWeights", "Rollout", "rollouts", "Scaled", "StateFit",
-           "Windows", "cut",
-           "position_error", "position_errors", "rotation_error", "rotation_errors", "joint_columns",
-           "load_observations", "Observations", "save_observations", "toss_observations", "valid_columns"]
+__all__ = [
+    "fit",
+    "FitResult",
+    "FitPlan",
+    "NonDifferentiablePolicy",
+    "NotDifferentiableWarning",
+    "PoseResidual",
+    "Recording",
+    "RecordingFit",
+    "ResidualWeights",
+    "Rollout",
+    "rollouts",
+    "Scaled",
+    "StateFit",
+    "Windows",
+    "cut",
+    "position_error",
+    "position_errors",
+    "rotation_error",
+    "rotation_errors",
+    "joint_columns",
+    "load_observations",
+    "Observations",
+    "save_observations",
+    "toss_observations",
+    "valid_columns",
+]

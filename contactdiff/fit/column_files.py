@@ -27,8 +27,9 @@ def write_columns(columns: dict[str, np.ndarray], path: str | Path) -> Path:
     p = Path(path)
     suffix = p.suffix.lower()
     if suffix not in FORMATS:
-        raise ObservationFileError(f"{path}: unknown kind of observation file {p.suffix!r}; "
-                                   f"valid: {', '.join(FORMATS)}")
+        raise ObservationFileError(
+            f"{path}: unknown kind of observation file {p.suffix!r}; valid: {', '.join(FORMATS)}"
+        )
     try:
         if suffix == ".npz":
             np.savez(p, **columns)  # type: ignore[arg-type]  # mypy matches the ** dict against the bool allow_pickle too

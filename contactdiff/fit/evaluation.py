@@ -44,8 +44,11 @@ class StateFit(StrEnum):
 
     def columns(self, nv: int) -> np.ndarray:
         """The fitted columns among the state's 2 nv tangent coordinates."""
-        return {StateFit.NONE: np.arange(0), StateFit.VELOCITY: np.arange(nv, 2 * nv),
-                StateFit.FULL: np.arange(2 * nv)}[self]
+        return {
+            StateFit.NONE: np.arange(0),
+            StateFit.VELOCITY: np.arange(nv, 2 * nv),
+            StateFit.FULL: np.arange(2 * nv),
+        }[self]
 
 
 @dataclass(frozen=True)
@@ -113,8 +116,8 @@ def start_state(model: pin.Model, recording: Recording, state_fit: StateFit, off
     if len(offset):
         delta = np.zeros(2 * model.nv)
         delta[state_fit.columns(model.nv)] = offset
-        q0 = pin.integrate(model, q0, delta[:model.nv])
-        v0 = v0 + delta[model.nv:]
+        q0 = pin.integrate(model, q0, delta[: model.nv])
+        v0 = v0 + delta[model.nv :]
     return q0, v0
 
 
@@ -139,9 +142,15 @@ def evaluate(scene, plan_parameters: tuple, task: Task) -> Evaluation:
         q0, v0 = start_state(model, rec, task.state_fit, task.offset)
         k = rec.compared
         fitted_state = len(task.state_fit.columns(model.nv)) > 0
-        traj = simulate(variant.with_state(q0, v0), float(rec.t[-1]), t0=float(rec.t0),
-                        **task.options, sample_times=rec.t[k], parameters=list(plan_parameters),
-                        jacobian=fitted_state)
+        traj = simulate(
+            variant.with_state(q0, v0),
+            float(rec.t[-1]),
+            t0=float(rec.t0),
+            **task.options,
+            sample_times=rec.t[k],
+            parameters=list(plan_parameters),
+            jacobian=fitted_state,
+        )
     except ContactDiffError as exc:
         return Evaluation.failed(task.index, f"{type(exc).__name__}: {exc}")
     samples = traj.samples
@@ -155,8 +164,11 @@ def evaluate(scene, plan_parameters: tuple, task: Task) -> Evaluation:
         residual.scale = residual.scale * rec.mask
     r = np.concatenate([wk * residual.residual(qk, rec.q[i]) for wk, qk, i in zip(w, samples.q, k)])
     Jr = [wk * residual.jacobian(qk, rec.q[i]) for wk, qk, i in zip(w, samples.q, k)]
-    Jp = (np.vstack([Jk @ P[:nv] for Jk, P in zip(Jr, samples.parameter_jacobian)])
-          if samples.parameter_jacobian is not None else np.zeros((len(r), 0)))
+    Jp = (
+        np.vstack([Jk @ P[:nv] for Jk, P in zip(Jr, samples.parameter_jacobian)])
+        if samples.parameter_jacobian is not None
+        else np.zeros((len(r), 0))
+    )
     if fitted_state:
         assert samples.jacobian is not None  # asked for (jacobian=fitted_state)
         cols = task.state_fit.columns(nv)

@@ -24,8 +24,9 @@ from ..errors import InvalidInputError
 def _pair(name: str, simulated, measured, width: int) -> tuple[np.ndarray, np.ndarray]:
     a, b = np.asarray(simulated, dtype=float), np.asarray(measured, dtype=float)
     if a.ndim != 2 or a.shape[1] != width or a.shape != b.shape or len(a) == 0:
-        raise InvalidInputError(f"{name}: expected two (n, {width}) arrays of the same shape with n >= 1, "
-                                f"got {a.shape} and {b.shape}")
+        raise InvalidInputError(
+            f"{name}: expected two (n, {width}) arrays of the same shape with n >= 1, got {a.shape} and {b.shape}"
+        )
     if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
         raise InvalidInputError(f"{name}: the trajectories hold non-finite values")
     return a, b

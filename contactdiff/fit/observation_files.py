@@ -38,8 +38,9 @@ def load_observations(path: str | Path, scene) -> Observations:
     p = Path(path)
     suffix = p.suffix.lower()
     if suffix not in FORMATS:
-        raise ObservationFileError(f"{source}: unknown kind of observation file {p.suffix!r}; "
-                                   f"valid: {', '.join(FORMATS)}")
+        raise ObservationFileError(
+            f"{source}: unknown kind of observation file {p.suffix!r}; valid: {', '.join(FORMATS)}"
+        )
     if not p.is_file():
         raise ObservationFileError(f"{source}: no such file")
     if suffix == ".csv":
@@ -53,13 +54,15 @@ def _read_csv(path: Path, source: str) -> tuple[dict, list[int]]:
     """Columns by name (file order) and each data row's line number."""
     try:
         with path.open(newline="", encoding="utf-8") as handle:
-            rows = [(n, row) for n, row in enumerate(csv.reader(handle), start=1)
-                    if row and any(c.strip() for c in row) and not row[0].lstrip().startswith("#")]
+            rows = [
+                (n, row)
+                for n, row in enumerate(csv.reader(handle), start=1)
+                if row and any(c.strip() for c in row) and not row[0].lstrip().startswith("#")
+            ]
     except (OSError, UnicodeDecodeError, csv.Error) as exc:
         raise ObservationFileError(f"{source}: not a readable CSV file ({exc})") from None
     if not rows:
-        raise ObservationFileError(f"{source}: empty (a CSV observation file starts with a header row of "
-                                   "column names)")
+        raise ObservationFileError(f"{source}: empty (a CSV observation file starts with a header row of column names)")
     _, header = rows[0]
     names = [c.strip() for c in header]
     if "" in names:
@@ -70,15 +73,17 @@ def _read_csv(path: Path, source: str) -> tuple[dict, list[int]]:
     data, lines = [], []
     for k, (line, row) in enumerate(rows[1:]):
         if len(row) != len(names):
-            raise ObservationFileError(f"{source}: row {k} (line {line}) has {len(row)} values for "
-                                       f"{len(names)} columns")
+            raise ObservationFileError(
+                f"{source}: row {k} (line {line}) has {len(row)} values for {len(names)} columns"
+            )
         values = []
         for name, cell in zip(names, row):
             try:
                 values.append(float(cell))
             except ValueError:
-                raise ObservationFileError(f"{source}: row {k} (line {line}), column {name!r}: "
-                                           f"{cell.strip()!r} is not a number") from None
+                raise ObservationFileError(
+                    f"{source}: row {k} (line {line}), column {name!r}: {cell.strip()!r} is not a number"
+                ) from None
         data.append(values)
         lines.append(line)
     table = np.array(data, dtype=float).reshape(len(data), len(names))

@@ -144,8 +144,9 @@ class Observations:
         return len(self.t)
 
     @classmethod
-    def from_states(cls, scene, t, q, v=None, *, weights=None, joints=None,
-                    source: str = "observations") -> Observations:
+    def from_states(
+        cls, scene, t, q, v=None, *, weights=None, joints=None, source: str = "observations"
+    ) -> Observations:
         """Observations of ``scene`` from states in its convention (e.g. a simulated
         trajectory's samples), checked as a file's would be.
 
@@ -165,13 +166,15 @@ class Observations:
         names = list(by_name) if joints is None else list(joints)
         unknown = [n for n in names if n not in by_name]
         if unknown:
-            raise InvalidInputError(f"{source}: unknown joint(s) {', '.join(unknown)}; "
-                                    f"observable: {', '.join(by_name)}")
+            raise InvalidInputError(
+                f"{source}: unknown joint(s) {', '.join(unknown)}; observable: {', '.join(by_name)}"
+            )
         t = np.asarray(t, dtype=float)
         q = np.asarray(q, dtype=float)
         if t.ndim != 1 or q.shape != (len(t), scene.model.nq):
-            raise InvalidInputError(f"{source}: t must be (k,) and q (k, {scene.model.nq}), "
-                                    f"got shapes {t.shape} and {q.shape}")
+            raise InvalidInputError(
+                f"{source}: t must be (k,) and q (k, {scene.model.nq}), got shapes {t.shape} and {q.shape}"
+            )
         if v is not None and np.shape(v) != (len(t), scene.nv):
             raise InvalidInputError(f"{source}: v must be ({len(t)}, {scene.nv}), got shape {np.shape(v)}")
         columns = {TIME: t} | ({} if weights is None else {WEIGHT: np.asarray(weights, dtype=float)})
@@ -209,11 +212,11 @@ def state_columns(joint: JointColumns, q: np.ndarray, v: np.ndarray | None) -> d
     a, b = joint.idx_q, joint.idx_v
     if joint.kind in (JointKind.FREE, JointKind.SPHERICAL):
         o = 3 if joint.kind is JointKind.FREE else 0
-        quat = np.column_stack([q[:, a + o + 3], q[:, a + o:a + o + 3]])  # [w x y z]
+        quat = np.column_stack([q[:, a + o + 3], q[:, a + o : a + o + 3]])  # [w x y z]
         values = ([q[:, a + i] for i in range(3)] if o else []) + [quat[:, i] for i in range(4)]
         if v is not None:
-            linear = [_rotate(quat, v[:, b:b + 3])] if o else []  # local -> world
-            values += [c for block in [*linear, v[:, b + o:b + o + 3]] for c in block.T]
+            linear = [_rotate(quat, v[:, b : b + 3])] if o else []  # local -> world
+            values += [c for block in [*linear, v[:, b + o : b + o + 3]] for c in block.T]
     else:
         angle = q[:, a] if joint.kind is JointKind.SCALAR else np.arctan2(q[:, a + 1], q[:, a])
         values = [angle] + ([v[:, b]] if v is not None else [])
@@ -240,6 +243,7 @@ def from_columns(columns: dict, scene, source: str, lines=None) -> Observations:
             fewer than two samples, a value that is not finite, times not increasing,
             a negative weight, a quaternion of zero norm or far from unit norm (module doc).
     """
+
     def fail(message: str) -> ObservationFileError:
         return ObservationFileError(f"{source}: {message}")
 
@@ -270,8 +274,10 @@ def from_columns(columns: dict, scene, source: str, lines=None) -> Observations:
     back = np.flatnonzero(np.diff(t) <= 0.0)
     if back.size:
         r = back[0] + 1
-        raise fail(f"times must increase: {_row(r, lines)} has t = {float(t[r])!r} s, not after {float(t[r - 1])!r} s "
-                   f"of row {r - 1}")
+        raise fail(
+            f"times must increase: {_row(r, lines)} has t = {float(t[r])!r} s, not after {float(t[r - 1])!r} s "
+            f"of row {r - 1}"
+        )
     weights = arrays.get(WEIGHT, np.ones(k))
     if np.any(weights < 0.0):
         r = int(np.argmax(weights < 0.0))
@@ -292,18 +298,28 @@ def from_columns(columns: dict, scene, source: str, lines=None) -> Observations:
             # a joint is measured as a whole; its velocity only with its configuration
             if present and len(present) < len(names) or (present is given_v and not given):
                 missing = [c for c in (names if given else joint.configuration) if c not in arrays]
-                raise fail(f"missing column(s) {', '.join(map(repr, missing))} of joint {joint.name!r} "
-                           f"({joint.kind.value}; its columns: {', '.join(joint.configuration + joint.velocity)})")
+                raise fail(
+                    f"missing column(s) {', '.join(map(repr, missing))} of joint {joint.name!r} "
+                    f"({joint.kind.value}; its columns: {', '.join(joint.configuration + joint.velocity)})"
+                )
         _fill(joint, arrays, q, v if given_v else None, fail, lines)
         joints.append(joint.name)
-        mask[joint.idx_v:joint.idx_v + joint.nv] = True
+        mask[joint.idx_v : joint.idx_v + joint.nv] = True
         if given_v:
-            v_mask[joint.idx_v:joint.idx_v + joint.nv] = True
+            v_mask[joint.idx_v : joint.idx_v + joint.nv] = True
     if not joints:
         raise fail(f"no configuration column; valid: {', '.join(valid)}")
-    return Observations(t=t, q=q, mask=mask, weights=weights, v=v if v_mask.any() else None,
-                        v_mask=v_mask if v_mask.any() else None, joints=tuple(joints),
-                        scene_name=scene.name, source=source)
+    return Observations(
+        t=t,
+        q=q,
+        mask=mask,
+        weights=weights,
+        v=v if v_mask.any() else None,
+        v_mask=v_mask if v_mask.any() else None,
+        joints=tuple(joints),
+        scene_name=scene.name,
+        source=source,
+    )
 
 
 def _fill(joint: JointColumns, arrays, q, v, fail, lines) -> None:
@@ -319,7 +335,7 @@ def _fill(joint: JointColumns, arrays, q, v, fail, lines) -> None:
             v[:, b] = arrays[joint.velocity[0]]
         return
     o = 3 if joint.kind is JointKind.FREE else 0
-    quat = np.column_stack(col[o:o + 4])  # [w x y z]
+    quat = np.column_stack(col[o : o + 4])  # [w x y z]
     norms = np.linalg.norm(quat, axis=1)
     if np.any(norms < ZERO_NORM):
         r = int(np.argmax(norms < ZERO_NORM))
@@ -327,18 +343,20 @@ def _fill(joint: JointColumns, arrays, q, v, fail, lines) -> None:
     off = np.abs(norms - 1.0) > QUATERNION_TOLERANCE
     if np.any(off):
         r = int(np.argmax(off))
-        raise fail(f"{_row(r, lines)}: the quaternion of joint {joint.name!r} has norm {norms[r]:.6g}, "
-                   f"not 1 within {QUATERNION_TOLERANCE:g} (columns {', '.join(joint.configuration[o:])}, "
-                   "scalar first)")
+        raise fail(
+            f"{_row(r, lines)}: the quaternion of joint {joint.name!r} has norm {norms[r]:.6g}, "
+            f"not 1 within {QUATERNION_TOLERANCE:g} (columns {', '.join(joint.configuration[o:])}, "
+            "scalar first)"
+        )
     quat = quat / norms[:, None]
     if o:
-        q[:, a:a + 3] = np.column_stack(col[:3])
-    q[:, a + o:a + o + 3], q[:, a + o + 3] = quat[:, 1:], quat[:, 0]
+        q[:, a : a + 3] = np.column_stack(col[:3])
+    q[:, a + o : a + o + 3], q[:, a + o + 3] = quat[:, 1:], quat[:, 0]
     if v is not None:
         w = np.column_stack([arrays[c] for c in joint.velocity])
         if o:
-            v[:, b:b + 3] = _rotate(quat, w[:, :3], inverse=True)  # world -> the body's frame
-        v[:, b + o:b + o + 3] = w[:, o:]
+            v[:, b : b + 3] = _rotate(quat, w[:, :3], inverse=True)  # world -> the body's frame
+        v[:, b + o : b + o + 3] = w[:, o:]
 
 
 def toss_observations(toss, scene=None, *, velocities: bool = True) -> Observations:
@@ -361,5 +379,3 @@ def toss_observations(toss, scene=None, *, velocities: bool = True) -> Observati
     values = [*toss.position.T, *toss.quaternion.T] + ([*toss.velocity.T, *toss.omega.T] if velocities else [])
     names = joint.configuration + (joint.velocity if velocities else ())
     return from_columns({TIME: toss.t} | dict(zip(names, values)), scene, f"toss {toss.name}")
-
-

@@ -19,8 +19,18 @@ import numpy as np
 from ..errors import InvalidInputError
 from ..model.parameters import parameter_values, resolve
 
-LOWER_BOUNDS = {"friction": 0.0, "restitution": 0.0, "mass": 0.0, "ixx": 0.0, "iyy": 0.0, "izz": 0.0,
-                "armature": 0.0, "stiffness": 0.0, "damping": 0.0, "rest_length": 0.0}
+LOWER_BOUNDS = {
+    "friction": 0.0,
+    "restitution": 0.0,
+    "mass": 0.0,
+    "ixx": 0.0,
+    "iyy": 0.0,
+    "izz": 0.0,
+    "armature": 0.0,
+    "stiffness": 0.0,
+    "damping": 0.0,
+    "rest_length": 0.0,
+}
 """Default lower bounds by the parameter's field (`with_parameters` refuses values below)."""
 
 UPPER_BOUNDS = {"restitution": 1.0}
@@ -45,12 +55,14 @@ class Scaled:
 
     def __post_init__(self):
         if not self.base:
-            raise InvalidInputError(f"Scaled {self.name!r}: give the members' base values, "
-                                    "e.g. {'body:cube:ixx': 8.1e-4}")
+            raise InvalidInputError(
+                f"Scaled {self.name!r}: give the members' base values, e.g. {{'body:cube:ixx': 8.1e-4}}"
+            )
         for member, value in self.base.items():
             if not (isinstance(value, (int, float)) and np.isfinite(value)):
-                raise InvalidInputError(f"Scaled {self.name!r}: the base of {member!r} must be a finite number, "
-                                        f"got {value!r}")
+                raise InvalidInputError(
+                    f"Scaled {self.name!r}: the base of {member!r} must be a finite number, got {value!r}"
+                )
 
 
 class FitPlan:
@@ -70,22 +82,23 @@ class FitPlan:
     def __init__(self, scene, unknowns: Sequence, bounds: Mapping | None = None):
         unknowns = [unknowns] if isinstance(unknowns, (str, Scaled)) else list(unknowns)
         if not unknowns:
-            raise InvalidInputError("fit: name at least one parameter to fit (contactdiff simulate SCENE "
-                                    "--param list shows them)")
+            raise InvalidInputError(
+                "fit: name at least one parameter to fit (contactdiff simulate SCENE --param list shows them)"
+            )
         self.unknowns = tuple(unknowns)
         self.names = tuple(u.name if isinstance(u, Scaled) else str(u) for u in unknowns)
         if len(set(self.names)) != len(self.names):
             raise InvalidInputError(f"fit: an unknown is named twice in {list(self.names)}")
         members = []
         for u in unknowns:
-            for name in (u.base if isinstance(u, Scaled) else [u]):
+            for name in u.base if isinstance(u, Scaled) else [u]:
                 if name not in members:
                     members.append(name)
         resolve(scene, members)  # unknown names are refused with the valid ones listed
         self.parameters = tuple(members)
         C = np.zeros((len(members), len(unknowns)))
         for j, u in enumerate(unknowns):
-            for name, base in (u.base.items() if isinstance(u, Scaled) else [(u, 1.0)]):
+            for name, base in u.base.items() if isinstance(u, Scaled) else [(u, 1.0)]:
                 C[members.index(name), j] += base
         self.C = C
         self.lower, self.upper = self._bounds(dict(bounds or {}))

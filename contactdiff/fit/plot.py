@@ -21,8 +21,11 @@ def plot_fit(result, recordings, path) -> None:
     fig, axes = plt.subplots(len(shown), 1, figsize=(7, 2.4 * len(shown)), squeeze=False, sharex=False)
     for ax, (rec, fitted) in zip(axes[:, 0], shown):
         k = rec.compared
-        coordinates = list(zip(range(3), "xyz")) if rec.q.shape[1] >= 7 else [(j, f"q[{j}]") for j in
-                                                                               range(min(3, rec.q.shape[1]))]
+        coordinates = (
+            list(zip(range(3), "xyz"))
+            if rec.q.shape[1] >= 7
+            else [(j, f"q[{j}]") for j in range(min(3, rec.q.shape[1]))]
+        )
         for j, label in coordinates:
             color = f"C{j}"
             ax.plot(rec.t[k], rec.q[k, j], ".", color=color, markersize=3, label=f"{label} measured")
@@ -33,8 +36,9 @@ def plot_fit(result, recordings, path) -> None:
         ax.grid(alpha=0.3)
     axes[-1, 0].set_xlabel("t (s)")
     axes[0, 0].legend(fontsize=7, ncol=3, loc="best")
-    values = ", ".join(f"{n} = {v:.4g} ± {e:.2g}" for n, v, e in
-                       zip(result.names, result.values, np.asarray(result.standard_errors)))
+    values = ", ".join(
+        f"{n} = {v:.4g} ± {e:.2g}" for n, v, e in zip(result.names, result.values, np.asarray(result.standard_errors))
+    )
     fig.suptitle(values, fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=120)

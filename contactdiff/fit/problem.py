@@ -132,27 +132,48 @@ class FitResult:
 
     def to_dict(self) -> dict:
         """Everything but the simulated configurations, JSON-ready (inf as the string "inf")."""
+
         def number(x):
             return float(x) if np.isfinite(x) else str(x)
 
         return {
-            "parameters": {n: {"start": number(s), "value": number(v), "standard_error": number(e)}
-                           for n, s, v, e in zip(self.names, self.start, self.values, self.standard_errors)},
-            "cost": self.cost, "start_cost": self.start_cost, "iterations": self.iterations,
-            "evaluations": self.evaluations, "nondifferentiable": self.nondifferentiable,
+            "parameters": {
+                n: {"start": number(s), "value": number(v), "standard_error": number(e)}
+                for n, s, v, e in zip(self.names, self.start, self.values, self.standard_errors)
+            },
+            "cost": self.cost,
+            "start_cost": self.start_cost,
+            "iterations": self.iterations,
+            "evaluations": self.evaluations,
+            "nondifferentiable": self.nondifferentiable,
             "failed_trials": self.failed_trials,
-            "policy": self.policy.value, "success": self.success, "message": self.message,
-            "rank_deficient": self.rank_deficient, "wall_time": self.wall_time,
-            "recordings": [{"name": r.name, "rms": r.rms, "cost": r.cost, "differentiable": r.differentiable,
-                            "nonsmooth": r.nonsmooth, "events": r.events, "excluded": r.excluded,
-                            "state_offset": r.state_offset.tolist()} for r in self.recordings],
+            "policy": self.policy.value,
+            "success": self.success,
+            "message": self.message,
+            "rank_deficient": self.rank_deficient,
+            "wall_time": self.wall_time,
+            "recordings": [
+                {
+                    "name": r.name,
+                    "rms": r.rms,
+                    "cost": r.cost,
+                    "differentiable": r.differentiable,
+                    "nonsmooth": r.nonsmooth,
+                    "events": r.events,
+                    "excluded": r.excluded,
+                    "state_offset": r.state_offset.tolist(),
+                }
+                for r in self.recordings
+            ],
         }
 
     def table(self) -> str:
         """The fitted values, one line each: name, start, value ± standard error."""
         width = max(len(n) for n in self.names)
-        return "\n".join(f"{n:<{width}}  {s:12.6g} -> {v:12.6g} ± {e:.3g}"
-                         for n, s, v, e in zip(self.names, self.start, self.values, self.standard_errors))
+        return "\n".join(
+            f"{n:<{width}}  {s:12.6g} -> {v:12.6g} ± {e:.3g}"
+            for n, s, v, e in zip(self.names, self.start, self.values, self.standard_errors)
+        )
 
 
 class _Workers:
@@ -170,7 +191,8 @@ class _Workers:
         if self.scene is not None and jobs > 1 and self.source is None:
             raise InvalidInputError(
                 f"fit: jobs={jobs} needs a scene the workers can rebuild (a scene name, TOML file or a "
-                f"function that builds it, such as contactdiff.cube_scene); a Scene object runs with jobs=1")
+                f"function that builds it, such as contactdiff.cube_scene); a Scene object runs with jobs=1"
+            )
         self.engine = Engine.of(backend, jobs) if jobs > 1 else None
         self.progress = progress
 
@@ -203,11 +225,22 @@ def _evaluate_in_worker(source, parameters: tuple, task: Task) -> Evaluation:
     return evaluate(source.build(), parameters, task)
 
 
-def fit(scene, recordings: Sequence[Recording], parameters, *, bounds: Mapping | None = None,
-        state: StateFit | str = StateFit.NONE, weights: ResidualWeights = ResidualWeights(),
-        policy: NonDifferentiablePolicy | str = NonDifferentiablePolicy.KEEP, jobs: int = 1,
-        backend: str = "loky", options: Mapping | None = None, max_evaluations: int = 30,
-        tolerance: float = 1e-8, progress: bool | None = None) -> FitResult:
+def fit(
+    scene,
+    recordings: Sequence[Recording],
+    parameters,
+    *,
+    bounds: Mapping | None = None,
+    state: StateFit | str = StateFit.NONE,
+    weights: ResidualWeights = ResidualWeights(),
+    policy: NonDifferentiablePolicy | str = NonDifferentiablePolicy.KEEP,
+    jobs: int = 1,
+    backend: str = "loky",
+    options: Mapping | None = None,
+    max_evaluations: int = 30,
+    tolerance: float = 1e-8,
+    progress: bool | None = None,
+) -> FitResult:
     """Fit ``parameters`` of ``scene`` to ``recordings`` (module doc).
 
     Args:
@@ -262,14 +295,17 @@ def fit(scene, recordings: Sequence[Recording], parameters, *, bounds: Mapping |
         if cache.get("x") is not None and np.array_equal(cache["x"], x):
             return cache["evals"]
         values = plan.values(x[:n])
-        tasks = [Task(i, rec, values, x[n + s * i:n + s * (i + 1)], state, weights, options)
-                 for i, rec in enumerate(recordings)]
+        tasks = [
+            Task(i, rec, values, x[n + s * i : n + s * (i + 1)], state, weights, options)
+            for i, rec in enumerate(recordings)
+        ]
         evals = workers.run(tasks, plan.parameters, f"fit evaluation {len(counts) + 1}")
         failed = [(recordings[e.index].name, e.error) for e in evals if e.error is not None]
         if failed:
             name, error = failed[0]
-            message = (f"fit: the run of {name!r} failed at {values} ({error}); "
-                       f"{len(failed)} of {len(evals)} runs failed")
+            message = (
+                f"fit: the run of {name!r} failed at {values} ({error}); {len(failed)} of {len(evals)} runs failed"
+            )
             if "x" not in cache:  # at the start: nothing to fall back on
                 raise FitError(message)
             trials.append(message)
@@ -284,8 +320,10 @@ def fit(scene, recordings: Sequence[Recording], parameters, *, bounds: Mapping |
         active[:] = [i for i in active if first[i].differentiable]
         counts[-1] = 0
         if not active:
-            raise InvalidInputError("fit: policy 'exclude' leaves no recording: every one is not differentiable "
-                                    "at the starting values (use policy 'keep')")
+            raise InvalidInputError(
+                "fit: policy 'exclude' leaves no recording: every one is not differentiable "
+                "at the starting values (use policy 'keep')"
+            )
     start_cost = 0.5 * sum(float(first[i].residual @ first[i].residual) for i in active)
     rows = sum(len(first[i].residual) for i in active)
 
@@ -300,34 +338,63 @@ def fit(scene, recordings: Sequence[Recording], parameters, *, bounds: Mapping |
         assert evals is not None  # asked for at accepted points only (a failed run's step is rejected)
         return _assemble(evals, active, plan.C, n, s, len(recordings))
 
-    solution = least_squares(residuals, x0, jac=jacobian, bounds=(_bound(plan.lower, s, recordings),
-                                                                    _bound(plan.upper, s, recordings, upper=True)),
-                             method="trf", x_scale="jac", ftol=tolerance, xtol=tolerance, gtol=tolerance,
-                             max_nfev=max_evaluations)
+    solution = least_squares(
+        residuals,
+        x0,
+        jac=jacobian,
+        bounds=(_bound(plan.lower, s, recordings), _bound(plan.upper, s, recordings, upper=True)),
+        method="trf",
+        x_scale="jac",
+        ftol=tolerance,
+        xtol=tolerance,
+        gtol=tolerance,
+        max_nfev=max_evaluations,
+    )
     final = run(solution.x)  # the accepted point: cached, or run again if the last trial failed
     assert final is not None  # it ran at the accepted point before
     J = jacobian(solution.x)
     J = J.toarray() if sparse.issparse(J) else J
     covariance, rank_deficient = _covariance(J, solution.fun, n)
     if counts and counts[-1] and policy is NonDifferentiablePolicy.KEEP:
-        warnings.warn(f"fit: {counts[-1]} of {len(recordings)} recordings are not differentiable at the fitted "
-                      "values (flagged events before their last sample; FitResult.recordings says which)",
-                      NotDifferentiableWarning, stacklevel=2)
-    fits = [_recording_fit(rec, ev, i not in active, solution.x[n + s * i:n + s * (i + 1)])
-            for i, (rec, ev) in enumerate(zip(recordings, final))]
+        warnings.warn(
+            f"fit: {counts[-1]} of {len(recordings)} recordings are not differentiable at the fitted "
+            "values (flagged events before their last sample; FitResult.recordings says which)",
+            NotDifferentiableWarning,
+            stacklevel=2,
+        )
+    fits = [
+        _recording_fit(rec, ev, i not in active, solution.x[n + s * i : n + s * (i + 1)])
+        for i, (rec, ev) in enumerate(zip(recordings, final))
+    ]
     errors = np.sqrt(np.where(np.diag(covariance) >= 0.0, np.diag(covariance), np.inf))
-    return FitResult(plan.names, theta0, solution.x[:n].copy(), errors, covariance, float(solution.cost),
-                     start_cost, fits, int(solution.njev or 0), int(solution.nfev), counts, trials, policy,
-                     bool(solution.success), str(solution.message), rank_deficient,
-                     time.perf_counter() - started)
+    return FitResult(
+        plan.names,
+        theta0,
+        solution.x[:n].copy(),
+        errors,
+        covariance,
+        float(solution.cost),
+        start_cost,
+        fits,
+        int(solution.njev or 0),
+        int(solution.nfev),
+        counts,
+        trials,
+        policy,
+        bool(solution.success),
+        str(solution.message),
+        rank_deficient,
+        time.perf_counter() - started,
+    )
 
 
 def _enum(kind: type[_E], value, name: str) -> _E:
     try:
         return kind(value)
     except ValueError:
-        raise InvalidInputError(f"fit: {name} must be one of {', '.join(k.value for k in kind)}, "
-                                f"got {value!r}") from None
+        raise InvalidInputError(
+            f"fit: {name} must be one of {', '.join(k.value for k in kind)}, got {value!r}"
+        ) from None
 
 
 def _bound(values: np.ndarray, s: int, recordings, upper: bool = False) -> np.ndarray:
@@ -370,9 +437,25 @@ def _covariance(J: np.ndarray, r: np.ndarray, n: int) -> tuple[np.ndarray, bool]
 
 def _recording_fit(rec: Recording, ev: Evaluation, excluded: bool, offset: np.ndarray) -> RecordingFit:
     r = ev.residual
-    return RecordingFit(rec.name, float(np.sqrt(np.mean(r**2))) if len(r) else 0.0, 0.5 * float(r @ r),
-                        ev.differentiable, dict(Counter(ev.nonsmooth)), ev.events, excluded, offset.copy(), ev.q)
+    return RecordingFit(
+        rec.name,
+        float(np.sqrt(np.mean(r**2))) if len(r) else 0.0,
+        0.5 * float(r @ r),
+        ev.differentiable,
+        dict(Counter(ev.nonsmooth)),
+        ev.events,
+        excluded,
+        offset.copy(),
+        ev.q,
+    )
 
 
-__all__ = ["FitError", "FitResult", "NonDifferentiablePolicy", "NotDifferentiableWarning", "RecordingFit", "fit",
-           "RANK_TOL"]
+__all__ = [
+    "FitError",
+    "FitResult",
+    "NonDifferentiablePolicy",
+    "NotDifferentiableWarning",
+    "RecordingFit",
+    "fit",
+    "RANK_TOL",
+]

@@ -63,24 +63,34 @@ class Recording:
         v0 = np.asarray(v0, dtype=float)
         if v0.shape != (nv,):
             raise InvalidInputError(f"recording: v0 must hold {nv} velocities, got shape {v0.shape}")
-        return cls(name or observations.source or "observations", observations.t, observations.q,
-                   float(observations.t[start]), observations.q[start], v0, observations.weights,
-                   np.asarray(observations.mask, dtype=bool))
+        return cls(
+            name or observations.source or "observations",
+            observations.t,
+            observations.q,
+            float(observations.t[start]),
+            observations.q[start],
+            v0,
+            observations.weights,
+            np.asarray(observations.mask, dtype=bool),
+        )
 
     def __post_init__(self):
         t = np.asarray(self.t, dtype=float)
         q = np.asarray(self.q, dtype=float)
         label = f"recording {self.name!r}"
         if t.ndim != 1 or len(t) < 2 or q.ndim != 2 or len(q) != len(t):
-            raise InvalidInputError(f"{label}: needs k >= 2 sample times and a (k, nq) array of configurations, "
-                                    f"got t {t.shape} and q {q.shape}")
+            raise InvalidInputError(
+                f"{label}: needs k >= 2 sample times and a (k, nq) array of configurations, "
+                f"got t {t.shape} and q {q.shape}"
+            )
         if not (np.all(np.isfinite(t)) and np.all(np.isfinite(q))):
             raise InvalidInputError(f"{label}: non-finite sample times or configurations")
         if np.any(np.diff(t) <= 0.0):
             raise InvalidInputError(f"{label}: sample times must increase")
         if not (np.isfinite(self.t0) and self.t0 <= t[-1]):
-            raise InvalidInputError(f"{label}: the start t0 = {self.t0!r} s must be a time at or before the last "
-                                    f"sample ({t[-1]} s)")
+            raise InvalidInputError(
+                f"{label}: the start t0 = {self.t0!r} s must be a time at or before the last sample ({t[-1]} s)"
+            )
         if self.weights is not None:
             w = np.asarray(self.weights, dtype=float)
             if w.shape != t.shape or not np.all(np.isfinite(w)) or np.any(w < 0.0):

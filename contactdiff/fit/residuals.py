@@ -65,33 +65,39 @@ class PoseResidual:
         self._free = [(j.idx_q, j.idx_v) for j in model.joints[1:] if j.shortname() == "JointModelFreeFlyer"]
         scale = np.full(model.nv, weights.joint)
         for _, iv in self._free:
-            scale[iv:iv + 3] = weights.position
-            scale[iv + 3:iv + 6] = weights.orientation
+            scale[iv : iv + 3] = weights.position
+            scale[iv + 3 : iv + 6] = weights.orientation
         self.scale = scale
 
     def residual(self, q_sim: np.ndarray, q_data: np.ndarray) -> np.ndarray:
         """The weighted residual (nv,) of the configuration ``q_sim`` against ``q_data``."""
-        r = pin.difference(self.model, q_data, q_sim) if len(self._free) < len(self.model.joints) - 1 \
+        r = (
+            pin.difference(self.model, q_data, q_sim)
+            if len(self._free) < len(self.model.joints) - 1
             else np.zeros(self.model.nv)
+        )
         for iq, iv in self._free:
-            r[iv:iv + 3] = q_sim[iq:iq + 3] - q_data[iq:iq + 3]
-            r[iv + 3:iv + 6] = pin.log3(_rotation(q_data, iq).T @ _rotation(q_sim, iq))
+            r[iv : iv + 3] = q_sim[iq : iq + 3] - q_data[iq : iq + 3]
+            r[iv + 3 : iv + 6] = pin.log3(_rotation(q_data, iq).T @ _rotation(q_sim, iq))
         return self.scale * r
 
     def jacobian(self, q_sim: np.ndarray, q_data: np.ndarray) -> np.ndarray:
         """The derivative (nv × nv) of `residual` in ``q_sim``'s tangent space (local steps)."""
-        J = (pin.dDifference(self.model, q_data, q_sim, pin.ARG1)
-             if len(self._free) < len(self.model.joints) - 1 else np.zeros((self.model.nv, self.model.nv)))
+        J = (
+            pin.dDifference(self.model, q_data, q_sim, pin.ARG1)
+            if len(self._free) < len(self.model.joints) - 1
+            else np.zeros((self.model.nv, self.model.nv))
+        )
         for iq, iv in self._free:
-            J[iv:iv + 6, :] = 0.0
-            J[iv:iv + 3, iv:iv + 3] = _rotation(q_sim, iq)
-            J[iv + 3:iv + 6, iv + 3:iv + 6] = pin.Jlog3(_rotation(q_data, iq).T @ _rotation(q_sim, iq))
+            J[iv : iv + 6, :] = 0.0
+            J[iv : iv + 3, iv : iv + 3] = _rotation(q_sim, iq)
+            J[iv + 3 : iv + 6, iv + 3 : iv + 6] = pin.Jlog3(_rotation(q_data, iq).T @ _rotation(q_sim, iq))
         return self.scale[:, None] * J
 
 
 def _rotation(q: np.ndarray, iq: int) -> np.ndarray:
     """The rotation of the free-flyer whose configuration starts at ``iq`` (``[x y z qx qy qz qw]``)."""
-    return pin.Quaternion(q[iq + 6], *q[iq + 3:iq + 6]).normalized().matrix()
+    return pin.Quaternion(q[iq + 6], *q[iq + 3 : iq + 6]).normalized().matrix()
 
 
 __all__ = ["PoseResidual", "ResidualWeights"]

@@ -54,30 +54,55 @@ def rollout(scene, recording: Recording, values: Mapping | None = None, options:
     k = recording.compared
     started = time.perf_counter()
     try:
-        traj = simulate(variant.with_state(recording.q0, recording.v0), float(recording.t[-1]),
-                        t0=float(recording.t0), sample_times=recording.t[k], **dict(options or {}))
+        traj = simulate(
+            variant.with_state(recording.q0, recording.v0),
+            float(recording.t[-1]),
+            t0=float(recording.t0),
+            sample_times=recording.t[k],
+            **dict(options or {}),
+        )
         error = None
     except StoppedRunError as exc:
         traj, error = exc.trajectory, f"{type(exc).__name__}: {exc}"
     except (ContactDiffError, ValueError, np.linalg.LinAlgError) as exc:
         # ValueError, LinAlgError: a defect of the integrator on this run (reported as the run's
         # failure with its type, so that an evaluation of many recordings lists it and goes on)
-        return Rollout(recording.name, np.zeros((0, len(recording.q0))), {}, {}, time.perf_counter() - started,
-                       f"{type(exc).__name__}: {exc}")
+        return Rollout(
+            recording.name,
+            np.zeros((0, len(recording.q0))),
+            {},
+            {},
+            time.perf_counter() - started,
+            f"{type(exc).__name__}: {exc}",
+        )
     wall = time.perf_counter() - started
     samples = traj.samples
     q = samples.q if samples is not None else np.zeros((0, len(recording.q0)))
     last = recording.t[-1]
-    return Rollout(recording.name, q, dict(Counter(e.kind for e in traj.events)),
-                   dict(Counter(r.name for e in traj.events if e.t <= last for r in e.nonsmooth)), wall, error)
+    return Rollout(
+        recording.name,
+        q,
+        dict(Counter(e.kind for e in traj.events)),
+        dict(Counter(r.name for e in traj.events if e.t <= last for r in e.nonsmooth)),
+        wall,
+        error,
+    )
 
 
 def _in_worker(source, recording: Recording, values, options) -> Rollout:
     return rollout(source.build(), recording, values, options)
 
 
-def rollouts(scene, recordings: Sequence[Recording], values: Mapping | None = None, *, jobs: int = 1,
-             backend: str = "loky", options: Mapping | None = None, progress: bool | None = None) -> list[Rollout]:
+def rollouts(
+    scene,
+    recordings: Sequence[Recording],
+    values: Mapping | None = None,
+    *,
+    jobs: int = 1,
+    backend: str = "loky",
+    options: Mapping | None = None,
+    progress: bool | None = None,
+) -> list[Rollout]:
     """`rollout` of every recording, in order; ``scene`` as `contactdiff.fit.fit` takes it
     (a `Scene` with ``jobs=1``, else a source the workers rebuild)."""
     from ..sweeps.runner import _progress_bar

@@ -82,8 +82,9 @@ def start_velocity(model: pin.Model, t: np.ndarray, q: np.ndarray, k: int) -> np
         InvalidInputError: ``k`` < 2 (no two samples before it) or past the last sample.
     """
     if not FIRST_START <= k < len(t):
-        raise InvalidInputError(f"start_velocity: sample {k} needs two samples before it; valid starts are "
-                                f"{FIRST_START} .. {len(t) - 1}")
+        raise InvalidInputError(
+            f"start_velocity: sample {k} needs two samples before it; valid starts are {FIRST_START} .. {len(t) - 1}"
+        )
     h1, h2 = t[k] - t[k - 1], t[k] - t[k - 2]
     d1 = pin.difference(model, q[k], q[k - 1])  # ≈ -h1 v + h1²/2 a
     d2 = pin.difference(model, q[k], q[k - 2])  # ≈ -h2 v + h2²/2 a
@@ -97,8 +98,13 @@ def evenly(recording: Recording, windows: Windows) -> list[int]:
     return list(range(FIRST_START, len(recording.t) - 1, windows.step))
 
 
-def cut(recording: Recording, windows: Windows, model: pin.Model, starts: Sequence[int] | None = None,
-        velocities: Sequence[np.ndarray] | None = None) -> list[Recording]:
+def cut(
+    recording: Recording,
+    windows: Windows,
+    model: pin.Model,
+    starts: Sequence[int] | None = None,
+    velocities: Sequence[np.ndarray] | None = None,
+) -> list[Recording]:
     """The windows of ``recording`` (module doc), as recordings named ``NAME[k:e]`` (samples k..e).
 
     Args:
@@ -118,12 +124,15 @@ def cut(recording: Recording, windows: Windows, model: pin.Model, starts: Sequen
     k = len(recording.t)
     starts = evenly(recording, windows) if starts is None else [int(s) for s in starts]
     if not starts:
-        raise InvalidInputError(f"cut: recording {recording.name!r} has {k} samples: too short for a window "
-                                f"(a start needs {FIRST_START} samples before it and one after)")
+        raise InvalidInputError(
+            f"cut: recording {recording.name!r} has {k} samples: too short for a window "
+            f"(a start needs {FIRST_START} samples before it and one after)"
+        )
     bad = [s for s in starts if not FIRST_START <= s <= k - 2]
     if bad:
-        raise InvalidInputError(f"cut: window start(s) {bad} of {recording.name!r} outside the valid samples "
-                                f"{FIRST_START} .. {k - 2}")
+        raise InvalidInputError(
+            f"cut: window start(s) {bad} of {recording.name!r} outside the valid samples {FIRST_START} .. {k - 2}"
+        )
     if any(b <= a for a, b in zip(starts, starts[1:])):
         raise InvalidInputError(f"cut: window starts must increase, got {starts}")
     if velocities is not None and len(velocities) != len(starts):
@@ -134,8 +143,18 @@ def cut(recording: Recording, windows: Windows, model: pin.Model, starts: Sequen
         v0 = start_velocity(model, recording.t, recording.q, s) if velocities is None else velocities[i]
         rows = slice(s, e + 1)
         weights = None if recording.weights is None else recording.weights[rows]
-        out.append(Recording(f"{recording.name}[{s}:{e}]", recording.t[rows], recording.q[rows],
-                             float(recording.t[s]), recording.q[s], v0, weights, recording.mask))
+        out.append(
+            Recording(
+                f"{recording.name}[{s}:{e}]",
+                recording.t[rows],
+                recording.q[rows],
+                float(recording.t[s]),
+                recording.q[s],
+                v0,
+                weights,
+                recording.mask,
+            )
+        )
     return out
 
 

@@ -103,12 +103,24 @@ class EventResets:
         # pressed it down) slides instead: normal row only, until its force vanishes
         unheld = self._unheld(q, v, mode, releasing)
         new_mode = liftoff_mode(dyn, q, v, t, mode, releasing, unheld)
-        kind = (EventKind.SLIP if any(dyn.is_sliding(k) and k not in mode and k not in unheld for k in new_mode)
-                else EventKind.LIFT_OFF)
-        event = Event(t=t, kind=kind, contacts=self._mode_names(releasing), simultaneous=len(releasing) > 1,
-                      q=q.copy(), v_minus=v.copy(), v_plus=v.copy(), impulses={},
-                      mode_before=self._mode_names(mode), mode_after=self._mode_names(new_mode),
-                      sliding=self._sliding_names(new_mode))
+        kind = (
+            EventKind.SLIP
+            if any(dyn.is_sliding(k) and k not in mode and k not in unheld for k in new_mode)
+            else EventKind.LIFT_OFF
+        )
+        event = Event(
+            t=t,
+            kind=kind,
+            contacts=self._mode_names(releasing),
+            simultaneous=len(releasing) > 1,
+            q=q.copy(),
+            v_minus=v.copy(),
+            v_plus=v.copy(),
+            impulses={},
+            mode_before=self._mode_names(mode),
+            mode_after=self._mode_names(new_mode),
+            sliding=self._sliding_names(new_mode),
+        )
         if self.sensitive:
             # guard: the normal force of the first releasing contact; with several at once
             # (a simultaneous lift-off) the saltation is the product of the single
@@ -130,8 +142,9 @@ class EventResets:
         dyn, speed = self.dyn, self.options.grazing_speed
         gaps, rates = self._gaps_and_rates(q, v)
         active = dyn.contacts_of(mode)
-        closed = [i for i, (g, r) in enumerate(zip(gaps, rates)) if i not in active and g <= self.gap_tol
-                  and abs(r) <= speed]
+        closed = [
+            i for i, (g, r) in enumerate(zip(gaps, rates)) if i not in active and g <= self.gap_tol and abs(r) <= speed
+        ]
         if not closed:
             return []
         dyn.kin.update(q, v)
@@ -164,16 +177,20 @@ class EventResets:
         xi_p = np.zeros((n2, self.jumps.p)) if self.jumps else None
         for n, k in enumerate(releasing):
             slide = self.dyn.sliding_key(k) if not self.dyn.is_sliding(k) else None
-            after = tuple(new_mode) if n == len(releasing) - 1 else tuple(sorted(
-                [i for i in current if i != k] + ([slide] if slide in new_mode else [])))
+            after = (
+                tuple(new_mode)
+                if n == len(releasing) - 1
+                else tuple(sorted([i for i in current if i != k] + ([slide] if slide in new_mode else [])))
+            )
             Dh, F_minus, h_t = first_guard if n == 0 else liftoff_guard(self.dyn, t, q, v, current, k)
             F_plus = vector_field(self.dyn, q, v, t, after)
             xi_k = saltation(np.eye(n2), Dh, F_minus, F_plus, h_t)
             xi = xi_k @ xi
             if xi_p is not None:
                 h_p = first_h_p if n == 0 else self.jumps.force_guard(q, v, t, current, k)
-                xi_p = xi_k @ xi_p + ParameterJumps.saltation(None, h_p, None, F_minus, F_plus,
-                                                              float(Dh @ F_minus) + h_t)
+                xi_p = xi_k @ xi_p + ParameterJumps.saltation(
+                    None, h_p, None, F_minus, F_plus, float(Dh @ F_minus) + h_t
+                )
             current = after
         return xi, xi_p
 
@@ -190,14 +207,18 @@ class EventResets:
         gap = float(np.max(np.abs(v_cascade - v_plus)))
         if gap <= RESTING_GAP_TOL * scale:
             return None
-        pairs = "; ".join(f"{self.names[dyn.contact_index(k)]} (coupling "
-                          + ", ".join(f"{self.names[j]} {c:.3g}" for j, c in coupled.items()) + ")"
-                          for k, coupled in resting.items())
+        pairs = "; ".join(
+            f"{self.names[dyn.contact_index(k)]} (coupling "
+            + ", ".join(f"{self.names[j]} {c:.3g}" for j, c in coupled.items())
+            + ")"
+            for k, coupled in resting.items()
+        )
         ended = f"{impacts} impacts" if impacts <= CASCADE_ROUNDS else f"not ended after {CASCADE_ROUNDS} impacts"
         nonsmooth[NonSmooth.RESTING_CONTACT] = self._note(
             f"not differentiable at t = {t:.12g}: {', '.join(self.names[i] for i in touching)} landed against "
             f"resting {pairs}; opened by a perturbation, the impact is a cascade ({ended}) whose velocity after "
-            f"differs by up to {gap:.3g} (event.outcomes)")
+            f"differs by up to {gap:.3g} (event.outcomes)"
+        )
         return {"simultaneous": v_plus.copy(), "cascade": v_cascade}
 
     def _impact(self, t, q, v_minus, mode, closed, touching, releasing=(), initial=False):
@@ -212,7 +233,8 @@ class EventResets:
             raise GrazingError(
                 f"grazing touchdown of {', '.join(self.names[i] for i in grazing)} at t = {t:.17g}: "
                 f"normal speed {max(abs(speeds[i]) for i in grazing):.3g} m/s <= grazing_speed "
-                f"{self.options.grazing_speed:g}; the flow is not differentiable there")
+                f"{self.options.grazing_speed:g}; the flow is not differentiable there"
+            )
         dyn = self.dyn
         e = np.array([dyn.contact(k).restitution for k in closed])
         zeno = [i for i in touching if self.contacts[i].restitution > 0 and abs(speeds[i]) < self.options.zeno_speed]
@@ -227,8 +249,11 @@ class EventResets:
                 v_plus = held_velocity(dyn, q, v_plus, creeping)
         scale = max(1.0, float(np.max(np.abs(impact.normal_speeds_before))))
         leaving = set(dyn.contacts_of(releasing))  # a releasing contact leaves whatever its key
-        staying = [k for k, s in zip(closed, impact.normal_speeds_after)
-                   if s <= SPEED_TOL * scale and dyn.contact_index(k) not in leaving]
+        staying = [
+            k
+            for k, s in zip(closed, impact.normal_speeds_after)
+            if s <= SPEED_TOL * scale and dyn.contact_index(k) not in leaving
+        ]
         # The Zeno rule for impact cascades: a closed contact that this impact would
         # lift slower than zeno_speed does not leave (with several sticking feet an
         # impact at one foot lifts another by a little, whose return lifts a third,
@@ -244,9 +269,13 @@ class EventResets:
         # `_crossings`, i.e. below the ground by the grazing band, landing again
         # at sqrt(2 |acceleration| band) (ANYmal's trot: 1e-7 m, 1 cm/s). A contact
         # with restitution left bounces by its own law, ended on its approach speed.
-        settling = [k for k, s, e_k in zip(closed, impact.normal_speeds_after, impact.restitution)
-                    if SPEED_TOL * scale < s < self.options.zeno_speed and dyn.contact_index(k) not in leaving
-                    and (dyn.contact_index(k) not in touching or e_k == 0.0)]
+        settling = [
+            k
+            for k, s, e_k in zip(closed, impact.normal_speeds_after, impact.restitution)
+            if SPEED_TOL * scale < s < self.options.zeno_speed
+            and dyn.contact_index(k) not in leaving
+            and (dyn.contact_index(k) not in touching or e_k == 0.0)
+        ]
         new_mode = choose_mode(dyn, q, v_plus, t, staying + settling)
         from_rest: list = []  # the contacts that slip from rest after the impact (`_onset_columns`)
         if impact.states is not None:
@@ -259,30 +288,47 @@ class EventResets:
             v_plus = held_velocity(self.dyn, q, v_plus, new_mode)
             nonsmooth[NonSmooth.ZENO_CASCADE] = self._note(
                 f"Zeno: impact cascade ended at t = {t:.12g}: {', '.join(self.names[i] for i in settled)} "
-                f"kept closed (lifted slower than zeno_speed = {self.options.zeno_speed:g} m/s)")
+                f"kept closed (lifted slower than zeno_speed = {self.options.zeno_speed:g} m/s)"
+            )
         # a landing slower than zeno_speed ends its bounces: its own restitution set to
         # zero, or, lifted by the impact law, kept closed by the rule above
         ended = sorted(set(zeno) | {i for i in settled if i in touching and abs(speeds[i]) < self.options.zeno_speed})
         if grazing:
             kind = EventKind.GRAZING
             nonsmooth[NonSmooth.GRAZING] = self._note(
-                f"grazing touchdown of {', '.join(self.names[i] for i in grazing)} at t = {t:.12g}")
+                f"grazing touchdown of {', '.join(self.names[i] for i in grazing)} at t = {t:.12g}"
+            )
         elif ended:
             kind = EventKind.ZENO
-            self.notes.append(f"Zeno: bounces of {', '.join(self.names[i] for i in ended)} ended at t = {t:.12g} "
-                              f"(impact speed below zeno_speed = {self.options.zeno_speed:g} m/s); contact kept closed")
+            self.notes.append(
+                f"Zeno: bounces of {', '.join(self.names[i] for i in ended)} ended at t = {t:.12g} "
+                f"(impact speed below zeno_speed = {self.options.zeno_speed:g} m/s); contact kept closed"
+            )
         elif any(i in dyn.contacts_of(new_mode) for i in touching):
             kind = EventKind.TOUCHDOWN
         else:
             kind = EventKind.BOUNCE
-        outcomes = None if initial else self._resting_outcomes(t, q, v_minus, v_plus, mode, impact_keys, touching,
-                                                                nonsmooth)
+        outcomes = (
+            None if initial else self._resting_outcomes(t, q, v_minus, v_plus, mode, impact_keys, touching, nonsmooth)
+        )
         impulses = {self.names[dyn.contact_index(k)]: float(x) for k, x in zip(closed, impact.impulses)}
-        event = Event(t=t, kind=kind, contacts=self._mode_names(touching), simultaneous=len(touching) > 1,
-                      q=q.copy(), v_minus=v_minus.copy(), v_plus=v_plus.copy(), impulses=impulses,
-                      mode_before=self._mode_names(mode), mode_after=self._mode_names(new_mode),
-                      normal_speeds={self.names[i]: s for i, s in speeds.items()},
-                      sliding=self._sliding_names(new_mode), nonsmooth=nonsmooth, outcomes=outcomes)
+        event = Event(
+            t=t,
+            kind=kind,
+            contacts=self._mode_names(touching),
+            simultaneous=len(touching) > 1,
+            q=q.copy(),
+            v_minus=v_minus.copy(),
+            v_plus=v_plus.copy(),
+            impulses=impulses,
+            mode_before=self._mode_names(mode),
+            mode_after=self._mode_names(new_mode),
+            normal_speeds={self.names[i]: s for i, s in speeds.items()},
+            sliding=self._sliding_names(new_mode),
+            nonsmooth=nonsmooth,
+            outcomes=outcomes,
+        )
+
         def reset_jacobian():
             try:
                 DR = impact_reset_jacobian(self.dyn, q, v_minus, impact)
@@ -309,8 +355,9 @@ class EventResets:
                 event.parameter_saltation = reset_parameters()
                 event.parameter_time_gradient = np.zeros(self.jumps.p)
             if from_rest:
-                self._onset_columns(t, q, from_rest, self._jumped(self.phi, event), np.zeros(self.phi.shape[1]),
-                                    new_mode)
+                self._onset_columns(
+                    t, q, from_rest, self._jumped(self.phi, event), np.zeros(self.phi.shape[1]), new_mode
+                )
         elif self.sensitive:
             F_minus = vector_field(self.dyn, q, v_minus, t, mode)
             guard = min(touching, key=lambda i: speeds[i])
@@ -336,11 +383,11 @@ class EventResets:
                 if from_rest:  # the state after the reset, moved with the event's time
                     dt = -(Dh @ self.phi)
                     if h_p is not None:
-                        dt[self.n_state:] -= h_p
+                        dt[self.n_state :] -= h_p
                     dt /= float(Dh @ F_minus)
                     moved = DR @ (self.phi + np.outer(F_minus, dt))
                     if R_p is not None:
-                        moved[:, self.n_state:] += R_p
+                        moved[:, self.n_state :] += R_p
                     self._onset_columns(t, q, from_rest, moved, dt, new_mode)
             self._attach_sensitivity(event, xi, Dh, F_minus, xi_p=xi_p, h_p=h_p)
         elif len(touching) > 1 and not initial:  # the verdict must not depend on what was asked for
@@ -360,13 +407,15 @@ class EventResets:
                 f"not differentiable at t = {t:.12g}: {len(sim.unresolved)} of the landing orders of "
                 f"{', '.join(self.names[i] for i in touching)} have no impact solution the impact law's "
                 f"search finds, or no derivative there, so the orders cannot be compared "
-                f"({next(iter(sim.unresolved.values()))})")
+                f"({next(iter(sim.unresolved.values()))})"
+            )
         elif not sim.differentiable:
             by = "by" if sim.complete else "by at least"
             event.nonsmooth[NonSmooth.ORDER] = self._note(
                 f"not differentiable at t = {t:.12g}: the landing orders of "
                 f"{', '.join(self.names[i] for i in touching)} give saltation matrices "
-                f"differing {by} {sim.spread:.2e} (relative)")
+                f"differing {by} {sim.spread:.2e} (relative)"
+            )
         return sim
 
     def _friction_keys(self, q, impact) -> tuple[list[int], list[int]]:
@@ -381,8 +430,9 @@ class EventResets:
         dyn, keys, creeping = self.dyn, [], []
         dyn.kin.update(q, impact.v_plus)
         scale = max(1.0, float(np.max(np.abs(impact.normal_speeds_before))))
-        for k, state, s, u_n in zip(impact.contacts, impact.states, impact.slide_directions,
-                                    impact.normal_speeds_after):
+        for k, state, s, u_n in zip(
+            impact.contacts, impact.states, impact.slide_directions, impact.normal_speeds_after
+        ):
             contact = dyn.contact(k)
             if contact.spec.coulomb and state is ContactState.SLIDE and np.any(s):
                 slip = float(np.linalg.norm(contact.rows(dyn.kin)[1:] @ impact.v_plus))
@@ -401,8 +451,16 @@ class EventResets:
             keys.append(k)
         return keys, creeping
 
-    def _attach_sensitivity(self, event: Event, xi: np.ndarray, Dh: np.ndarray, F_minus: np.ndarray,
-                            h_t: float = 0.0, xi_p: np.ndarray | None = None, h_p: np.ndarray | None = None) -> None:
+    def _attach_sensitivity(
+        self,
+        event: Event,
+        xi: np.ndarray,
+        Dh: np.ndarray,
+        F_minus: np.ndarray,
+        h_t: float = 0.0,
+        xi_p: np.ndarray | None = None,
+        h_p: np.ndarray | None = None,
+    ) -> None:
         """Saltation matrix and event-time gradient ``-Dh Φ- / (Dh F- + h_t)`` (implicit
         functions; ``h_t`` the guard's explicit time rate); with parameters also their
         block ``xi_p`` and time gradient ``-(Dh Φ-_p + h_p) / (Dh F- + h_t)``."""

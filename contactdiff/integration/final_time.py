@@ -27,8 +27,15 @@ IMPACT_KINDS = ("touchdown", "bounce")
 Zeno speed, a grazing touch at zero speed)."""
 
 
-def final_touches(names, gaps: np.ndarray, rates: np.ndarray, held: set[int], events: list[Event],
-                  t_final: float, options: SimulateOptions) -> list[str]:
+def final_touches(
+    names,
+    gaps: np.ndarray,
+    rates: np.ndarray,
+    held: set[int],
+    events: list[Event],
+    t_final: float,
+    options: SimulateOptions,
+) -> list[str]:
     """Remarks, one per contact touching at ``t_final`` (module doc); empty if none.
 
     Args:
@@ -46,9 +53,11 @@ def final_touches(names, gaps: np.ndarray, rates: np.ndarray, held: set[int], ev
         if i in held or not rates[i] < -slow:
             continue
         if gaps[i] <= tol * -rates[i]:
-            remarks.append(f"{name} touches at the final time t = {t_final:.12g} (gap {gaps[i]:.3g} m closing at "
-                           f"{-rates[i]:.3g} m/s): the final state has one-sided derivatives only; the Jacobian "
-                           "is the one of the side on which it has not landed yet")
+            remarks.append(
+                f"{name} touches at the final time t = {t_final:.12g} (gap {gaps[i]:.3g} m closing at "
+                f"{-rates[i]:.3g} m/s): the final state has one-sided derivatives only; the Jacobian "
+                "is the one of the side on which it has not landed yet"
+            )
     for event in reversed(events):
         if event.t < t_final - tol:
             break
@@ -56,7 +65,9 @@ def final_touches(names, gaps: np.ndarray, rates: np.ndarray, held: set[int], ev
             continue
         for name in event.contacts:
             if -event.normal_speeds.get(name, 0.0) > slow:
-                remarks.append(f"{name} landed at t = {event.t:.12g}, within simultaneous_tol of the final time "
-                               f"{t_final:.12g}: the final state has one-sided derivatives only; the Jacobian "
-                               "is the one of the side on which it has landed")
+                remarks.append(
+                    f"{name} landed at t = {event.t:.12g}, within simultaneous_tol of the final time "
+                    f"{t_final:.12g}: the final state has one-sided derivatives only; the Jacobian "
+                    "is the one of the side on which it has landed"
+                )
     return remarks

@@ -83,8 +83,9 @@ SLIPPING_FLOORS = 10.0
 floors (``zeno_speed``, as an impact's creeping rule) slips along its own slip."""
 
 
-def settle_friction(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float,
-                    mode: tuple[int, ...], from_rest: list | None = None) -> tuple[tuple[int, ...], ModeSolution]:
+def settle_friction(
+    dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float, mode: tuple[int, ...], from_rest: list | None = None
+) -> tuple[tuple[int, ...], ModeSolution]:
     """The mode after Coulomb's law on ``mode`` at ``(q, v, t)``.
 
     A sticking contact whose sticking force leaves the cone slips along
@@ -132,12 +133,23 @@ def resting_slips(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, mode: tuple[i
     (``dyn.slip_speed_floor``, m/s): slips at rest within the integration's noise, which
     stop with the event (module doc)."""
     dyn.kin.update(q, v)
-    return [key for key in mode if dyn.contact(key).slips
-            and float(np.linalg.norm(dyn.contact(key).full.rows(dyn.kin)[1:] @ v)) <= dyn.slip_speed_floor]
+    return [
+        key
+        for key in mode
+        if dyn.contact(key).slips
+        and float(np.linalg.norm(dyn.contact(key).full.rows(dyn.kin)[1:] @ v)) <= dyn.slip_speed_floor
+    ]
 
 
-def held_at_rest(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float, mode: tuple[int, ...],
-                 closed: list[int], speed_tol: float) -> tuple[tuple[int, ...], ModeSolution] | None:
+def held_at_rest(
+    dyn: ModeDynamics,
+    q: np.ndarray,
+    v: np.ndarray,
+    t: float,
+    mode: tuple[int, ...],
+    closed: list[int],
+    speed_tol: float,
+) -> tuple[tuple[int, ...], ModeSolution] | None:
     """The mode with the held contacts among ``closed`` bearing again (module doc), or
     None where none joins.
 
@@ -242,9 +254,16 @@ class FrictionEvents:
         def _mode_names(self, mode) -> tuple[str, ...]: ...
         def _sliding_names(self, mode) -> tuple[str, ...]: ...
         def _note(self, text: str) -> str: ...
-        def _attach_sensitivity(self, event: Event, xi: np.ndarray, Dh: np.ndarray, F_minus: np.ndarray,
-                                h_t: float = 0.0, xi_p: np.ndarray | None = None,
-                                h_p: np.ndarray | None = None) -> None: ...
+        def _attach_sensitivity(
+            self,
+            event: Event,
+            xi: np.ndarray,
+            Dh: np.ndarray,
+            F_minus: np.ndarray,
+            h_t: float = 0.0,
+            xi_p: np.ndarray | None = None,
+            h_p: np.ndarray | None = None,
+        ) -> None: ...
 
     def _friction_event(self, t, q, v, mode, fired: list[Guard]):
         dyn = self.dyn
@@ -274,18 +293,30 @@ class FrictionEvents:
         if stops:
             gaps, rates = self._gaps_and_rates(q, v_plus)
             active = dyn.contacts_of(new_mode)
-            closed = [i for i, (g, r) in enumerate(zip(gaps, rates)) if i not in active and g <= self.gap_tol
-                      and abs(r) <= self.options.grazing_speed]
+            closed = [
+                i
+                for i, (g, r) in enumerate(zip(gaps, rates))
+                if i not in active and g <= self.gap_tol and abs(r) <= self.options.grazing_speed
+            ]
             bearing = held_at_rest(dyn, q, v_plus, t, new_mode, closed, self.options.grazing_speed)
             if bearing is not None:
                 new_mode, settled = bearing
         stuck = [dyn.contact_index(k) for k in stops if dyn.contact_index(k) in new_mode]
         kind = EventKind.STICK if stuck and not cone else EventKind.SLIP
         fired_names = self._mode_names(cone + stops)
-        event = Event(t=t, kind=kind, contacts=fired_names, simultaneous=len(fired) > 1,
-                      q=q.copy(), v_minus=v.copy(), v_plus=v_plus.copy(), impulses={},
-                      mode_before=self._mode_names(mode), mode_after=self._mode_names(new_mode),
-                      sliding=self._sliding_names(new_mode))
+        event = Event(
+            t=t,
+            kind=kind,
+            contacts=fired_names,
+            simultaneous=len(fired) > 1,
+            q=q.copy(),
+            v_minus=v.copy(),
+            v_plus=v_plus.copy(),
+            impulses={},
+            mode_before=self._mode_names(mode),
+            mode_after=self._mode_names(new_mode),
+            sliding=self._sliding_names(new_mode),
+        )
         if cone:
             Dh, F_minus, h_t, solved, cone_size = cone_guard(dyn, t, q, v, mode, cone[0])
             DR = None
@@ -314,7 +345,7 @@ class FrictionEvents:
             if found:
                 dt = -(Dh @ self.phi)  # ∂t/∂ of phi's columns (as the parameters' saltation)
                 if h_p is not None:
-                    dt[self.n_state:] -= h_p
+                    dt[self.n_state :] -= h_p
                 dt /= rate
                 moved = self.phi + np.outer(F_minus, dt)  # the event's state before its reset
                 self._onset_columns(t, q, found, moved if DR is None else DR @ moved, dt, new_mode)
@@ -362,7 +393,7 @@ class FrictionEvents:
                 w += float(turn @ (dyn.solve(q, v, t, mode, tau=tau).forces[rows][1:] - lam_T)) * dt
                 dyn.kin.update(q, v)
             if self.jumps:
-                w[self.n_state:] += turn @ der.forces_dtau[rows][1:] @ self.jumps.forces.mode_forces(dyn, sol, q, v, t)
+                w[self.n_state :] += turn @ der.forces_dtau[rows][1:] @ self.jumps.forces.mode_forces(dyn, sol, q, v, t)
             for key, other in zip(sol.active, sol.row_slices):  # earlier slips from rest in this mode
                 earlier = self.onsets.get(dyn.contact_index(key))
                 if earlier is None or not dyn.is_sliding(key):
@@ -384,7 +415,8 @@ class FrictionEvents:
             if abs(rate) <= THRESHOLD_TOL * scale:
                 event.nonsmooth[NonSmooth.FRICTION_THRESHOLD] = self._note(
                     f"not differentiable at t = {t:.12g}: the tangential force of {', '.join(event.contacts)} "
-                    f"touches the friction cone without crossing it (cone margin rate {rate:.3g} N/s)")
+                    f"touches the friction cone without crossing it (cone margin rate {rate:.3g} N/s)"
+                )
             return
         for key, f in zip(settled.active, settled.row_forces()):
             if dyn.contact_index(key) in stuck:
@@ -393,4 +425,5 @@ class FrictionEvents:
                     event.nonsmooth[NonSmooth.FRICTION_THRESHOLD] = self._note(
                         f"not differentiable at t = {t:.12g}: {self.names[dyn.contact_index(key)]} stopped with its "
                         f"sticking force on the friction cone (|λ_T| = {tangential:.6g} N, μ λ_N = {mu_n:.6g} N): "
-                        "neighbouring runs stick or slip on")
+                        "neighbouring runs stick or slip on"
+                    )

@@ -143,6 +143,7 @@ class GuardFinder:
                 qt, _ = dense(t)
                 self.kin.update(qt, np.zeros(self.scene.nv))
                 return self.contacts[i].gap(self.kin)
+
             t_lo, g_lo = t_a, gaps0[i]
             if gaps1[i] < 0.0:
                 t_hi, g_hi = t_b, gaps1[i]
@@ -175,8 +176,12 @@ class GuardFinder:
                     # step may lie far below the ground, and rtol there would widen it)
                     shift = max(self.gap_tol, self.grazing_band(stepper.q_old)) - min(g_lo, 0.0)
                     if g_hi + shift < 0.0:
-                        found.append((locate_crossing(lambda t: gap(t) + shift, t_a, t_hi, g_lo + shift,
-                                                      g_hi + shift), Guard(GuardKind.GAP, i)))
+                        found.append(
+                            (
+                                locate_crossing(lambda t: gap(t) + shift, t_a, t_hi, g_lo + shift, g_hi + shift),
+                                Guard(GuardKind.GAP, i),
+                            )
+                        )
                     continue
                 t_lo, g_lo = t_peak, g_peak
             found.append((locate_crossing(gap, t_lo, t_hi, g_lo, g_hi), Guard(GuardKind.GAP, i)))
@@ -191,14 +196,17 @@ class GuardFinder:
             # its speed along its direction passes -floor: below floor its direction is noise.
             # One an event started from rest starts at round-off of either sign (`from_rest`)
             shift = 0.0
-            if guard.kind is GuardKind.STOP and (values0[k] <= 0.0 or
-                                                 (guard.contact in self.from_rest and values0[k] <= floor)):
+            if guard.kind is GuardKind.STOP and (
+                values0[k] <= 0.0 or (guard.contact in self.from_rest and values0[k] <= floor)
+            ):
                 shift = floor
             if values1[k] + shift >= 0.0 and not pulling:
                 continue
+
             def value(t, k=k, shift=shift):
                 qt, vt = dense(t)
                 return field.guard_values(t, qt, vt)[k] + shift
+
             # the start's value afresh: a slip direction set since it was stored (at an event's
             # mode choice) moves the forces of the contacts it pushes on
             start = value(t_a)
@@ -221,8 +229,9 @@ class GuardFinder:
         the start put it at the start itself: after every restart the same stop, and a
         run that repeated one event without advancing."""
         stopped = {g.contact for g in fired if g.kind is GuardKind.STOP}
-        self.from_rest = {key for key in mode_after if self.dyn.contact(key).slips
-                          and (key not in mode_before or key in stopped)}
+        self.from_rest = {
+            key for key in mode_after if self.dyn.contact(key).slips and (key not in mode_before or key in stopped)
+        }
 
     def grazing_band(self, q) -> float:
         """Gap (m) within which a contact that turns back up may have touched, given
@@ -242,11 +251,13 @@ class GuardFinder:
         the minimum. The time tolerance, 1e-9 of the step (or a few ulps of t),
         puts the minimum's value within ~1e-18 of the step's gap variation.
         """
+
         def f(s):
             value = gap(t_a + s)
             if value < stop_below:
                 raise _Below(s, value)
             return value
+
         xatol = max(4 * np.finfo(float).eps * max(1.0, abs(t_b)), 1e-9 * (t_b - t_a))
         try:
             low = minimize_scalar(f, bounds=(0.0, t_b - t_a), method="bounded", options={"xatol": xatol})

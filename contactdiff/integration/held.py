@@ -45,8 +45,17 @@ if TYPE_CHECKING:
     from ..model.scene import Scene
 
 
-def held_contacts(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float, mode: tuple[int, ...],
-                  gaps: np.ndarray, rates: np.ndarray, gap_tol: float, speed_tol: float) -> dict[int, int]:
+def held_contacts(
+    dyn: ModeDynamics,
+    q: np.ndarray,
+    v: np.ndarray,
+    t: float,
+    mode: tuple[int, ...],
+    gaps: np.ndarray,
+    rates: np.ndarray,
+    gap_tol: float,
+    speed_tol: float,
+) -> dict[int, int]:
     """The contacts ``mode`` holds at zero gap, each with its key in the enlarged set.
 
     Args:
@@ -76,8 +85,9 @@ def held_contacts(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float, mod
     if not mode:
         return {}
     active = dyn.contacts_of(mode)
-    closed = [i for i, (g, r) in enumerate(zip(gaps, rates))
-              if i not in active and g <= gap_tol and abs(r) <= speed_tol]
+    closed = [
+        i for i, (g, r) in enumerate(zip(gaps, rates)) if i not in active and g <= gap_tol and abs(r) <= speed_tol
+    ]
     if not closed:
         return {}
     dyn.kin.update(q, v)
@@ -121,8 +131,7 @@ def bear_value(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float, mode, 
     return -float(sol.forces[sol.row_slices[full.index(key)].start])
 
 
-def bear_guard(dyn: ModeDynamics, t: float, q: np.ndarray, v: np.ndarray, mode, key: int
-               ) -> tuple[np.ndarray, float]:
+def bear_guard(dyn: ModeDynamics, t: float, q: np.ndarray, v: np.ndarray, mode, key: int) -> tuple[np.ndarray, float]:
     """The bearing guard ``h = -λ_N`` of held key ``key`` of ``mode`` (module doc):
     ``(Dh, h_t)``, its gradient (2nv,) and its explicit time rate (N/s)."""
     Dh, _, h_t = liftoff_guard(dyn, t, q, v, enlarged(mode, key), key)
@@ -152,9 +161,16 @@ class HeldEvents:
 
         def _mode_names(self, mode) -> tuple[str, ...]: ...
         def _sliding_names(self, mode) -> tuple[str, ...]: ...
-        def _attach_sensitivity(self, event: Event, xi: np.ndarray, Dh: np.ndarray, F_minus: np.ndarray,
-                                h_t: float = 0.0, xi_p: np.ndarray | None = None,
-                                h_p: np.ndarray | None = None) -> None: ...
+        def _attach_sensitivity(
+            self,
+            event: Event,
+            xi: np.ndarray,
+            Dh: np.ndarray,
+            F_minus: np.ndarray,
+            h_t: float = 0.0,
+            xi_p: np.ndarray | None = None,
+            h_p: np.ndarray | None = None,
+        ) -> None: ...
 
     def _bear_event(self, t, q, v, mode, bearing: list[int]):
         """The held contacts ``bearing`` (scene indices) join ``mode`` at ``(t, q, v)``: no
@@ -164,10 +180,19 @@ class HeldEvents:
         held = self.fields[-1].held
         keys = [held[i] for i in bearing]
         new_mode, _ = settle_friction(dyn, q, v, t, tuple(sorted((*mode, *keys))))
-        event = Event(t=t, kind=EventKind.BEAR, contacts=self._mode_names(keys), simultaneous=len(keys) > 1,
-                      q=q.copy(), v_minus=v.copy(), v_plus=v.copy(), impulses={},
-                      mode_before=self._mode_names(mode), mode_after=self._mode_names(new_mode),
-                      sliding=self._sliding_names(new_mode))
+        event = Event(
+            t=t,
+            kind=EventKind.BEAR,
+            contacts=self._mode_names(keys),
+            simultaneous=len(keys) > 1,
+            q=q.copy(),
+            v_minus=v.copy(),
+            v_plus=v.copy(),
+            impulses={},
+            mode_before=self._mode_names(mode),
+            mode_after=self._mode_names(new_mode),
+            sliding=self._sliding_names(new_mode),
+        )
         if self.sensitive:
             Dh, h_t = bear_guard(dyn, t, q, v, mode, keys[0])
             F_minus, F_plus = vector_field(dyn, q, v, t, mode), vector_field(dyn, q, v, t, new_mode)

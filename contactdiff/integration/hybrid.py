@@ -100,8 +100,16 @@ GAP_TOL = 1e-12
 """m: a contact whose gap is below this is closed."""
 
 
-def simulate(scene: Scene, t_final: float, q0: StateInput | None = None, v0: StateInput | None = None, *,
-             t0: float = 0.0, options: SimulateOptions | None = None, **option_values: Any) -> Trajectory:
+def simulate(
+    scene: Scene,
+    t_final: float,
+    q0: StateInput | None = None,
+    v0: StateInput | None = None,
+    *,
+    t0: float = 0.0,
+    options: SimulateOptions | None = None,
+    **option_values: Any,
+) -> Trajectory:
     """Compute the hybrid trajectory of ``scene`` from ``t0`` to ``t_final``.
 
     Args:
@@ -158,8 +166,15 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
     the state's 2nv with ``jacobian``, then the parameters').
     """
 
-    def __init__(self, scene: Scene, t0: float, t_final: float, q0: StateInput | None = None,
-                 v0: StateInput | None = None, options: SimulateOptions | None = None):
+    def __init__(
+        self,
+        scene: Scene,
+        t0: float,
+        t_final: float,
+        q0: StateInput | None = None,
+        v0: StateInput | None = None,
+        options: SimulateOptions | None = None,
+    ):
         if not isinstance(scene, Scene):
             raise InvalidInputError(f"scene must be a Scene (see load_scene), got {scene!r}")
         self.options = SimulateOptions() if options is None else options
@@ -199,6 +214,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
         self.n_state = 2 * self.scene.nv if self.options.jacobian else 0
         if self.options.parameters:
             from ..model.parameters import resolve  # the model's names import the dynamics' scene
+
             self.jumps = ParameterJumps(self.dyn, resolve(self.scene, self.options.parameters))
         check_sample_times(self.options.sample_times, self.t0, self.t_final)
         self.recorder = SampleRecorder(self.options.sample_times, self.n_state, self.options.parameters)
@@ -208,7 +224,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
         Jacobian, the p parameter columns only (zero)."""
         n = 2 * self.scene.nv
         phi = np.zeros((n, self.n_state + (self.jumps.p if self.jumps else 0)))
-        phi[:, :self.n_state] = np.eye(n, self.n_state)
+        phi[:, : self.n_state] = np.eye(n, self.n_state)
         return phi
 
     def _field(self, mode, fused: bool, t: float, q, v) -> ModeField:
@@ -217,10 +233,25 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
         held = {}
         if mode:
             gaps, rates = self._gaps_and_rates(q, v)
-            held = held_contacts(self.dyn, q, v, t, tuple(mode), gaps, rates,
-                                 max(self.gap_tol, self.options.resolved_project_tol), self.options.grazing_speed)
-        return ModeField(self.dyn, mode, fused=fused, parameters=self.jumps.forces if self.jumps else None,
-                         held=held, onsets=self.onsets)
+            held = held_contacts(
+                self.dyn,
+                q,
+                v,
+                t,
+                tuple(mode),
+                gaps,
+                rates,
+                max(self.gap_tol, self.options.resolved_project_tol),
+                self.options.grazing_speed,
+            )
+        return ModeField(
+            self.dyn,
+            mode,
+            fused=fused,
+            parameters=self.jumps.forces if self.jumps else None,
+            held=held,
+            onsets=self.onsets,
+        )
 
     def _jumped(self, phi: np.ndarray | None, event: Event) -> np.ndarray:
         """The flow Jacobian just after ``event`` from ``phi`` just before: ``Ξ phi``, plus
@@ -228,7 +259,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
         assert phi is not None and event.saltation is not None  # called only in a sensitive run
         out = event.saltation @ phi
         if event.parameter_saltation is not None:
-            out[:, self.n_state:] += event.parameter_saltation
+            out[:, self.n_state :] += event.parameter_saltation
         return out
 
     # -- hooks ----------------------------------------------------------------------
@@ -261,8 +292,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
         return tuple(self.names[i] for i in sorted(self.dyn.contacts_of(mode)))
 
     def _sliding_names(self, mode) -> tuple[str, ...]:
-        return tuple(self.names[i] for i in sorted(self.dyn.contact_index(k) for k in mode
-                                                   if self.dyn.is_sliding(k)))
+        return tuple(self.names[i] for i in sorted(self.dyn.contact_index(k) for k in mode if self.dyn.is_sliding(k)))
 
     # -- start ----------------------------------------------------------------------
     def initial_mode(self, q, v):
@@ -302,8 +332,9 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
             mode, _ = settle_friction(self.dyn, q, v, self.t0, mode, from_rest)
             if self.sensitive and from_rest:  # no guard at t0: the start's own perturbations
                 start = self._identity_phi()
-                self._onset_columns(self.t0, q, [(i, m, v) for i, m in from_rest], start,
-                                    np.zeros(start.shape[1]), mode)
+                self._onset_columns(
+                    self.t0, q, [(i, m, v) for i, m in from_rest], start, np.zeros(start.shape[1]), mode
+                )
         return mode, held_velocity(self.dyn, q, v, mode)
 
     # -- the loop -------------------------------------------------------------------
@@ -323,9 +354,17 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
         mode, v = self.initial_mode(q, v)
         field = self._field(mode, self.sensitive and options.method != "Radau", self.t0, q, v)
         self.chooser = MethodChooser(self._probe(mode)) if options.method == AUTO else None
-        stepper = make_stepper(EXPLICIT if self.chooser else options.method, field.accel, self.group, self.t0,
-                               q, v, jac=field.jac, variational=self._identity_phi() if self.sensitive else None,
-                               **self._stepper_options(field))
+        stepper = make_stepper(
+            EXPLICIT if self.chooser else options.method,
+            field.accel,
+            self.group,
+            self.t0,
+            q,
+            v,
+            jac=field.jac,
+            variational=self._identity_phi() if self.sensitive else None,
+            **self._stepper_options(field),
+        )
         if self.sensitive and self.initial_saltation is not None:
             stepper.restart(self.t0, q, v, phi=self.initial_saltation)
         self.fields.append(field)
@@ -344,7 +383,8 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
                     f"max_steps = {options.max_steps} steps taken by t = {stepper.t:.6g} s of "
                     f"t_final = {self.t_final:g} s (last step {h:.3g} s); "
                     "raise max_steps, or look for a runaway state",
-                    self._trajectory(stepper, Termination.MAX_STEPS))
+                    self._trajectory(stepper, Termination.MAX_STEPS),
+                )
             if stepper.t >= next_break:
                 next_break = scene.next_breakpoint(stepper.t)
             # steps end on breakpoints and sample times; also for a stepper new since the last step
@@ -362,8 +402,9 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
                 segment.pieces.append(dense)
             gaps1, rates1 = self._gaps_and_rates(stepper.q, stepper.v)
             forces1 = field.guard_values(stepper.t, stepper.q, stepper.v)
-            crossings, misses = self.guards.crossings(stepper, dense, field, mode, (gaps, rates, forces),
-                                                      (gaps1, rates1, forces1))
+            crossings, misses = self.guards.crossings(
+                stepper, dense, field, mode, (gaps, rates, forces), (gaps1, rates1, forces1)
+            )
             self.guards.from_rest = set()  # the first step after an event only
             if not crossings:
                 self._near_misses(misses, np.inf)
@@ -406,7 +447,9 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
                 raise TooManyEventsError(
                     f"more than max_events = {options.max_events} events by t = {t_event:.17g} "
                     f"(last: {self.events[-1].kind} of {', '.join(self.events[-1].contacts)}); "
-                    "raise max_events or zeno_speed", self._trajectory(stepper, Termination.MAX_EVENTS))
+                    "raise max_events or zeno_speed",
+                    self._trajectory(stepper, Termination.MAX_EVENTS),
+                )
             phi_before = None if self.phi is None else self.phi.copy()
             stop = False
             for event in self.events[n_before:]:
@@ -414,14 +457,18 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
             q_event = self.events[-1].q
             field = self._field(mode, self.sensitive and stepper.method != "Radau", t_event, q_event, v_plus)
             self.fields.append(field)
-            stepper.restart(t_event, q_event, v_plus, accel=field.accel, jac=field.jac,
-                            parameter_jac=field.parameter_jac if self.sensitive else None,
-                            phi=None if self.events[-1].saltation is None else self._jumped(stepper.phi,
-                                                                                             self.events[-1]))
+            stepper.restart(
+                t_event,
+                q_event,
+                v_plus,
+                accel=field.accel,
+                jac=field.jac,
+                parameter_jac=field.parameter_jac if self.sensitive else None,
+                phi=None if self.events[-1].saltation is None else self._jumped(stepper.phi, self.events[-1]),
+            )
             if self.chooser is not None:
                 self.chooser.new_mode(self._probe(mode))
-            segment = Segment(t0=t_event, t1=t_event, mode=self._mode_names(mode),
-                              sliding=self._sliding_names(mode))
+            segment = Segment(t0=t_event, t1=t_event, mode=self._mode_names(mode), sliding=self._sliding_names(mode))
             self.segments.append(segment)
             self.recorder.take(stepper)  # a sample at the event's time: after it
             gaps, rates = self._gaps_and_rates(stepper.q, stepper.v)
@@ -429,8 +476,14 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
             if stop:
                 return self._trajectory(stepper, Termination.STOPPED)
         traj = self._trajectory(stepper, Termination.T_FINAL)
-        if touches := final_touches(self.names, *self._gaps_and_rates(traj.q, traj.v),
-                                    set(self.dyn.contacts_of(mode)), self.events, traj.t, options):
+        if touches := final_touches(
+            self.names,
+            *self._gaps_and_rates(traj.q, traj.v),
+            set(self.dyn.contacts_of(mode)),
+            self.events,
+            traj.t,
+            options,
+        ):
             traj.final_nonsmooth[NonSmooth.FINAL_TIME] = "; ".join(touches)
             self.notes.extend(touches)
         return traj
@@ -442,9 +495,11 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
         (docs/design.md, Coulomb friction)."""
         if self.onsets:
             for index in field.onsets_in_band(q, v):
-                self.notes.append(f"flow Jacobian: from t = {t:.12g} it holds the reference direction of "
-                                  f"{self.names[index]}'s slip from rest fixed (an event before the slip "
-                                  f"reached 2 zeno_speed = {2.0 * self.dyn.slip_speed_floor:.3g} m/s)")
+                self.notes.append(
+                    f"flow Jacobian: from t = {t:.12g} it holds the reference direction of "
+                    f"{self.names[index]}'s slip from rest fixed (an event before the slip "
+                    f"reached 2 zeno_speed = {2.0 * self.dyn.slip_speed_floor:.3g} m/s)"
+                )
         self.onsets = {}
 
     def _collapse(self, stepper, mode, h: float, typical: float, underflow: str | None = None):
@@ -452,27 +507,40 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
         point; ``underflow``: the stepper's own underflow message, where the steps shrank to
         the resolution of time before the count of short steps was reached."""
         names = self._mode_names(mode)
-        how = (f"the step shrank to the resolution of time ({underflow})" if underflow else
-               f"{COLLAPSE_STEPS} steps in a row shorter than {COLLAPSE_RATIO:g} of the run's typical step "
-               f"(~{typical:.3g} s), the last {h:.3g} s")
+        how = (
+            f"the step shrank to the resolution of time ({underflow})"
+            if underflow
+            else f"{COLLAPSE_STEPS} steps in a row shorter than {COLLAPSE_RATIO:g} of the run's typical step "
+            f"(~{typical:.3g} s), the last {h:.3g} s"
+        )
         raise StepCollapseError(
             f"step size collapsed at t = {stepper.t:.12g} s in mode ({', '.join(names) or 'free flight'}): "
             f"{how}, with no event; the vector field is singular or nearly "
             "so here (a mechanism reaching a singular pose with its contacts held, e.g. a leg folded flat, "
             "or a force that blows up in finite time)",
-            self._trajectory(stepper, Termination.STEP_COLLAPSE), stepper.t, names, h)
+            self._trajectory(stepper, Termination.STEP_COLLAPSE),
+            stepper.t,
+            names,
+            h,
+        )
 
     def _over_budget(self, stepper, mode, steps: int, needed: float, reference: float):
         """Raise `StepBudgetError` (`contactdiff.ode.step_budget`) at the stepper's point."""
         names = self._mode_names(mode)
-        raise StepBudgetError(budget_message(self.options.max_steps, self.t_final, stepper.t, names, steps, needed,
-                                             reference), self._trajectory(stepper, Termination.MAX_STEPS),
-                              stepper.t, names, reference, needed)
+        raise StepBudgetError(
+            budget_message(self.options.max_steps, self.t_final, stepper.t, names, steps, needed, reference),
+            self._trajectory(stepper, Termination.MAX_STEPS),
+            stepper.t,
+            names,
+            reference,
+            needed,
+        )
 
     # -- method="auto" ----------------------------------------------------------------
     def _probe(self, mode):
         """``ρ`` of ``mode`` at a state, for `MethodChooser` (difference quotients of
         the mode's accelerations; they bypass the mode field and its counters)."""
+
         def accel(t, q, v):
             self.n_probe_evaluations += 1
             return self.dyn.solve(q, v, t, mode).ddq
@@ -482,6 +550,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
                 return spectral_radius(accel, q, v, t, self.group)
             except OutsideDomainError:  # a probe point left the mode's domain: no measure, the method stays
                 return math.nan
+
         return probe
 
     def _switch(self, stepper, method: str, field):
@@ -494,40 +563,65 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
         assert self.chooser is not None  # method "auto" switches, and it has a chooser
         rho = self.chooser.rho
         if len(self.switches) <= MAX_NOTES:
-            why = ("explicit steps limited by stability" if method != EXPLICIT
-                   else "steps resolve the fastest motion")
-            self.notes.append(f"method auto: {method} from t = {stepper.t:.12g} ({why}: "
-                              f"h = {stepper.h_abs:.3g} s, spectral radius {rho:.3g} /s)")
-        return make_stepper(method, field.accel, self.group, stepper.t, stepper.q, stepper.v,
-                            jac=field.jac, first_step=stepper.h_abs,
-                            variational=stepper.phi if self.sensitive else None,
-                            **self._stepper_options(field))
+            why = "explicit steps limited by stability" if method != EXPLICIT else "steps resolve the fastest motion"
+            self.notes.append(
+                f"method auto: {method} from t = {stepper.t:.12g} ({why}: "
+                f"h = {stepper.h_abs:.3g} s, spectral radius {rho:.3g} /s)"
+            )
+        return make_stepper(
+            method,
+            field.accel,
+            self.group,
+            stepper.t,
+            stepper.q,
+            stepper.v,
+            jac=field.jac,
+            first_step=stepper.h_abs,
+            variational=stepper.phi if self.sensitive else None,
+            **self._stepper_options(field),
+        )
 
     def _trajectory(self, stepper, termination: Termination) -> Trajectory:
         steppers = self.retired + [stepper]
         by_method: dict[str, int] = {}
         for st in steppers:
             by_method[st.method] = by_method.get(st.method, 0) + st.n_steps
-        stats = RunStats(steps=sum(st.n_steps for st in steppers),
-                         rejected_steps=sum(st.n_rejected for st in steppers),
-                         dynamics_evaluations=sum(f.n_solve for f in self.fields),
-                         stepper_evaluations=sum(st.n_accel for st in steppers),
-                         jacobian_evaluations=sum(st.n_jac for st in steppers),
-                         derivative_evaluations=sum(f.n_derivatives for f in self.fields),
-                         events=len(self.events), projections=self.n_projections,
-                         method=self.options.method, steps_by_method=by_method,
-                         method_switches=[[t, m] for t, m in self.switches],
-                         stiffness_probes=self.chooser.n_probes if self.chooser else 0,
-                         probe_evaluations=self.n_probe_evaluations,
-                         near_grazing_misses=self.n_near_misses)
-        return Trajectory(scene_name=self.scene.name, t0=self.t0, q0=self.scene.q0.copy(),
-                          v0=self.scene.v0.copy(), t=stepper.t, q=stepper.q.copy(), v=stepper.v.copy(),
-                          events=self.events, segments=self.segments, stats=stats, max_drift=self.max_drift,
-                          termination=termination, notes=self.notes, dense=self.options.dense,
-                          jacobian=stepper.phi[:, :self.n_state].copy() if self.options.jacobian else None,
-                          parameter_jacobian=stepper.phi[:, self.n_state:].copy() if self.jumps else None,
-                          parameter_names=tuple(self.options.parameters),
-                          samples=self.recorder.samples(self.scene.model.nq, self.scene.nv))
+        stats = RunStats(
+            steps=sum(st.n_steps for st in steppers),
+            rejected_steps=sum(st.n_rejected for st in steppers),
+            dynamics_evaluations=sum(f.n_solve for f in self.fields),
+            stepper_evaluations=sum(st.n_accel for st in steppers),
+            jacobian_evaluations=sum(st.n_jac for st in steppers),
+            derivative_evaluations=sum(f.n_derivatives for f in self.fields),
+            events=len(self.events),
+            projections=self.n_projections,
+            method=self.options.method,
+            steps_by_method=by_method,
+            method_switches=[[t, m] for t, m in self.switches],
+            stiffness_probes=self.chooser.n_probes if self.chooser else 0,
+            probe_evaluations=self.n_probe_evaluations,
+            near_grazing_misses=self.n_near_misses,
+        )
+        return Trajectory(
+            scene_name=self.scene.name,
+            t0=self.t0,
+            q0=self.scene.q0.copy(),
+            v0=self.scene.v0.copy(),
+            t=stepper.t,
+            q=stepper.q.copy(),
+            v=stepper.v.copy(),
+            events=self.events,
+            segments=self.segments,
+            stats=stats,
+            max_drift=self.max_drift,
+            termination=termination,
+            notes=self.notes,
+            dense=self.options.dense,
+            jacobian=stepper.phi[:, : self.n_state].copy() if self.options.jacobian else None,
+            parameter_jacobian=stepper.phi[:, self.n_state :].copy() if self.jumps else None,
+            parameter_names=tuple(self.options.parameters),
+            samples=self.recorder.samples(self.scene.model.nq, self.scene.nv),
+        )
 
     # -- detection ------------------------------------------------------------------
     def _near_misses(self, misses: list[NearMiss], t_event: float) -> None:
@@ -542,11 +636,15 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
             if miss.t >= t_event:
                 break
             t, i, gap, band = miss.t, miss.contact, miss.gap, miss.band
-            message = (f"near-grazing of {self.names[i]} at t = {t:.12g}: its gap came down to {gap:.3g} m "
-                       f"(within grazing_gap {band:.3g} m) with zero normal speed and rose again")
+            message = (
+                f"near-grazing of {self.names[i]} at t = {t:.12g}: its gap came down to {gap:.3g} m "
+                f"(within grazing_gap {band:.3g} m) with zero normal speed and rose again"
+            )
             if self.options.on_grazing is OnGrazing.RAISE:
-                raise GrazingError(message + "; whether it touches is below the integration error: "
-                                   "tighten rtol/atol, or lower grazing_gap to accept the miss")
+                raise GrazingError(
+                    message + "; whether it touches is below the integration error: "
+                    "tighten rtol/atol, or lower grazing_gap to accept the miss"
+                )
             self.n_near_misses += 1
             if self.n_near_misses <= MAX_NOTES:
                 self.notes.append(message + "; counted as a miss (no touchdown)")
@@ -563,7 +661,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
         phi = None if D is None else D @ stepper.phi
         if self.jumps is not None:
             assert phi is not None  # a run with parameters is sensitive: D is computed
-            phi[:, self.n_state:] += self.jumps.projection(q, mode)
+            phi[:, self.n_state :] += self.jumps.projection(q, mode)
         stepper.restart(stepper.t, q, v, phi=phi)
         self.n_projections += 1
         return True

@@ -42,9 +42,15 @@ class ModeField:
 
     _KEEP = 32  # points remembered: more than the stages of one step
 
-    def __init__(self, dyn: ModeDynamics, mode: tuple[int, ...], fused: bool = False,
-                 parameters: ParameterForces | None = None, held: dict[int, int] | None = None,
-                 onsets: dict[int, np.ndarray] | None = None):
+    def __init__(
+        self,
+        dyn: ModeDynamics,
+        mode: tuple[int, ...],
+        fused: bool = False,
+        parameters: ParameterForces | None = None,
+        held: dict[int, int] | None = None,
+        onsets: dict[int, np.ndarray] | None = None,
+    ):
         self.dyn, self.mode, self.fused, self.parameters = dyn, mode, fused, parameters
         self.onsets: dict[int, np.ndarray] = onsets if onsets is not None else {}
         """The slips from rest still on their onset's reference: scene index → ``∂θ/∂`` columns."""
@@ -57,7 +63,8 @@ class ModeField:
         """The mode's force-level and slip guards, in the order of `guard_values`."""
         self._positions = {key: k for k, key in enumerate(mode)}
         self.slipping = any(g.kind is GuardKind.STOP for g in self.guards) or any(
-            dyn.is_sliding(key) for key in self.held.values())
+            dyn.is_sliding(key) for key in self.held.values()
+        )
         """Whether a contact slips with Coulomb friction (its direction is followed, `advance`)."""
         self.n_solve = self.n_derivatives = 0
         self._derivatives: OrderedDict = OrderedDict()
@@ -96,7 +103,7 @@ class ModeField:
         dyn = self.dyn
         m = len(next(iter(self.onsets.values())))
         out = np.zeros((len(v), m))
-        out[:, m - ddq_dp.shape[1]:] = ddq_dp
+        out[:, m - ddq_dp.shape[1] :] = ddq_dp
         for key, rows in zip(sol.active, sol.row_slices):
             index = dyn.contact_index(key)
             w = self.onsets.get(index)
@@ -130,8 +137,12 @@ class ModeField:
         """Row forces (N) of the mode's contacts (order of ``mode``) at time ``t`` (s) and
         ``(q, v)``, reusing the last `accel` solve when it was at that point."""
         last = self.last
-        if last is not None and last[0] == t and (last[1] is q or np.array_equal(last[1], q)) \
-                and (last[2] is v or np.array_equal(last[2], v)):  # the stepper's end point is its last stage
+        if (
+            last is not None
+            and last[0] == t
+            and (last[1] is q or np.array_equal(last[1], q))
+            and (last[2] is v or np.array_equal(last[2], v))
+        ):  # the stepper's end point is its last stage
             return self._last_forces()
         return self.dyn.solve(q, v, t, self.mode).row_forces()
 
@@ -179,8 +190,9 @@ class ModeField:
         """Scene indices of the `onsets` whose slip at ``(q, v)`` is still below ``2 floor``,
         where the field depends on the onset's reference (class doc)."""
         band = 2.0 * self.dyn.slip_speed_floor
-        return [index for index in self.onsets
-                if np.linalg.norm(self._slip(self.dyn.sliding_key(index), q, v)[1]) < band]
+        return [
+            index for index in self.onsets if np.linalg.norm(self._slip(self.dyn.sliding_key(index), q, v)[1]) < band
+        ]
 
     def advance(self, q, v) -> None:
         """After an accepted step ending at ``(q, v)``: each 3-D slip continues along its

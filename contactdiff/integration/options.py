@@ -154,8 +154,9 @@ class SimulateOptions:
         """A copy with some fields changed; an unknown name lists the valid ones."""
         unknown = sorted(set(changes) - set(field_names()))
         if unknown:
-            raise InvalidInputError(f"unknown simulation option(s) {', '.join(unknown)}; "
-                                    f"valid: {', '.join(field_names())}")
+            raise InvalidInputError(
+                f"unknown simulation option(s) {', '.join(unknown)}; valid: {', '.join(field_names())}"
+            )
         return dataclasses.replace(self, **changes)
 
     @property
@@ -186,9 +187,11 @@ def _sample_times(times) -> tuple[float, ...]:
     back = np.flatnonzero(np.diff(values) < 0.0)
     if back.size:
         k = back[0] + 1
-        raise InvalidInputError(f"simulate: sample_times must be non-decreasing; sample_times[{k}] = "
-                                f"{float(values[k])!r} s comes after sample_times[{k - 1}] = "
-                                f"{float(values[k - 1])!r} s")
+        raise InvalidInputError(
+            f"simulate: sample_times must be non-decreasing; sample_times[{k}] = "
+            f"{float(values[k])!r} s comes after sample_times[{k - 1}] = "
+            f"{float(values[k - 1])!r} s"
+        )
     return tuple(float(t) for t in values)
 
 

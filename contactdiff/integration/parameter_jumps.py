@@ -69,8 +69,14 @@ class ParameterJumps:
                 for i in par.members:
                     target.setdefault(i, []).append(col)
         specs = scene.contact_specs
-        values = np.array([max(abs(float(getattr(specs[i], par.field))) for i in par.members) if par.members
-                           else abs(float(scene.parameter_values([par.name])[0])) for par in self.parameters])
+        values = np.array(
+            [
+                max(abs(float(getattr(specs[i], par.field))) for i in par.members)
+                if par.members
+                else abs(float(scene.parameter_values([par.name])[0]))
+                for par in self.parameters
+            ]
+        )
         self.scale = np.where(values > 0.0, values, 1.0)
 
     def gap_guard(self, contact: int) -> np.ndarray:
@@ -92,8 +98,9 @@ class ParameterJumps:
         restitution the impact used (not ended by the Zeno rule)."""
         live_indices = {self.dyn.contact_index(k) for k in live}
         columns = {i: cols for i, cols in self.restitution_columns.items() if i in live_indices}
-        return impact_parameter_jacobian(self.dyn, q, v_minus, impact, self.forces, columns,
-                                         self.forces.friction_columns)
+        return impact_parameter_jacobian(
+            self.dyn, q, v_minus, impact, self.forces, columns, self.forces.friction_columns
+        )
 
     def projection(self, q: np.ndarray, mode: Sequence[int]) -> np.ndarray:
         """``∂/∂p`` (2nv × p) of the projection ``(q - P a(q), ...)`` onto ``mode``'s
@@ -107,12 +114,18 @@ class ParameterJumps:
         normal = [0] + list(np.cumsum([self.dyn.contact(k).n_rows for k in mode])[:-1])
         P = weighted_pinv(self.dyn, q, A[normal])
         for j, col in cols:
-            out[:self.dyn.model.nv, col] += P[:, j]
+            out[: self.dyn.model.nv, col] += P[:, j]
         return out
 
     @staticmethod
-    def saltation(R_p: np.ndarray | None, h_p: np.ndarray, DR: np.ndarray | None, F_minus: np.ndarray,
-                  F_plus: np.ndarray, rate: float) -> np.ndarray:
+    def saltation(
+        R_p: np.ndarray | None,
+        h_p: np.ndarray,
+        DR: np.ndarray | None,
+        F_minus: np.ndarray,
+        F_plus: np.ndarray,
+        rate: float,
+    ) -> np.ndarray:
         """``Ξ_p = ∂R/∂p + (F+ - DR F-) ∂h/∂p / rate`` (2nv × p); ``R_p``/``DR`` None: identity reset."""
         jump = F_plus - (F_minus if DR is None else DR @ F_minus)
         out = np.outer(jump, h_p) / rate

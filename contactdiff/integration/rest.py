@@ -113,9 +113,18 @@ class RestCheck:
         if loop.options.dense:
             y0 = np.concatenate((stepper.q, v)) if stepper._vs else np.concatenate((np.zeros(nv), v))
             change = np.concatenate((d[:nv], v1 - v))[None, :]  # the held velocity's removal, then the flow's
-            segment.pieces.append(DenseOutput(t, t_to, remaining, y0, change,
-                                              None if stepper._vs else stepper.group, None if stepper._vs
-                                              else stepper.q, nv))
+            segment.pieces.append(
+                DenseOutput(
+                    t,
+                    t_to,
+                    remaining,
+                    y0,
+                    change,
+                    None if stepper._vs else stepper.group,
+                    None if stepper._vs else stepper.q,
+                    nv,
+                )
+            )
         stepper.t_bound = t_to  # (a step cut short at a sample or breakpoint left it there)
         stepper.restart(t_to, q1, v1, phi=phi1)
         stepper.n_steps += 1
@@ -129,9 +138,11 @@ class RestCheck:
             loop.notes.remove(self._note)
         end = "t_final" if t_to == loop.t_final else "t"
         steps = "one step" if jumps == 1 else f"{jumps} steps (one to each sample time)"
-        self._note = (f"at rest from t = {start:.12g} s in mode ({', '.join(segment.mode) or 'free flight'}): an "
-                      f"equilibrium of the mode to {scale:.2g} of the tolerance, stable ({decay}); stepped to "
-                      f"{end} = {t_to:g} s in {steps} of its linearised flow")
+        self._note = (
+            f"at rest from t = {start:.12g} s in mode ({', '.join(segment.mode) or 'free flight'}): an "
+            f"equilibrium of the mode to {scale:.2g} of the tolerance, stable ({decay}); stepped to "
+            f"{end} = {t_to:g} s in {steps} of its linearised flow"
+        )
         loop.notes.append(self._note)
         self._resting_from, self._segment, self._scale_seen, self._jumps = start, segment, scale, jumps
         return True
@@ -178,7 +189,7 @@ class RestCheck:
             E = expm(flow * remaining)
             phi1 = E[:n, :n] @ stepper.phi
             if p:
-                phi1[:, loop.n_state:] += E[:n, n:]
+                phi1[:, loop.n_state :] += E[:n, n:]
             if not np.isfinite(phi1).all():
                 return None
         stable = -eigenvalues.real[eigenvalues.real < -1e-9 * max(1.0, float(np.max(np.abs(eigenvalues))))]
@@ -195,7 +206,7 @@ class RestCheck:
             return False
         held = loop.dyn.contacts_of(mode)
         gaps = loop.scene.gaps(q)
-        floor = GAP_MARGIN * float(np.min(self.atol[:self.nv]))
+        floor = GAP_MARGIN * float(np.min(self.atol[: self.nv]))
         return all(g > floor for i, g in enumerate(gaps) if i not in held)
 
 

@@ -42,8 +42,15 @@ APPROACH_TOL = 1e-12
 """A normal speed below ``-APPROACH_TOL`` times the pre-impact speed scale approaches (m/s)."""
 
 
-def resting_contacts(dyn: ModeDynamics, q: np.ndarray, v_minus: np.ndarray, t: float, mode: Sequence[int],
-                     closed: Sequence[int], touching: Sequence[int]) -> dict[int, dict[int, float]]:
+def resting_contacts(
+    dyn: ModeDynamics,
+    q: np.ndarray,
+    v_minus: np.ndarray,
+    t: float,
+    mode: Sequence[int],
+    closed: Sequence[int],
+    touching: Sequence[int],
+) -> dict[int, dict[int, float]]:
     """The contacts of the impact's ``closed`` (keys) that rest at ``(q, v_minus, t)`` and are
     coupled to a landing contact of ``touching`` (scene indices), each with its coupling
     coefficients ``{landing index: G_jr / sqrt(G_jj G_rr)}``. Resting: not landing, and in
@@ -80,8 +87,14 @@ def resting_contacts(dyn: ModeDynamics, q: np.ndarray, v_minus: np.ndarray, t: f
     return out
 
 
-def cascade_outcome(dyn: ModeDynamics, q: np.ndarray, v_minus: np.ndarray, closed: Sequence[int],
-                    resting: Sequence[int], touching: Sequence[int]) -> tuple[np.ndarray, int]:
+def cascade_outcome(
+    dyn: ModeDynamics,
+    q: np.ndarray,
+    v_minus: np.ndarray,
+    closed: Sequence[int],
+    resting: Sequence[int],
+    touching: Sequence[int],
+) -> tuple[np.ndarray, int]:
     """Velocity after the impact of ``closed`` (keys) with the ``resting`` ones (keys, among
     ``closed``) open, and the cascade that follows; and the number of impacts.
 

@@ -63,8 +63,9 @@ def check_sample_times(times, t0: float, t_final: float) -> None:
     """Refuse sample times outside ``[t0, t_final]`` (s), naming the first such one."""
     for k, t in enumerate(times):
         if not t0 <= t <= t_final:
-            raise InvalidInputError(f"simulate: sample_times[{k}] = {t!r} s is outside the run's "
-                                    f"[t0, t_final] = [{t0!r}, {t_final!r}] s")
+            raise InvalidInputError(
+                f"simulate: sample_times[{k}] = {t!r} s is outside the run's [t0, t_final] = [{t0!r}, {t_final!r}] s"
+            )
 
 
 class SampleRecorder:
@@ -96,8 +97,7 @@ class SampleRecorder:
         is never passed over; one that were would be a broken loop, not bad input."""
         while self._k < len(self.times) and self.times[self._k] <= stepper.t:
             if self.times[self._k] != stepper.t:
-                raise AssertionError(f"sample time {self.times[self._k]!r} s passed over by a step "
-                                     f"to {stepper.t!r} s")
+                raise AssertionError(f"sample time {self.times[self._k]!r} s passed over by a step to {stepper.t!r} s")
             self._q.append(np.array(stepper.q, dtype=float))
             self._v.append(np.array(stepper.v, dtype=float))
             if stepper.phi is not None:
@@ -110,8 +110,11 @@ class SampleRecorder:
             return None
         k, p = self._k, len(self.parameter_names)
         phi = np.array(self._phi).reshape(k, 2 * nv, self.n_state + p)
-        return Samples(t=np.array(self.times[:k], dtype=float), q=np.array(self._q).reshape(k, nq),
-                       v=np.array(self._v).reshape(k, nv),
-                       jacobian=phi[:, :, :self.n_state].copy() if self.n_state else None,
-                       parameter_jacobian=phi[:, :, self.n_state:].copy() if p else None,
-                       parameter_names=self.parameter_names)
+        return Samples(
+            t=np.array(self.times[:k], dtype=float),
+            q=np.array(self._q).reshape(k, nq),
+            v=np.array(self._v).reshape(k, nv),
+            jacobian=phi[:, :, : self.n_state].copy() if self.n_state else None,
+            parameter_jacobian=phi[:, :, self.n_state :].copy() if p else None,
+            parameter_names=self.parameter_names,
+        )

@@ -42,22 +42,19 @@ at a simultaneous event count as equal: round-off in a saltation matrix is about
 1e-14 relative, while a coupled model differs at O(1)."""
 
 
-def vector_field(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float,
-                 mode: Sequence[int]) -> np.ndarray:
+def vector_field(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float, mode: Sequence[int]) -> np.ndarray:
     """``F = (v, ddq)`` of ``mode`` at ``(q, v, t)`` in the tangent space (2nv,)."""
     return np.concatenate([v, dyn.solve(q, v, t, tuple(mode)).ddq])
 
 
-def saltation(DR: np.ndarray, Dh: np.ndarray, F_minus: np.ndarray, F_plus: np.ndarray,
-              h_t: float = 0.0) -> np.ndarray:
+def saltation(DR: np.ndarray, Dh: np.ndarray, F_minus: np.ndarray, F_plus: np.ndarray, h_t: float = 0.0) -> np.ndarray:
     """``Ξ = DR + (F+ - DR F-) Dh / (Dh F- + h_t)`` (2nv × 2nv); ``h_t`` is the guard's
     explicit time rate (a contact force under time-dependent efforts)."""
     rate = float(Dh @ F_minus) + h_t
     return DR + np.outer(F_plus - DR @ F_minus, Dh) / rate
 
 
-def force_time_rate(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float, mode: Sequence[int],
-                    row: int) -> float:
+def force_time_rate(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float, mode: Sequence[int], row: int) -> float:
     """``∂lam_row/∂t`` at fixed state (N/s): the forces are affine in the efforts, so
     it is the forces' response to ``d tau/dt`` alone (exact up to round-off; zero for
     an autonomous scene)."""
@@ -76,8 +73,9 @@ class VanishingSlipError(SolverError):
     slip direction, and so the reset, has no derivative."""
 
 
-def impact_reset_jacobian(dyn: ModeDynamics, q: np.ndarray, v_minus: np.ndarray,
-                          impact: ImpactResult, hold_vanishing: bool = False) -> np.ndarray:
+def impact_reset_jacobian(
+    dyn: ModeDynamics, q: np.ndarray, v_minus: np.ndarray, impact: ImpactResult, hold_vanishing: bool = False
+) -> np.ndarray:
     """``DR`` of the impact reset ``(q, v-) -> (q, v+)`` (2nv × 2nv), tangent space.
 
     Differentiates the equations of the rows that carry impulse, with the
@@ -104,8 +102,9 @@ def impact_reset_jacobian(dyn: ModeDynamics, q: np.ndarray, v_minus: np.ndarray,
     v_plus = impact.v_plus
     M = pin.crba(model, dyn.data, q)
     M = np.triu(M) + np.triu(M, 1).T
-    dMdv_dq = (pin.computeRNEADerivatives(model, dyn.data, q, np.zeros(nv), v_plus - v_minus)[0]
-               - pin.computeGeneralizedGravityDerivatives(model, dyn.data, q))
+    dMdv_dq = pin.computeRNEADerivatives(model, dyn.data, q, np.zeros(nv), v_plus - v_minus)[
+        0
+    ] - pin.computeGeneralizedGravityDerivatives(model, dyn.data, q)
     rhs_q = -dMdv_dq
     K_vv = M.copy()
     A_rows, F_rows, con_q, e_rows, held_rows = [], [], [], [], []
@@ -131,8 +130,10 @@ def impact_reset_jacobian(dyn: ModeDynamics, q: np.ndarray, v_minus: np.ndarray,
             speed = float(np.linalg.norm(u_T))
             vanishing = len(s) == 2 and _slip_vanishes(speed, v_minus)
             if vanishing and not hold_vanishing:
-                raise VanishingSlipError(f"contact {impact.contacts[k]} slides with a slip of {speed:.2e} m/s after "
-                                         "the impact: a stick/slip threshold, where the reset has no derivative")
+                raise VanishingSlipError(
+                    f"contact {impact.contacts[k]} slides with a slip of {speed:.2e} m/s after "
+                    "the impact: a stick/slip threshold, where the reset has no derivative"
+                )
             if len(s) == 2 and not vanishing:  # δs through the post-impact slip velocity
                 D = (np.eye(2) - np.outer(s, s)) / speed
                 coef = mu * impulses[0] * rows[1:].T @ D
@@ -172,14 +173,25 @@ def _slip_vanishes(speed: float, v_minus: np.ndarray) -> bool:
 
 def _slides_with_friction(impact: ImpactResult, k: int, contact) -> bool:
     """Whether contact ``k`` of ``impact`` slides with finite friction on tangential rows."""
-    return (impact.states is not None and impact.states[k] is ContactState.SLIDE and contact.n_rows > 1
-            and impact.friction is not None  # set with the states
-            and 0.0 < impact.friction[k] < np.inf and bool(np.any(impact.slide_directions[k])))
+    return (
+        impact.states is not None
+        and impact.states[k] is ContactState.SLIDE
+        and contact.n_rows > 1
+        and impact.friction is not None  # set with the states
+        and 0.0 < impact.friction[k] < np.inf
+        and bool(np.any(impact.slide_directions[k]))
+    )
 
 
-def impact_parameter_jacobian(dyn: ModeDynamics, q: np.ndarray, v_minus: np.ndarray, impact: ImpactResult,
-                              forces: ParameterForces, restitution_columns: dict,
-                              friction_columns: dict | None = None) -> np.ndarray:
+def impact_parameter_jacobian(
+    dyn: ModeDynamics,
+    q: np.ndarray,
+    v_minus: np.ndarray,
+    impact: ImpactResult,
+    forces: ParameterForces,
+    restitution_columns: dict,
+    friction_columns: dict | None = None,
+) -> np.ndarray:
     """``∂R/∂p`` of the impact reset at fixed ``(q, v-)`` (2nv × p; zero ``q`` rows).
 
     The same equations as `impact_reset_jacobian`, differentiated in the parameters:
@@ -271,8 +283,16 @@ class Touchdown:
     impact: ImpactResult
 
 
-def touchdown(dyn: ModeDynamics, t: float, q: np.ndarray, v_minus: np.ndarray, mode: Sequence[int],
-              contacts: Sequence[int], restitution=None, guard: int | None = None) -> Touchdown:
+def touchdown(
+    dyn: ModeDynamics,
+    t: float,
+    q: np.ndarray,
+    v_minus: np.ndarray,
+    mode: Sequence[int],
+    contacts: Sequence[int],
+    restitution=None,
+    guard: int | None = None,
+) -> Touchdown:
     """Impact of ``contacts`` closing on ``mode`` and the saltation matrix of ``guard``'s crossing.
 
     Args:
@@ -300,8 +320,9 @@ def touchdown(dyn: ModeDynamics, t: float, q: np.ndarray, v_minus: np.ndarray, m
     return Touchdown(saltation(DR, Dh, F_minus, F_plus), impact.v_plus, mode_after, impact)
 
 
-def liftoff_guard(dyn: ModeDynamics, t: float, q: np.ndarray, v: np.ndarray, mode: Sequence[int],
-                  contact: int) -> tuple[np.ndarray, np.ndarray, float]:
+def liftoff_guard(
+    dyn: ModeDynamics, t: float, q: np.ndarray, v: np.ndarray, mode: Sequence[int], contact: int
+) -> tuple[np.ndarray, np.ndarray, float]:
     """The lift-off guard of ``contact`` (a key of ``mode``), its normal force:
     ``(Dh, F-, h_t)`` with ``Dh`` its gradient (2nv,), ``F-`` the field of ``mode``
     and ``h_t`` its explicit time rate (`force_time_rate`)."""
@@ -312,8 +333,16 @@ def liftoff_guard(dyn: ModeDynamics, t: float, q: np.ndarray, v: np.ndarray, mod
     return Dh, np.concatenate([v, sol.ddq]), force_time_rate(dyn, q, v, t, mode, row)
 
 
-def liftoff_saltation(dyn: ModeDynamics, t: float, q: np.ndarray, v: np.ndarray, mode: Sequence[int],
-                      contact: int, mode_after: Sequence[int], guard=None) -> np.ndarray:
+def liftoff_saltation(
+    dyn: ModeDynamics,
+    t: float,
+    q: np.ndarray,
+    v: np.ndarray,
+    mode: Sequence[int],
+    contact: int,
+    mode_after: Sequence[int],
+    guard=None,
+) -> np.ndarray:
     """Saltation matrix of the lift-off of ``contact`` (guard: its normal force, reset:
     identity); ``guard`` is its `liftoff_guard` if already computed."""
     Dh, F_minus, h_t = liftoff_guard(dyn, t, q, v, mode, contact) if guard is None else guard
@@ -362,13 +391,22 @@ class SimultaneousSaltation:
             return self.paper
         if self.orders:
             return next(iter(self.orders.values()))
-        raise SolverError("no landing order of the simultaneous touchdown could be resolved: "
-                          + "; ".join(self.unresolved.values()))
+        raise SolverError(
+            "no landing order of the simultaneous touchdown could be resolved: " + "; ".join(self.unresolved.values())
+        )
 
 
-def simultaneous_saltation(dyn: ModeDynamics, t: float, q: np.ndarray, v_minus: np.ndarray,
-                           mode: Sequence[int], contacts: Sequence[int], restitution=None,
-                           tol: float = ORDER_TOL, verdict_only: bool = False) -> SimultaneousSaltation:
+def simultaneous_saltation(
+    dyn: ModeDynamics,
+    t: float,
+    q: np.ndarray,
+    v_minus: np.ndarray,
+    mode: Sequence[int],
+    contacts: Sequence[int],
+    restitution=None,
+    tol: float = ORDER_TOL,
+    verdict_only: bool = False,
+) -> SimultaneousSaltation:
     """Saltation matrices of every order of the simultaneous touchdown of ``contacts``.
 
     For an order ``(k1, k2, ...)``: ``k1`` lands alone on ``mode`` at ``(q, v-)``,
@@ -451,9 +489,15 @@ def simultaneous_saltation(dyn: ModeDynamics, t: float, q: np.ndarray, v_minus: 
     return result
 
 
-def saltation_matrices(scene: Scene, q: np.ndarray, v_minus: np.ndarray, contacts: Sequence[int | str],
-                       mode: Sequence[int | str] = (), t: float = 0.0,
-                       tol: float = ORDER_TOL) -> SimultaneousSaltation:
+def saltation_matrices(
+    scene: Scene,
+    q: np.ndarray,
+    v_minus: np.ndarray,
+    contacts: Sequence[int | str],
+    mode: Sequence[int | str] = (),
+    t: float = 0.0,
+    tol: float = ORDER_TOL,
+) -> SimultaneousSaltation:
     """Public entry: saltation matrices of every landing order of ``contacts`` at ``(q, v-)``.
 
     Args:
@@ -465,7 +509,16 @@ def saltation_matrices(scene: Scene, q: np.ndarray, v_minus: np.ndarray, contact
         t: time (s), for time-dependent efforts.
         tol: agreement tolerance (relative).
     """
+
     def index(c):
         return scene.contact_index(c) if isinstance(c, str) else int(c)
-    return simultaneous_saltation(ModeDynamics(scene), t, np.asarray(q, float), np.asarray(v_minus, float),
-                                  [index(c) for c in mode], [index(c) for c in contacts], tol=tol)
+
+    return simultaneous_saltation(
+        ModeDynamics(scene),
+        t,
+        np.asarray(q, float),
+        np.asarray(v_minus, float),
+        [index(c) for c in mode],
+        [index(c) for c in contacts],
+        tol=tol,
+    )

@@ -20,6 +20,18 @@ from ..ode.factory import (
 )
 
 __all__ = [
-    "METHODS", "AccelFn", "JacFn", "LieGroup", "VectorSpace", "PinocchioGroup", "DenseOutput",
-    "LazyDenseOutput", "Stepper", "ExplicitRK", "RK45", "DOP853", "Radau", "make_stepper",
+    "METHODS",
+    "AccelFn",
+    "JacFn",
+    "LieGroup",
+    "VectorSpace",
+    "PinocchioGroup",
+    "DenseOutput",
+    "LazyDenseOutput",
+    "Stepper",
+    "ExplicitRK",
+    "RK45",
+    "DOP853",
+    "Radau",
+    "make_stepper",
 ]

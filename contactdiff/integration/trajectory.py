@@ -24,6 +24,7 @@ from .samples import Samples
 if TYPE_CHECKING:
     from ..model.scene import Scene
 
+
 class EventKind(StrEnum):
     """What happened at an event. A `StrEnum`: each kind compares equal to its value
     (``event.kind == "touchdown"``), and prints, formats and writes to JSON as it."""
@@ -61,14 +62,20 @@ class NonSmooth(Enum):
     ORDER = "the landing orders of a simultaneous touchdown give different saltation matrices"
     GRAZING = "a contact closed with zero normal speed"
     ZENO_CASCADE = "an impact cascade was ended by the Zeno rule (a contact lifted slower than zeno_speed kept closed)"
-    RESTING_CONTACT = ("a contact landed while a contact coupled to it through the inverse mass rested (closed "
-                       "with zero normal force): opened by a perturbation, the impact is a cascade with another "
-                       "outcome (`Event.outcomes`)")
-    FRICTION_THRESHOLD = ("the tangential force sits on the friction cone's boundary without crossing it "
-                          "(neighbouring runs stick or slip: the stick/slip threshold)")
-    FINAL_TIME = ("a contact touches at the final time with nonzero normal speed (neighbouring runs land "
-                  "before or after it: the final state has one-sided derivatives; "
-                  "`Trajectory.final_nonsmooth`, `contactdiff.integration.final_time`)")
+    RESTING_CONTACT = (
+        "a contact landed while a contact coupled to it through the inverse mass rested (closed "
+        "with zero normal force): opened by a perturbation, the impact is a cascade with another "
+        "outcome (`Event.outcomes`)"
+    )
+    FRICTION_THRESHOLD = (
+        "the tangential force sits on the friction cone's boundary without crossing it "
+        "(neighbouring runs stick or slip: the stick/slip threshold)"
+    )
+    FINAL_TIME = (
+        "a contact touches at the final time with nonzero normal speed (neighbouring runs land "
+        "before or after it: the final state has one-sided derivatives; "
+        "`Trajectory.final_nonsmooth`, `contactdiff.integration.final_time`)"
+    )
 
 
 class Termination(StrEnum):
@@ -206,12 +213,19 @@ class Event:
         if self.saltation_orders:
             extra["saltation_orders"] = {" > ".join(k): m.tolist() for k, m in self.saltation_orders.items()}
         return extra | {
-            "t": self.t, "kind": str(self.kind), "contacts": list(self.contacts),
-            "simultaneous": self.simultaneous, "q": self.q.tolist(),
-            "v_minus": self.v_minus.tolist(), "v_plus": self.v_plus.tolist(),
-            "impulses": dict(self.impulses), "mode_before": list(self.mode_before),
-            "mode_after": list(self.mode_after), "normal_speeds": dict(self.normal_speeds),
-            "differentiable": self.differentiable, "sliding": list(self.sliding),
+            "t": self.t,
+            "kind": str(self.kind),
+            "contacts": list(self.contacts),
+            "simultaneous": self.simultaneous,
+            "q": self.q.tolist(),
+            "v_minus": self.v_minus.tolist(),
+            "v_plus": self.v_plus.tolist(),
+            "impulses": dict(self.impulses),
+            "mode_before": list(self.mode_before),
+            "mode_after": list(self.mode_after),
+            "normal_speeds": dict(self.normal_speeds),
+            "differentiable": self.differentiable,
+            "sliding": list(self.sliding),
             "nonsmooth": {reason.name.lower(): remark for reason, remark in self.nonsmooth.items()},
         }
 
@@ -309,8 +323,10 @@ class Trajectory:
                 ``"left"`` the state before.
         """
         if not self.dense:
-            raise InvalidInputError("this run kept no dense output, so its states between events are "
-                                    "gone: simulate(..., dense=True) keeps them (or read traj.events)")
+            raise InvalidInputError(
+                "this run kept no dense output, so its states between events are "
+                "gone: simulate(..., dense=True) keeps them (or read traj.events)"
+            )
         if side not in ("left", "right"):
             raise InvalidInputError(f"side must be 'left' or 'right', got {side!r}")
         if not (self.t0 <= t <= self.t):
@@ -334,19 +350,31 @@ class Trajectory:
 
     def summary(self) -> dict:
         """Final state, events and statistics (what ``--json`` prints, without dense data)."""
-        return {
-            "scene": self.scene_name, "t0": self.t0, "t": self.t,
-            "q0": self.q0.tolist(), "v0": self.v0.tolist(),
-            "q": self.q.tolist(), "v": self.v.tolist(),
-            "events": [e.to_dict() for e in self.events],
-            "modes": [list(m) for m in self.modes],
-            "stats": self.stats.to_dict(), "max_drift": self.max_drift,
-            "termination": str(self.termination), "notes": list(self.notes),
-            "differentiable": self.differentiable,
-            "final_nonsmooth": {reason.name.lower(): remark for reason, remark in self.final_nonsmooth.items()},
-        } | ({"jacobian": self.jacobian.tolist()} if self.jacobian is not None else {}) | (
-            {"parameter_names": list(self.parameter_names), "parameter_jacobian": self.parameter_jacobian.tolist()}
-            if self.parameter_jacobian is not None else {})
+        return (
+            {
+                "scene": self.scene_name,
+                "t0": self.t0,
+                "t": self.t,
+                "q0": self.q0.tolist(),
+                "v0": self.v0.tolist(),
+                "q": self.q.tolist(),
+                "v": self.v.tolist(),
+                "events": [e.to_dict() for e in self.events],
+                "modes": [list(m) for m in self.modes],
+                "stats": self.stats.to_dict(),
+                "max_drift": self.max_drift,
+                "termination": str(self.termination),
+                "notes": list(self.notes),
+                "differentiable": self.differentiable,
+                "final_nonsmooth": {reason.name.lower(): remark for reason, remark in self.final_nonsmooth.items()},
+            }
+            | ({"jacobian": self.jacobian.tolist()} if self.jacobian is not None else {})
+            | (
+                {"parameter_names": list(self.parameter_names), "parameter_jacobian": self.parameter_jacobian.tolist()}
+                if self.parameter_jacobian is not None
+                else {}
+            )
+        )
 
     def format(self, scene: Scene) -> str:
         """The run as text (what ``contactdiff simulate`` prints without ``--json``): the
@@ -357,13 +385,18 @@ class Trajectory:
             scene: the `Scene` simulated (its robot names the coordinates; its parameters'
                 values head the parameter Jacobian's rows).
         """
-        lines = [f"simulation of {self.scene_name} from t = {self.t0:g} to {self.t:g} s",
-                 f"{len(self.events)} events", ""]
+        lines = [
+            f"simulation of {self.scene_name} from t = {self.t0:g} to {self.t:g} s",
+            f"{len(self.events)} events",
+            "",
+        ]
         if self.events:
             lines.append(f"  {'t (s)':>18}  {'kind':<9}  {'contacts':<28}  {'simult.':<7}  mode after")
             for e in self.events[:200]:
-                lines.append(f"  {e.t:18.12f}  {e.kind:<9}  {', '.join(e.contacts):<28}  "
-                             f"{'yes' if e.simultaneous else 'no':<7}  {', '.join(e.mode_after) or '(flight)'}")
+                lines.append(
+                    f"  {e.t:18.12f}  {e.kind:<9}  {', '.join(e.contacts):<28}  "
+                    f"{'yes' if e.simultaneous else 'no':<7}  {', '.join(e.mode_after) or '(flight)'}"
+                )
             if len(self.events) > 200:
                 lines.append(f"  ... {len(self.events) - 200} more (see --json)")
             lines.append("")
@@ -375,8 +408,10 @@ class Trajectory:
             lines.append(f"  v {label:<24} {x: .12g}")
         lines.append("")
         s = self.stats
-        lines.append(f"steps {s.steps} (rejected {s.rejected_steps}), dynamics evaluations "
-                     f"{s.dynamics_evaluations}, largest active-gap drift {self.max_drift:.2e} m")
+        lines.append(
+            f"steps {s.steps} (rejected {s.rejected_steps}), dynamics evaluations "
+            f"{s.dynamics_evaluations}, largest active-gap drift {self.max_drift:.2e} m"
+        )
         if s.steps_by_method:
             lines.append(f"method {s.method}: " + ", ".join(f"{m} {n} steps" for m, n in s.steps_by_method.items()))
         lines += [f"note: {n}" for n in self.notes]
@@ -390,8 +425,11 @@ class Trajectory:
     def _parameter_jacobian_lines(self, P: np.ndarray, scene: Scene, labels: list[str]) -> list[str]:
         """Per parameter: its value, the largest entry of its column and where."""
         values = {row["name"]: row["value"] for row in parameter_table(scene)}  # None: a group whose members differ
-        lines = [f"parameter Jacobian d x({self.t:g}) / d p: {P.shape[0]} x {P.shape[1]}, tangent space, "
-                 "per unit of each parameter", f"  {'parameter':<40} {'value':>12}  {'largest entry':>14}  of"]
+        lines = [
+            f"parameter Jacobian d x({self.t:g}) / d p: {P.shape[0]} x {P.shape[1]}, tangent space, "
+            "per unit of each parameter",
+            f"  {'parameter':<40} {'value':>12}  {'largest entry':>14}  of",
+        ]
         for k, name in enumerate(self.parameter_names):
             i = int(np.argmax(np.abs(P[:, k])))
             value = values[name]
@@ -402,9 +440,11 @@ class Trajectory:
     def _jacobian_lines(self, J: np.ndarray, labels: list[str]) -> list[str]:
         """Its norm and condition number, its largest entries, each event's verdict."""
         sv = np.linalg.svd(J, compute_uv=False)
-        lines = [f"flow Jacobian d x({self.t:g}) / d x({self.t0:g}): {J.shape[0]} x {J.shape[1]}, tangent space",
-                 f"  2-norm {sv[0]:.6g}, condition number {sv[0] / sv[-1] if sv[-1] > 0 else float('inf'):.6g}",
-                 "  largest entries:"]
+        lines = [
+            f"flow Jacobian d x({self.t:g}) / d x({self.t0:g}): {J.shape[0]} x {J.shape[1]}, tangent space",
+            f"  2-norm {sv[0]:.6g}, condition number {sv[0] / sv[-1] if sv[-1] > 0 else float('inf'):.6g}",
+            "  largest entries:",
+        ]
         order = np.argsort(-np.abs(J), axis=None)[:6]
         for flat in order:
             i, j = divmod(int(flat), J.shape[1])
@@ -413,9 +453,13 @@ class Trajectory:
         for e in self.events:
             verdict = "differentiable" if e.differentiable else "NOT differentiable (piecewise-linear derivative)"
             lines.append(f"    t = {e.t:.12f}  {e.kind:<9} {', '.join(e.contacts):<24} {verdict}")
-        verdict = ("differentiable" if self.differentiable
-                   else "NOT differentiable at some event (see notes)" if not self.final_nonsmooth
-                   else "NOT differentiable: a contact touches at the final time (see notes)")
+        verdict = (
+            "differentiable"
+            if self.differentiable
+            else "NOT differentiable at some event (see notes)"
+            if not self.final_nonsmooth
+            else "NOT differentiable: a contact touches at the final time (see notes)"
+        )
         lines.append(f"  the trajectory is {verdict}")
         return lines
 
@@ -427,10 +471,18 @@ class Trajectory:
         """Write final state, events and ``n_samples`` states on a uniform time grid."""
         times = np.linspace(self.t0, self.t, int(n_samples))
         qs, vs = self.sample(times)
-        np.savez(path, t=times, q=qs, v=vs, t_final=self.t, q_final=self.q, v_final=self.v,
-                 event_t=np.array([e.t for e in self.events]),
-                 event_kind=np.array([e.kind for e in self.events], dtype=str),
-                 event_contacts=np.array(["+".join(e.contacts) for e in self.events], dtype=str))
+        np.savez(
+            path,
+            t=times,
+            q=qs,
+            v=vs,
+            t_final=self.t,
+            q_final=self.q,
+            v_final=self.v,
+            event_t=np.array([e.t for e in self.events]),
+            event_kind=np.array([e.kind for e in self.events], dtype=str),
+            event_contacts=np.array(["+".join(e.contacts) for e in self.events], dtype=str),
+        )
 
     def to_html(self, path: str | Path, scene: Scene | None = None, **options: Any) -> Path:
         """Write a self-contained HTML page that replays this run in 3-D in a browser,
@@ -462,7 +514,8 @@ class Trajectory:
             try:
                 scene = load_source(self.scene_name)
             except ContactDiffError as exc:
-                raise InvalidInputError(f"to_html: scene {self.scene_name!r} cannot be loaded by name ({exc}); "
-                                        "pass the scene: traj.to_html(path, scene)") from None
+                raise InvalidInputError(
+                    f"to_html: scene {self.scene_name!r} cannot be loaded by name ({exc}); "
+                    "pass the scene: traj.to_html(path, scene)"
+                ) from None
         return write_html(self, scene, path, **options)
-

@@ -57,8 +57,16 @@ AXES = ("shank",)
 SPRING_SUFFIX = "_spring"
 
 
-def add_compliant_feet(source: Robot | Scene, stiffness: float, foot_mass: float, damping: float = 0.0, *,
-                       mass_from: str = "leg", axis="shank", feet: Sequence[str] | None = None) -> Scene:
+def add_compliant_feet(
+    source: Robot | Scene,
+    stiffness: float,
+    foot_mass: float,
+    damping: float = 0.0,
+    *,
+    mass_from: str = "leg",
+    axis="shank",
+    feet: Sequence[str] | None = None,
+) -> Scene:
     """A scene whose feet sit on springs along the leg (see the module docstring).
 
     Args:
@@ -91,11 +99,14 @@ def add_compliant_feet(source: Robot | Scene, stiffness: float, foot_mass: float
     foot_mass = check_number("add_compliant_feet", "foot_mass", foot_mass, minimum=0.0)
     damping = check_number("add_compliant_feet", "damping", damping, minimum=0.0)
     if stiffness <= 0 or foot_mass <= 0:
-        raise InvalidInputError(f"add_compliant_feet: stiffness and foot_mass must be > 0, "
-                                f"got stiffness={stiffness!r} N/m, foot_mass={foot_mass!r} kg")
+        raise InvalidInputError(
+            f"add_compliant_feet: stiffness and foot_mass must be > 0, "
+            f"got stiffness={stiffness!r} N/m, foot_mass={foot_mass!r} kg"
+        )
     if mass_from not in MASS_SOURCES:
-        raise InvalidInputError(f"add_compliant_feet: mass_from must be one of {', '.join(MASS_SOURCES)}; "
-                                f"got {mass_from!r}")
+        raise InvalidInputError(
+            f"add_compliant_feet: mass_from must be one of {', '.join(MASS_SOURCES)}; got {mass_from!r}"
+        )
     if isinstance(source, Scene):
         scene, robot = source, source.robot
         for e in scene.effort_specs:
@@ -105,14 +116,16 @@ def add_compliant_feet(source: Robot | Scene, stiffness: float, foot_mass: float
                     f"add_compliant_feet: scene {scene.name!r} has the effort {label!r}, which is not a "
                     "JointSpring or Spring: it may be written for the original coordinates, or pick its joints "
                     "from the kinematic tree and then drive the new spring joints too; transform the scene "
-                    "without it and build the final scene on the returned robot yourself")
+                    "without it and build the final scene on the returned robot yourself"
+                )
         default_feet = list(dict.fromkeys(c.spec.frame for c in scene.contacts))
     elif isinstance(source, Robot):
         scene, robot = None, source
         default_feet = list(robot.feet)
         if not default_feet:
-            raise InvalidInputError(f"add_compliant_feet: robot {robot.name!r} has no feet found automatically; "
-                                    "pass feet=[...] frame names")
+            raise InvalidInputError(
+                f"add_compliant_feet: robot {robot.name!r} has no feet found automatically; pass feet=[...] frame names"
+            )
     else:
         raise InvalidInputError(f"add_compliant_feet: source must be a Robot or a Scene, got {source!r}")
     feet = default_feet if feet is None else list(feet)
@@ -127,8 +140,9 @@ def add_compliant_feet(source: Robot | Scene, stiffness: float, foot_mass: float
         base = Scene.from_robot(new_robot)
         return Scene(new_robot, base.contact_specs, springs, name=new_robot.name)
     q0, v0 = compliant_state(robot, new_robot, scene.q0, scene.v0)
-    return Scene(new_robot, scene.contact_specs, scene.effort_specs + springs, None, q0, v0,
-                 f"{scene.name}+compliant feet")
+    return Scene(
+        new_robot, scene.contact_specs, scene.effort_specs + springs, None, q0, v0, f"{scene.name}+compliant feet"
+    )
 
 
 def _spring_axis(model: pin.Model, data: pin.Data, parent: int, X: pin.SE3, world_axis, foot: str) -> np.ndarray:
@@ -138,7 +152,8 @@ def _spring_axis(model: pin.Model, data: pin.Data, parent: int, X: pin.SE3, worl
         if np.linalg.norm(direction) < 1e-9:
             raise InvalidInputError(
                 f"add_compliant_feet: foot {foot!r} sits at its joint's origin, so the shank axis is "
-                "undefined; give axis=(x, y, z)")
+                "undefined; give axis=(x, y, z)"
+            )
     else:
         direction = data.oMi[parent].rotation.T @ world_axis  # world -> lower-leg frame at q_ref
     return direction / np.linalg.norm(direction)
@@ -181,8 +196,9 @@ def _compliant_robot(robot: Robot, feet: list[str], foot_mass: float, mass_from:
         inertia = old.inertias[j]
         if mass_from == "leg":
             for foot, fid in on_joint.get(j, []):
-                inertia = _remove_point_mass(inertia, foot_mass, old.frames[fid].placement.translation,
-                                             old.names[j], foot)
+                inertia = _remove_point_mass(
+                    inertia, foot_mass, old.frames[fid].placement.translation, old.names[j], foot
+                )
         new.appendBodyToJoint(jid, inertia, pin.SE3.Identity())
         for foot, fid in on_joint.get(j, []):
             name = foot + SPRING_SUFFIX
@@ -191,8 +207,12 @@ def _compliant_robot(robot: Robot, feet: list[str], foot_mass: float, mass_from:
             X = old.frames[fid].placement
             direction = _spring_axis(old, data, j, X, world_axis, foot)
             # the spring joint keeps the foot frame's orientation: its axis is expressed in it
-            sid = new.addJoint(jid, pin.JointModelPrismaticUnaligned(X.rotation.T @ direction),
-                               pin.SE3(X.rotation, X.translation), name)
+            sid = new.addJoint(
+                jid,
+                pin.JointModelPrismaticUnaligned(X.rotation.T @ direction),
+                pin.SE3(X.rotation, X.translation),
+                name,
+            )
             new.appendBodyToJoint(sid, pin.Inertia(foot_mass, np.zeros(3), np.zeros((3, 3))), pin.SE3.Identity())
             springs[fid] = sid
     fmap = {0: 0}
@@ -207,14 +227,34 @@ def _compliant_robot(robot: Robot, feet: list[str], foot_mass: float, mass_from:
         fmap[fid] = new.addFrame(frame, False)  # inertias were appended to the joints already
     _copy_coordinate_data(old, new, jmap)
     q_ref = _map_configuration(old, new, jmap, robot.q_ref)
-    return Robot(new, f"{robot.name}+compliant feet", "", robot.floating_base, q_ref, robot.feet, robot.actuated,
-                 objects=robot.objects)
+    return Robot(
+        new,
+        f"{robot.name}+compliant feet",
+        "",
+        robot.floating_base,
+        q_ref,
+        robot.feet,
+        robot.actuated,
+        objects=robot.objects,
+    )
 
 
 _Q_FIELDS = ("lowerPositionLimit", "upperPositionLimit")
-_V_FIELDS = ("armature", "rotorInertia", "rotorGearRatio", "friction", "damping", "effortLimit",
-             "lowerEffortLimit", "upperEffortLimit", "velocityLimit", "lowerVelocityLimit",
-             "upperVelocityLimit", "lowerDryFrictionLimit", "upperDryFrictionLimit")
+_V_FIELDS = (
+    "armature",
+    "rotorInertia",
+    "rotorGearRatio",
+    "friction",
+    "damping",
+    "effortLimit",
+    "lowerEffortLimit",
+    "upperEffortLimit",
+    "velocityLimit",
+    "lowerVelocityLimit",
+    "upperVelocityLimit",
+    "lowerDryFrictionLimit",
+    "upperDryFrictionLimit",
+)
 
 
 def _copy_coordinate_data(old: pin.Model, new: pin.Model, jmap: dict) -> None:
@@ -230,7 +270,7 @@ def _copy_coordinate_data(old: pin.Model, new: pin.Model, jmap: dict) -> None:
                 if j == 0:
                     continue
                 a, b, n = getattr(old, idx)[j], getattr(new, idx)[k], getattr(old, size)[j]
-                dst[b:b + n] = src[a:a + n]
+                dst[b : b + n] = src[a : a + n]
             setattr(new, name, dst)
     for entry in old.referenceConfigurations:
         new.referenceConfigurations[entry.key()] = _map_configuration(old, new, jmap, entry.data())
@@ -241,12 +281,13 @@ def _map_configuration(old: pin.Model, new: pin.Model, jmap: dict, q: np.ndarray
     for j, k in jmap.items():
         if j:
             a, b, n = old.idx_qs[j], new.idx_qs[k], old.nqs[j]
-            out[b:b + n] = q[a:a + n]
+            out[b : b + n] = q[a : a + n]
     return out
 
 
-def compliant_state(robot: Robot, compliant: Robot, q: ArrayLike, v: ArrayLike | None = None
-                    ) -> tuple[np.ndarray, np.ndarray]:
+def compliant_state(
+    robot: Robot, compliant: Robot, q: ArrayLike, v: ArrayLike | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """A state ``(q, v)`` of ``robot`` as a state of ``compliant``: every joint of
     ``robot`` keeps its value (matched by name), the springs are at rest and still.
 
@@ -263,16 +304,17 @@ def compliant_state(robot: Robot, compliant: Robot, q: ArrayLike, v: ArrayLike |
     q = np.asarray(q, dtype=float)
     v = np.zeros(old.nv) if v is None else np.asarray(v, dtype=float)
     if q.shape != (old.nq,) or v.shape != (old.nv,):
-        raise InvalidInputError(f"compliant_state: q must have shape ({old.nq},) and v ({old.nv},); "
-                                f"got {q.shape} and {v.shape}")
+        raise InvalidInputError(
+            f"compliant_state: q must have shape ({old.nq},) and v ({old.nv},); got {q.shape} and {v.shape}"
+        )
     q_out, v_out = pin.neutral(new), np.zeros(new.nv)
     for j in range(1, old.njoints):
         name = old.names[j]
         if not new.existJointName(name):
             raise unknown_name(f"joint of robot {compliant.name!r}", name, list(new.names)[1:])
         k = new.getJointId(name)
-        q_out[new.idx_qs[k]:new.idx_qs[k] + old.nqs[j]] = q[old.idx_qs[j]:old.idx_qs[j] + old.nqs[j]]
-        v_out[new.idx_vs[k]:new.idx_vs[k] + old.nvs[j]] = v[old.idx_vs[j]:old.idx_vs[j] + old.nvs[j]]
+        q_out[new.idx_qs[k] : new.idx_qs[k] + old.nqs[j]] = q[old.idx_qs[j] : old.idx_qs[j] + old.nqs[j]]
+        v_out[new.idx_vs[k] : new.idx_vs[k] + old.nvs[j]] = v[old.idx_vs[j] : old.idx_vs[j] + old.nvs[j]]
     return q_out, v_out
 
 
@@ -294,5 +336,6 @@ def _remove_point_mass(inertia: pin.Inertia, mass: float, point: np.ndarray, bod
         raise InvalidInputError(
             f"add_compliant_feet: the body of joint {body!r} ({inertia.mass:.4g} kg) cannot give a "
             f"{mass:.4g} kg point mass at foot {foot!r}: at most {limit:.4g} kg leaves it physical; "
-            "use a smaller foot_mass or mass_from='added'")
+            "use a smaller foot_mass or mass_from='added'"
+        )
     return inertia - pin.Inertia(mass, np.asarray(point, dtype=float), np.zeros((3, 3)))

@@ -56,8 +56,11 @@ def contact_parameters(scene: Scene) -> list[Parameter]:
     from .parameters import Parameter, ParameterKind  # the parameters' module lists these
 
     specs = scene.contact_specs
-    out = [Parameter(ParameterKind.CONTACT, c.name, f, index=i, members=(i,))
-           for i, c in enumerate(specs) for f in contact_fields(c)]
+    out = [
+        Parameter(ParameterKind.CONTACT, c.name, f, index=i, members=(i,))
+        for i, c in enumerate(specs)
+        for f in contact_fields(c)
+    ]
     for name, members in groups(scene).items():
         fields = CONTACT_FIELDS if all(specs[i].coulomb for i in members) else CONTACT_FIELDS[:2]
         out += [Parameter(ParameterKind.GROUP, name, f, members=members) for f in fields]
@@ -73,8 +76,10 @@ def contact_value(scene: Scene, p: Parameter) -> float:
     values = [float(getattr(scene.contact_specs[i], p.field)) for i in p.members]
     if any(x != values[0] for x in values[1:]):
         listed = ", ".join(f"{scene.contact_specs[i].name} = {x!r}" for i, x in zip(p.members, values))
-        raise GroupMismatchError(f"parameter {p.name!r}: the group's contacts differ ({listed}); it has a value "
-                                 f"only when they agree (setting it gives them all one)")
+        raise GroupMismatchError(
+            f"parameter {p.name!r}: the group's contacts differ ({listed}); it has a value "
+            f"only when they agree (setting it gives them all one)"
+        )
     return values[0]
 
 
@@ -89,17 +94,20 @@ def stage_contact_change(scene: Scene, specs: dict, p: Parameter, x: float) -> N
             field different values (a contact's own and its group's).
     """
     if p.field == "friction" and not (x >= 0.0 and math.isfinite(x)):
-        raise InvalidInputError(f"parameter {p.name!r} (Coulomb's friction coefficient) must be >= 0, got {x!r} "
-                                "(0 makes the contact frictionless)")
+        raise InvalidInputError(
+            f"parameter {p.name!r} (Coulomb's friction coefficient) must be >= 0, got {x!r} "
+            "(0 makes the contact frictionless)"
+        )
     for i in p.members:
         changes, names, values = specs.setdefault(("contact", i), ({}, [], []))
         if p.field in changes and changes[p.field] != x:
-            raise InvalidInputError(f"parameters {names[-1]!r} = {values[-1]!r} and {p.name!r} = {x!r} set the "
-                                    f"{p.field} of contact {scene.contact_specs[i].name!r} to different values")
+            raise InvalidInputError(
+                f"parameters {names[-1]!r} = {values[-1]!r} and {p.name!r} = {x!r} set the "
+                f"{p.field} of contact {scene.contact_specs[i].name!r} to different values"
+            )
         changes[p.field] = x
         names.append(p.name)
         values.append(x)
 
 
-__all__ = ["CONTACT_FIELDS", "contact_fields", "contact_parameters", "contact_value", "groups",
-           "stage_contact_change"]
+__all__ = ["CONTACT_FIELDS", "contact_fields", "contact_parameters", "contact_value", "groups", "stage_contact_change"]

@@ -93,8 +93,9 @@ def _friction(value, owner: str) -> FrictionLaw | float:
             return FrictionLaw.STICK
         if mu > 0.0 and np.isfinite(mu):
             return mu
-    raise InvalidInputError(f"{owner}: friction must be one of {', '.join(FRICTION_MODES)} or a Coulomb "
-                            f"coefficient mu >= 0; got {value!r}")
+    raise InvalidInputError(
+        f"{owner}: friction must be one of {', '.join(FRICTION_MODES)} or a Coulomb coefficient mu >= 0; got {value!r}"
+    )
 
 
 @dataclass(frozen=True)
@@ -153,8 +154,9 @@ class Contact:
         if self.radius is not None:
             set_(self, "radius", check_number(owner, "radius", self.radius, minimum=0.0))
         if self.group is not None and (not isinstance(self.group, str) or not self.group or ":" in self.group):
-            raise InvalidInputError(f"{owner}: group must be a non-empty name without ':' (or None), "
-                                    f"got {self.group!r}")
+            raise InvalidInputError(
+                f"{owner}: group must be a non-empty name without ':' (or None), got {self.group!r}"
+            )
 
     def resolved(self, robot: Robot) -> Contact:
         """This contact with its radius set: a given radius is kept; without one, a
@@ -236,7 +238,8 @@ class BoundContact:
         if reach[0] < _ROW_TOL:
             raise InvalidInputError(
                 f"contact {self.name!r}: frame {spec.frame!r} cannot move along the normal "
-                f"{spec.normal} in this model, so the contact can never act")
+                f"{spec.normal} in this model, so the contact can never act"
+            )
         self.directions = directions[reach >= _ROW_TOL]
         self.rolling = self._rolling(self.directions)
 
@@ -253,8 +256,7 @@ class BoundContact:
         rng = np.random.default_rng(0)
         rolling = self._rolling(directions)
         reach = np.zeros(len(directions))
-        for q in [robot.q_ref] + [robot.integrate(robot.q_ref, 0.5 * rng.standard_normal(robot.nv))
-                                  for _ in range(3)]:
+        for q in [robot.q_ref] + [robot.integrate(robot.q_ref, 0.5 * rng.standard_normal(robot.nv)) for _ in range(3)]:
             kin.update(q, np.zeros(robot.nv))
             rows = directions @ self._point_jacobian(kin)
             if rolling is not None:

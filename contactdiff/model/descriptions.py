@@ -43,10 +43,12 @@ def description_file(name: str) -> Path | None:
     try:
         module = importlib.import_module(f"robot_descriptions.{name}")
     except Exception as exc:  # noqa: BLE001 - git, network and file errors of the package alike
-        raise ModelLoadError(f"robot_descriptions cannot provide {name!r}: {type(exc).__name__}: "
-                             f"{str(exc).strip().splitlines()[0] if str(exc).strip() else ''} "
-                             f"(its cache is {cache!r}, set by ROBOT_DESCRIPTIONS_CACHE; a first use clones "
-                             "the model's repository there and needs the network)") from None
+        raise ModelLoadError(
+            f"robot_descriptions cannot provide {name!r}: {type(exc).__name__}: "
+            f"{str(exc).strip().splitlines()[0] if str(exc).strip() else ''} "
+            f"(its cache is {cache!r}, set by ROBOT_DESCRIPTIONS_CACHE; a first use clones "
+            "the model's repository there and needs the network)"
+        ) from None
     for attribute in ("MJCF_PATH", "URDF_PATH"):
         path = getattr(module, attribute, None)
         if path:

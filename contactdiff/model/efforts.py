@@ -251,7 +251,8 @@ class _BoundSpring:
         if length < _MIN_LENGTH:
             raise InvalidInputError(
                 f"spring {self.spec.frame_a!r}-{self.spec.frame_b!r}: the frames coincide "
-                f"(length {length:.3g} m), so the spring has no direction")
+                f"(length {length:.3g} m), so the spring has no direction"
+            )
         Jd = kin.jacobian(self.fb) - kin.jacobian(self.fa)
         return d, length, d / length, Jd
 
@@ -274,8 +275,7 @@ class _BoundSpring:
         force_dq = s.stiffness * JTu + s.damping * rate_dq
         H = kin.hessian(self.fb) - kin.hessian(self.fa)  # d(Jd)/dq, (3, nv, nv)
         nv = H.shape[1]
-        dq = -(((u * force) @ H.reshape(3, nv * nv)).reshape(nv, nv)
-               + force * (Jd.T @ du_dq) + np.outer(JTu, force_dq))
+        dq = -(((u * force) @ H.reshape(3, nv * nv)).reshape(nv, nv) + force * (Jd.T @ du_dq) + np.outer(JTu, force_dq))
         dv = -s.damping * np.outer(JTu, JTu)
         return dq, dv
 
@@ -294,9 +294,11 @@ class _BoundSpring:
         s = self.spec
         _, length, u, Jd = self._geometry(kin)
         JTu = Jd.T @ u
-        per_field = {"stiffness": lambda: -JTu * (length - s.rest_length),
-                     "damping": lambda: -JTu * (u @ (Jd @ kin.v)),
-                     "rest_length": lambda: s.stiffness * JTu}
+        per_field = {
+            "stiffness": lambda: -JTu * (length - s.rest_length),
+            "damping": lambda: -JTu * (u @ (Jd @ kin.v)),
+            "rest_length": lambda: s.stiffness * JTu,
+        }
         out = np.zeros((JTu.size, len(fields)))
         for col, (_, field) in enumerate(fields):
             if field not in per_field:
@@ -389,8 +391,9 @@ class UserEffort:
         try:
             times = [check_number(self.name, "breakpoint", t) for t in self.breakpoints]
         except TypeError:
-            raise InvalidInputError(f"{self.name}: breakpoints must be a sequence of times (s), "
-                                    f"got {self.breakpoints!r}") from None
+            raise InvalidInputError(
+                f"{self.name}: breakpoints must be a sequence of times (s), got {self.breakpoints!r}"
+            ) from None
         object.__setattr__(self, "breakpoints", tuple(sorted(set(times))))
         object.__setattr__(self, "parameters", _named_numbers(self.name, self.parameters))
         if self.parameter_jacobian is not None and not self.parameters:
@@ -417,8 +420,10 @@ def _named_numbers(owner: str, value) -> tuple[tuple[str, float], ...]:
     out = []
     for name, number in pairs:
         if not isinstance(name, str) or not name.isidentifier():
-            raise InvalidInputError(f"{owner}: parameter names must be Python identifiers (they are passed "
-                                    f"as keyword arguments), got {name!r}")
+            raise InvalidInputError(
+                f"{owner}: parameter names must be Python identifiers (they are passed "
+                f"as keyword arguments), got {name!r}"
+            )
         out.append((name, check_number(owner, f"parameter {name!r}", number)))
     names = [name for name, _ in out]
     repeated = sorted({n for n in names if names.count(n) > 1})
@@ -443,7 +448,8 @@ class _BoundUserEffort:
         tau = np.asarray(self.spec.function(q, v, t, **(self._kwargs if kwargs is None else kwargs)), dtype=float)
         if tau.shape != (self.robot.nv,):
             raise InvalidInputError(
-                f"{self.spec.name}: function returned shape {tau.shape}, expected ({self.robot.nv},)")
+                f"{self.spec.name}: function returned shape {tau.shape}, expected ({self.robot.nv},)"
+            )
         if not np.all(np.isfinite(tau)):
             raise InvalidInputError(f"{self.spec.name}: function returned non-finite values at t={t}: {tau}")
         return tau
@@ -457,15 +463,17 @@ class _BoundUserEffort:
             dq, dv = (np.asarray(x, dtype=float) for x in self.spec.jacobian(q, v, t, **self._kwargs))
             if dq.shape != (nv, nv) or dv.shape != (nv, nv):
                 raise InvalidInputError(
-                    f"{self.spec.name}: jacobian returned shapes {dq.shape}, {dv.shape}; expected ({nv}, {nv})")
+                    f"{self.spec.name}: jacobian returned shapes {dq.shape}, {dv.shape}; expected ({nv}, {nv})"
+                )
             return dq, dv
         h = self.spec.fd_step
         dq, dv = np.empty((nv, nv)), np.empty((nv, nv))
         for k in range(nv):
             e = np.zeros(nv)
             e[k] = h
-            dq[:, k] = (self._call(self.robot.integrate(q, e), v, t)
-                        - self._call(self.robot.integrate(q, -e), v, t)) / (2 * h)
+            dq[:, k] = (
+                self._call(self.robot.integrate(q, e), v, t) - self._call(self.robot.integrate(q, -e), v, t)
+            ) / (2 * h)
             dv[:, k] = (self._call(q, v + e, t) - self._call(q, v - e, t)) / (2 * h)
         return dq, dv
 
@@ -474,8 +482,9 @@ class _BoundUserEffort:
             return central_time_difference(self, kin, t, self.spec.fd_step)
         rate = np.asarray(self.spec.time_derivative(kin.q, kin.v, t, **self._kwargs), dtype=float)
         if rate.shape != (self.robot.nv,) or not np.all(np.isfinite(rate)):
-            raise InvalidInputError(f"{self.spec.name}: time_derivative returned {rate!r}; "
-                                    f"expected {self.robot.nv} finite numbers")
+            raise InvalidInputError(
+                f"{self.spec.name}: time_derivative returned {rate!r}; expected {self.robot.nv} finite numbers"
+            )
         return rate
 
     def parameter_derivatives(self, kin: Kinematics, t: float, fields) -> np.ndarray:
@@ -485,15 +494,18 @@ class _BoundUserEffort:
         nv, names = self.robot.nv, [field for _, field in fields]
         for name in names:
             if name not in self._kwargs:
-                raise InvalidInputError(f"{self.spec.name}: no parameter {name!r}; its parameters: "
-                                        f"{', '.join(self._names) or '(none)'}")
+                raise InvalidInputError(
+                    f"{self.spec.name}: no parameter {name!r}; its parameters: {', '.join(self._names) or '(none)'}"
+                )
         columns = [self._names.index(name) for name in names]
         if self.spec.parameter_jacobian is not None:
             J = np.asarray(self.spec.parameter_jacobian(kin.q, kin.v, t, **self._kwargs), dtype=float)
             if J.shape != (nv, len(self._names)) or not np.all(np.isfinite(J)):
-                raise InvalidInputError(f"{self.spec.name}: parameter_jacobian returned shape {J.shape}"
-                                        f"{'' if J.shape != (nv, len(self._names)) else ' with non-finite entries'}; "
-                                        f"expected {nv} x {len(self._names)} finite numbers (one column a parameter)")
+                raise InvalidInputError(
+                    f"{self.spec.name}: parameter_jacobian returned shape {J.shape}"
+                    f"{'' if J.shape != (nv, len(self._names)) else ' with non-finite entries'}; "
+                    f"expected {nv} x {len(self._names)} finite numbers (one column a parameter)"
+                )
             return J[:, columns].copy()
         out = np.empty((nv, len(names)))
         for col, name in enumerate(names):
@@ -501,8 +513,9 @@ class _BoundUserEffort:
             h = self.spec.fd_step * max(1.0, abs(value))
             plus, minus = dict(self._kwargs), dict(self._kwargs)
             plus[name], minus[name] = value + h, value - h  # the step as represented: plus - minus
-            out[:, col] = ((self._call(kin.q, kin.v, t, plus) - self._call(kin.q, kin.v, t, minus))
-                           / (plus[name] - minus[name]))
+            out[:, col] = (self._call(kin.q, kin.v, t, plus) - self._call(kin.q, kin.v, t, minus)) / (
+                plus[name] - minus[name]
+            )
         return out
 
 

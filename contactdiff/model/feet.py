@@ -117,26 +117,34 @@ class FootChoice:
         if self.rule in (FootRule.LOWEST_END_FRAMES, FootRule.MJCF_SPHERES):
             text += f" (within {self.band * 100:.3g} cm of the lowest frame)"
             if self.upright_turn:
-                text += (f"; the reference pose was turned {np.degrees(self.upright_turn):.0f} deg "
-                         "upright (the model's up axis is not the vertical)")
+                text += (
+                    f"; the reference pose was turned {np.degrees(self.upright_turn):.0f} deg "
+                    "upright (the model's up axis is not the vertical)"
+                )
             if self.left_out:
                 shown = ", ".join(f"{x.frame} ({x.reason})" for x in self.left_out[:6])
                 more = len(self.left_out) - 6
                 text += f"; left out: {shown}" + (f" and {more} more" if more > 0 else "")
         if self.limbs:
             text += "; one foot of several points each: " + ", ".join(
-                f"{limb} ({len(feet)})" for limb, feet in self.limbs.items())
+                f"{limb} ({len(feet)})" for limb, feet in self.limbs.items()
+            )
         return text
 
     def to_dict(self) -> dict:
         """JSON-ready form (keys name their units: ``band_m``, ``heights_m``, ``upright_turn_rad``),
         with the `describe` line."""
-        return {"feet": list(self.feet), "rule": self.rule.name.lower(), "band_m": self.band,
-                "heights_m": dict(self.heights), "upright_turn_rad": self.upright_turn,
-                "radii_m": dict(self.radii), "limbs": {k: list(v) for k, v in self.limbs.items()},
-                "left_out": [{"frame": x.frame, "height_m": x.height, "reason": x.reason}
-                             for x in self.left_out],
-                "description": self.describe()}
+        return {
+            "feet": list(self.feet),
+            "rule": self.rule.name.lower(),
+            "band_m": self.band,
+            "heights_m": dict(self.heights),
+            "upright_turn_rad": self.upright_turn,
+            "radii_m": dict(self.radii),
+            "limbs": {k: list(v) for k, v in self.limbs.items()},
+            "left_out": [{"frame": x.frame, "height_m": x.height, "reason": x.reason} for x in self.left_out],
+            "description": self.describe(),
+        }
 
 
 def up_direction(model: pin.Model) -> np.ndarray:
@@ -146,8 +154,9 @@ def up_direction(model: pin.Model) -> np.ndarray:
     return -g / norm if norm > 0 else np.array([0.0, 0.0, 1.0])
 
 
-def choose_feet(model: pin.Model, q_ref: np.ndarray, floating_base: bool,
-                given: Sequence[str] | None = None) -> tuple[FootChoice, np.ndarray]:
+def choose_feet(
+    model: pin.Model, q_ref: np.ndarray, floating_base: bool, given: Sequence[str] | None = None
+) -> tuple[FootChoice, np.ndarray]:
     """Choose the feet of ``model`` at ``q_ref`` (module rule) or check the given ones.
 
     Args:
@@ -201,8 +210,11 @@ def _end_frames(model: pin.Model, data: pin.Data, up: np.ndarray) -> list[tuple[
     """One ``(frame, height along up)`` per limb (rule 1), in the order of the leaf joints."""
     ends = []
     for chain in _limbs(model):
-        frames = [(f.name, float(up @ data.oMf[i].translation)) for i, f in enumerate(model.frames)
-                  if f.parentJoint in chain and f.type in _END_FRAME_TYPES and not _SENSOR_NAME.search(f.name)]
+        frames = [
+            (f.name, float(up @ data.oMf[i].translation))
+            for i, f in enumerate(model.frames)
+            if f.parentJoint in chain and f.type in _END_FRAME_TYPES and not _SENSOR_NAME.search(f.name)
+        ]
         if not frames:
             continue
         lowest = min(h for _, h in frames)
@@ -216,8 +228,11 @@ def _lowest_end_frames(model: pin.Model, q: np.ndarray) -> FootChoice:
     data = model.createData()
     pin.framesForwardKinematics(model, data, q)
     up = up_direction(model)
-    heights = [float(up @ data.oMf[i].translation) for i, f in enumerate(model.frames)
-               if f.parentJoint != 0 and not _SENSOR_NAME.search(f.name)]
+    heights = [
+        float(up @ data.oMf[i].translation)
+        for i, f in enumerate(model.frames)
+        if f.parentJoint != 0 and not _SENSOR_NAME.search(f.name)
+    ]
     if not heights:
         return FootChoice((), FootRule.LOWEST_END_FRAMES)
     bottom = min(heights)
@@ -229,8 +244,9 @@ def _lowest_end_frames(model: pin.Model, q: np.ndarray) -> FootChoice:
     if named and len(named) < len(low):
         left_out += [LeftOut(n, h, "not named like a foot") for n, h in low if (n, h) not in named]
         low = named
-    return FootChoice(tuple(n for n, _ in low), FootRule.LOWEST_END_FRAMES, band,
-                      {n: h for n, h in low}, tuple(left_out))
+    return FootChoice(
+        tuple(n for n, _ in low), FootRule.LOWEST_END_FRAMES, band, {n: h for n, h in low}, tuple(left_out)
+    )
 
 
 def _turned_upright(model: pin.Model, q: np.ndarray, choice: FootChoice):

@@ -95,8 +95,9 @@ class Kinematics:
 
     def jacobian(self, fid: int) -> np.ndarray:
         """Linear LWA Jacobian of the frame origin, d p / d q (3 × nv)."""
-        return self._memo(("J", fid), lambda: _matrix(pin.getFrameJacobian(
-            self.model, self._jacobian_data(), fid, LWA), 6)[:3].copy())
+        return self._memo(
+            ("J", fid), lambda: _matrix(pin.getFrameJacobian(self.model, self._jacobian_data(), fid, LWA), 6)[:3].copy()
+        )
 
     def velocity(self, fid: int) -> np.ndarray:
         """World velocity of the frame origin (3,) (from the forward pass with ``v``: no
@@ -105,14 +106,23 @@ class Kinematics:
 
     def classical_acceleration(self, fid: int) -> np.ndarray:
         """Classical acceleration of the frame origin at zero joint acceleration: ``J̇ v`` (3,)."""
-        return self._memo(("a", fid), lambda: pin.getFrameClassicalAcceleration(
-            self.model, self._kinematics(), fid, LWA).linear.copy())
+        return self._memo(
+            ("a", fid),
+            lambda: pin.getFrameClassicalAcceleration(self.model, self._kinematics(), fid, LWA).linear.copy(),
+        )
 
     def velocity_derivative(self, fid: int) -> np.ndarray:
         """d(J v)/dq of the frame origin velocity at fixed ``v`` (3 × nv)."""
         frame = self.model.frames[fid]
-        return self._memo(("dv", fid), lambda: _matrix(pin.getPointVelocityDerivatives(
-            self.model, self._derivative_data(), frame.parentJoint, frame.placement, LWA)[0], 3).copy())
+        return self._memo(
+            ("dv", fid),
+            lambda: _matrix(
+                pin.getPointVelocityDerivatives(
+                    self.model, self._derivative_data(), frame.parentJoint, frame.placement, LWA
+                )[0],
+                3,
+            ).copy(),
+        )
 
     def acceleration_derivatives(self, fid: int) -> tuple[np.ndarray, np.ndarray]:
         """d(J̇ v)/dq and d(J̇ v)/dv of the classical acceleration at zero joint acceleration."""
@@ -120,45 +130,56 @@ class Kinematics:
 
         def compute():
             _, dq, dv, _ = pin.getPointClassicAccelerationDerivatives(
-                self.model, self._derivative_data(), frame.parentJoint, frame.placement, LWA)
+                self.model, self._derivative_data(), frame.parentJoint, frame.placement, LWA
+            )
             return _matrix(dq, 3).copy(), _matrix(dv, 3).copy()
+
         return self._memo(("da", fid), compute)
 
     def hessian(self, fid: int) -> np.ndarray:
         """Kinematic Hessian of the frame origin: ``H[c, j, k] = d J[c, j] / d q_k`` (3 × nv × nv)."""
+
         def compute():
             H = pin.getFrameKinematicHessian(self.model, self._derivative_data(), fid, LWA)
             # Pinocchio returns column-major memory flagged as C order (notes, pitfall 4).
             return H.ravel(order="C").reshape(H.shape, order="F")[:3].copy()
+
         return self._memo(("H", fid), compute)
 
     # -- angular terms (round contacts: `contactdiff.model.contacts`) ------------------
     def angular_jacobian(self, fid: int) -> np.ndarray:
         """Angular LWA Jacobian of the frame, ``ω = J_ω v`` in world axes (3 × nv)."""
-        return self._memo(("Jw", fid), lambda: _matrix(pin.getFrameJacobian(
-            self.model, self._jacobian_data(), fid, LWA), 6)[3:].copy())
+        return self._memo(
+            ("Jw", fid),
+            lambda: _matrix(pin.getFrameJacobian(self.model, self._jacobian_data(), fid, LWA), 6)[3:].copy(),
+        )
 
     def angular_acceleration(self, fid: int) -> np.ndarray:
         """Angular acceleration of the frame at zero joint acceleration, ``J̇_ω v`` (3,),
         world axes (the classical and the spatial acceleration share it)."""
-        return self._memo(("aw", fid), lambda: pin.getFrameClassicalAcceleration(
-            self.model, self._kinematics(), fid, LWA).angular.copy())
+        return self._memo(
+            ("aw", fid),
+            lambda: pin.getFrameClassicalAcceleration(self.model, self._kinematics(), fid, LWA).angular.copy(),
+        )
 
     def angular_derivatives(self, fid: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``d ω/dq`` at fixed ``v``, ``d α/dq`` and ``d α/dv`` at zero joint acceleration
         (each 3 × nv), ``ω`` and ``α`` the frame's angular velocity and acceleration in
         world axes. (The angular rows of Pinocchio's LWA frame derivatives match finite
         differences; their linear rows do not, hence the point derivatives above.)"""
+
         def compute():
-            dv_dq, da_dq, da_dv, _ = pin.getFrameAccelerationDerivatives(
-                self.model, self._derivative_data(), fid, LWA)
+            dv_dq, da_dq, da_dv, _ = pin.getFrameAccelerationDerivatives(self.model, self._derivative_data(), fid, LWA)
             return tuple(_matrix(x, 6)[3:].copy() for x in (dv_dq, da_dq, da_dv))
+
         return self._memo(("dw", fid), compute)
 
     def angular_hessian(self, fid: int) -> np.ndarray:
         """Kinematic Hessian of the angular Jacobian: ``H[c, j, k] = d J_ω[c, j] / d q_k``
         (3 × nv × nv)."""
+
         def compute():
             H = pin.getFrameKinematicHessian(self.model, self._derivative_data(), fid, LWA)
             return H.ravel(order="C").reshape(H.shape, order="F")[3:].copy()
+
         return self._memo(("Hw", fid), compute)

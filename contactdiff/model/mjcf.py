@@ -58,8 +58,9 @@ def warn(message: str) -> None:
     warnings.warn_explicit(MJCFWarning(message), MJCFWarning, "<mjcf>", 0)
 
 
-def build_model(path: str | Path, floating_base: bool | None = None,
-                allow_outside: bool = False) -> tuple[pin.Model, Element, Audit]:
+def build_model(
+    path: str | Path, floating_base: bool | None = None, allow_outside: bool = False
+) -> tuple[pin.Model, Element, Audit]:
     """Pinocchio's model of an MJCF file, after `audit`.
 
     Returns:
@@ -132,13 +133,19 @@ _JOINT_SIZES = {"free": 7, "ball": 4, "hinge": 1, "slide": 1}
 
 def _check_keyframes(root: Element, path: Path) -> None:
     """Refuse a keyframe whose ``qpos`` is not MuJoCo's ``nq`` long, as MuJoCo does (named)."""
-    nq = sum(7 if j.tag == "freejoint" else _JOINT_SIZES.get(j.get("type", "hinge"), 1)
-             for world in root.findall("worldbody") for j in world.iter() if j.tag in ("joint", "freejoint"))
+    nq = sum(
+        7 if j.tag == "freejoint" else _JOINT_SIZES.get(j.get("type", "hinge"), 1)
+        for world in root.findall("worldbody")
+        for j in world.iter()
+        if j.tag in ("joint", "freejoint")
+    )
     for k, key in enumerate(root.iter("key")):
         size = len(numbers(key.get("qpos"))) if key.get("qpos") is not None else nq
         if size != nq:
-            raise ModelLoadError(f"MJCF {str(path)!r}: keyframe {key.get('name') or f'#{k + 1}'!r} has {size} qpos "
-                                 f"values; the model has nq = {nq}")
+            raise ModelLoadError(
+                f"MJCF {str(path)!r}: keyframe {key.get('name') or f'#{k + 1}'!r} has {size} qpos "
+                f"values; the model has nq = {nq}"
+            )
 
 
 def _rename_shared_frame_names(model: pin.Model) -> None:
@@ -179,7 +186,7 @@ def actuated_joints(model: pin.Model, root: Element, floating_base: bool) -> tup
     chosen = tuple(n for n in names[1:] if n in driven)
     if chosen:
         return chosen
-    return tuple(names[2 if floating_base else 1:])
+    return tuple(names[2 if floating_base else 1 :])
 
 
 def has_free_root(model: pin.Model) -> bool:
@@ -209,14 +216,15 @@ def mujoco_velocity_map(model: pin.Model, q: np.ndarray, v: np.ndarray | None = 
             continue
         R = data.oMi[j].rotation
         i = joint.idx_v
-        T[i:i + 3, i:i + 3] = R
+        T[i : i + 3, i : i + 3] = R
         if v is not None:
-            Tdot_v[i:i + 3] = R @ np.cross(v[i + 3:i + 6], v[i:i + 3])
+            Tdot_v[i : i + 3] = R @ np.cross(v[i + 3 : i + 6], v[i : i + 3])
     return (T, Tdot_v) if v is not None else T
 
 
-def load_mjcf(path: str | Path, floating_base: bool | None = None, feet=None, name: str | None = None,
-              allow_outside: bool = False):
+def load_mjcf(
+    path: str | Path, floating_base: bool | None = None, feet=None, name: str | None = None, allow_outside: bool = False
+):
     """Load a robot from an MJCF file (module notes); `contactdiff.model.robot_files.load_robot`
     calls this for ``.xml`` files whose root is ``<mujoco>``.
 
@@ -254,8 +262,16 @@ def load_mjcf(path: str | Path, floating_base: bool | None = None, feet=None, na
         radii = {f: spheres[f].radius for f in choice.feet if f in spheres}
         if radii:
             choice = dataclasses.replace(choice, radii=radii, limbs=sphere_limbs(spheres, choice.feet))
-    return Robot(model, name or path.stem, str(path), floating, q_ref, choice.feet,
-                 actuated_joints(model, root, floating), choice)
+    return Robot(
+        model,
+        name or path.stem,
+        str(path),
+        floating,
+        q_ref,
+        choice.feet,
+        actuated_joints(model, root, floating),
+        choice,
+    )
 
 
 def replay_note(robot) -> MJCFWarning:

@@ -60,8 +60,9 @@ def _named(element: Element, fallback: str = "") -> str:
     return repr(name) if name else fallback or f"<{element.tag}> #?"
 
 
-def audit(root: Element, floating_base: bool | None = None, folder: Path | None = None,
-          allow_outside: bool = False) -> Audit:
+def audit(
+    root: Element, floating_base: bool | None = None, folder: Path | None = None, allow_outside: bool = False
+) -> Audit:
     """Find (and repair in ``root``, in place) what Pinocchio's MJCF parser would drop.
 
     Repairs: orientations become quaternions, ``<frame>`` elements are replaced by
@@ -99,12 +100,16 @@ def audit(root: Element, floating_base: bool | None = None, folder: Path | None 
     _mesh_masses(root, found, folder, allow_outside)
     for tag in _FLEX_TAGS:
         for element in root.iter(tag):
-            found.refused.append(f"<{tag}> {_named(element, '(unnamed)')} (deformable bodies add degrees of "
-                                 "freedom the rigid-body model does not have)")
+            found.refused.append(
+                f"<{tag}> {_named(element, '(unnamed)')} (deformable bodies add degrees of "
+                "freedom the rigid-body model does not have)"
+            )
     for tag in _GENERATED:
         for element in root.iter(tag):
-            found.refused.append(f"<{tag}> (its bodies would be lost: save the model expanded by MuJoCo, "
-                                 "mujoco.mj_saveLastXML, and load that)")
+            found.refused.append(
+                f"<{tag}> (its bodies would be lost: save the model expanded by MuJoCo, "
+                "mujoco.mj_saveLastXML, and load that)"
+            )
     hfields = [_named(e, "(unnamed)") for e in root.iter("hfield")]
     _remove(root, lambda e: e.tag == "hfield" or (e.tag == "geom" and (e.get("type") == "hfield" or e.get("hfield"))))
     if hfields:
@@ -119,8 +124,7 @@ def audit(root: Element, floating_base: bool | None = None, folder: Path | None 
             if e.tag in _DYNAMIC_ACTUATORS or e.get("dyntype", "none") != "none":
                 dynamic.append(f"{e.tag} {_named(e, '(unnamed)')}")
     if dynamic:
-        found.left_out.append(f"the activation dynamics of actuator(s) {_listed(dynamic)} "
-                              "(efforts act directly)")
+        found.left_out.append(f"the activation dynamics of actuator(s) {_listed(dynamic)} (efforts act directly)")
     passive = _passive_forces(root)
     if passive:
         found.left_out.append(passive)
@@ -133,8 +137,12 @@ def _passive_forces(root: Element) -> str | None:
     these passive forces, the loaded dynamics does not."""
     parts = []
     for attribute in _PASSIVE:
-        names = [_named(j, "(unnamed)") for world in root.findall("worldbody") for j in world.iter("joint")
-                 if any(x != 0 for x in numbers(j.get(attribute), (0.0,)))]
+        names = [
+            _named(j, "(unnamed)")
+            for world in root.findall("worldbody")
+            for j in world.iter("joint")
+            if any(x != 0 for x in numbers(j.get(attribute), (0.0,)))
+        ]
         if names:
             shown = ", ".join(names[:6]) + (f" and {len(names) - 6} more" if len(names) > 6 else "")
             parts.append(f"{attribute} of {len(names)} joint(s) ({shown})")
@@ -169,14 +177,17 @@ def _top_bodies(root: Element, found: Audit) -> None:
             found.refused.append(
                 f"<worldbody> holds {len(jointed)} top-level bodies with joints "
                 f"({', '.join(_named(b) for b in jointed)}), one of them floating; the model holds one tree: "
-                "load each body's own file")
+                "load each body's own file"
+            )
             return
         dropped = [b for b in top if b is not free[0]]
         for b in dropped:
             world.remove(b)
-        found.left_out.append(f"top-level bod{'y' if len(dropped) == 1 else 'ies'} "
-                              f"{', '.join(_named(b) for b in dropped)} (no joints: fixed to the world, "
-                              "not part of the floating robot)")
+        found.left_out.append(
+            f"top-level bod{'y' if len(dropped) == 1 else 'ies'} "
+            f"{', '.join(_named(b) for b in dropped)} (no joints: fixed to the world, "
+            "not part of the floating robot)"
+        )
         return
     _hold(root, world, top)
     found.repaired.append(f"the {len(top)} top-level bodies put into one body fixed to the world")
@@ -211,9 +222,13 @@ def _base_joint(root: Element, floating_base: bool | None, found: Audit) -> None
         if len(top) > 1 or _joints(base):
             raise UnsupportedModelError(
                 f"cannot give {', '.join(_named(b) for b in top)} a floating base: "
-                + (f"{len(top)} top-level bodies" if len(top) > 1 else
-                   f"the top body already has joints ({', '.join(_named(j) for j in _joints(base))})")
-                + "; add <freejoint/> to a body with mass above them")
+                + (
+                    f"{len(top)} top-level bodies"
+                    if len(top) > 1
+                    else f"the top body already has joints ({', '.join(_named(j) for j in _joints(base))})"
+                )
+                + "; add <freejoint/> to a body with mass above them"
+            )
         base.insert(0, Element("freejoint", {"name": _free_name(root, "root")}))
         pose = " ".join(map(str, numbers(base.get("pos"), (0.0, 0.0, 0.0)) + (1.0, 0.0, 0.0, 0.0)))
         for key in root.iter("key"):  # the new joint's coordinates come first: the body's position
@@ -225,7 +240,7 @@ def _base_joint(root: Element, floating_base: bool | None, found: Audit) -> None
             base.remove(j)
         for key in root.iter("key"):  # the free joint's seven coordinates come first: drop them
             if (qpos := key.get("qpos")) is not None:
-                key.set("qpos", " ".join(qpos.split()[7 * len(free):]))
+                key.set("qpos", " ".join(qpos.split()[7 * len(free) :]))
         found.repaired.append(f"the free joint of body {_named(base)} removed (floating_base=False)")
 
 
@@ -241,8 +256,11 @@ def _bodies_weighed_by_geoms(root: Element):
         geoms = []
         for geom in body.findall("geom"):
             group = numbers(geom.get("group"), (0.0,))[0]
-            weighs = not (numbers(geom.get("mass"), (1.0,))[0] == 0 or numbers(geom.get("density"), (1.0,))[0] == 0
-                          or not low <= group <= high)
+            weighs = not (
+                numbers(geom.get("mass"), (1.0,))[0] == 0
+                or numbers(geom.get("density"), (1.0,))[0] == 0
+                or not low <= group <= high
+            )
             geoms.append((geom, weighs))
         yield body, geoms
 
@@ -265,8 +283,11 @@ def _mesh_masses(root: Element, found: Audit, folder: Path | None, allow_outside
     """Replace each mesh geom that weighs in a body weighed by its geoms by MuJoCo's box of
     the same mass and inertia (`contactdiff.model.mjcf_mesh`) where its mesh file is there;
     refuse a moving body whose mesh file is missing (or cannot be weighed)."""
-    meshes = {mesh_name(e): (e, path) for e, path in asset_elements(root, folder, allow_outside)
-              if e.tag == "mesh"} if folder is not None else {}
+    meshes = (
+        {mesh_name(e): (e, path) for e, path in asset_elements(root, folder, allow_outside) if e.tag == "mesh"}
+        if folder is not None
+        else {}
+    )
     inline = {mesh_name(e) for asset in root.findall("asset") for e in asset.findall("mesh") if not e.get("file")}
     moving = _moving_bodies(root)
     cache: dict[str, MeshInertia | ModelLoadError] = {}
@@ -278,8 +299,10 @@ def _mesh_masses(root: Element, found: Audit, folder: Path | None, allow_outside
             mesh, path = meshes.get(geom.get("mesh", ""), (None, None))
             if path is None and geom.get("mesh") in inline:
                 if id(body) in moving:
-                    failed.append(f"body {_named(body)}: <mesh> {geom.get('mesh')!r} is given by its vertices in "
-                                  "the XML; only mesh files are weighed here: give the body an <inertial>")
+                    failed.append(
+                        f"body {_named(body)}: <mesh> {geom.get('mesh')!r} is given by its vertices in "
+                        "the XML; only mesh files are weighed here: give the body an <inertial>"
+                    )
                 continue
             if path is None or not path.is_file():
                 if id(body) in moving:
@@ -303,15 +326,18 @@ def _mesh_masses(root: Element, found: Audit, folder: Path | None, allow_outside
             geom.attrib.update(box)
             replaced += 1
     if replaced:
-        found.repaired.append(f"{replaced} mesh geom(s) weighed as MuJoCo weighs them (a box of the mesh's "
-                              "volume inertia)")
+        found.repaired.append(
+            f"{replaced} mesh geom(s) weighed as MuJoCo weighs them (a box of the mesh's volume inertia)"
+        )
     if missing:
         heavy = list(dict.fromkeys(body for body, _ in missing))
         files = list(dict.fromkeys(file for _, file in missing))
         shown = ", ".join(heavy[:8]) + (f" and {len(heavy) - 8} more" if len(heavy) > 8 else "")
-        found.refused.append(f"{len(heavy)} bodies without <inertial> take mass from mesh geoms ({shown}) whose "
-                             f"mesh files are missing ({', '.join(files[:4])}{' ...' if len(files) > 4 else ''}): "
-                             "put the meshes beside the model, or give each such body an <inertial>")
+        found.refused.append(
+            f"{len(heavy)} bodies without <inertial> take mass from mesh geoms ({shown}) whose "
+            f"mesh files are missing ({', '.join(files[:4])}{' ...' if len(files) > 4 else ''}): "
+            "put the meshes beside the model, or give each such body an <inertial>"
+        )
     found.refused.extend(failed)
 
 

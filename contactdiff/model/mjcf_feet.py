@@ -116,8 +116,7 @@ def sphere_feet(model: pin.Model, root: Element, q_ref: np.ndarray) -> FootChoic
     pin.framesForwardKinematics(trial, data, q_ref)
     up = up_direction(trial)
     heights = [float(up @ data.oMf[i].translation) for i, f in enumerate(trial.frames) if f.parentJoint != 0]
-    lows = {name: float(up @ data.oMf[trial.getFrameId(name)].translation) - s.radius
-            for name, s in frames.items()}
+    lows = {name: float(up @ data.oMf[trial.getFrameId(name)].translation) - s.radius for name, s in frames.items()}
     bottom = min(heights + list(lows.values()))
     top = max(heights + [h + 2 * frames[n].radius for n, h in lows.items()])
     band = max(BAND_MIN, BAND_FRACTION * (top - bottom))
@@ -126,5 +125,12 @@ def sphere_feet(model: pin.Model, root: Element, q_ref: np.ndarray) -> FootChoic
         return None
     left_out = tuple(LeftOut(n, h - bottom, f"{h - bottom:.3g} m up") for n, h in lows.items() if n not in feet)
     add_sphere_frames(model, [frames[n] for n in feet])
-    return FootChoice(tuple(feet), FootRule.MJCF_SPHERES, band, {n: lows[n] - bottom for n in feet}, left_out,
-                      radii={n: frames[n].radius for n in feet}, limbs=sphere_limbs(frames, feet))
+    return FootChoice(
+        tuple(feet),
+        FootRule.MJCF_SPHERES,
+        band,
+        {n: lows[n] - bottom for n in feet},
+        left_out,
+        radii={n: frames[n].radius for n in feet},
+        limbs=sphere_limbs(frames, feet),
+    )

@@ -73,10 +73,13 @@ def read_stl(path: Path) -> tuple[np.ndarray, np.ndarray]:
     data = _read_bytes(path)
     count = int(np.frombuffer(data[80:84], dtype="<u4")[0]) if len(data) >= 84 else -1
     if not 1 <= count <= MAX_STL_FACES or len(data) != 84 + 50 * count:
-        raise ModelLoadError(f"mesh file {str(path)!r} is not a binary STL file with 1 to {MAX_STL_FACES} "
-                             "faces (MuJoCo reads binary STL only)")
-    records = np.frombuffer(data, dtype=np.dtype([("normal", "<f4", 3), ("v", "<f4", (3, 3)), ("attr", "<u2")]),
-                            count=count, offset=84)
+        raise ModelLoadError(
+            f"mesh file {str(path)!r} is not a binary STL file with 1 to {MAX_STL_FACES} "
+            "faces (MuJoCo reads binary STL only)"
+        )
+    records = np.frombuffer(
+        data, dtype=np.dtype([("normal", "<f4", 3), ("v", "<f4", (3, 3)), ("attr", "<u2")]), count=count, offset=84
+    )
     return records["v"].reshape(-1, 3).astype(float), np.arange(3 * count).reshape(-1, 3)
 
 
@@ -100,8 +103,10 @@ def read_obj(path: Path) -> tuple[np.ndarray, np.ndarray]:
             raise ModelLoadError(f"mesh file {str(path)!r} line {number} is malformed: {line.strip()[:80]!r}") from None
     faces_array = np.array(faces, dtype=int).reshape(-1, 3)
     if len(vertices) < 4 or not len(faces) or faces_array.min() < 0 or faces_array.max() >= len(vertices):
-        raise ModelLoadError(f"mesh file {str(path)!r} has {len(vertices)} vertices and {len(faces)} faces, "
-                             "or a face names a vertex it does not have")
+        raise ModelLoadError(
+            f"mesh file {str(path)!r} has {len(vertices)} vertices and {len(faces)} faces, "
+            "or a face names a vertex it does not have"
+        )
     return np.array(vertices, dtype=np.float32).astype(float), faces_array
 
 
@@ -122,12 +127,15 @@ def mesh_inertia(mesh: Element, path: Path) -> MeshInertia:
     """
     mode = mesh.get("inertia", "legacy")
     if mode not in ("legacy", "exact"):
-        raise UnsupportedModelError(f"<mesh> {path.name!r} has inertia={mode!r}; the mesh inertias computed here "
-                                    "are 'legacy' and 'exact': give the body an <inertial>")
+        raise UnsupportedModelError(
+            f"<mesh> {path.name!r} has inertia={mode!r}; the mesh inertias computed here "
+            "are 'legacy' and 'exact': give the body an <inertial>"
+        )
     kind = path.suffix.lower()
     if kind not in (".stl", ".obj"):
-        raise UnsupportedModelError(f"<mesh> file {path.name!r}: the mesh files read here are .stl and .obj; "
-                                    "give the body an <inertial>")
+        raise UnsupportedModelError(
+            f"<mesh> file {path.name!r}: the mesh files read here are .stl and .obj; give the body an <inertial>"
+        )
     vertices, faces = read_stl(path) if kind == ".stl" else read_obj(path)
     vertices = _transformed(vertices, mesh)
     scale = numbers(mesh.get("scale"), (1.0, 1.0, 1.0))
@@ -157,8 +165,9 @@ def _inertia(triangles: np.ndarray, legacy: bool, path: Path) -> MeshInertia:
     pyramids = np.einsum("ij,ij->i", centre - apex, normal) * area / 3
     pyramids = np.abs(pyramids) if legacy else pyramids
     if pyramids.sum() < 1e-15:
-        raise ModelLoadError(f"mesh file {str(path)!r} has no volume ({pyramids.sum():.3g} m³; misoriented faces "
-                             "make it negative)")
+        raise ModelLoadError(
+            f"mesh file {str(path)!r} has no volume ({pyramids.sum():.3g} m³; misoriented faces make it negative)"
+        )
     com = (pyramids[:, None] * (0.75 * centre + 0.25 * apex)).sum(axis=0) / pyramids.sum()
     x = triangles - com
     volumes = np.einsum("ij,ij->i", centre - com, normal) * area / 3
@@ -193,8 +202,13 @@ def equivalent_box(geom: Element, inertia: MeshInertia) -> dict[str, str]:
     R_geom = _matrix(quat)
     centre = pos + R_geom @ inertia.com
     frame = R_geom @ inertia.axes
-    return {"type": "box", "size": _text(half), "pos": _text(centre), "quat": _text(_quaternion(frame)),
-            "mass": repr(float(mass))}
+    return {
+        "type": "box",
+        "size": _text(half),
+        "pos": _text(centre),
+        "quat": _text(_quaternion(frame)),
+        "mass": repr(float(mass)),
+    }
 
 
 def _matrix(q: np.ndarray) -> np.ndarray:

@@ -96,19 +96,24 @@ def parse_xml_file(path: Path, what: str = "MJCF") -> Element:
     from defusedxml.ElementTree import ParseError, fromstring
 
     if not path.is_file():
-        raise ModelLoadError(f"{what} file {str(path)!r} does not exist" if not path.exists()
-                             else f"{what} path {str(path)!r} is not a regular file")
+        raise ModelLoadError(
+            f"{what} file {str(path)!r} does not exist"
+            if not path.exists()
+            else f"{what} path {str(path)!r} is not a regular file"
+        )
     size = path.stat().st_size
     if size > MAX_FILE_BYTES:
-        raise UnsafeModelFileError(f"{what} file {str(path)!r} has {size} bytes, more than the "
-                                   f"{MAX_FILE_BYTES} read from a model file")
+        raise UnsafeModelFileError(
+            f"{what} file {str(path)!r} has {size} bytes, more than the {MAX_FILE_BYTES} read from a model file"
+        )
     text = path.read_bytes()
     try:
         return fromstring(text, forbid_dtd=True, forbid_entities=True, forbid_external=True)
     except DefusedXmlException as exc:
         raise UnsafeModelFileError(
             f"{what} file {str(path)!r} is refused: {type(exc).__name__} ({exc}); model files need no "
-            "DTD or entities, and expanding them is how an XML file exhausts memory") from None
+            "DTD or entities, and expanding them is how an XML file exhausts memory"
+        ) from None
     except ParseError as exc:
         raise ModelLoadError(f"cannot read {what} {str(path)!r}: {exc}") from None
 
@@ -133,7 +138,8 @@ def named_file(base: Path, name: str, folder: Path, allow_outside: bool, what: s
     if not allow_outside and not inside(path, folder):
         raise UnsafeModelFileError(
             f"{what} {name!r} resolves to {str(path.resolve())!r}, outside the model's folder "
-            f"{str(folder.resolve())!r}; pass allow_outside=True to read files outside it")
+            f"{str(folder.resolve())!r}; pass allow_outside=True to read files outside it"
+        )
     return path
 
 
@@ -152,8 +158,7 @@ def read_document(path: str | Path, allow_outside: bool = False) -> MJCFDocument
     path = Path(path)
     root = parse_xml_file(path)
     if root.tag != "mujoco":
-        raise ModelLoadError(f"{str(path)!r} is not an MJCF file: its root element is <{root.tag}>, "
-                             "not <mujoco>")
+        raise ModelLoadError(f"{str(path)!r} is not an MJCF file: its root element is <{root.tag}>, not <mujoco>")
     folder = path.resolve().parent
     doc = MJCFDocument(path, root, [path])
     _expand_includes(doc, root, folder, allow_outside, [path.resolve()])
@@ -163,8 +168,7 @@ def read_document(path: str | Path, allow_outside: bool = False) -> MJCFDocument
     return doc
 
 
-def _expand_includes(doc: MJCFDocument, element: Element, folder: Path, allow_outside: bool,
-                     stack: list[Path]) -> None:
+def _expand_includes(doc: MJCFDocument, element: Element, folder: Path, allow_outside: bool, stack: list[Path]) -> None:
     children = []
     for child in list(element):
         if child.tag != "include":
@@ -176,14 +180,14 @@ def _expand_includes(doc: MJCFDocument, element: Element, folder: Path, allow_ou
             raise ModelLoadError(f"MJCF {str(doc.path)!r}: an <include> has no file attribute")
         target = named_file(folder, name, folder, allow_outside, "<include> file")
         if target.resolve() in stack:
-            raise UnsafeModelFileError(f"MJCF {str(doc.path)!r}: <include> file {name!r} includes itself "
-                                       "(directly or through other files)")
+            raise UnsafeModelFileError(
+                f"MJCF {str(doc.path)!r}: <include> file {name!r} includes itself (directly or through other files)"
+            )
         if len(doc.files) >= MAX_INCLUDES:
             raise UnsafeModelFileError(f"MJCF {str(doc.path)!r} includes more than {MAX_INCLUDES} files")
         included = parse_xml_file(target, "MJCF <include>")
         if included.tag != "mujoco":
-            raise ModelLoadError(f"MJCF <include> file {str(target)!r}: root element is <{included.tag}>, "
-                                 "not <mujoco>")
+            raise ModelLoadError(f"MJCF <include> file {str(target)!r}: root element is <{included.tag}>, not <mujoco>")
         doc.files.append(target)
         _expand_includes(doc, included, folder, allow_outside, stack + [target.resolve()])
         children.extend(included)
@@ -297,8 +301,10 @@ def _inline_one(doc: MJCFDocument, element: Element, childclass: str) -> None:
     """Write the attributes ``element``'s class gives it (``class=``, else ``childclass``) inline."""
     name = element.get("class", childclass)
     if name not in doc.classes:
-        raise ModelLoadError(f"MJCF {str(doc.path)!r}: <{element.tag} name={element.get('name')!r}> uses "
-                             f"class {name!r}, which is not defined; classes: {', '.join(sorted(doc.classes))}")
+        raise ModelLoadError(
+            f"MJCF {str(doc.path)!r}: <{element.tag} name={element.get('name')!r}> uses "
+            f"class {name!r}, which is not defined; classes: {', '.join(sorted(doc.classes))}"
+        )
     given = set(element.attrib)
     for key, value in doc.classes[name].get(element.tag, {}).items():
         if key in given or key == "class":
@@ -313,10 +319,12 @@ def _inline_one(doc: MJCFDocument, element: Element, childclass: str) -> None:
 def bodies(root: Element):
     """Every ``<body>`` of ``<worldbody>``, depth first in file order, with its parent
     (``None`` for a top-level body)."""
+
     def walk(element, parent):
         for child in element.findall("body"):
             yield child, parent
             yield from walk(child, child)
+
     for world in root.findall("worldbody"):
         yield from walk(world, None)
 

@@ -64,14 +64,18 @@ def _points(owner: str, points) -> tuple[tuple[str, tuple[float, float, float]],
 def _moments(owner: str, moments) -> tuple[float, float, float]:
     """Three principal moments (kg m²) from one number or three, checked to be those of
     a body: positive, each at most the sum of the other two."""
-    values = np.full(3, check_number(owner, "moments", moments)) if np.ndim(moments) == 0 \
+    values = (
+        np.full(3, check_number(owner, "moments", moments))
+        if np.ndim(moments) == 0
         else check_vector(owner, "moments", moments, 3)
+    )
     if not np.all(values > 0.0):
         raise InvalidInputError(f"{owner}: moments of inertia must be > 0 kg m², got {moments!r}")
     total = values.sum()
     if np.any(2.0 * values > total * (1.0 + 1e-12)):
-        raise InvalidInputError(f"{owner}: moments {values.tolist()} are not those of a body: each must be at "
-                                "most the sum of the other two")
+        raise InvalidInputError(
+            f"{owner}: moments {values.tolist()} are not those of a body: each must be at most the sum of the other two"
+        )
     x, y, z = (float(c) for c in values)
     return x, y, z
 
@@ -133,12 +137,16 @@ class SceneObject:
         set_(self, "rpy", tuple(float(x) for x in self.rpy))
         points = dict(self.points) if isinstance(self.points, tuple) else self.points
         set_(self, "points", _points(owner, points))
-        given = [k for k in ("shape", "mass", "density", "size", "radius", "length", "moments")
-                 if getattr(self, k) is not None]
+        given = [
+            k
+            for k in ("shape", "mass", "density", "size", "radius", "length", "moments")
+            if getattr(self, k) is not None
+        ]
         if self.urdf is not None:
             if given:
-                raise InvalidInputError(f"{owner}: a URDF object takes its shape and masses from its file; "
-                                        f"drop {', '.join(given)}")
+                raise InvalidInputError(
+                    f"{owner}: a URDF object takes its shape and masses from its file; drop {', '.join(given)}"
+                )
             set_(self, "urdf", str(self.urdf))
             return
         if self.shape is None:
@@ -151,8 +159,9 @@ class SceneObject:
                 raise InvalidInputError(f"{owner}: a {self.shape} needs {' and '.join(needed)}")
         extra = [k for k in given if k not in needed + ("shape", "mass", "density", "moments")]
         if extra:
-            raise InvalidInputError(f"{owner}: a {self.shape} has no {', '.join(extra)} "
-                                    f"(it takes {' and '.join(needed)})")
+            raise InvalidInputError(
+                f"{owner}: a {self.shape} has no {', '.join(extra)} (it takes {' and '.join(needed)})"
+            )
         if self.size is not None:
             size = check_vector(owner, "size", self.size, 3)
             if not np.all(size > 0.0):
@@ -174,7 +183,8 @@ class SceneObject:
         if (self.mass is None) == (self.density is None):
             raise InvalidInputError(
                 f"{owner}: a {self.shape} needs its mass (kg, > 0) or its density (kg/m³, > 0; uniform), "
-                f"one of the two; got mass = {self.mass!r}, density = {self.density!r}")
+                f"one of the two; got mass = {self.mass!r}, density = {self.density!r}"
+            )
         key, unit = ("mass", "kg") if self.density is None else ("density", "kg/m³")
         value = check_number(owner, key, getattr(self, key), minimum=0.0)
         if not value > 0.0:
@@ -191,9 +201,9 @@ class SceneObject:
             return float(np.prod(self.size))
         assert self.radius is not None  # a sphere and a cylinder have theirs (__post_init__)
         if self.shape == "sphere":
-            return 4.0 / 3.0 * np.pi * self.radius ** 3
+            return 4.0 / 3.0 * np.pi * self.radius**3
         assert self.length is not None
-        return np.pi * self.radius ** 2 * self.length
+        return np.pi * self.radius**2 * self.length
 
     @property
     def pose(self) -> pin.SE3:
@@ -252,8 +262,9 @@ def empty_robot() -> Robot:
     return Robot(pin.Model(), "world")
 
 
-def add_objects(robot: Robot, objects: Sequence[SceneObject] = (), frames: Sequence[RobotFrame] = (),
-                base: Path | None = None) -> Robot:
+def add_objects(
+    robot: Robot, objects: Sequence[SceneObject] = (), frames: Sequence[RobotFrame] = (), base: Path | None = None
+) -> Robot:
     """``robot`` with extra frames and objects, as a new `Robot` (``robot`` is untouched).
 
     Args:
@@ -289,14 +300,22 @@ def add_objects(robot: Robot, objects: Sequence[SceneObject] = (), frames: Seque
     # the model's named configurations (an SRDF's "standing") get the objects' poses too
     for entry in list(model.referenceConfigurations):
         model.referenceConfigurations[entry.key()] = np.concatenate([entry.data(), *q_parts[1:]])
-    return Robot(model, robot.name, robot.urdf, robot.floating_base, np.concatenate(q_parts), robot.feet,
-                 robot.actuated, robot.foot_choice, objects=robot.objects + tuple(objects))
+    return Robot(
+        model,
+        robot.name,
+        robot.urdf,
+        robot.floating_base,
+        np.concatenate(q_parts),
+        robot.feet,
+        robot.actuated,
+        robot.foot_choice,
+        objects=robot.objects + tuple(objects),
+    )
 
 
 def _check_free(model: pin.Model, name: str, what: str) -> None:
     if model.existFrame(name) or model.existJointName(name):
-        raise InvalidInputError(f"{what}: the name {name!r} is already a frame or joint of the model; "
-                                "choose another")
+        raise InvalidInputError(f"{what}: the name {name!r} is already a frame or joint of the model; choose another")
 
 
 def _append_shape(model: pin.Model, obj: SceneObject) -> tuple[pin.Model, np.ndarray]:
@@ -311,15 +330,16 @@ def _append_shape(model: pin.Model, obj: SceneObject) -> tuple[pin.Model, np.nda
     for label, xyz in obj.local_points():
         name = f"{obj.name}/{label}"
         _check_free(model, name, f"point {label!r} of object {obj.name!r}")
-        model.addFrame(pin.Frame(name, jid, centre, placement * pin.SE3(np.eye(3), xyz),
-                                 pin.FrameType.OP_FRAME))
+        model.addFrame(pin.Frame(name, jid, centre, placement * pin.SE3(np.eye(3), xyz), pin.FrameType.OP_FRAME))
     return model, q_obj
 
 
 def _append_urdf(model: pin.Model, obj: SceneObject, base: Path | None) -> tuple[pin.Model, np.ndarray]:
     if obj.points:
-        raise InvalidInputError(f"object {obj.name!r}: points are for shapes; a URDF object has its "
-                                f"own frames (points {[name for name, _ in obj.points]})")
+        raise InvalidInputError(
+            f"object {obj.name!r}: points are for shapes; a URDF object has its "
+            f"own frames (points {[name for name, _ in obj.points]})"
+        )
     assert obj.urdf is not None  # a URDF object (the caller's branch)
     path = Path(obj.urdf)
     if not path.is_absolute() and base is not None:

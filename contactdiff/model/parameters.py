@@ -160,8 +160,11 @@ def body_names(model: pin.Model) -> list[str]:
     names = []
     for j in range(1, model.njoints):
         candidates = by_joint.get(j, [])
-        own = [f for f in candidates
-               if frames[f.parentFrame].type == pin.FrameType.JOINT and frames[f.parentFrame].parentJoint == j]
+        own = [
+            f
+            for f in candidates
+            if frames[f.parentFrame].type == pin.FrameType.JOINT and frames[f.parentFrame].parentJoint == j
+        ]
         names.append((own or candidates)[0].name if candidates else model.names[j])
     return names
 
@@ -192,8 +195,7 @@ def all_parameters(scene: Scene) -> list[Parameter]:
         if model.joints[j].nv == 1:
             out.append(Parameter(ParameterKind.JOINT, model.names[j], "armature", joint=j))
     out += contact_parameters(scene)
-    declared = [(i, _declared(scene, i, s)) for i, s in enumerate(scene.effort_specs)
-                if hasattr(s, "named_parameters")]
+    declared = [(i, _declared(scene, i, s)) for i, s in enumerate(scene.effort_specs) if hasattr(s, "named_parameters")]
     for kind in _EFFORT_KINDS:  # each effort declares its own (`EffortParameters`)
         mine = [(i, d) for i, d in declared if d.kind == kind.value]
         for (i, d), name in zip(mine, _numbered([d.target for _, d in mine])):
@@ -207,9 +209,11 @@ def _declared(scene: Scene, index: int, spec) -> EffortParameters:
     declared = spec.named_parameters()
     kinds = [k.value for k in _EFFORT_KINDS]
     if not isinstance(declared, EffortParameters) or declared.kind not in kinds:
-        raise InvalidInputError(f"scene {scene.name!r}: effort {index} ({type(spec).__name__}) declares its "
-                                f"parameters as {declared!r}; expected an EffortParameters of kind "
-                                f"{', '.join(kinds)}")
+        raise InvalidInputError(
+            f"scene {scene.name!r}: effort {index} ({type(spec).__name__}) declares its "
+            f"parameters as {declared!r}; expected an EffortParameters of kind "
+            f"{', '.join(kinds)}"
+        )
     return declared
 
 
@@ -282,13 +286,17 @@ def parameter_table(scene: Scene) -> list[dict]:
     ``trot`` and ``scene``), ``field`` and ``value`` (its current value, in its unit;
     the units are in the module notes; None for a group whose contacts differ), in the
     order of `parameter_names`."""
+
     def value(p):
         try:
             return _value(scene, p)
         except GroupMismatchError:
             return None
-    return [{"name": p.name, "kind": p.kind.value, "target": p.target, "field": p.field, "value": value(p)}
-            for p in all_parameters(scene)]
+
+    return [
+        {"name": p.name, "kind": p.kind.value, "target": p.target, "field": p.field, "value": value(p)}
+        for p in all_parameters(scene)
+    ]
 
 
 def _number(name: str, value) -> float:
@@ -332,20 +340,25 @@ def _check_body(target: str, inertia: pin.Inertia, changed: list[str]) -> None:
     names = ", ".join(repr(n) for n in changed)
     mass, rot = float(inertia.mass), np.array(inertia.inertia)
     if not mass > 0:
-        hint = "" if any(n.endswith(":mass") for n in changed) else (
-            " (a massless body has no centre of mass or inertia to change; give it a mass too)")
+        hint = (
+            ""
+            if any(n.endswith(":mass") for n in changed)
+            else (" (a massless body has no centre of mass or inertia to change; give it a mass too)")
+        )
         raise InvalidInputError(f"parameters {names}: body {target!r} must have mass > 0 kg, got {mass!r}{hint}")
     moments = np.linalg.eigvalsh(rot)
     tol = _INERTIA_TOL * max(float(np.abs(moments).max()), 1e-300)
     if moments[0] < -tol:
         raise InvalidInputError(
             f"parameters {names}: the inertia of body {target!r} about its centre of mass must be positive "
-            f"semi-definite; principal moments {moments.tolist()} kg m² from {rot.tolist()}")
+            f"semi-definite; principal moments {moments.tolist()} kg m² from {rot.tolist()}"
+        )
     if moments[2] > moments[0] + moments[1] + tol:
         raise InvalidInputError(
             f"parameters {names}: the inertia of body {target!r} about its centre of mass has principal moments "
             f"{moments.tolist()} kg m², the largest above the sum of the other two (no mass distribution has "
-            f"them: I1 <= I2 + I3); from {rot.tolist()}")
+            f"them: I1 <= I2 + I3); from {rot.tolist()}"
+        )
 
 
 def _replaced(spec, changes: dict, names: list[str], values: list[float]):
@@ -458,6 +471,7 @@ class _Plan:
             model = pin.Model(scene.model)
             _set_in_model(model, p, value + x)
             return model
+
         return p.name, MODEL_STEP * max(abs(value), 1.0), make
 
 
@@ -500,5 +514,17 @@ def tau_parameter_derivatives(scene: Scene, kin: Kinematics, t: float, parameter
     return out
 
 
-__all__ = ["Parameter", "ParameterKind", "all_parameters", "body_names", "parameter_names", "parameter_table",
-           "parameter_values", "resolve", "tau_parameter_derivatives", "with_parameters", "BODY_FIELDS", "MODEL_STEP"]
+__all__ = [
+    "Parameter",
+    "ParameterKind",
+    "all_parameters",
+    "body_names",
+    "parameter_names",
+    "parameter_table",
+    "parameter_values",
+    "resolve",
+    "tau_parameter_derivatives",
+    "with_parameters",
+    "BODY_FIELDS",
+    "MODEL_STEP",
+]

@@ -39,7 +39,6 @@ class Robot:
             their joints after the robot's.
     """
 
-
     model: pin.Model
     name: str
     urdf: str = ""
@@ -51,7 +50,6 @@ class Robot:
     objects: tuple = ()
     _data: pin.Data | None = field(default=None, repr=False)
 
-
     def __post_init__(self) -> None:
         if self.q_ref is None:
             self.q_ref = pin.neutral(self.model)
@@ -59,19 +57,16 @@ class Robot:
         if self.foot_choice is None:
             self.foot_choice = FootChoice(tuple(self.feet), FootRule.GIVEN)
 
-
     # -- sizes and scratch data ---------------------------------------------------
     @property
     def nq(self) -> int:
         """Configuration size (a free-flyer counts 7: position and quaternion)."""
         return self.model.nq
 
-
     @property
     def nv(self) -> int:
         """Tangent (velocity) size (a free-flyer counts 6)."""
         return self.model.nv
-
 
     @property
     def data(self) -> pin.Data:
@@ -80,22 +75,18 @@ class Robot:
             self._data = self.model.createData()
         return self._data
 
-
     def new_data(self) -> pin.Data:
         """A fresh ``pinocchio.Data`` (for APIs that must not share buffers)."""
         return self.model.createData()
-
 
     # -- Lie group -----------------------------------------------------------------
     def integrate(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
         """Return ``q ⊕ dq`` (``dq`` in the tangent space, local frame for a free-flyer)."""
         return pin.integrate(self.model, q, dq)
 
-
     def difference(self, q0: np.ndarray, q1: np.ndarray) -> np.ndarray:
         """Return ``dq`` with ``q0 ⊕ dq = q1``."""
         return pin.difference(self.model, q0, q1)
-
 
     @property
     def is_vector_space(self) -> bool:
@@ -103,19 +94,16 @@ class Robot:
         (quaternions and unbounded revolutes do), so ``nq == nv`` says it all."""
         return self.model.nq == self.model.nv
 
-
     # -- names -----------------------------------------------------------------------
     @property
     def frame_names(self) -> list[str]:
         """Names of the model's frames, in frame-index order."""
         return [f.name for f in self.model.frames]
 
-
     @property
     def joint_names(self) -> list[str]:
         """Names of the model's joints, universe excluded."""
         return list(self.model.names)[1:]
-
 
     def frame_id(self, name: str) -> int:
         """Index of frame ``name``; unknown names raise with the list of frames."""
@@ -123,13 +111,11 @@ class Robot:
             raise unknown_name(f"frame of robot {self.name!r}", name, self.frame_names)
         return self.model.getFrameId(name)
 
-
     def joint_id(self, name: str) -> int:
         """Index of joint ``name``; unknown names raise with the list of joints."""
         if not isinstance(name, str) or not self.model.existJointName(name):
             raise unknown_name(f"joint of robot {self.name!r}", name, self.joint_names)
         return self.model.getJointId(name)
-
 
     def scalar_joint(self, name: str) -> tuple[int, int]:
         """Return ``(idx_q, idx_v)`` of a one-coordinate joint (revolute or prismatic)."""
@@ -141,7 +127,6 @@ class Robot:
             )
         return joint.idx_q, joint.idx_v
 
-
     def configuration_names(self) -> list[str]:
         """One label per configuration coordinate (``joint`` or ``joint[k]``)."""
         labels = []
@@ -150,18 +135,24 @@ class Robot:
             labels += [name] if nq == 1 else [f"{name}[{k}]" for k in range(nq)]
         return labels
 
-
     def tangent_names(self) -> list[str]:
         """One label per tangent coordinate (``joint`` or ``joint[k]`` for multi-dof joints)."""
         return _tangent_names(self.model)
 
-
     # -- variants --------------------------------------------------------------------
     def copy(self) -> Robot:
         """A copy whose model can be changed (gravity, armature) without touching this one."""
-        return Robot(pin.Model(self.model), self.name, self.urdf, self.floating_base,
-                     self.q_ref.copy(), self.feet, self.actuated, self.foot_choice, self.objects)
-
+        return Robot(
+            pin.Model(self.model),
+            self.name,
+            self.urdf,
+            self.floating_base,
+            self.q_ref.copy(),
+            self.feet,
+            self.actuated,
+            self.foot_choice,
+            self.objects,
+        )
 
     def with_armature(self, armature: float) -> Robot:
         """A copy with reflected rotor inertia ``armature`` (kg m² or kg) on every actuated joint."""
@@ -172,7 +163,7 @@ class Robot:
         values = np.array(robot.model.armature)
         for name in self.actuated:
             j = robot.model.joints[robot.model.getJointId(name)]
-            values[j.idx_v:j.idx_v + j.nv] += armature
+            values[j.idx_v : j.idx_v + j.nv] += armature
         robot.model.armature = values
         return robot
 
@@ -185,11 +176,13 @@ def _check_inertias(model: pin.Model, path: Path, kind: str = "URDF") -> None:
         if not np.all(np.isfinite(values)) or inertia.mass < 0:
             raise ModelLoadError(
                 f"{kind} {str(path)!r}: body of joint {model.names[jid]!r} has mass {inertia.mass!r} "
-                "and inertia entries that must be finite with mass >= 0")
+                "and inertia entries that must be finite with mass >= 0"
+            )
         if np.min(np.linalg.eigvalsh(inertia.inertia)) < -1e-12 * max(1.0, np.abs(inertia.inertia).max()):
             raise ModelLoadError(
                 f"{kind} {str(path)!r}: rotational inertia of joint {model.names[jid]!r} is not "
-                f"positive semidefinite: {inertia.inertia.tolist()}")
+                f"positive semidefinite: {inertia.inertia.tolist()}"
+            )
 
 
 def _check_mass_matrix(model: pin.Model, q: np.ndarray, path: Path, kind: str = "URDF") -> None:
@@ -202,8 +195,9 @@ def _check_mass_matrix(model: pin.Model, q: np.ndarray, path: Path, kind: str = 
         raise ModelLoadError(
             f"{kind} {str(path)!r}: the mass matrix is singular at the reference pose"
             + (f"; coordinates moving no mass: {', '.join(massless)}" if massless else "")
-            + " (check the <inertial> elements" + ("; a mass that failed to parse is dropped)" if kind == "URDF"
-                                                    else ")")) from None
+            + " (check the <inertial> elements"
+            + ("; a mass that failed to parse is dropped)" if kind == "URDF" else ")")
+        ) from None
 
 
 def _tangent_names(model: pin.Model) -> list[str]:

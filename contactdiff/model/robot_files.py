@@ -63,8 +63,7 @@ def example_robot_data_names() -> list[str]:
     return sorted(n for n, loader in ROBOTS.items() if loader.urdf_filename)
 
 
-def load_robot(source: str | Path, floating_base: bool | None = None,
-               feet: Sequence[str] | None = None) -> Robot:
+def load_robot(source: str | Path, floating_base: bool | None = None, feet: Sequence[str] | None = None) -> Robot:
     """Load a robot for dynamics only (no meshes).
 
     Args:
@@ -135,21 +134,31 @@ def _unloadable_reason(name: str, loader) -> str:
     """Why example-robot-data's model ``name`` cannot be loaded here (it has no URDF)."""
     import example_robot_data
 
-    described = next((f"{kind} file {getattr(loader, attr)}" for kind, attr in
-                      (("SDF", "sdf_filename"), ("MJCF", "mjcf_filename"))
-                      if getattr(loader, attr, "")), "no URDF file")
+    described = next(
+        (
+            f"{kind} file {getattr(loader, attr)}"
+            for kind, attr in (("SDF", "sdf_filename"), ("MJCF", "mjcf_filename"))
+            if getattr(loader, attr, "")
+        ),
+        "no URDF file",
+    )
     try:
         example_robot_data.load(name)
     except Exception as exc:  # noqa: BLE001 - any failure of the loader is the reason
         failure = f"its loader fails: {type(exc).__name__}: {exc}"
     else:
         failure = "it has no URDF, the only format contactdiff reads"
-    return (f"example-robot-data's robot {name!r} cannot be loaded: it is described by a "
-            f"{described}, and {failure}")
+    return f"example-robot-data's robot {name!r} cannot be loaded: it is described by a {described}, and {failure}"
 
 
-def _from_urdf(path: Path, floating_base: bool, name: str, srdf: str = "",
-               posture: str = "standing", feet: Sequence[str] | None = None) -> Robot:
+def _from_urdf(
+    path: Path,
+    floating_base: bool,
+    name: str,
+    srdf: str = "",
+    posture: str = "standing",
+    feet: Sequence[str] | None = None,
+) -> Robot:
     if path.is_dir():
         raise ModelLoadError(f"URDF path {str(path)!r} is a directory, not a URDF file")
     if not path.exists():
@@ -170,8 +179,7 @@ def _from_urdf(path: Path, floating_base: bool, name: str, srdf: str = "",
     if error is not None:
         detail = " ".join(line.strip() for line in captured.lines() if line.strip())
         detail = re.sub(r" at line \d+ in \S+", "", detail)  # the parser's own source position
-        raise ModelLoadError(f"cannot read URDF {str(path)!r}: {error}"
-                             + (f" ({detail})" if detail else "")) from None
+        raise ModelLoadError(f"cannot read URDF {str(path)!r}: {error}" + (f" ({detail})" if detail else "")) from None
     _check_inertias(model, path)
     q_ref = pin.neutral(model)
     if srdf:
@@ -237,7 +245,8 @@ def _check_numbers(path: Path) -> None:
                 if not math.isfinite(value):
                     raise ModelLoadError(
                         f"URDF {str(path)!r}: <{element.tag} {key}={text!r}> in {_owner(element, parents)} "
-                        "is not a finite number")
+                        "is not a finite number"
+                    )
 
 
 def _owner(element, parents) -> str:
@@ -250,8 +259,7 @@ def _owner(element, parents) -> str:
     return "the robot"
 
 
-def _from_example_robot_data(name: str, loader, floating_base: bool | None,
-                             feet: Sequence[str] | None = None) -> Robot:
+def _from_example_robot_data(name: str, loader, floating_base: bool | None, feet: Sequence[str] | None = None) -> Robot:
     from example_robot_data import getModelPath
 
     rel = os.path.join(loader.path, loader.urdf_subpath, loader.urdf_filename)

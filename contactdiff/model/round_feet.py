@@ -58,15 +58,18 @@ def _collision_model(robot) -> pin.GeometryModel:
     if not robot.urdf:
         raise InvalidInputError(f"robot {robot.name!r} was built in code: no URDF to read collision geometry from")
     if Path(robot.urdf).suffix == ".xml":
-        raise InvalidInputError(f"robot {robot.name!r} is an MJCF model: its round feet are the collision spheres "
-                                "of its leaf bodies (load it with feet=None or name them), and none is at these feet")
+        raise InvalidInputError(
+            f"robot {robot.name!r} is an MJCF model: its round feet are the collision spheres "
+            "of its leaf bodies (load it with feet=None or name them), and none is at these feet"
+        )
     # package://NAME/... resolves under any folder holding NAME: try the URDF's ancestors
     dirs = [str(p) for p in Path(robot.urdf).resolve().parents]
     try:
         return pin.buildGeomFromUrdf(robot.model, str(robot.urdf), pin.GeometryType.COLLISION, package_dirs=dirs)
     except (ValueError, RuntimeError, OSError) as exc:
-        raise ModelLoadError(f"cannot load the collision geometry of robot {robot.name!r} "
-                             f"from {robot.urdf}: {exc}") from None
+        raise ModelLoadError(
+            f"cannot load the collision geometry of robot {robot.name!r} from {robot.urdf}: {exc}"
+        ) from None
 
 
 def _geometry_kind(geometry) -> str:
@@ -94,19 +97,25 @@ def foot_spheres(robot: Robot, feet: Sequence[str] | None = None) -> dict[str, F
     model = robot.model
     radii = robot.foot_choice.radii if robot.foot_choice is not None else {}
     if radii:  # an MJCF's sphere feet: frames at the spheres' centres
-        return {foot: FootSphere(foot, radii[foot], (0.0, 0.0, 0.0), foot) if foot in radii else None
-                for foot in (robot.feet if feet is None else feet)}
+        return {
+            foot: FootSphere(foot, radii[foot], (0.0, 0.0, 0.0), foot) if foot in radii else None
+            for foot in (robot.feet if feet is None else feet)
+        }
     geometry = _collision_model(robot)
     found: dict[str, FootSphere | None] = {}
-    for foot in (robot.feet if feet is None else feet):
+    for foot in robot.feet if feet is None else feet:
         fid = robot.frame_id(foot)
         frame = model.frames[fid]
-        spheres = [g for g in geometry.geometryObjects if _geometry_kind(g.geometry) == "Sphere"
-                   and g.parentJoint == frame.parentJoint]
+        spheres = [
+            g
+            for g in geometry.geometryObjects
+            if _geometry_kind(g.geometry) == "Sphere" and g.parentJoint == frame.parentJoint
+        ]
         own = [g for g in spheres if g.parentFrame == fid]
 
         def centre(g):
             return frame.placement.actInv(g.placement.translation)  # in the foot frame
+
         candidates = own or spheres
         if not candidates:
             found[foot] = None
@@ -164,25 +173,31 @@ def round_feet(scene: Scene, spheres: Mapping[str, FootSphere | None] | None = N
     if not at_feet:
         spheres_at = {f + SPHERE_FRAME_SUFFIX for f in robot.feet}
         done = any(c.frame in spheres_at and (c.radius or 0.0) > 0 for c in scene.contact_specs)  # (resolved: set)
-        raise InvalidInputError(f"scene {scene.name!r}: no ground contact at a foot of robot {robot.name!r} "
-                                f"(feet: {', '.join(robot.feet) or 'none'})"
-                                + ("; its foot contacts are already round" if done else ""))
+        raise InvalidInputError(
+            f"scene {scene.name!r}: no ground contact at a foot of robot {robot.name!r} "
+            f"(feet: {', '.join(robot.feet) or 'none'})" + ("; its foot contacts are already round" if done else "")
+        )
     rounded = [scene.contact_specs[i].name for i in at_feet if (scene.contact_specs[i].radius or 0.0) > 0]
     if rounded:  # their offsets already hold the spheres: lowering them again would sink the feet
-        raise InvalidInputError(f"scene {scene.name!r}: the contacts {', '.join(rounded)} are already round "
-                                f"(radius > 0); round_feet takes a scene with point feet")
+        raise InvalidInputError(
+            f"scene {scene.name!r}: the contacts {', '.join(rounded)} are already round "
+            f"(radius > 0); round_feet takes a scene with point feet"
+        )
     if spheres is None:
         spheres = foot_spheres(robot, sorted({scene.contact_specs[i].frame for i in at_feet}))
-    missing = [foot for foot in dict.fromkeys(scene.contact_specs[i].frame for i in at_feet)
-               if spheres.get(foot) is None]
+    missing = [
+        foot for foot in dict.fromkeys(scene.contact_specs[i].frame for i in at_feet) if spheres.get(foot) is None
+    ]
     if missing:
         raise InvalidInputError(
             f"robot {robot.name!r}: cannot round its feet: "
             + "; ".join(f"{foot} has no collision sphere (a mesh, or no collision geometry)" for foot in missing)
-            + " (give Contact(radius=...) by hand)")
+            + " (give Contact(radius=...) by hand)"
+        )
     found = {foot: sphere for foot, sphere in spheres.items() if sphere is not None}  # every foot here has one
-    off_centre = sorted({scene.contact_specs[i].frame for i in at_feet
-                         if not found[scene.contact_specs[i].frame].centred})
+    off_centre = sorted(
+        {scene.contact_specs[i].frame for i in at_feet if not found[scene.contact_specs[i].frame].centred}
+    )
     if off_centre:
         rounded_robot, frames = _with_sphere_frames(robot, [found[foot] for foot in off_centre])
         data = rounded_robot.model.createData()
@@ -220,12 +235,16 @@ def _with_sphere_frames(robot, spheres) -> tuple:
         if model.existFrame(name):
             there = model.frames[model.getFrameId(name)]
             if there.parentJoint != foot.parentJoint or not np.allclose(
-                    there.placement.translation, placement.translation, rtol=0, atol=SPHERE_CENTRE_TOL):
+                there.placement.translation, placement.translation, rtol=0, atol=SPHERE_CENTRE_TOL
+            ):
                 raise InvalidInputError(
                     f"robot {robot.name!r}: cannot add frame {name!r} at the centre of {sphere.foot}'s "
-                    "collision sphere: a frame of that name is already elsewhere")
+                    "collision sphere: a frame of that name is already elsewhere"
+                )
         else:
-            model.addFrame(pin.Frame(name, foot.parentJoint, model.getFrameId(sphere.foot), placement,
-                                     pin.FrameType.OP_FRAME), False)
+            model.addFrame(
+                pin.Frame(name, foot.parentJoint, model.getFrameId(sphere.foot), placement, pin.FrameType.OP_FRAME),
+                False,
+            )
         frames[sphere.foot] = name
     return copy, frames

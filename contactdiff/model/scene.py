@@ -54,9 +54,16 @@ class Scene:
         InconsistentStateError: the initial state penetrates a contact.
     """
 
-    def __init__(self, robot: Robot, contacts: Sequence[Contact] = (), efforts: Sequence = (),
-                 gravity: ArrayLike | None = None, q0: StateInput | None = None, v0: StateInput | None = None,
-                 name: str | None = None):
+    def __init__(
+        self,
+        robot: Robot,
+        contacts: Sequence[Contact] = (),
+        efforts: Sequence = (),
+        gravity: ArrayLike | None = None,
+        q0: StateInput | None = None,
+        v0: StateInput | None = None,
+        name: str | None = None,
+    ):
         if not isinstance(robot, Robot):
             raise InvalidInputError(f"robot must be a contactdiff Robot (see load_robot), got {robot!r}")
         if gravity is not None:
@@ -78,7 +85,8 @@ class Scene:
             if not isinstance(e, Effort):
                 raise InvalidInputError(
                     "efforts must be JointSpring, Spring, UserEffort, TrotController or other objects with "
-                    f"bind(robot) (the Effort protocol), got {e!r}")
+                    f"bind(robot) (the Effort protocol), got {e!r}"
+                )
         self.contacts: list[BoundContact] = [c.bind(robot) for c in self.contact_specs]
         self.efforts = bind_efforts(self.effort_specs, robot)
         self._timed_efforts = [e for e in self.efforts if hasattr(e, "next_breakpoint")]
@@ -145,8 +153,10 @@ class Scene:
         for e in self._timed_efforts:
             t_break = e.next_breakpoint(t)
             if not t_break > t:  # also NaN
-                raise InvalidInputError(f"effort {e!r}: next_breakpoint({t!r}) returned {t_break!r}, "
-                                        "not a time after it (inf when no breakpoint is left)")
+                raise InvalidInputError(
+                    f"effort {e!r}: next_breakpoint({t!r}) returned {t_break!r}, "
+                    "not a time after it (inf when no breakpoint is left)"
+                )
             first = min(first, t_break)
         return first
 
@@ -232,7 +242,8 @@ class Scene:
             if gap < -PENETRATION_TOL:
                 raise InconsistentStateError(
                     f"initial state penetrates contact {name!r}: gap {gap:.6g} m < 0; "
-                    "raise the robot or lower the contact offset")
+                    "raise the robot or lower the contact offset"
+                )
         return gaps
 
     def _check_unit_coordinates(self, q: np.ndarray) -> None:
@@ -248,13 +259,14 @@ class Scene:
             if joint.nq == joint.nv:
                 continue
             alone = pin.neutral(model)
-            alone[joint.idx_q:joint.idx_q + joint.nq] = q[joint.idx_q:joint.idx_q + joint.nq]
+            alone[joint.idx_q : joint.idx_q + joint.nq] = q[joint.idx_q : joint.idx_q + joint.nq]
             if not pin.isNormalized(model, alone, UNIT_NORM_TOL):
                 raise InvalidInputError(
                     f"initial q of joint {model.names[jid]!r} ({joint.shortname()}) holds a quaternion or "
                     f"unit complex number whose norm is not 1 (within {UNIT_NORM_TOL:g}): "
-                    f"{q[joint.idx_q:joint.idx_q + joint.nq].tolist()}; a free-flyer is "
-                    "[x, y, z, qx, qy, qz, qw] with qx² + qy² + qz² + qw² = 1")
+                    f"{q[joint.idx_q : joint.idx_q + joint.nq].tolist()}; a free-flyer is "
+                    "[x, y, z, qx, qy, qz, qw] with qx² + qy² + qz² + qw² = 1"
+                )
 
     def _labels(self, kind: str) -> list[str]:
         return self.robot.tangent_names() if kind == "v" else self.robot.configuration_names()
@@ -267,7 +279,7 @@ class Scene:
         if isinstance(q0, Mapping):
             for name, value in q0.items():
                 joint = self.model.joints[self.robot.joint_id(name)]
-                q[joint.idx_q:joint.idx_q + joint.nq] = _joint_values(name, value, joint.nq, "q")
+                q[joint.idx_q : joint.idx_q + joint.nq] = _joint_values(name, value, joint.nq, "q")
             if not self.robot.is_vector_space:
                 q = pin.normalize(self.model, q)
             return q
@@ -280,7 +292,7 @@ class Scene:
         if isinstance(v0, Mapping):
             for name, value in v0.items():
                 joint = self.model.joints[self.robot.joint_id(name)]
-                v[joint.idx_v:joint.idx_v + joint.nv] = _joint_values(name, value, joint.nv, "v")
+                v[joint.idx_v : joint.idx_v + joint.nv] = _joint_values(name, value, joint.nv, "v")
             return v
         return check_vector("scene", "v0", v0, self.nv, self._labels("v"))
 
@@ -307,8 +319,9 @@ class Scene:
             chosen = set(check_names("with_friction", "contacts", contacts))
             for name in chosen:
                 self.contact_index(name)  # an unknown name raises, listing the contacts
-        specs = [dataclasses.replace(spec, friction=friction) if spec.name in chosen else spec
-                 for spec in self.contact_specs]
+        specs = [
+            dataclasses.replace(spec, friction=friction) if spec.name in chosen else spec for spec in self.contact_specs
+        ]
         return self._rebuilt(self.robot, specs)
 
     def _rebuilt(self, robot: Robot, contacts: Sequence[Contact]) -> Scene:
@@ -330,8 +343,9 @@ class Scene:
         return scene
 
     @classmethod
-    def from_robot(cls, robot: Robot, restitution: float = 0.0, friction: str = "stick",
-                   name: str | None = None) -> Scene:
+    def from_robot(
+        cls, robot: Robot, restitution: float = 0.0, friction: str = "stick", name: str | None = None
+    ) -> Scene:
         """A robot standing on the ground: one contact per foot (``robot.feet``, see
         `contactdiff.model.feet`), normal along the vertical ``-g / |g|`` and offset so the
         reference pose touches the ground. A robot without feet gets no contacts; feet the
@@ -340,9 +354,17 @@ class Scene:
         kin = Kinematics(robot.model)
         kin.update(robot.q_ref, np.zeros(robot.nv))
         radii = robot.foot_choice.radii if robot.foot_choice is not None else {}
-        contacts = [Contact(foot, normal=tuple(up), radius=radii.get(foot, 0.0),
-                            offset=float(up @ kin.position(robot.frame_id(foot))) - radii.get(foot, 0.0),
-                            restitution=restitution, friction=friction) for foot in robot.feet]
+        contacts = [
+            Contact(
+                foot,
+                normal=tuple(up),
+                radius=radii.get(foot, 0.0),
+                offset=float(up @ kin.position(robot.frame_id(foot))) - radii.get(foot, 0.0),
+                restitution=restitution,
+                friction=friction,
+            )
+            for foot in robot.feet
+        ]
         scene = cls(robot, contacts, name=name or robot.name)
         scene.foot_choice = robot.foot_choice
         return scene
@@ -363,8 +385,10 @@ def _check_one_contact_per_surface(contacts: Sequence[Contact]) -> None:
         n = np.array(c.normal)
         for frame, against, normal, first in seen:
             same = ((c.frame, c.against) == (frame, against) and np.linalg.norm(n - normal) < _SAME_NORMAL_TOL) or (
-                c.against is not None and (c.against, c.frame) == (frame, against)
-                and np.linalg.norm(n + normal) < _SAME_NORMAL_TOL)
+                c.against is not None
+                and (c.against, c.frame) == (frame, against)
+                and np.linalg.norm(n + normal) < _SAME_NORMAL_TOL
+            )
             if same:
                 body = "the ground" if against is None else f"frame {against!r}"
                 turned = "" if c.frame == frame else " (the second written the other way round)"
@@ -374,7 +398,8 @@ def _check_one_contact_per_surface(contacts: Sequence[Contact]) -> None:
                     f"(offsets {first.offset:g} and {c.offset:g} m, radii {first.radius:g} and {c.radius:g} m), so "
                     "they would close in an order set by round-off; keep one contact there (with the offset, "
                     "radius, restitution and friction you mean), or give them different normals (a floor and a "
-                    "wall) or different 'against' frames")
+                    "wall) or different 'against' frames"
+                )
         seen.append((c.frame, c.against, n, c))
 
 

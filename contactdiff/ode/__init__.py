@@ -66,6 +66,18 @@ from .field_types import AccelFn, JacFn, ParameterJacFn
 from .lie import LieGroup, PinocchioGroup, VectorSpace
 
 __all__ = [
-    "METHODS", "make_stepper", "Stepper", "ExplicitRK", "DOP853", "RK45", "Radau", "DenseOutput",
-    "LieGroup", "VectorSpace", "PinocchioGroup", "AccelFn", "JacFn", "ParameterJacFn",
+    "METHODS",
+    "make_stepper",
+    "Stepper",
+    "ExplicitRK",
+    "DOP853",
+    "RK45",
+    "Radau",
+    "DenseOutput",
+    "LieGroup",
+    "VectorSpace",
+    "PinocchioGroup",
+    "AccelFn",
+    "JacFn",
+    "ParameterJacFn",
 ]

@@ -34,8 +34,6 @@ if TYPE_CHECKING:
     from .lie import LieGroup
 
 
-
-
 def _scalar(name: str, x, *, allow_inf: bool = False) -> float:
     return check_number("stepper", name, x, allow_inf=allow_inf)
 
@@ -48,8 +46,6 @@ def _combine(weights: np.ndarray, stack: np.ndarray) -> np.ndarray:
     """``sum_s weights[s] stack[s]`` for a stack of matrices, as one matrix-vector
     product (``np.tensordot``'s Python-level reshaping costs more at these sizes)."""
     return (weights @ stack.reshape(len(weights), -1)).reshape(stack.shape[1:])
-
-
 
 
 class Stepper(VariationalAlgebra, abc.ABC):
@@ -189,8 +185,9 @@ class Stepper(VariationalAlgebra, abc.ABC):
         self._vs = bool(self.group.is_vector_space)
         self.accel, self.jac = accel, jac
         if parameter_jac is not None and not callable(parameter_jac):
-            raise InvalidInputError(f"parameter_jac must be callable parameter_jac(t, q, v) -> J_p or None, "
-                                    f"got {parameter_jac!r}")
+            raise InvalidInputError(
+                f"parameter_jac must be callable parameter_jac(t, q, v) -> J_p or None, got {parameter_jac!r}"
+            )
         self.parameter_jac = parameter_jac
 
         t0 = _scalar("t0", t0)
@@ -219,7 +216,8 @@ class Stepper(VariationalAlgebra, abc.ABC):
             va = np.array(variational_atol, dtype=float)
             if va.shape not in ((), (self.n,)):
                 raise InvalidInputError(
-                    f"variational_atol must be a scalar or have shape ({self.n},), got shape {va.shape}")
+                    f"variational_atol must be a scalar or have shape ({self.n},), got shape {va.shape}"
+                )
             if not (np.isfinite(va).all() and (va > 0).all()):
                 raise InvalidInputError(f"variational_atol must be positive and finite, got {variational_atol!r}")
             self._atol_phi = float(va) if va.ndim == 0 else va[:, None]
@@ -229,8 +227,10 @@ class Stepper(VariationalAlgebra, abc.ABC):
             m = 0 if self.phi is None else self.phi.shape[1]
             pbar = np.array(variational_column_scale, dtype=float)
             if pbar.shape != (m,) or not (np.isfinite(pbar).all() and (pbar > 0).all()):
-                raise InvalidInputError(f"variational_column_scale must be {m} positive finite numbers (one per "
-                                        f"column of variational), got {variational_column_scale!r}")
+                raise InvalidInputError(
+                    f"variational_column_scale must be {m} positive finite numbers (one per "
+                    f"column of variational), got {variational_column_scale!r}"
+                )
             self._atol_phi = np.reshape(self._atol_phi, (-1, 1)) / pbar[None, :]
 
         self.n_steps = self.n_rejected = self.n_accel = self.n_jac = 0
@@ -301,9 +301,18 @@ class Stepper(VariationalAlgebra, abc.ABC):
         self._f = self._point_f(t, q, v)
         self._after_truncate()
 
-    def restart(self, t: float, q: ArrayLike, v: ArrayLike, phi: ArrayLike | None = None, *,
-                accel: AccelFn | None = None, jac: JacFn | None = None, t_bound: float | None = None,
-                parameter_jac: ParameterJacFn | None = None) -> None:
+    def restart(
+        self,
+        t: float,
+        q: ArrayLike,
+        v: ArrayLike,
+        phi: ArrayLike | None = None,
+        *,
+        accel: AccelFn | None = None,
+        jac: JacFn | None = None,
+        t_bound: float | None = None,
+        parameter_jac: ParameterJacFn | None = None,
+    ) -> None:
         """Start again from a new state (after a jump or a mode change).
 
         The step-size estimate is kept; Jacobian, LU factors and the dense
@@ -331,8 +340,9 @@ class Stepper(VariationalAlgebra, abc.ABC):
             self.jac = jac
         if parameter_jac is not None:
             if not callable(parameter_jac):
-                raise InvalidInputError(f"parameter_jac must be callable parameter_jac(t, q, v) -> J_p, "
-                                        f"got {parameter_jac!r}")
+                raise InvalidInputError(
+                    f"parameter_jac must be callable parameter_jac(t, q, v) -> J_p, got {parameter_jac!r}"
+                )
             self.parameter_jac = parameter_jac
         t = _scalar("t", t)
         q = _vector("q", q, self.nq)
@@ -424,7 +434,7 @@ class Stepper(VariationalAlgebra, abc.ABC):
         """Raise if ``accel`` returned non-finite values for a finite state."""
         if not np.isfinite(fa).all() and np.isfinite(y).all():
             raise IntegrationError(
-                f"accel returned non-finite values at t={float(t)!r} (v={y[self.nv:].tolist()}); "
+                f"accel returned non-finite values at t={float(t)!r} (v={y[self.nv :].tolist()}); "
                 "the vector field must be finite at every finite state"
             )
 
@@ -440,8 +450,17 @@ class Stepper(VariationalAlgebra, abc.ABC):
             self._nonfinite_stage(self.t + h0, y1, f1[self.nv :])
             return f1
 
-        return initial_step(self.t_bound - self.t, self.max_step, self._y, self._f, self._mag(self._y, self.q),
-                            self.atol, self.rtol, self.error_order, field)
+        return initial_step(
+            self.t_bound - self.t,
+            self.max_step,
+            self._y,
+            self._f,
+            self._mag(self._y, self.q),
+            self.atol,
+            self.rtol,
+            self.error_order,
+            field,
+        )
 
     def _roundoff_error(self, y: np.ndarray, y_new: np.ndarray, mag: np.ndarray) -> float:
         """`step_control.roundoff_error` of a step from ``y`` to ``y_new`` (``mag``: `_mag` at its start)."""
@@ -468,11 +487,16 @@ class Stepper(VariationalAlgebra, abc.ABC):
         `OutsideDomainError` if trial stages kept leaving its domain, else an `IntegrationError`."""
         if self._outside is not None:
             exc = self._outside
-            return type(exc)(f"{exc} (at t = {float(self.t)!r} s every step down to h = {h_abs:.3g} s "
-                             "reaches such states: the trajectory itself does)")
+            return type(exc)(
+                f"{exc} (at t = {float(self.t)!r} s every step down to h = {h_abs:.3g} s "
+                "reaches such states: the trajectory itself does)"
+            )
         return StepSizeUnderflowError(
             f"{self.method}: step size underflow at t={float(self.t)!r}: h={h_abs:.3g} < {min_step:.3g} "
-            f"(rtol={self.rtol:g}); the vector field may be singular or non-smooth here", float(self.t), h_abs)
+            f"(rtol={self.rtol:g}); the vector field may be singular or non-smooth here",
+            float(self.t),
+            h_abs,
+        )
 
     def _accept_state(self, t_new: float, y_new: np.ndarray, q_new: np.ndarray, a_new: np.ndarray) -> None:
         """Move the current point to the end of the accepted step."""
@@ -487,4 +511,3 @@ class Stepper(VariationalAlgebra, abc.ABC):
             self._y = self._point_y(q_new, self.v)
         self._f = np.concatenate((self.v, a_new))
         self.n_steps += 1
-

@@ -45,7 +45,7 @@ def hermite_minimum(g0: float, d0: float, g1: float, d1: float, h: float) -> tup
     # p'(s) = 3 c3 s^2 + 2 c2 s + h d0: its real roots in (0, 1)
     for s in _quadratic_roots(3 * c3, 2 * c2, h * d0):
         if 0.0 < s < 1.0:
-            value = g0 + h * d0 * s + c2 * s * s + c3 * s ** 3
+            value = g0 + h * d0 * s + c2 * s * s + c3 * s**3
             if value < best[1]:
                 best = (s, value)
     return best
@@ -65,8 +65,9 @@ def _quadratic_roots(a: float, b: float, c: float) -> list[float]:
     return [big / a, c / big]
 
 
-def locate_crossing(guard: Callable[[float], float], t_a: float, t_b: float,
-                    g_a: float | None = None, g_b: float | None = None) -> float:
+def locate_crossing(
+    guard: Callable[[float], float], t_a: float, t_b: float, g_a: float | None = None, g_b: float | None = None
+) -> float:
     """Time of the downward zero crossing of ``guard`` in ``[t_a, t_b]``.
 
     Requires ``guard(t_a) > 0 >= guard(t_b)``. Brent's method to full double
@@ -88,8 +89,7 @@ def locate_crossing(guard: Callable[[float], float], t_a: float, t_b: float,
     if f_b >= 0.0:
         return t_b
     ends = {t_a: f_a, t_b: f_b}  # (brentq evaluates the ends again)
-    return float(brentq(lambda t: ends[t] if t in ends else guard(t), t_a, t_b, xtol=xtol, rtol=4 * _EPS,
-                        maxiter=200))
+    return float(brentq(lambda t: ends[t] if t in ends else guard(t), t_a, t_b, xtol=xtol, rtol=4 * _EPS, maxiter=200))
 
 
 def simultaneous_group(roots: Sequence[tuple[float, object]], tol: float) -> tuple[float, list]:

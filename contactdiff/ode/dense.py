@@ -101,4 +101,3 @@ class LazyDenseOutput(DenseOutput):
     def _dy(self, t):
         self._ready()
         return DenseOutput._dy(self, t)
-

@@ -149,8 +149,7 @@ class ExplicitRK(Stepper):
                 continue
             if not math.isfinite(err):
                 for s in range(1, ns + 1):  # name the culprit if accel itself returned inf/nan
-                    self._nonfinite_stage(t + self.C[s] * h if s < ns else t_new,
-                                          ys[s] if s < ns else y_new, K[s, nv:])
+                    self._nonfinite_stage(t + self.C[s] * h if s < ns else t_new, ys[s] if s < ns else y_new, K[s, nv:])
                 err = math.inf  # overflow of a too-large step: reject it
             if control and err < 1.0:
                 phi_new, err_phi, df_end = self._controlled_variational(t, h, ys, qs, t_new, y_new, q_new)
@@ -179,8 +178,9 @@ class ExplicitRK(Stepper):
         self.phi = phi_new
         self.h_abs = h_abs
 
-    def _variational(self, t: float, h: float, ys, qs, P0: np.ndarray, KP: np.ndarray | None = None,
-                     df0=None) -> np.ndarray:
+    def _variational(
+        self, t: float, h: float, ys, qs, P0: np.ndarray, KP: np.ndarray | None = None, df0=None
+    ) -> np.ndarray:
         """phi_{n+1}; the stage increments go to ``KP[:n_stages]``; ``df0``: DF at the first stage if known."""
         nv, ns = self.nv, self.n_stages
         hA, hB, C = h * self.A, h * self.B, self.C
@@ -206,18 +206,18 @@ class ExplicitRK(Stepper):
             return self._dense_cache
         group = None if self._vs else self.group
         if not lazy:
-            self._dense_cache = DenseOutput(self.t_old, self.t, self._h_last, self._y_old,
-                                            self._dense_coef(), group, self._qc_old, self.nv)
+            self._dense_cache = DenseOutput(
+                self.t_old, self.t, self._h_last, self._y_old, self._dense_coef(), group, self._qc_old, self.nv
+            )
             return self._dense_cache
-        step = (self._K.copy(), self._h_last, self._y_old, self._y_end.copy(), self._qc_old,
-                self.t_old, self.accel)
-        return LazyDenseOutput(self.t_old, self.t, self._h_last, self._y_old,
-                               lambda: self._coef_from(*step), group, self._qc_old, self.nv)
+        step = (self._K.copy(), self._h_last, self._y_old, self._y_end.copy(), self._qc_old, self.t_old, self.accel)
+        return LazyDenseOutput(
+            self.t_old, self.t, self._h_last, self._y_old, lambda: self._coef_from(*step), group, self._qc_old, self.nv
+        )
 
     def _dense_coef(self) -> np.ndarray:
         """Monomial coefficients (degree x n) of the last step's interpolant, x in [0, 1]."""
-        return self._coef_from(self._K, self._h_last, self._y_old, self._y_end, self._qc_old,
-                               self.t_old, None)
+        return self._coef_from(self._K, self._h_last, self._y_old, self._y_end, self._qc_old, self.t_old, None)
 
     def _coef_from(self, K, h, y_old, y_end, qc, t_old, accel) -> np.ndarray:
         """Interpolant coefficients from a step's stages ``K`` (extra rows may be written)."""
@@ -312,4 +312,3 @@ class DOP853(ExplicitRK):
             else:
                 c[1:] = c[1:] - c[:-1]
         return c[1:]
-

@@ -31,8 +31,20 @@ if TYPE_CHECKING:
     from numpy.typing import ArrayLike
 
 __all__ = [
-    "METHODS", "AccelFn", "JacFn", "LieGroup", "VectorSpace", "PinocchioGroup", "DenseOutput",
-    "LazyDenseOutput", "Stepper", "ExplicitRK", "RK45", "DOP853", "Radau", "make_stepper",
+    "METHODS",
+    "AccelFn",
+    "JacFn",
+    "LieGroup",
+    "VectorSpace",
+    "PinocchioGroup",
+    "DenseOutput",
+    "LazyDenseOutput",
+    "Stepper",
+    "ExplicitRK",
+    "RK45",
+    "DOP853",
+    "Radau",
+    "make_stepper",
 ]
 
 _CLASSES: dict[str, type[Stepper]] = {"DOP853": DOP853, "RK45": RK45, "Radau": Radau}
@@ -40,8 +52,9 @@ METHODS: tuple[str, ...] = tuple(_CLASSES)
 """Valid ``method`` names for `make_stepper`."""
 
 
-def make_stepper(method: str, accel: AccelFn, group: LieGroup | pin.Model, t0: float, q0: ArrayLike, v0: ArrayLike,
-                 **options) -> Stepper:
+def make_stepper(
+    method: str, accel: AccelFn, group: LieGroup | pin.Model, t0: float, q0: ArrayLike, v0: ArrayLike, **options
+) -> Stepper:
     """Create a stepper by name.
 
     Args:

@@ -238,8 +238,14 @@ def _as_group(group) -> LieGroup:
         if not group.is_vector_space:
             missing = [
                 m
-                for m in ("integrate", "difference", "chart_velocity", "tangent_velocity",
-                          "velocity_jacobian_q", "magnitude")
+                for m in (
+                    "integrate",
+                    "difference",
+                    "chart_velocity",
+                    "tangent_velocity",
+                    "velocity_jacobian_q",
+                    "magnitude",
+                )
                 if not callable(getattr(group, m, None))
             ]
             if missing:
@@ -250,4 +256,3 @@ def _as_group(group) -> LieGroup:
     raise InvalidInputError(
         f"group must be a LieGroup (VectorSpace, PinocchioGroup) or a pinocchio.Model, got {type(group).__name__}"
     )
-

@@ -76,8 +76,7 @@ PROBE_AFTER = 8  # steps in a mode before ρ is measured
 KRYLOV = 12  # Arnoldi products (accel calls) of one measurement of ρ
 
 
-def spectral_radius(accel, q: np.ndarray, v: np.ndarray, t: float, group=None,
-                    krylov: int = KRYLOV) -> float:
+def spectral_radius(accel, q: np.ndarray, v: np.ndarray, t: float, group=None, krylov: int = KRYLOV) -> float:
     """Largest ``|λ|`` of the first-order tangent-space Jacobian ``DF`` of ``dv/dt = accel``
     at ``(q, v, t)`` (1/s), without derivatives.
 

@@ -96,13 +96,16 @@ class BudgetWatch:
         return None
 
 
-def budget_message(max_steps: int, t_final: float, t: float, mode: tuple[str, ...], steps: int, needed: float,
-                   reference: float) -> str:
+def budget_message(
+    max_steps: int, t_final: float, t: float, mode: tuple[str, ...], steps: int, needed: float, reference: float
+) -> str:
     """The message of `StepBudgetError`: when (``t``, s), where (``mode``, the active contacts'
     names), the reference step (s) and the steps ``needed`` against those left."""
-    return (f"max_steps = {max_steps} cannot reach t_final = {t_final:g} s: at t = {t:.6g} s in mode "
-            f"({', '.join(mode) or 'free flight'}), after {steps} steps, the last {WINDOW} steady ones (no "
-            f"event) at most ~{reference:.3g} s (9 in 10), the remaining {t_final - t:.6g} s need "
-            f"~{needed:.3g} steps, more than {MARGIN:g} times the {max_steps - steps} left; raise max_steps "
-            f"to about {steps + needed:.2g} (--max-steps), or look for a runaway state (a body spinning fast, "
-            "a stiff spring)")
+    return (
+        f"max_steps = {max_steps} cannot reach t_final = {t_final:g} s: at t = {t:.6g} s in mode "
+        f"({', '.join(mode) or 'free flight'}), after {steps} steps, the last {WINDOW} steady ones (no "
+        f"event) at most ~{reference:.3g} s (9 in 10), the remaining {t_final - t:.6g} s need "
+        f"~{needed:.3g} steps, more than {MARGIN:g} times the {max_steps - steps} left; raise max_steps "
+        f"to about {steps + needed:.2g} (--max-steps), or look for a runaway state (a body spinning fast, "
+        "a stiff spring)"
+    )

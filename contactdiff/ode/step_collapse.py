@@ -90,6 +90,6 @@ class CollapseWatch:
         for d in sorted(self._decades):  # the median's decade (its lower end)
             seen += self._decades[d]
             if 2 * seen >= self._n:
-                self.typical = max(self.typical, 10.0 ** d)
+                self.typical = max(self.typical, 10.0**d)
                 break
         return False

@@ -34,9 +34,17 @@ def _rms_cols(x: np.ndarray) -> float:
     return err if math.isfinite(err) else math.inf
 
 
-def initial_step(interval: float, max_step: float, y0: np.ndarray, f0: np.ndarray, mag0: np.ndarray,
-                 atol: float | np.ndarray, rtol: float, error_order: int,
-                 field: Callable[[float, np.ndarray], np.ndarray | None]) -> float:
+def initial_step(
+    interval: float,
+    max_step: float,
+    y0: np.ndarray,
+    f0: np.ndarray,
+    mag0: np.ndarray,
+    atol: float | np.ndarray,
+    rtol: float,
+    error_order: int,
+    field: Callable[[float, np.ndarray], np.ndarray | None],
+) -> float:
     """Hairer–Nørsett–Wanner's starting step (as scipy's ``select_initial_step``), in s.
 
     Args:
@@ -69,8 +77,7 @@ def initial_step(interval: float, max_step: float, y0: np.ndarray, f0: np.ndarra
     return min(100 * h0, h1, interval, max_step)
 
 
-def roundoff_error(y: np.ndarray, y_new: np.ndarray, mag: np.ndarray, atol: float | np.ndarray,
-                   rtol: float) -> float:
+def roundoff_error(y: np.ndarray, y_new: np.ndarray, mag: np.ndarray, atol: float | np.ndarray, rtol: float) -> float:
     """Round-off of a step from ``y`` to ``y_new`` (same chart) relative to the tolerance
     at its start (``mag``: the sizes ``rtol`` is relative to there), times `ROUNDOFF_MARGIN`.
     A step where this exceeds 1 is rejected; below, it caps the growth of the next step (the

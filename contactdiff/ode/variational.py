@@ -93,16 +93,22 @@ class VariationalAlgebra:
         """``(J_q, J_v, G, J_p)`` of the tangent-space field at a point; ``G = -ad(v)`` (None on
         vector spaces), ``J_p`` the parameter Jacobian (None without ``parameter_jac``)."""
         Jq, Jv = self._call_jac(t, q, v)
-        return (Jq, Jv, None if self._vs else self.group.velocity_jacobian_q(q, v),
-                None if self.parameter_jac is None else self._call_parameter_jac(t, q, v))
+        return (
+            Jq,
+            Jv,
+            None if self._vs else self.group.velocity_jacobian_q(q, v),
+            None if self.parameter_jac is None else self._call_parameter_jac(t, q, v),
+        )
 
     def _call_parameter_jac(self, t: float, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         assert self.parameter_jac is not None  # called only with one (`_stage_df`)
         Jp = np.asarray(self.parameter_jac(t, q, v), dtype=np.float64)
         m = 0 if self.phi is None else self.phi.shape[1]
         if Jp.ndim != 2 or Jp.shape[0] != self.nv or Jp.shape[1] > m:
-            raise InvalidInputError(f"parameter_jac must return an ({self.nv}, p) array with p <= {m} (the "
-                                    f"columns of phi), got shape {Jp.shape}")
+            raise InvalidInputError(
+                f"parameter_jac must return an ({self.nv}, p) array with p <= {m} (the "
+                f"columns of phi), got shape {Jp.shape}"
+            )
         if not math.isfinite(Jp.sum()):
             raise IntegrationError(f"parameter_jac returned non-finite values at t={float(t)!r}")
         return Jp
@@ -120,7 +126,7 @@ class VariationalAlgebra:
             out[:nv] += G @ top
         out[nv:] = Jq @ top + Jv @ bot
         if Jp is not None and Jp.shape[1]:
-            out[nv:, P.shape[1] - Jp.shape[1]:] += Jp
+            out[nv:, P.shape[1] - Jp.shape[1] :] += Jp
         return out
 
     def _phi_scale(self, P0: np.ndarray, P1: np.ndarray) -> np.ndarray:

@@ -22,8 +22,21 @@ from ..model.objects import RobotFrame, SceneObject, add_objects, empty_robot
 from ..model.robot_files import ROBOTS_DIR, example_robot_data_names, load_robot, own_robot_names
 from ..model.scene import Scene
 
-_TOP_KEYS = ("robot", "floating_base", "gravity", "name", "description", "frame", "object", "contact",
-             "spring", "joint_spring", "joint_targets", "trot", "initial")
+_TOP_KEYS = (
+    "robot",
+    "floating_base",
+    "gravity",
+    "name",
+    "description",
+    "frame",
+    "object",
+    "contact",
+    "spring",
+    "joint_spring",
+    "joint_targets",
+    "trot",
+    "initial",
+)
 _TROT_KEYS = TrotController.KEYS
 _CONTACT_KEYS = ("frame", "normal", "offset", "restitution", "friction", "against", "name", "radius", "group")
 _SPRING_KEYS = ("frame_a", "frame_b", "stiffness", "damping", "rest_length")
@@ -31,8 +44,21 @@ _JOINT_SPRING_KEYS = ("joint", "stiffness", "damping", "rest")
 _INITIAL_KEYS = ("q", "v")
 _EFFORT_KEYS = ("trot", "spring", "joint_spring", "joint_targets")  # the tables that put efforts on a robot
 _FRAME_KEYS = ("name", "parent", "position", "rpy")
-_OBJECT_KEYS = ("name", "shape", "mass", "size", "radius", "length", "urdf", "position", "rpy", "fixed", "points",
-                "density", "moments")
+_OBJECT_KEYS = (
+    "name",
+    "shape",
+    "mass",
+    "size",
+    "radius",
+    "length",
+    "urdf",
+    "position",
+    "rpy",
+    "fixed",
+    "points",
+    "density",
+    "moments",
+)
 
 
 def _check_keys(where: str, table, valid: Sequence[str], required: Sequence[str] = ()) -> None:
@@ -78,13 +104,17 @@ def passive_note(scene: Scene) -> str | None:
     if scene.efforts or not robot.actuated:
         return None
     scenes = driving_scenes(robot.name)
-    text = (f"robot {robot.name!r} has no efforts: its {len(robot.actuated)} joints are passive, so it folds "
-            "under gravity")
+    text = (
+        f"robot {robot.name!r} has no efforts: its {len(robot.actuated)} joints are passive, so it folds under gravity"
+    )
     drivers = list(scenes)
     if robot.name in TROT_PARAMETERS:
         drivers.append(f"contactdiff.trot_scene({robot.name!r}) in Python")
-    return text + ("; scenes that drive it: " + ", ".join(drivers) if drivers else
-                   "; add efforts to drive it (a [trot] controller, springs, or a UserEffort)")
+    return text + (
+        "; scenes that drive it: " + ", ".join(drivers)
+        if drivers
+        else "; add efforts to drive it (a [trot] controller, springs, or a UserEffort)"
+    )
 
 
 def load_scene(source: str | Path) -> Scene:
@@ -121,16 +151,18 @@ def load_scene(source: str | Path) -> Scene:
         contacts.append(Contact(**entry))
     efforts: list = []
     for i, entry in enumerate(_entries(doc, "spring")):
-        _check_keys(f"{where} [[spring]] #{i + 1}", entry, _SPRING_KEYS,
-                    required=("frame_a", "frame_b", "stiffness"))
+        _check_keys(f"{where} [[spring]] #{i + 1}", entry, _SPRING_KEYS, required=("frame_a", "frame_b", "stiffness"))
         efforts.append(Spring(**entry))
     for i, entry in enumerate(_entries(doc, "joint_spring")):
-        _check_keys(f"{where} [[joint_spring]] #{i + 1}", entry, _JOINT_SPRING_KEYS,
-                    required=("joint", "stiffness"))
+        _check_keys(f"{where} [[joint_spring]] #{i + 1}", entry, _JOINT_SPRING_KEYS, required=("joint", "stiffness"))
         efforts.append(JointSpring(**entry))
     for i, entry in enumerate(_entries(doc, "joint_targets")):
-        _check_keys(f"{where} [[joint_targets]] #{i + 1}", entry, JointTargets.KEYS,
-                    required=("joints", "times", "targets", "stiffness"))
+        _check_keys(
+            f"{where} [[joint_targets]] #{i + 1}",
+            entry,
+            JointTargets.KEYS,
+            required=("joints", "times", "targets", "stiffness"),
+        )
         efforts.append(JointTargets(**entry))
     if "trot" in doc:  # a TrotController (contactdiff.control.trot_controller) on the legs
         _check_keys(f"{where} [trot]", doc["trot"], _TROT_KEYS)
@@ -143,8 +175,9 @@ def load_scene(source: str | Path) -> Scene:
     for key in _INITIAL_KEYS:
         if key in initial and not isinstance(initial[key], Mapping):
             raise InvalidInputError(f"{where}: initial.{key} must be a table of joint = value")
-    return Scene(robot, contacts, efforts, doc.get("gravity"), initial.get("q"), initial.get("v"),
-                 doc.get("name", path.stem))
+    return Scene(
+        robot, contacts, efforts, doc.get("gravity"), initial.get("q"), initial.get("v"), doc.get("name", path.stem)
+    )
 
 
 def _scene_robot(where: str, doc: Mapping, folder: Path):
@@ -179,8 +212,7 @@ def _scene_robot(where: str, doc: Mapping, folder: Path):
     return add_objects(robot, objects, frames, base=folder)
 
 
-def load_source(source: str | Path, floating_base: bool | None = None,
-                feet: Sequence[str] | None = None) -> Scene:
+def load_source(source: str | Path, floating_base: bool | None = None, feet: Sequence[str] | None = None) -> Scene:
     """Any SOURCE of the command line as a scene.
 
     A ``.toml`` path or a scene name of ``robots/`` is read with `load_scene`;
@@ -196,7 +228,8 @@ def load_source(source: str | Path, floating_base: bool | None = None,
         if given:
             raise InvalidInputError(
                 f"{' and '.join(given)} {'apply' if len(given) > 1 else 'applies'} to a robot; scene "
-                f"{str(source)!r} sets its robot's base and its contacts in its file")
+                f"{str(source)!r} sets its robot's base and its contacts in its file"
+            )
         return load_scene(source)
     try:
         robot = load_robot(source, floating_base, feet)

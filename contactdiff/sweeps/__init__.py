@@ -28,5 +28,18 @@ from .points import Normal, PointSet, Uniform, grid, point_list, random_points
 from .rows import Row, RunError, SweepResult
 from .runner import DamagedRowsWarning, sweep
 
-__all__ = ["sweep", "grid", "point_list", "random_points", "Uniform", "Normal", "PointSet", "Row", "RunError",
-           "SweepResult", "Backend", "JobKind", "DamagedRowsWarning"]
+__all__ = [
+    "sweep",
+    "grid",
+    "point_list",
+    "random_points",
+    "Uniform",
+    "Normal",
+    "PointSet",
+    "Row",
+    "RunError",
+    "SweepResult",
+    "Backend",
+    "JobKind",
+    "DamagedRowsWarning",
+]

@@ -18,8 +18,14 @@ from ..errors import InvalidInputError, unknown_name
 def is_reference(text: str) -> bool:
     """Whether ``text`` has the form ``module:function`` (a dotted module, one colon)."""
     module, sep, name = text.partition(":")
-    return bool(sep) and bool(module) and bool(name) and ":" not in name and all(
-        part.isidentifier() for part in module.split(".")) and all(part.isidentifier() for part in name.split("."))
+    return (
+        bool(sep)
+        and bool(module)
+        and bool(name)
+        and ":" not in name
+        and all(part.isidentifier() for part in module.split("."))
+        and all(part.isidentifier() for part in name.split("."))
+    )
 
 
 def import_callable(text: str, what: str) -> Callable:
@@ -40,8 +46,9 @@ def import_callable(text: str, what: str) -> Callable:
     try:
         module = importlib.import_module(module_name)
     except Exception as exc:  # ImportError, or the module's own code failing
-        raise InvalidInputError(f"{what} {text!r}: cannot import module {module_name!r} "
-                                f"({type(exc).__name__}: {exc})") from None
+        raise InvalidInputError(
+            f"{what} {text!r}: cannot import module {module_name!r} ({type(exc).__name__}: {exc})"
+        ) from None
     target = module
     for part in name.split("."):
         if not hasattr(target, part):
@@ -68,8 +75,11 @@ def keyword_names(function: Callable) -> tuple[str, ...] | None:
         return None
     if any(p.kind is inspect.Parameter.VAR_KEYWORD for p in parameters):
         return None
-    return tuple(p.name for p in parameters
-                 if p.kind in (inspect.Parameter.POSITIONAL_OR_KEYWORD, inspect.Parameter.KEYWORD_ONLY))
+    return tuple(
+        p.name
+        for p in parameters
+        if p.kind in (inspect.Parameter.POSITIONAL_OR_KEYWORD, inspect.Parameter.KEYWORD_ONLY)
+    )
 
 
 def required_names(function: Callable) -> tuple[str, ...]:
@@ -78,8 +88,12 @@ def required_names(function: Callable) -> tuple[str, ...]:
         parameters = inspect.signature(function).parameters.values()
     except (TypeError, ValueError):
         return ()
-    return tuple(p.name for p in parameters if p.default is inspect.Parameter.empty
-                 and p.kind in (inspect.Parameter.POSITIONAL_OR_KEYWORD, inspect.Parameter.KEYWORD_ONLY))
+    return tuple(
+        p.name
+        for p in parameters
+        if p.default is inspect.Parameter.empty
+        and p.kind in (inspect.Parameter.POSITIONAL_OR_KEYWORD, inspect.Parameter.KEYWORD_ONLY)
+    )
 
 
 __all__ = ["import_callable", "reference", "keyword_names", "required_names", "is_reference"]

@@ -48,55 +48,96 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     from .quantities import OPTIONS
 
     parser = sub.add_parser(
-        "sweep", help="one scene over many points (grid, list, random), one row per point, on many cores",
+        "sweep",
+        help="one scene over many points (grid, list, random), one row per point, on many cores",
         description="Run a job (a simulation, its Jacobians, the order gap, a stride search, or your own "
-                    "module:function) at every point of a grid, a list or seeded random samples of initial "
-                    "coordinates (q:JOINT), velocities (v:JOINT), scene parameters (kind:target:field), run "
-                    f"options ({', '.join(OPTIONS)}) or a scene factory's arguments (arg:NAME); one row "
-                    "per point, on local processes, a Dask cluster or Ray.")
-    parser.add_argument("scene", metavar="SCENE",
-                        help="scene name or TOML path, robot name, or module:function returning a Scene")
+        "module:function) at every point of a grid, a list or seeded random samples of initial "
+        "coordinates (q:JOINT), velocities (v:JOINT), scene parameters (kind:target:field), run "
+        f"options ({', '.join(OPTIONS)}) or a scene factory's arguments (arg:NAME); one row "
+        "per point, on local processes, a Dask cluster or Ray.",
+    )
+    parser.add_argument(
+        "scene", metavar="SCENE", help="scene name or TOML path, robot name, or module:function returning a Scene"
+    )
     points = parser.add_argument_group("points (one kind per sweep; names are quantities, see docs/sweep.md)")
-    points.add_argument("--grid", action="append", default=[], metavar="NAME=VALUES",
-                        help="a grid axis: values a,b,c or a range lo:hi:n, n a positive integer (repeatable: "
-                             f"every combination, at most {MAX_POINTS:,} points in all)")
-    points.add_argument("--list", action="append", default=[], metavar="NAME=V,V,...",
-                        help="explicit points: the lists of all --list are zipped (equal lengths)")
-    points.add_argument("--random", action="append", default=[], metavar="NAME=DIST",
-                        help=f"random samples, DIST {' or '.join(f'{d}:A:B' for d in DISTRIBUTIONS)} "
-                             "(uniform low:high, normal mean:std)")
+    points.add_argument(
+        "--grid",
+        action="append",
+        default=[],
+        metavar="NAME=VALUES",
+        help="a grid axis: values a,b,c or a range lo:hi:n, n a positive integer (repeatable: "
+        f"every combination, at most {MAX_POINTS:,} points in all)",
+    )
+    points.add_argument(
+        "--list",
+        action="append",
+        default=[],
+        metavar="NAME=V,V,...",
+        help="explicit points: the lists of all --list are zipped (equal lengths)",
+    )
+    points.add_argument(
+        "--random",
+        action="append",
+        default=[],
+        metavar="NAME=DIST",
+        help=f"random samples, DIST {' or '.join(f'{d}:A:B' for d in DISTRIBUTIONS)} "
+        "(uniform low:high, normal mean:std)",
+    )
     points.add_argument("--samples", type=Number(int, 1), default=None, help="number of random samples")
     points.add_argument("--seed", type=SEED, default=0, help="seed of the random samples (default 0)")
     points.add_argument("--points", metavar="FILE", help="explicit points from a JSON list of objects or JSON Lines")
-    points.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
-                        help="a quantity fixed at one value for every point, a number where the text is one "
-                             "(repeatable)")
+    points.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="a quantity fixed at one value for every point, a number where the text is one (repeatable)",
+    )
     job = parser.add_argument_group("job")
-    job.add_argument("--job", default=JobKind.SIMULATE.value, metavar="JOB",
-                     help=f"{', '.join(JobKind)}, or module:function taking (scene, point) and returning a dict "
-                          "(default simulate)")
+    job.add_argument(
+        "--job",
+        default=JobKind.SIMULATE.value,
+        metavar="JOB",
+        help=f"{', '.join(JobKind)}, or module:function taking (scene, point) and returning a dict (default simulate)",
+    )
     job.add_argument("--t-final", type=FINITE, default=None, help="final time (s) of every run, unless swept")
     job.add_argument("--rtol", type=FINITE, default=None, help="relative tolerance (default: the job's)")
     job.add_argument("--atol", type=FINITE, default=None, help="absolute tolerance (m, rad, m/s; default: the job's)")
     job.add_argument("--method", default=None, help="stepper (default: the job's)")
     job.add_argument("--max-steps", type=COUNT, default=None, help="step budget of each run")
-    job.add_argument("--param", action="append", default=[], metavar="NAME",
-                     help="jacobian job: also differentiate in this scene parameter (repeatable; 'all')")
+    job.add_argument(
+        "--param",
+        action="append",
+        default=[],
+        metavar="NAME",
+        help="jacobian job: also differentiate in this scene parameter (repeatable; 'all')",
+    )
     job.add_argument("--contacts", metavar="A,B", help="order-gap job: only this pair of contacts")
     job.add_argument("--foot", help="stride job: the contact whose touchdowns define the stride")
     job.add_argument("--newton", type=COUNT, default=None, metavar="N", help="stride job: Newton iterations")
     engine = parser.add_argument_group("engine")
-    engine.add_argument("--backend", default=Backend.LOKY.value,
-                        help=f"{', '.join(Backend)} (default loky: local processes, no server)")
-    engine.add_argument("--jobs", type=Number(int, 1), default=None, metavar="N",
-                        help="worker processes (default: one per core; 1 runs in this process)")
-    engine.add_argument("--scheduler", metavar="ADDRESS",
-                        help="dask: scheduler address (tcp://host:8786); ray: cluster address (auto); "
-                             "default: a local cluster")
+    engine.add_argument(
+        "--backend", default=Backend.LOKY.value, help=f"{', '.join(Backend)} (default loky: local processes, no server)"
+    )
+    engine.add_argument(
+        "--jobs",
+        type=Number(int, 1),
+        default=None,
+        metavar="N",
+        help="worker processes (default: one per core; 1 runs in this process)",
+    )
+    engine.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="dask: scheduler address (tcp://host:8786); ray: cluster address (auto); default: a local cluster",
+    )
     output = parser.add_argument_group("output")
-    output.add_argument("--out", metavar="FILE",
-                        help="results file, .jsonl or .csv, written as runs finish; run again with the same "
-                             "file to skip the points already done")
+    output.add_argument(
+        "--out",
+        metavar="FILE",
+        help="results file, .jsonl or .csv, written as runs finish; run again with the same "
+        "file to skip the points already done",
+    )
     output.add_argument("--retry-failed", action="store_true", help="with --out: run failed points again")
     add_plot(output, "draw one output over a 1-D (line) or 2-D (heatmap) sweep")
     output.add_argument("--plot-output", metavar="NAME", help="the output to plot (default: the job's)")
@@ -110,20 +151,41 @@ def run(args: argparse.Namespace) -> int:
 
     if args.plot:
         check_plot_path(args.plot)
-    options = {k: v for k, v in (("rtol", args.rtol), ("atol", args.atol), ("method", args.method),
-                                 ("max_steps", args.max_steps)) if v is not None}
-    job_options = {k: v for k, v in (("parameters", args.param or None), ("contacts", args.contacts),
-                                     ("foot", args.foot), ("iterations", args.newton)) if v is not None}
+    options = {
+        k: v
+        for k, v in (("rtol", args.rtol), ("atol", args.atol), ("method", args.method), ("max_steps", args.max_steps))
+        if v is not None
+    }
+    job_options = {
+        k: v
+        for k, v in (
+            ("parameters", args.param or None),
+            ("contacts", args.contacts),
+            ("foot", args.foot),
+            ("iterations", args.newton),
+        )
+        if v is not None
+    }
     # option: its file's failed write, reported once the rows are printed
     failures: dict[str, OutputFileError | None] = {}
     with warnings.catch_warnings():
         warnings.simplefilter("always", DamagedRowsWarning)
         warnings.showwarning = _warning_line
         try:
-            result = sweep(args.scene, _points(args), args.job, t_final=args.t_final, options=options,
-                           job_options=job_options, fixed=_fixed(args.set), backend=args.backend,
-                           n_jobs=args.jobs, scheduler=args.scheduler, out=args.out,
-                           retry_failed=args.retry_failed)
+            result = sweep(
+                args.scene,
+                _points(args),
+                args.job,
+                t_final=args.t_final,
+                options=options,
+                job_options=job_options,
+                fixed=_fixed(args.set),
+                backend=args.backend,
+                n_jobs=args.jobs,
+                scheduler=args.scheduler,
+                out=args.out,
+                retry_failed=args.retry_failed,
+            )
         except OutputFileError as exc:
             if exc.result is None:
                 raise
@@ -132,9 +194,19 @@ def run(args: argparse.Namespace) -> int:
     if args.plot:
         failures["--plot"] = write_output("--plot", args.plot, lambda: result.plot(args.plot, args.plot_output))
     if args.json:
-        print_flushed(json.dumps({"names": list(result.names), "points": len(result), "skipped": result.skipped,
-                           "failed": len(result.failed), "wall_time": result.wall_time,
-                           "rows": result.to_dicts()}, indent=2))
+        print_flushed(
+            json.dumps(
+                {
+                    "names": list(result.names),
+                    "points": len(result),
+                    "skipped": result.skipped,
+                    "failed": len(result.failed),
+                    "wall_time": result.wall_time,
+                    "rows": result.to_dicts(),
+                },
+                indent=2,
+            )
+        )
     else:
         print_flushed(format_result(result, args, failed={k for k, v in failures.items() if v}))
     raise_failures(failures.values())
@@ -149,11 +221,21 @@ def _warning_line(message, category, *_args, **_kwargs) -> None:
 def _points(args):
     from .points import point_list, random_points
 
-    kinds = [flag for flag, given in (("--grid", args.grid), ("--list", args.list), ("--random", args.random),
-                                      ("--points", args.points)) if given]
+    kinds = [
+        flag
+        for flag, given in (
+            ("--grid", args.grid),
+            ("--list", args.list),
+            ("--random", args.random),
+            ("--points", args.points),
+        )
+        if given
+    ]
     if len(kinds) != 1:
-        raise InvalidInputError("sweep: give the points one way: --grid, --list, --random or --points"
-                                + (f" (got {' and '.join(kinds)})" if kinds else ""))
+        raise InvalidInputError(
+            "sweep: give the points one way: --grid, --list, --random or --points"
+            + (f" (got {' and '.join(kinds)})" if kinds else "")
+        )
     if (args.samples is not None) != bool(args.random):
         raise InvalidInputError("sweep: --random and --samples N go together")
     if args.grid:
@@ -196,8 +278,9 @@ def _read_points(path: str) -> list:
         except json.JSONDecodeError as exc:
             raise ModelLoadError(f"--points {path!r} is neither a JSON list nor JSON Lines: {exc}") from None
     if not isinstance(data, list):
-        raise InvalidInputError(f"--points {path!r} must hold a list of objects (name: value), got "
-                                f"{type(data).__name__}")
+        raise InvalidInputError(
+            f"--points {path!r} must hold a list of objects (name: value), got {type(data).__name__}"
+        )
     return data
 
 
@@ -209,10 +292,13 @@ def format_result(result: SweepResult, args: argparse.Namespace, failed: Collect
     cells = [[_cell(r.to_dict().get(c)) for c in columns] + [r.error.kind if r.error else ""] for r in result]
     header = columns + ["error"]
     widths = [max(len(h), *(len(c[k]) for c in cells)) for k, h in enumerate(header)]
-    lines = [f"sweep of {args.scene}: {len(result)} points, {len(result.failed)} failed"
-             + (f", {result.skipped} read back from {args.out}" if result.skipped else "")
-             + f", {result.wall_time:.2f} s", "",
-             "  " + "  ".join(h.ljust(w) for h, w in zip(header, widths))]
+    lines = [
+        f"sweep of {args.scene}: {len(result)} points, {len(result.failed)} failed"
+        + (f", {result.skipped} read back from {args.out}" if result.skipped else "")
+        + f", {result.wall_time:.2f} s",
+        "",
+        "  " + "  ".join(h.ljust(w) for h, w in zip(header, widths)),
+    ]
     lines += ["  " + "  ".join(c.ljust(w) for c, w in zip(row, widths)) for row in cells[:TABLE_ROWS]]
     if len(cells) > TABLE_ROWS:
         lines.append(f"  ... {len(cells) - TABLE_ROWS} more rows (--json, --out)")

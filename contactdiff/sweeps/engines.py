@@ -79,8 +79,9 @@ class Engine:
         if n_jobs is not None and n_jobs != -1:
             n_jobs = check_count("sweep", "n_jobs (workers)", n_jobs, minimum=1)
         if scheduler is not None and backend is Backend.LOKY:
-            raise InvalidInputError(f"sweep: a scheduler ({scheduler!r}) applies to the dask and ray backends; "
-                                    "loky runs local processes")
+            raise InvalidInputError(
+                f"sweep: a scheduler ({scheduler!r}) applies to the dask and ray backends; loky runs local processes"
+            )
         if backend in _EXTRAS:
             module, extra = _EXTRAS[backend]
             require_extra(module, extra, f"backend {backend.value!r}")
@@ -124,7 +125,7 @@ def _chunked(parallel, function, tasks: list, size: int) -> Iterator:
     from joblib import delayed
 
     for start in range(0, len(tasks), size):
-        yield from parallel(delayed(function)(*t) for t in tasks[start:start + size])
+        yield from parallel(delayed(function)(*t) for t in tasks[start : start + size])
 
 
 @contextlib.contextmanager
@@ -132,16 +133,22 @@ def _dask_client(engine: Engine):
     from distributed import Client, LocalCluster
 
     if engine.scheduler is None:
-        with LocalCluster(n_workers=engine.workers, threads_per_worker=1, processes=True,
-                          dashboard_address=None) as cluster, Client(cluster) as client:
+        with (
+            LocalCluster(
+                n_workers=engine.workers, threads_per_worker=1, processes=True, dashboard_address=None
+            ) as cluster,
+            Client(cluster) as client,
+        ):
             yield client
         return
     try:
         client = Client(engine.scheduler, timeout=CONNECT_TIMEOUT)
     except (OSError, TimeoutError, ValueError, TypeError) as exc:
-        raise InvalidInputError(f"sweep: no Dask scheduler answers at {engine.scheduler!r} within "
-                                f"{CONNECT_TIMEOUT:g} s ({type(exc).__name__}: {exc}); start one with "
-                                "'dask scheduler', or leave out the scheduler for a local cluster") from None
+        raise InvalidInputError(
+            f"sweep: no Dask scheduler answers at {engine.scheduler!r} within "
+            f"{CONNECT_TIMEOUT:g} s ({type(exc).__name__}: {exc}); start one with "
+            "'dask scheduler', or leave out the scheduler for a local cluster"
+        ) from None
     with client:
         yield client
 
@@ -160,8 +167,9 @@ def _ray_cluster(engine: Engine):
             else:
                 ray.init(address=engine.scheduler, log_to_driver=False)
         except (ConnectionError, RuntimeError, ValueError) as exc:
-            raise InvalidInputError(f"sweep: cannot reach the Ray cluster at {engine.scheduler!r} "
-                                    f"({type(exc).__name__}: {exc})") from None
+            raise InvalidInputError(
+                f"sweep: cannot reach the Ray cluster at {engine.scheduler!r} ({type(exc).__name__}: {exc})"
+            ) from None
     try:
         yield
     finally:

@@ -72,8 +72,9 @@ class ResultsFile:
         self.path = Path(path)
         suffix = self.path.suffix.lower()
         if suffix not in FORMATS:
-            raise InvalidInputError(f"--out {str(path)!r}: unknown format {suffix or '(no suffix)'!r}; valid: "
-                                    + ", ".join(FORMATS))
+            raise InvalidInputError(
+                f"--out {str(path)!r}: unknown format {suffix or '(no suffix)'!r}; valid: " + ", ".join(FORMATS)
+            )
         check_output_file("--out", path, "results" + suffix)
         self.format = FileFormat(suffix)
         self._header: list[str] | None = None
@@ -153,8 +154,9 @@ class ResultsFile:
                 self._write_csv(self._header or [], kept)
                 return
             if drop:
-                complete = "".join(line for n, line in enumerate(complete.splitlines(keepends=True), 1)
-                                   if n not in drop)
+                complete = "".join(
+                    line for n, line in enumerate(complete.splitlines(keepends=True), 1) if n not in drop
+                )
             if complete != text:
                 self.path.write_text(complete)
             if self.format is FileFormat.CSV and self._header is None:
@@ -174,7 +176,6 @@ class ResultsFile:
             return
         with self.path.open("a", newline="") as f:
             csv.DictWriter(f, header).writerow({k: _to_cell(row.get(k)) for k in header})
-
 
     def _write_csv(self, header: list[str], rows: list[dict]) -> None:
         """Write the file anew: ``header`` and ``rows``."""
@@ -200,7 +201,7 @@ def _not_a_row(row) -> str:
 
 def _complete_lines(text: str) -> str:
     """``text`` up to its last newline (a last line without one was cut short)."""
-    return text if not text or text.endswith("\n") else text[:text.rfind("\n") + 1]
+    return text if not text or text.endswith("\n") else text[: text.rfind("\n") + 1]
 
 
 def _to_cell(value) -> str:

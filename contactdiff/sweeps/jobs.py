@@ -59,13 +59,28 @@ JOB_OPTIONS: dict[JobKind, tuple[str, ...]] = {
     JobKind.SIMULATE: (),
     JobKind.JACOBIAN: ("parameters",),
     JobKind.ORDER_GAP: ("contacts",),
-    JobKind.STRIDE: ("foot", "iterations", "tol", "neutral", "period", "t_max", "min_stride", "min_flight",
-                     "warmup", "line_search", "resolution"),
+    JobKind.STRIDE: (
+        "foot",
+        "iterations",
+        "tol",
+        "neutral",
+        "period",
+        "t_max",
+        "min_stride",
+        "min_flight",
+        "warmup",
+        "line_search",
+        "resolution",
+    ),
 }
 """Options of each built-in job (fixed with ``job_options``, swept as ``job:<name>``)."""
 
-DEFAULT_OUTPUT = {JobKind.SIMULATE: "events", JobKind.JACOBIAN: "jacobian_norm",
-                  JobKind.ORDER_GAP: "order_gap_outcome", JobKind.STRIDE: "max_multiplier"}
+DEFAULT_OUTPUT = {
+    JobKind.SIMULATE: "events",
+    JobKind.JACOBIAN: "jacobian_norm",
+    JobKind.ORDER_GAP: "order_gap_outcome",
+    JobKind.STRIDE: "max_multiplier",
+}
 """The output a plot shows unless told otherwise."""
 
 
@@ -100,8 +115,9 @@ class Job:
         if callable(job):
             return cls(reference(job), None, job, options)
         if not isinstance(job, str):
-            raise InvalidInputError(f"sweep: job must be a name ({', '.join(JobKind)}), 'module:function' or a "
-                                    f"callable; got {job!r}")
+            raise InvalidInputError(
+                f"sweep: job must be a name ({', '.join(JobKind)}), 'module:function' or a callable; got {job!r}"
+            )
         if job in tuple(JobKind):
             kind = JobKind(job)
             for name in options:
@@ -126,8 +142,7 @@ class Job:
         """The output a plot shows by default (None for a user job: its first number)."""
         return None if self.kind is None else DEFAULT_OUTPUT[self.kind]
 
-    def run(self, scene: Scene, point: Mapping, t_final: float | None, options: Mapping,
-            arguments: Mapping) -> dict:
+    def run(self, scene: Scene, point: Mapping, t_final: float | None, options: Mapping, arguments: Mapping) -> dict:
         """Run the job at one point.
 
         Args:
@@ -145,8 +160,9 @@ class Job:
             assert self.function is not None  # a user job (kind None) has its function
             outputs = self.function(scene, dict(point))
             if not isinstance(outputs, Mapping) or not all(isinstance(k, str) for k in outputs):
-                raise InvalidInputError(f"job {self.label} must return a dict of outputs by name, got "
-                                        f"{type(outputs).__name__}")
+                raise InvalidInputError(
+                    f"job {self.label} must return a dict of outputs by name, got {type(outputs).__name__}"
+                )
             return to_jsonable(dict(outputs))
         return to_jsonable(_BUILT_IN[self.kind](scene, t_final, dict(options), settings))
 
@@ -158,8 +174,13 @@ def trajectory_outputs(traj: Trajectory, scene: Scene) -> dict:
     counts = Counter(e.kind for e in traj.events)
     out = {"t_end": traj.t, "termination": str(traj.termination), "events": len(traj.events)}
     out |= {f"events:{kind}": counts.get(kind, 0) for kind in EVENT_KINDS}
-    out |= {"simultaneous_events": sum(e.simultaneous for e in traj.events), "differentiable": traj.differentiable,
-            "steps": traj.stats.steps, "rejected_steps": traj.stats.rejected_steps, "max_drift": traj.max_drift}
+    out |= {
+        "simultaneous_events": sum(e.simultaneous for e in traj.events),
+        "differentiable": traj.differentiable,
+        "steps": traj.stats.steps,
+        "rejected_steps": traj.stats.rejected_steps,
+        "max_drift": traj.max_drift,
+    }
     out |= {f"q_end:{label}": x for label, x in zip(robot.configuration_names(), traj.q.tolist())}
     out |= {f"v_end:{label}": x for label, x in zip(robot.tangent_names(), traj.v.tolist())}
     return out
@@ -238,14 +259,24 @@ def _stride(scene: Scene, t_final, options: dict, settings: dict) -> dict:
     settings["iterations"] = int(settings.get("iterations", 0))
     gait = find_periodic_gait(scene, foot, **settings, **options)
     moduli = [abs(m) for m in gait.multipliers]
-    return {"foot": foot, "stride_time": gait.stride.stride_time, "residual": gait.residuals[-1],
-            "converged": gait.converged, "iterations": len(gait.steps) - 1,
-            "multipliers": [[float(m.real), float(m.imag)] for m in gait.multipliers],
-            "multiplier_moduli": moduli, "max_multiplier": max(moduli, default=None),
-            "differentiable": gait.stride.differentiable}
+    return {
+        "foot": foot,
+        "stride_time": gait.stride.stride_time,
+        "residual": gait.residuals[-1],
+        "converged": gait.converged,
+        "iterations": len(gait.steps) - 1,
+        "multipliers": [[float(m.real), float(m.imag)] for m in gait.multipliers],
+        "multiplier_moduli": moduli,
+        "max_multiplier": max(moduli, default=None),
+        "differentiable": gait.stride.differentiable,
+    }
 
 
-_BUILT_IN = {JobKind.SIMULATE: _simulate, JobKind.JACOBIAN: _jacobian, JobKind.ORDER_GAP: _order_gap,
-             JobKind.STRIDE: _stride}
+_BUILT_IN = {
+    JobKind.SIMULATE: _simulate,
+    JobKind.JACOBIAN: _jacobian,
+    JobKind.ORDER_GAP: _order_gap,
+    JobKind.STRIDE: _stride,
+}
 
 __all__ = ["Job", "JobKind", "JOB_OPTIONS", "DEFAULT_OUTPUT", "trajectory_outputs"]

@@ -72,8 +72,10 @@ def sweep_figure(result: SweepRows, output: str | None = None) -> Figure:
         raise unknown_name("numeric output to plot", output, valid)
     varying = [n for n in result.names if len({repr(v) for v in result.column(n)}) > 1]
     if len(varying) not in (1, 2):
-        raise InvalidInputError(f"a sweep plot draws over 1 or 2 quantities; {len(varying)} vary here"
-                                + (f": {', '.join(varying)}" if varying else ""))
+        raise InvalidInputError(
+            f"a sweep plot draws over 1 or 2 quantities; {len(varying)} vary here"
+            + (f": {', '.join(varying)}" if varying else "")
+        )
     z = np.array([np.nan if v is None else float(v) for v in result.column(output)])
     if not np.isfinite(z).any():
         raise InvalidInputError(f"no row has a value of {output!r} to plot (every run failed?)")
@@ -86,8 +88,17 @@ def sweep_figure(result: SweepRows, output: str | None = None) -> Figure:
         ax.plot(x, zs, "o-", ms=4, color="C0", label=output)  # a NaN breaks the line: a gap
         gaps = ~np.isfinite(zs)
         if gaps.any():  # on the x axis (axes coordinates in y), where the line has no value
-            ax.plot(x[gaps], np.full(gaps.sum(), 0.02), "x", ms=8, mew=2, color="tab:red", clip_on=False,
-                    transform=ax.get_xaxis_transform(), label=f"no value ({gaps.sum()})")
+            ax.plot(
+                x[gaps],
+                np.full(gaps.sum(), 0.02),
+                "x",
+                ms=8,
+                mew=2,
+                color="tab:red",
+                clip_on=False,
+                transform=ax.get_xaxis_transform(),
+                label=f"no value ({gaps.sum()})",
+            )
             ax.legend(fontsize=8, loc="best")
         _label(ax.set_xticks, ax.set_xticklabels, labels)
         ax.set_xlabel(varying[0])

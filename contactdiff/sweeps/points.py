@@ -44,8 +44,10 @@ def check_size(what: str, count: float) -> None:
     """Refuse ``count`` points (of ``what``: a range, a grid, samples) past `MAX_POINTS`,
     before they are made."""
     if count > MAX_POINTS:
-        raise InvalidInputError(f"sweep: {what} has {count:,.0f} points; a sweep takes at most {MAX_POINTS:,} "
-                                "(MAX_POINTS): split it into several sweeps (they can share one results file)")
+        raise InvalidInputError(
+            f"sweep: {what} has {count:,.0f} points; a sweep takes at most {MAX_POINTS:,} "
+            "(MAX_POINTS): split it into several sweeps (they can share one results file)"
+        )
 
 
 def clean_value(name: str, value) -> Value:
@@ -142,8 +144,10 @@ def point_list(points: Sequence[Mapping] | Mapping[str, Sequence]) -> PointSet:
         lists = {name: parse_values(name, spec) for name, spec in points.items()}
         lengths = {name: len(v) for name, v in lists.items()}
         if len(set(lengths.values())) > 1:
-            raise InvalidInputError("sweep: the lists of a point list must have one length; got "
-                                    + ", ".join(f"{n}: {k}" for n, k in lengths.items()))
+            raise InvalidInputError(
+                "sweep: the lists of a point list must have one length; got "
+                + ", ".join(f"{n}: {k}" for n, k in lengths.items())
+            )
         return PointSet(tuple(lists), tuple(zip(*lists.values())))
     if isinstance(points, (str, bytes)) or not isinstance(points, Sequence):
         raise InvalidInputError(f"sweep: points must be a list of mappings, got {points!r}")
@@ -153,8 +157,9 @@ def point_list(points: Sequence[Mapping] | Mapping[str, Sequence]) -> PointSet:
     rows = []
     for i, point in enumerate(points):
         if not isinstance(point, Mapping) or set(point) != set(names):
-            raise InvalidInputError(f"sweep: point #{i} {point!r} does not name the same quantities as "
-                                    f"point #0 ({', '.join(names)})")
+            raise InvalidInputError(
+                f"sweep: point #{i} {point!r} does not name the same quantities as point #0 ({', '.join(names)})"
+            )
         rows.append(tuple(clean_value(n, point[n]) for n in names))
     return PointSet(names, tuple(rows))
 
@@ -231,15 +236,17 @@ def parse_values(name: str, spec) -> list[Value]:
         if len(parts) == 3 and all(_number_or_none(p) is not None for p in parts):
             lo, hi, count = (float(p) for p in parts)  # numbers: checked just above
             if count != int(count) or count < 1:
-                raise InvalidInputError(f"sweep: range {name}={spec!r}: the count n of lo:hi:n must be a positive "
-                                        f"integer, got {parts[2]!r}")
+                raise InvalidInputError(
+                    f"sweep: range {name}={spec!r}: the count n of lo:hi:n must be a positive integer, got {parts[2]!r}"
+                )
             check_size(f"range {name}={spec!r}", count)  # before the values are made
             values = np.linspace(lo, hi, int(count)).tolist()
         else:
             values = [_text_value(x.strip()) for x in spec.split(",")]
             if any(v == "" for v in values):
-                raise InvalidInputError(f"sweep: {name}={spec!r} holds an empty value; give values "
-                                        "'a,b,c' or a range 'lo:hi:n'")
+                raise InvalidInputError(
+                    f"sweep: {name}={spec!r} holds an empty value; give values 'a,b,c' or a range 'lo:hi:n'"
+                )
     elif isinstance(spec, Sequence) or isinstance(spec, np.ndarray):
         values = list(spec)
     else:
@@ -262,8 +269,9 @@ def parse_distribution(name: str, spec) -> Uniform | Normal:
     kind, _, rest = str(spec).partition(":")
     numbers_ = [_number_or_none(x) for x in rest.split(":")]
     if kind not in DISTRIBUTIONS or len(numbers_) != 2 or None in numbers_:
-        raise InvalidInputError(f"sweep: distribution of {name} must be uniform:LOW:HIGH or normal:MEAN:STD, "
-                                f"got {spec!r}")
+        raise InvalidInputError(
+            f"sweep: distribution of {name} must be uniform:LOW:HIGH or normal:MEAN:STD, got {spec!r}"
+        )
     low_or_mean, high_or_std = (float(x) for x in rest.split(":"))  # numbers: checked just above
     return DISTRIBUTIONS[kind](low_or_mean, high_or_std)
 
@@ -297,6 +305,20 @@ def as_points(points: PointSet | Mapping[str, Sequence | str] | Sequence[Mapping
     return point_list(points)
 
 
-__all__ = ["PointSet", "grid", "point_list", "random_points", "Uniform", "Normal", "parse_values",
-           "parse_value", "parse_distribution", "as_points", "key", "DISTRIBUTIONS", "clean_value", "MAX_POINTS",
-           "check_size"]
+__all__ = [
+    "PointSet",
+    "grid",
+    "point_list",
+    "random_points",
+    "Uniform",
+    "Normal",
+    "parse_values",
+    "parse_value",
+    "parse_distribution",
+    "as_points",
+    "key",
+    "DISTRIBUTIONS",
+    "clean_value",
+    "MAX_POINTS",
+    "check_size",
+]

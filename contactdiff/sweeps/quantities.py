@@ -52,14 +52,21 @@ class QuantityKind(StrEnum):
 
 
 _NUMBER_FIELDS = {"float": float, "int": int, "float | None": float}
-OPTIONS: dict[str, type] = {"t_final": float} | {
-    f.name: _NUMBER_FIELDS[f.type] for f in fields(SimulateOptions) if f.type in _NUMBER_FIELDS} | {"method": str}
+OPTIONS: dict[str, type] = (
+    {"t_final": float}
+    | {f.name: _NUMBER_FIELDS[f.type] for f in fields(SimulateOptions) if f.type in _NUMBER_FIELDS}
+    | {"method": str}
+)
 """Run options a sweep can vary, with their type: the final time ``t_final`` (s) and
 the numeric fields of `SimulateOptions` (``rtol``, ``atol``, ``max_steps``, ...; units
 there) and ``method``."""
 
-PREFIXES = {"q:": QuantityKind.INITIAL_Q, "v:": QuantityKind.INITIAL_V, "arg:": QuantityKind.SCENE_ARG,
-            "job:": QuantityKind.JOB_ARG}
+PREFIXES = {
+    "q:": QuantityKind.INITIAL_Q,
+    "v:": QuantityKind.INITIAL_V,
+    "arg:": QuantityKind.SCENE_ARG,
+    "job:": QuantityKind.JOB_ARG,
+}
 
 
 @dataclass(frozen=True)
@@ -77,8 +84,12 @@ class Quantity:
     target: str
 
 
-def resolve(names: Sequence[str], scene: Scene | Callable[[], Scene], arguments: Sequence[str] | None = (),
-            job_arguments: Sequence[str] | None = ()) -> tuple[Quantity, ...]:
+def resolve(
+    names: Sequence[str],
+    scene: Scene | Callable[[], Scene],
+    arguments: Sequence[str] | None = (),
+    job_arguments: Sequence[str] | None = (),
+) -> tuple[Quantity, ...]:
     """The `Quantity` of each name, checked against ``scene``.
 
     Args:
@@ -115,21 +126,25 @@ def _resolve_one(name: str, get: Callable[[], Scene], arguments, job_arguments) 
     for prefix, kind in PREFIXES.items():
         if not name.startswith(prefix):
             continue
-        target = name[len(prefix):]
+        target = name[len(prefix) :]
         if kind is QuantityKind.INITIAL_Q:
             valid = get().robot.configuration_names()
         elif kind is QuantityKind.INITIAL_V:
             valid = get().robot.tangent_names()
         elif kind is QuantityKind.SCENE_ARG:
             if arguments == ():
-                raise InvalidInputError(f"sweep: {name!r} is an argument of a scene factory, but the scene "
-                                        f"{get().name!r} is a name or file; give a function that builds it")
+                raise InvalidInputError(
+                    f"sweep: {name!r} is an argument of a scene factory, but the scene "
+                    f"{get().name!r} is a name or file; give a function that builds it"
+                )
             valid = arguments
         else:
             valid = job_arguments
         if valid is not None and target not in valid:
-            raise UnknownNameError(f"unknown quantity {name!r}; valid {prefix}<name>: "
-                                   + (", ".join(prefix + v for v in valid) or "(none)"))
+            raise UnknownNameError(
+                f"unknown quantity {name!r}; valid {prefix}<name>: "
+                + (", ".join(prefix + v for v in valid) or "(none)")
+            )
         return Quantity(name, kind, target)
     parameters = get().parameter_names()
     if name in parameters:
@@ -141,16 +156,25 @@ def _unknown(name: str, scene: Scene, parameters: list[str], arguments, job_argu
     kind = name.split(":", 1)[0]
     if kind in {k.value for k in ParameterKind}:
         same_kind = [p for p in parameters if p.split(":", 1)[0] == kind]
-        return UnknownNameError(f"unknown quantity {name!r}: not a parameter of scene {scene.name!r}; its "
-                                f"{kind} parameters: " + (", ".join(same_kind) or "(none)"))
-    valid = ([f"q:{c}" for c in scene.robot.configuration_names()] + [f"v:{c}" for c in scene.robot.tangent_names()]
-             + list(OPTIONS) + [f"arg:{a}" for a in (arguments or ())] + [f"job:{a}" for a in (job_arguments or ())])
+        return UnknownNameError(
+            f"unknown quantity {name!r}: not a parameter of scene {scene.name!r}; its "
+            f"{kind} parameters: " + (", ".join(same_kind) or "(none)")
+        )
+    valid = (
+        [f"q:{c}" for c in scene.robot.configuration_names()]
+        + [f"v:{c}" for c in scene.robot.tangent_names()]
+        + list(OPTIONS)
+        + [f"arg:{a}" for a in (arguments or ())]
+        + [f"job:{a}" for a in (job_arguments or ())]
+    )
     close = difflib.get_close_matches(name, valid + parameters, n=3)
     return UnknownNameError(
-        f"unknown quantity {name!r}; valid: " + ", ".join(valid)
+        f"unknown quantity {name!r}; valid: "
+        + ", ".join(valid)
         + f", and the scene's {len(parameters)} parameters (kind:target:field, e.g. {parameters[0]}; "
         "'contactdiff simulate SCENE --param list' lists them)"
-        + (f"; did you mean {', '.join(close)}?" if close else ""))
+        + (f"; did you mean {', '.join(close)}?" if close else "")
+    )
 
 
 def check_values(quantities: Sequence[Quantity], rows: Sequence[Sequence]) -> None:

@@ -72,9 +72,13 @@ class Row:
     def to_dict(self, run_time: bool = True) -> dict:
         """The flat form (module docstring); ``run_time=False`` leaves out the one
         column that differs between two runs of the same sweep."""
-        out = {"index": self.index, **self.point, **self.outputs,
-               "error": None if self.error is None else self.error.kind,
-               "error_message": None if self.error is None else self.error.message}
+        out = {
+            "index": self.index,
+            **self.point,
+            **self.outputs,
+            "error": None if self.error is None else self.error.kind,
+            "error_message": None if self.error is None else self.error.message,
+        }
         if run_time:
             out["run_time"] = self.run_time
         out["sweep"] = self.sweep
@@ -89,8 +93,9 @@ class Row:
         point = {n: flat.get(n) for n in names}
         outputs = {k: v for k, v in flat.items() if k not in RESERVED and k not in point}
         error = None if flat.get("error") is None else RunError(str(flat["error"]), str(flat.get("error_message")))
-        return cls(int(flat["index"]), point, outputs, float(flat.get("run_time") or 0.0), error,
-                   str(flat.get("sweep") or ""))
+        return cls(
+            int(flat["index"]), point, outputs, float(flat.get("run_time") or 0.0), error, str(flat.get("sweep") or "")
+        )
 
 
 class SweepResult(list):
@@ -102,8 +107,14 @@ class SweepResult(list):
         wall_time: wall time of the sweep (s).
     """
 
-    def __init__(self, rows: Sequence[Row], names: Sequence[str], skipped: int = 0, wall_time: float = 0.0,
-                 default_output: str | None = None):
+    def __init__(
+        self,
+        rows: Sequence[Row],
+        names: Sequence[str],
+        skipped: int = 0,
+        wall_time: float = 0.0,
+        default_output: str | None = None,
+    ):
         super().__init__(rows)
         self.names = tuple(names)
         self.skipped = skipped

@@ -85,20 +85,31 @@ def run_point(context: Context, index: int, values: tuple) -> Row:
         outputs = context.job.run(scene, given, t_final, options, by_kind[Q.QuantityKind.JOB_ARG])
         clash = sorted(set(outputs) & (set(RESERVED) | set(point)))
         if clash:
-            raise InvalidInputError(f"job {context.job.label} returned outputs named like the row's own columns: "
-                                    + ", ".join(clash))
+            raise InvalidInputError(
+                f"job {context.job.label} returned outputs named like the row's own columns: " + ", ".join(clash)
+            )
         error = None
     except Exception as exc:  # every failure of a run is the row's, and the sweep goes on
         outputs, error = {}, RunError.of(exc)
     return Row(index, point, outputs, time.perf_counter() - started, error, context.sweep)
 
 
-def sweep(scene: str | Path | Callable[..., Scene], points: PointSet | Mapping | Sequence[Mapping],
-          job="simulate", *, t_final: float | None = None,
-          options: SimulateOptions | Mapping | None = None, job_options: Mapping | None = None,
-          fixed: Mapping | None = None, backend: str = "loky",
-          n_jobs: int | None = None, scheduler: str | None = None, out: str | Path | None = None,
-          retry_failed: bool = False, progress: bool | None = None) -> SweepResult:
+def sweep(
+    scene: str | Path | Callable[..., Scene],
+    points: PointSet | Mapping | Sequence[Mapping],
+    job="simulate",
+    *,
+    t_final: float | None = None,
+    options: SimulateOptions | Mapping | None = None,
+    job_options: Mapping | None = None,
+    fixed: Mapping | None = None,
+    backend: str = "loky",
+    n_jobs: int | None = None,
+    scheduler: str | None = None,
+    out: str | Path | None = None,
+    retry_failed: bool = False,
+    progress: bool | None = None,
+) -> SweepResult:
     """Run ``job`` on ``scene`` at every point; one row per point.
 
     Args:
@@ -154,8 +165,11 @@ def sweep(scene: str | Path | Callable[..., Scene], points: PointSet | Mapping |
     results = ResultsFile(out) if out is not None else None
     done, damaged = _done(results, points, context, retry_failed) if results is not None else ({}, [])
     todo = [(context, i, values) for i, values in enumerate(points.values) if key(values) not in done]
-    rows = {i: Row.from_dict({**done[key(values)], "index": i}, points.names)
-            for i, values in enumerate(points.values) if key(values) in done}
+    rows = {
+        i: Row.from_dict({**done[key(values)], "index": i}, points.names)
+        for i, values in enumerate(points.values)
+        if key(values) in done
+    }
     lost = None  # the results file's failed write: the sweep runs on, the rows are returned in the error
     if results is not None and (todo or damaged):
         lost = _write(lambda: results.start(d.line for d in damaged))
@@ -166,8 +180,13 @@ def sweep(scene: str | Path | Callable[..., Scene], points: PointSet | Mapping |
                 if results is not None and lost is None:
                     lost = _write(lambda: results.append(row.to_dict()))
                 bar.update(1)
-    result = SweepResult([rows[i] for i in range(len(points))], points.names, skipped=len(points) - len(todo),
-                         wall_time=time.perf_counter() - started, default_output=job.default_output())
+    result = SweepResult(
+        [rows[i] for i in range(len(points))],
+        points.names,
+        skipped=len(points) - len(todo),
+        wall_time=time.perf_counter() - started,
+        default_output=job.default_output(),
+    )
     if lost is not None:
         assert results is not None  # only a write to it is lost
         raise write_failed("--out", results.path, lost, result)
@@ -194,8 +213,10 @@ def _options(options) -> dict:
     SimulateOptions().replace(**options)  # unknown names and bad values raise here, before any run
     for name in JOB_OWNED:
         if name in options:
-            raise InvalidInputError(f"sweep: option {name!r} is the job's to set (jobs: simulate, jacobian with "
-                                    "job_options={'parameters': [...]}, ...)")
+            raise InvalidInputError(
+                f"sweep: option {name!r} is the job's to set (jobs: simulate, jacobian with "
+                "job_options={'parameters': [...]}, ...)"
+            )
     return dict(options)
 
 
@@ -207,14 +228,18 @@ def _context(source: SceneSource, points: PointSet, job: Job, t_final, options: 
     if source.factory is None:
         scene = source.build()  # a name or file: loading it here checks it (cheap), and one worker uses it
     else:
+
         def scene() -> Scene:  # a factory may be expensive (a trot simulated): built here only if a name needs it
             try:
                 return source.build(arguments)
             except ContactDiffError:
                 raise
             except Exception as exc:  # the factory's own failure, named with its arguments
-                raise InvalidInputError(f"sweep: scene factory {source.label} failed with arguments {arguments} "
-                                        f"({type(exc).__name__}: {exc})") from None
+                raise InvalidInputError(
+                    f"sweep: scene factory {source.label} failed with arguments {arguments} "
+                    f"({type(exc).__name__}: {exc})"
+                ) from None
+
     quantities = Q.resolve(points.names, scene, source.argument_names(), job.argument_names)
     Q.check_values(quantities, points.values)
     swept_t = "t_final" in points.names
@@ -222,14 +247,21 @@ def _context(source: SceneSource, points: PointSet, job: Job, t_final, options: 
         raise InvalidInputError(f"sweep: job {job.label!r} runs to a final time: give t_final (s), or sweep it")
     if not job.needs_t_final and job.kind is not None and (t_final is not None or swept_t):
         raise InvalidInputError(f"sweep: job {job.label!r} has no final time; leave t_final out")
-    identity = {"scene": source.label, "job": job.label, "job_options": job.options, "t_final": t_final,
-                "options": options, "names": list(points.names)}
+    identity = {
+        "scene": source.label,
+        "job": job.label,
+        "job_options": job.options,
+        "t_final": t_final,
+        "options": options,
+        "names": list(points.names),
+    }
     text = json.dumps(identity, sort_keys=True, default=str)
     return Context(source, quantities, job, t_final, options, hashlib.sha256(text.encode()).hexdigest()[:16])
 
 
-def _done(results: ResultsFile, points: PointSet, context: Context,
-          retry_failed: bool) -> tuple[dict[str, dict], list[Damage]]:
+def _done(
+    results: ResultsFile, points: PointSet, context: Context, retry_failed: bool
+) -> tuple[dict[str, dict], list[Damage]]:
     """Rows of this sweep already in the results file, by point key (the last row of a point
     wins), and the file's damaged lines (warned about: their points run again).
 
@@ -246,16 +278,23 @@ def _done(results: ResultsFile, points: PointSet, context: Context,
         elif IDENTITY.fullmatch(row["sweep"]):
             raise InvalidInputError(
                 f"results file {str(results.path)!r} holds rows of another sweep (line {n}: scene, job, run settings "
-                "or swept names differ); give another file, or delete this one")
+                "or swept names differ); give another file, or delete this one"
+            )
         else:
             damaged.append(Damage(n, f"its sweep {row['sweep']!r} is not a sweep's identity"))
     damaged.sort(key=lambda d: d.line)
     if damaged and not done:
-        raise ModelLoadError(f"results file {str(results.path)!r} holds no row of this sweep, and {_listed(damaged)}; "
-                             "give another file, or delete this one")
+        raise ModelLoadError(
+            f"results file {str(results.path)!r} holds no row of this sweep, and {_listed(damaged)}; "
+            "give another file, or delete this one"
+        )
     if damaged:
-        warnings.warn(f"results file {str(results.path)!r}: {_listed(damaged)}; left out: their points run again, "
-                      "and the damaged lines are removed from the file", DamagedRowsWarning, stacklevel=3)
+        warnings.warn(
+            f"results file {str(results.path)!r}: {_listed(damaged)}; left out: their points run again, "
+            "and the damaged lines are removed from the file",
+            DamagedRowsWarning,
+            stacklevel=3,
+        )
     if retry_failed:
         done = {k: row for k, row in done.items() if row.get("error") is None}
     return done, damaged
@@ -280,9 +319,15 @@ def _progress_bar(total: int, label: str, progress: bool | None):
         return contextlib.nullcontext(_NoBar())
     from tqdm import tqdm
 
-    return tqdm(total=total, desc=f"sweep {Path(label).name}", unit="run", file=sys.stderr,
-                disable=None if progress is None else False, dynamic_ncols=True,
-                bar_format="{desc} {n_fmt}/{total_fmt} |{bar}| [{elapsed}<{remaining}]")
+    return tqdm(
+        total=total,
+        desc=f"sweep {Path(label).name}",
+        unit="run",
+        file=sys.stderr,
+        disable=None if progress is None else False,
+        dynamic_ncols=True,
+        bar_format="{desc} {n_fmt}/{total_fmt} |{bar}| [{elapsed}<{remaining}]",
+    )
 
 
 __all__ = ["sweep", "run_point", "Context", "DamagedRowsWarning", "IDENTITY"]

@@ -55,7 +55,8 @@ class SceneSource:
             raise InvalidInputError(
                 f"sweep: scene {scene.name!r} is a Scene object, which cannot be sent to worker processes "
                 "(Pinocchio objects do not pickle); give its name or TOML file, or a function that builds it "
-                "(a callable or 'module:function')")
+                "(a callable or 'module:function')"
+            )
         if callable(scene):
             return cls(reference(scene), scene)
         if isinstance(scene, Path) or (isinstance(scene, str) and scene.endswith(".toml")):
@@ -64,8 +65,10 @@ class SceneSource:
             if is_reference(scene) and not Path(scene).exists():
                 return cls(scene, import_callable(scene, "scene factory"))
             return cls(scene)
-        raise InvalidInputError(f"sweep: scene must be a scene name, a TOML path, a robot name, 'module:function' "
-                                f"or a callable returning a Scene; got {scene!r}")
+        raise InvalidInputError(
+            f"sweep: scene must be a scene name, a TOML path, a robot name, 'module:function' "
+            f"or a callable returning a Scene; got {scene!r}"
+        )
 
     def argument_names(self) -> tuple[str, ...] | None:
         """The factory's keyword arguments (None: any, it takes ``**kwargs``); () for a name or file."""
@@ -81,9 +84,11 @@ class SceneSource:
             return
         missing = [n for n in required_names(self.factory) if f"arg:{n}" not in names]
         if missing:
-            raise InvalidInputError(f"sweep: scene factory {self.label} needs "
-                                    + ", ".join(f"arg:{n}" for n in missing)
-                                    + "; sweep it or fix it (fixed=, --set)")
+            raise InvalidInputError(
+                f"sweep: scene factory {self.label} needs "
+                + ", ".join(f"arg:{n}" for n in missing)
+                + "; sweep it or fix it (fixed=, --set)"
+            )
 
     def build(self, args: Mapping | None = None) -> Scene:
         """The scene for the factory arguments ``args``, built once per process and kept.
@@ -97,8 +102,12 @@ class SceneSource:
                 loading or the factory raises.
         """
         items = tuple((args or {}).items())
-        return _built(self.label, _stamp(self.label) if self.factory is None else None,
-                      json.dumps(items, sort_keys=True), _Builder(self, items))
+        return _built(
+            self.label,
+            _stamp(self.label) if self.factory is None else None,
+            json.dumps(items, sort_keys=True),
+            _Builder(self, items),
+        )
 
 
 class _Builder:
@@ -121,8 +130,7 @@ class _Builder:
             return load_source(source.label)
         scene = source.factory(**dict(self.items))
         if not isinstance(scene, Scene):
-            raise InvalidInputError(f"sweep: scene factory {source.label} returned {type(scene).__name__}, "
-                                    "not a Scene")
+            raise InvalidInputError(f"sweep: scene factory {source.label} returned {type(scene).__name__}, not a Scene")
         return scene
 
 

@@ -54,8 +54,7 @@ def test_coupling_by_springs_between_limbs_breaks_decoupling_but_not_orthogonali
     but makes each limb's effort depend on the other limb."""
     base = cd.load_scene("planar_trot_soft")
     tie = cd.Spring("rear_foot", "front_foot", stiffness=3.0, rest_length=0.5)
-    scene = cd.Scene(base.robot, base.contact_specs, base.effort_specs + (tie,),
-                     q0=base.q0, v0=base.v0)
+    scene = cd.Scene(base.robot, base.contact_specs, base.effort_specs + (tie,), q0=base.q0, v0=base.v0)
     report = cd.check_decoupling(scene, samples=3)
     assert report.max_coupling <= 1e-15
     assert report.verdict == ORTHOGONAL_ONLY
@@ -76,8 +75,7 @@ def test_body_effort_not_additive_is_detected():
         tau[iz] = 0.5 * q[ir] * q[jf]
         return tau
 
-    scene = cd.Scene(robot, base.contact_specs, base.effort_specs + (cd.UserEffort(product),),
-                     q0=base.q0)
+    scene = cd.Scene(robot, base.contact_specs, base.effort_specs + (cd.UserEffort(product),), q0=base.q0)
     report = cd.check_decoupling(scene, samples=2)
     (term,) = [t for t in report.terms if t.condition == "body effort"]
     assert not term.ok and term.value > 1e-3

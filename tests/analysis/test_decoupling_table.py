@@ -56,8 +56,12 @@ def solo12_trot(script):
 def _leg_coordinates(scene, contact):
     model = scene.model
     joint = model.frames[scene.contacts[contact].fid].parentJoint
-    return {k for j in model.supports[joint] if j > 1
-            for k in range(model.joints[j].idx_v, model.joints[j].idx_v + model.joints[j].nv)}
+    return {
+        k
+        for j in model.supports[joint]
+        if j > 1
+        for k in range(model.joints[j].idx_v, model.joints[j].idx_v + model.joints[j].nv)
+    }
 
 
 def test_trot_touchdowns_are_closed_approaching_and_consistent(script, solo12_trot):
@@ -116,9 +120,18 @@ def test_state_sources(script):
 def test_trend_figure_labels_both_axes_of_both_panels(script):
     """Synthetic rows (one value per key and size): the figure is about its axes."""
     pytest.importorskip("matplotlib")
-    rows = [{"friction": f, "foot_mass": m, "stiffness": k, "pair_coupling": 1e-2, "saltation_gap": 1e-3,
-             "later_base_saltation_gap": 1e-4}
-            for f in ("stick", "none") for m in (*script.TREND_FOOT_MASSES, None)
-            for k in (script.TREND_STIFFNESSES if m is not None else (None,))]
+    rows = [
+        {
+            "friction": f,
+            "foot_mass": m,
+            "stiffness": k,
+            "pair_coupling": 1e-2,
+            "saltation_gap": 1e-3,
+            "later_base_saltation_gap": 1e-4,
+        }
+        for f in ("stick", "none")
+        for m in (*script.TREND_FOOT_MASSES, None)
+        for k in (script.TREND_STIFFNESSES if m is not None else (None,))
+    ]
     fig = script.trend_figure(rows)
     assert all(ax.get_xlabel() and ax.get_ylabel() for ax in fig.axes)

@@ -32,8 +32,17 @@ GAIT = dict(rtol=1e-12, atol=1e-13)
 
 
 def _gait(sh: Shaker, orbit: int):
-    return find_periodic_gait(sh.scene, "ball", [0.0], [-1.05 * sh.V], sh.orbit_times[orbit] + 0.02, period=sh.P,
-                              iterations=10, tol=1e-12, **GAIT)
+    return find_periodic_gait(
+        sh.scene,
+        "ball",
+        [0.0],
+        [-1.05 * sh.V],
+        sh.orbit_times[orbit] + 0.02,
+        period=sh.P,
+        iterations=10,
+        tol=1e-12,
+        **GAIT,
+    )
 
 
 def test_stride_parameter_jacobian_matches_finite_differences():
@@ -47,8 +56,9 @@ def test_stride_parameter_jacobian_matches_finite_differences():
         h = 1e-5 * abs(value)
         ends = []
         for sign in (1, -1):
-            moved = stride_map(sh.scene.with_parameters({name: value + sign * h}), "ball", *start, period=sh.P,
-                               jacobian=False, **TOL)
+            moved = stride_map(
+                sh.scene.with_parameters({name: value + sign * h}), "ball", *start, period=sh.P, jacobian=False, **TOL
+            )
             ends.append(np.array([moved.q[0], moved.v[0], moved.t]))
         fd = (ends[0] - ends[1]) / (2 * h)
         # truncation ~h² (1e-10), integration noise ~1e-12 / 2h (5e-8 relative at most)
@@ -93,8 +103,9 @@ def test_saddle_multiplier_derivatives_match_reconverged_gaits():
         lam = []
         for sign in (1, -1):
             moved = sh.scene.with_parameters({name: value + sign * h})
-            again = find_periodic_gait(moved, "ball", [0.0], [-sh.V], gait.t, period=sh.P, iterations=10,
-                                       tol=1e-12, **GAIT)
+            again = find_periodic_gait(
+                moved, "ball", [0.0], [-sh.V], gait.t, period=sh.P, iterations=10, tol=1e-12, **GAIT
+            )
             lam.append(again.multipliers[0].real)
         fd = (lam[0] - lam[1]) / (2 * h)
         # two central differences of the same smooth function with the same step: their
@@ -109,8 +120,13 @@ def test_a_repeated_multiplier_has_no_derivative(tmp_path):
     translation's (and the bounce speed's, e = 1)."""
     path = tmp_path / "point_xz.urdf"
     path.write_text(POINT_XZ)
-    scene = cd.Scene(cd.load_robot(str(path)), [cd.Contact("ball", restitution=1.0)], gravity=[0, 0, -1.0],
-                     q0={"z": 0.0}, v0={"x": 0.3, "z": -1.0})
+    scene = cd.Scene(
+        cd.load_robot(str(path)),
+        [cd.Contact("ball", restitution=1.0)],
+        gravity=[0, 0, -1.0],
+        q0={"z": 0.0},
+        v0={"x": 0.3, "z": -1.0},
+    )
     gait = find_periodic_gait(scene, "ball", iterations=0, **GAIT)
     lam = gait.multipliers
     one = int(np.argmin(np.abs(lam - 1.0)))
@@ -126,23 +142,40 @@ def test_bad_requests_are_named():
     with pytest.raises(InvalidInputError, match="contact:ball:restitution"):
         gait_sensitivity(sh.scene, gait, ["contact:ball:bounciness"], which=(), **GAIT)
     with pytest.raises(InvalidInputError, match="jacobian"):
-        stride_map(sh.scene, "ball", [0.0], [-sh.V], 0.1, period=sh.P, jacobian=False,
-                   parameters=["scene:gravity_z"])
+        stride_map(sh.scene, "ball", [0.0], [-sh.V], 0.1, period=sh.P, jacobian=False, parameters=["scene:gravity_z"])
 
 
 def _planar_shaker(sh: Shaker, tmp_path) -> cd.Scene:
     """The shaker's force on the point mass of the x-z plane (test_stride.py's POINT_XZ)."""
     path = tmp_path / "point_xz.urdf"
     path.write_text(POINT_XZ)
-    force = cd.UserEffort(lambda q, v, t: np.array([0.0, sh.a * math.cos(sh.w * t)]),
-                          lambda q, v, t: (np.zeros((2, 2)), np.zeros((2, 2))), name="shaker")
-    return cd.Scene(cd.load_robot(str(path)), [cd.Contact("ball", restitution=sh.e)], [force],
-                    gravity=[0, 0, -sh.g], q0={"z": 0.0}, v0={"x": 0.3, "z": -1.0})
+    force = cd.UserEffort(
+        lambda q, v, t: np.array([0.0, sh.a * math.cos(sh.w * t)]),
+        lambda q, v, t: (np.zeros((2, 2)), np.zeros((2, 2))),
+        name="shaker",
+    )
+    return cd.Scene(
+        cd.load_robot(str(path)),
+        [cd.Contact("ball", restitution=sh.e)],
+        [force],
+        gravity=[0, 0, -sh.g],
+        q0={"z": 0.0},
+        v0={"x": 0.3, "z": -1.0},
+    )
 
 
 def _planar_gait(scene, sh: Shaker, orbit: int):
-    return find_periodic_gait(scene, "ball", [0.0, 0.0], [0.3, -1.05 * sh.V], sh.orbit_times[orbit] + 0.02,
-                              period=sh.P, iterations=10, tol=1e-12, **GAIT)
+    return find_periodic_gait(
+        scene,
+        "ball",
+        [0.0, 0.0],
+        [0.3, -1.05 * sh.V],
+        sh.orbit_times[orbit] + 0.02,
+        period=sh.P,
+        iterations=10,
+        tol=1e-12,
+        **GAIT,
+    )
 
 
 def test_planar_saddle_multiplier_derivatives_match_reconverged_gaits(tmp_path):
@@ -156,8 +189,9 @@ def test_planar_saddle_multiplier_derivatives_match_reconverged_gaits(tmp_path):
     g = gait_sensitivity(scene, gait, names, which=(0,), **GAIT)
     for j, (name, value) in enumerate(zip(names, scene.parameter_values(names))):
         h = 1e-4 * abs(value)
-        lam = [_planar_gait(scene.with_parameters({name: value + sign * h}), sh, 1).multipliers[0].real
-               for sign in (1, -1)]
+        lam = [
+            _planar_gait(scene.with_parameters({name: value + sign * h}), sh, 1).multipliers[0].real for sign in (1, -1)
+        ]
         fd = (lam[0] - lam[1]) / (2 * h)
         assert g.multiplier_derivatives[0, j].real == pytest.approx(fd, rel=1e-5, abs=1e-9), name
 

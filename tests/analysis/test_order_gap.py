@@ -78,8 +78,7 @@ V_FRONT_FIRST = np.array([0.0, 477 / 5041, 1908 / 5041])
 @pytest.fixture(scope="module")
 def rigid_gap():
     scene, q, v = planar_touchdown("planar_trot_rigid")
-    return scene, q, v, order_gap(scene, q, v, ("rear_foot", "front_foot"), t=1.0, horizon=0.2,
-                                  simulate_options=TIGHT)
+    return scene, q, v, order_gap(scene, q, v, ("rear_foot", "front_foot"), t=1.0, horizon=0.2, simulate_options=TIGHT)
 
 
 def test_rigid_trot_outcomes_are_the_hand_limits(rigid_gap):
@@ -161,10 +160,18 @@ def test_order_gap_later_derivative_against_finite_differences():
     robot = scene.robot
 
     def final(dx):
-        traj = cd.simulate(scene, 1.1, q0=robot.integrate(scene.q0, dx[:nv]), v0=scene.v0 + dx[nv:],
-                           method="DOP853", max_step=0.02, **TIGHT)
+        traj = cd.simulate(
+            scene,
+            1.1,
+            q0=robot.integrate(scene.q0, dx[:nv]),
+            v0=scene.v0 + dx[nv:],
+            method="DOP853",
+            max_step=0.02,
+            **TIGHT,
+        )
         assert traj.stats.rejected_steps == 0  # the step sequence does not switch
         return traj.q, traj.v
+
     columns = []
     for k in range(2 * nv):
         e = np.zeros(2 * nv)
@@ -254,8 +261,13 @@ def test_check_decoupling_takes_each_state_time():
         tau[rear_z] = gain * t * q[front_z]
         return tau
 
-    scene = cd.Scene(base.robot, base.contact_specs, base.effort_specs + (cd.UserEffort(cross, name="cross"),),
-                     q0=base.q0, v0=base.v0)
+    scene = cd.Scene(
+        base.robot,
+        base.contact_specs,
+        base.effort_specs + (cd.UserEffort(cross, name="cross"),),
+        q0=base.q0,
+        v0=base.v0,
+    )
     q, v = base.q0, base.v0
 
     def rear_term(*state):
@@ -269,14 +281,17 @@ def test_check_decoupling_takes_each_state_time():
     assert at_two.verdict == "orthogonal only"
 
 
-@pytest.mark.parametrize("states, match", [
-    ([], "at least one"),
-    ([(np.zeros(3), np.zeros(3), np.nan)], "non-finite"),
-    ([(np.zeros(3),)], "pairs or"),
-    ([(np.zeros(2), np.zeros(3))], "shape"),
-    ([(np.array([0.0, np.nan, 0.0]), np.zeros(3))], "non-finite"),
-    (5, "pairs"),
-])
+@pytest.mark.parametrize(
+    "states, match",
+    [
+        ([], "at least one"),
+        ([(np.zeros(3), np.zeros(3), np.nan)], "non-finite"),
+        ([(np.zeros(3),)], "pairs or"),
+        ([(np.zeros(2), np.zeros(3))], "shape"),
+        ([(np.array([0.0, np.nan, 0.0]), np.zeros(3))], "non-finite"),
+        (5, "pairs"),
+    ],
+)
 def test_check_decoupling_rejects_bad_states(states, match):
     scene = cd.load_scene("planar_trot_rigid")
     with pytest.raises(InvalidInputError, match=match):
@@ -338,8 +353,14 @@ def test_quadruped_decoupling_table_script():
     trend = script.trend_table()
     for friction in ("stick", "none"):
         for k in script.TREND_STIFFNESSES:
-            couplings = [next(r["pair_coupling"] for r in trend if r["friction"] == friction
-                              and r["foot_mass"] == m and r["stiffness"] == k) for m in script.TREND_FOOT_MASSES]
+            couplings = [
+                next(
+                    r["pair_coupling"]
+                    for r in trend
+                    if r["friction"] == friction and r["foot_mass"] == m and r["stiffness"] == k
+                )
+                for m in script.TREND_FOOT_MASSES
+            ]
             assert all(a > b for a, b in zip(couplings, couplings[1:]))
         by_mass = {}
         for r in trend:

@@ -20,14 +20,22 @@ from contactdiff.analysis.order_gap_parameters import order_gap_gradient
 from contactdiff.errors import InvalidInputError
 
 PAIR = ("rear_foot", "front_foot")
-NAMES = ["body:body:mass", "body:body:iyy", "body:body:com_x", "joint:body_pitch:armature",
-         "contact:rear_foot:restitution", "contact:front_foot:restitution", "scene:gravity_z"]
+NAMES = [
+    "body:body:mass",
+    "body:body:iyy",
+    "body:body:com_x",
+    "joint:body_pitch:armature",
+    "contact:rear_foot:restitution",
+    "contact:front_foot:restitution",
+    "scene:gravity_z",
+]
 
 
 def test_outcome_gradient_matches_finite_differences():
     scene, q, v = planar_touchdown("planar_trot_rigid")
-    scene = scene.with_parameters({"joint:body_pitch:armature": 0.1, "contact:rear_foot:restitution": 0.3,
-                                   "contact:front_foot:restitution": 0.2})
+    scene = scene.with_parameters(
+        {"joint:body_pitch:armature": 0.1, "contact:rear_foot:restitution": 0.3, "contact:front_foot:restitution": 0.2}
+    )
     g = order_gap_gradient(scene, q, v, PAIR, NAMES, t=1.0)
     assert g.gap.outcome > 0.1  # coupled: the orders differ by a finite amount
     fd = []
@@ -58,8 +66,14 @@ def test_friction_and_group_columns_match_finite_differences():
     v = v + np.array([0.8, 0.0, 0.0])  # m/s along the body's x coordinate
     contacts = [dataclasses.replace(c, friction=0.3, restitution=0.2, group="feet") for c in base.contact_specs]
     scene = cd.Scene(base.robot, contacts, list(base.effort_specs), None, base.q0, base.v0, base.name)
-    names = ["contact:rear_foot:friction", "contact:front_foot:friction", "group:feet:friction",
-             "group:feet:restitution", "contact:rear_foot:restitution", "contact:front_foot:restitution"]
+    names = [
+        "contact:rear_foot:friction",
+        "contact:front_foot:friction",
+        "group:feet:friction",
+        "group:feet:restitution",
+        "contact:rear_foot:restitution",
+        "contact:front_foot:restitution",
+    ]
     g = order_gap_gradient(scene, q, v, PAIR, names, t=1.0)
     assert g.gap.outcome > 0.1
     fd = []

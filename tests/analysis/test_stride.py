@@ -79,8 +79,7 @@ FD_RTOL = 1e-6
 # models
 # ----------------------------------------------------------------------------------
 def _ball(e: float) -> cd.Scene:
-    return cd.Scene(cd.load_robot("ball"), [cd.Contact("ball", restitution=e)], gravity=[0, 0, -1.0],
-                    q0={"z": 1.0})
+    return cd.Scene(cd.load_robot("ball"), [cd.Contact("ball", restitution=e)], gravity=[0, 0, -1.0], q0={"z": 1.0})
 
 
 POINT_XZ = """<?xml version="1.0"?>
@@ -109,10 +108,19 @@ class Shaker:
     def __init__(self, e=0.5, period=2.0, a=1.2, g=1.0):
         self.e, self.P, self.a, self.g = e, period, a, g
         self.w = 2 * math.pi / period
-        force = cd.UserEffort(lambda q, v, t: np.array([a * math.cos(self.w * t)]),
-                              lambda q, v, t: (np.zeros((1, 1)), np.zeros((1, 1))), name="shaker")
-        self.scene = cd.Scene(cd.load_robot("ball"), [cd.Contact("ball", restitution=e)], [force],
-                              gravity=[0, 0, -g], q0={"z": 0.0}, v0={"z": -1.0})
+        force = cd.UserEffort(
+            lambda q, v, t: np.array([a * math.cos(self.w * t)]),
+            lambda q, v, t: (np.zeros((1, 1)), np.zeros((1, 1))),
+            name="shaker",
+        )
+        self.scene = cd.Scene(
+            cd.load_robot("ball"),
+            [cd.Contact("ball", restitution=e)],
+            [force],
+            gravity=[0, 0, -g],
+            q0={"z": 0.0},
+            v0={"z": -1.0},
+        )
         self.V = g * period / (1 + e)
         s = (self.w * g * period / a) * (e - 1) / (2 * (1 + e))
         self.orbit_times = (math.asin(s) / self.w, (math.pi - math.asin(s)) / self.w)
@@ -123,8 +131,13 @@ class Shaker:
         up = -e * v
 
         def z(s):
-            return (up * (s - t) - g * (s - t) ** 2 / 2 + (a / w ** 2) * (math.cos(w * t) - math.cos(w * s))
-                    - (a / w) * math.sin(w * t) * (s - t))
+            return (
+                up * (s - t)
+                - g * (s - t) ** 2 / 2
+                + (a / w**2) * (math.cos(w * t) - math.cos(w * s))
+                - (a / w) * math.sin(w * t) * (s - t)
+            )
+
         t1 = brentq(z, t + 0.5 * self.P, t + 1.5 * self.P, xtol=1e-15, rtol=1e-15)
         T = t1 - t
         v1 = up - g * T + (a / w) * (math.sin(w * t1) - math.sin(w * t))
@@ -172,8 +185,13 @@ def test_point_mass_plane_closed_form_and_neutral_translation(tmp_path):
     urdf = tmp_path / "point_xz.urdf"
     urdf.write_text(POINT_XZ)
     e, u, w = 0.6, 0.3, -1.0
-    scene = cd.Scene(cd.load_robot(str(urdf)), [cd.Contact("ball", restitution=e)], gravity=[0, 0, -1.0],
-                     q0={"z": 0.0}, v0={"x": u, "z": w})
+    scene = cd.Scene(
+        cd.load_robot(str(urdf)),
+        [cd.Contact("ball", restitution=e)],
+        gravity=[0, 0, -1.0],
+        q0={"z": 0.0},
+        v0={"x": u, "z": w},
+    )
     assert available_neutral(scene) == ("x",)
     s = stride_map(scene, "ball", scene.q0, scene.v0)
     T, dT_dw = -2 * e * w, -2 * e
@@ -197,7 +215,7 @@ def test_shaker_multipliers_closed_form():
     for t_star in sh.orbit_times:
         v1, t1, J_ref = sh.touchdown(-sh.V, t_star)
         assert v1 == pytest.approx(-sh.V, abs=1e-12) and t1 - t_star == pytest.approx(sh.P, abs=1e-12)
-        assert np.linalg.det(J_ref) == pytest.approx(sh.e ** 2, abs=1e-12)
+        assert np.linalg.det(J_ref) == pytest.approx(sh.e**2, abs=1e-12)
         s = stride_map(sh.scene, "ball", [0.0], [-sh.V], t_star, period=sh.P, **TOL)
         assert s.period == sh.P
         assert s.stride_time == pytest.approx(sh.P, abs=1e-9)
@@ -205,8 +223,7 @@ def test_shaker_multipliers_closed_form():
         J = s.extended_jacobian()
         np.testing.assert_allclose(J[1:, 1:], J_ref, rtol=1e-8, atol=1e-8)
         np.testing.assert_allclose(floquet_multipliers(sh.scene, s), _eig_sorted(J_ref), atol=1e-8)
-    stable = floquet_multipliers(sh.scene, stride_map(sh.scene, "ball", [0.0], [-sh.V], sh.orbit_times[0],
-                                                      period=sh.P))
+    stable = floquet_multipliers(sh.scene, stride_map(sh.scene, "ball", [0.0], [-sh.V], sh.orbit_times[0], period=sh.P))
     np.testing.assert_allclose(np.abs(stable), [sh.e, sh.e], atol=1e-8)  # complex pair: |λ| = e
 
 
@@ -219,8 +236,9 @@ def test_newton_finds_the_shaker_orbits(orbit):
     saddle: Newton does not need stability; from 10% off in speed and 0.05 s off in phase."""
     sh = Shaker()
     t_star = sh.orbit_times[orbit]
-    gait = find_periodic_gait(sh.scene, "ball", [0.0], [-1.1 * sh.V], t_star + 0.05, period=sh.P,
-                              iterations=10, tol=1e-10)
+    gait = find_periodic_gait(
+        sh.scene, "ball", [0.0], [-1.1 * sh.V], t_star + 0.05, period=sh.P, iterations=10, tol=1e-10
+    )
     assert gait.converged and gait.residuals[-1] <= 1e-10
     assert all(b < a for a, b in zip(gait.residuals, gait.residuals[1:]))
     assert gait.v[0] == pytest.approx(-sh.V, abs=1e-9)
@@ -279,8 +297,15 @@ def test_newton_elastic_soft_trot_multipliers_come_in_reciprocal_pairs():
     at rest (a simultaneous start: the one-sided derivative of the rear-first
     branch, itself a symplectic map)."""
     base = cd.trot_touchdown("soft", 0.05)
-    scene = cd.Scene(base.robot, [cd.Contact(c.frame, restitution=1.0) for c in base.contact_specs],
-                     base.effort_specs, None, base.q0, base.v0, name="soft_elastic")
+    scene = cd.Scene(
+        base.robot,
+        [cd.Contact(c.frame, restitution=1.0) for c in base.contact_specs],
+        base.effort_specs,
+        None,
+        base.q0,
+        base.v0,
+        name="soft_elastic",
+    )
     gait = find_periodic_gait(scene, "rear_foot", iterations=10, tol=1e-9)
     assert gait.converged and gait.neutral == ("x",)
     assert gait.stride.simultaneous == ("front_foot",) and gait.stride.differentiable
@@ -317,9 +342,18 @@ def _fd_on_section(scene, foot, stride, basis_columns, clock=False, min_stride=N
 
     def run(d, dt, eps):
         q = onto_section(scene, foot, pin.integrate(model, stride.q0, eps * d[:nv]))
-        s = stride_map(scene, foot, q, stride.v0 + eps * d[nv:2 * nv], stride.t0 + eps * dt,
-                       period=stride.period or False, min_stride=min_stride, min_flight=min_flight,
-                       jacobian=False, **TOL)
+        s = stride_map(
+            scene,
+            foot,
+            q,
+            stride.v0 + eps * d[nv : 2 * nv],
+            stride.t0 + eps * dt,
+            period=stride.period or False,
+            min_stride=min_stride,
+            min_flight=min_flight,
+            jacobian=False,
+            **TOL,
+        )
         assert [(e.kind, e.contacts) for e in s.trajectory.events] == kinds  # same event sequence
         return s
 
@@ -347,8 +381,15 @@ SOFT_STRIDES = {
 def test_stride_jacobian_fd_soft_trot(friction):
     """planar_trot_soft at pitch 0.05 from the rear touchdown: every section coordinate."""
     base = cd.trot_touchdown("soft", 0.05)
-    scene = cd.Scene(base.robot, [cd.Contact(c.frame, friction=friction) for c in base.contact_specs],
-                     base.effort_specs, None, base.q0, base.v0, name=f"soft-{friction}")
+    scene = cd.Scene(
+        base.robot,
+        [cd.Contact(c.frame, friction=friction) for c in base.contact_specs],
+        base.effort_specs,
+        None,
+        base.q0,
+        base.v0,
+        name=f"soft-{friction}",
+    )
     if friction == "stick":
         scene = scene.with_state(None, {"body_x": 0.3, "rear_foot_x": 0.3, "front_foot_x": 0.3})
     t, q, v = first_touchdown(scene, "rear_foot", **TOL)
@@ -421,8 +462,15 @@ def test_stride_jacobian_fd_free_flyer_clock_driven():
         dq[6:, 6:], dv[6:, 6:] = -kp * np.eye(12), -kd * np.eye(12)
         return dq, dv
 
-    scene = cd.Scene(bouncing.robot, bouncing.contact_specs, [cd.UserEffort(pd, pd_jacobian, name="clock PD")],
-                     gravity=[0, 0, -9.81], q0=bouncing.q0, v0=bouncing.v0, name="solo12_bouncing_clock")
+    scene = cd.Scene(
+        bouncing.robot,
+        bouncing.contact_specs,
+        [cd.UserEffort(pd, pd_jacobian, name="clock PD")],
+        gravity=[0, 0, -9.81],
+        q0=bouncing.q0,
+        v0=bouncing.v0,
+        name="solo12_bouncing_clock",
+    )
     t, q, v = first_touchdown(scene, "FR_FOOT", **TOL)
     s = stride_map(scene, "FR_FOOT", q, v, t, period=period, min_stride=0.0, min_flight=0.0, **TOL)
     assert [(e.kind, e.contacts) for e in s.trajectory.events] == [("bounce", ("FR_FOOT",))] * 2
@@ -504,8 +552,10 @@ def test_warmup_starts_at_the_touchdown_after_it():
     sqrt(2) (1 + 2e) s (closed form as above). A warm-up of 1 s starts the search
     at the first, one of 2 s at the second (speed e sqrt(2))."""
     scene, e = _ball(0.8), 0.8
-    for warmup, t_expected, v_expected in ((1.0, math.sqrt(2), -math.sqrt(2)),
-                                           (2.0, math.sqrt(2) * (1 + 2 * e), -e * math.sqrt(2))):
+    for warmup, t_expected, v_expected in (
+        (1.0, math.sqrt(2), -math.sqrt(2)),
+        (2.0, math.sqrt(2) * (1 + 2 * e), -e * math.sqrt(2)),
+    ):
         gait = find_periodic_gait(scene, "ball", iterations=0, warmup=warmup)
         assert gait.t == pytest.approx(t_expected, abs=1e-9)
         assert gait.v[0] == pytest.approx(v_expected, abs=1e-9)

@@ -90,8 +90,11 @@ def test_quick_bench_structure(quick):
         assert d["jacobian_vs_fd"] < 1e-5 and d["fd_runs"] == 4 * d["nv"]
         assert all(math.isfinite(d[k]) for k in ("jacobian_over_plain", "fd_over_jacobian"))
     assert {(r["scene"], r["baseline"], r["target"]) for r in quick.ratios} == {
-        (s, b, t) for s in ("ball", "planar_trot_rigid")
-        for b in ("solve_ivp-DOP853", "time-stepping") for t in (1e-6, 1e-9)}
+        (s, b, t)
+        for s in ("ball", "planar_trot_rigid")
+        for b in ("solve_ivp-DOP853", "time-stepping")
+        for t in (1e-6, 1e-9)
+    }
     json.dumps(quick.to_dict())
     assert "time-stepping" in quick.format()
 
@@ -118,8 +121,7 @@ def test_cli_bench_speed_json(capsys):
     """The speed rows are consistent counts of a real run (their times are not asserted):
     the wall time per evaluation times the evaluations is the wall time, the ratios are
     the quotients they name, and the same run's events are those of simulate."""
-    assert main(["bench", "--speed", "--scenes", "solo12_trot", "--t-final", "0.05", "--repeats", "1",
-                 "--json"]) == 0
+    assert main(["bench", "--speed", "--scenes", "solo12_trot", "--t-final", "0.05", "--repeats", "1", "--json"]) == 0
     (row,) = json.loads(capsys.readouterr().out)["trots"]
     traj = cd.simulate(cd.load_scene("solo12_trot"), 0.05)
     assert row["events"] == len(traj.events) and row["steps"] == traj.stats.steps

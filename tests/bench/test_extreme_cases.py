@@ -72,8 +72,10 @@ def test_spectral_radius_matches_analytic_derivatives_on_solo12():
         assert _rho(scene, mode, scene.q0, v) == pytest.approx(exact, rel=1e-3)
 
 
-@pytest.mark.parametrize("name,t_final", [("ball", 6.0), ("two_limb", 3.0), ("planar_trot_soft", 3.0),
-                                          ("planar_trot_rigid", 2.0), ("solo12_drop", 0.5)])
+@pytest.mark.parametrize(
+    "name,t_final",
+    [("ball", 6.0), ("two_limb", 3.0), ("planar_trot_soft", 3.0), ("planar_trot_rigid", 2.0), ("solo12_drop", 0.5)],
+)
 def test_auto_stays_explicit_on_nominal_scenes(name, t_final):
     """The shipped scenes are not stiff at the default tolerances: auto takes the same
     DOP853 steps as method="DOP853" (same step count, same final state to rounding)."""
@@ -251,12 +253,18 @@ def test_stiffness_sweep_compares_modes_within_the_event_time_resolution():
 
     feet = ("rear_foot", "front_foot")
     ref = run((0.0, 1.0, ()), (1.0, 1.0001352, feet), (1.0001352, 1.2, ()))
-    bounced = run((0.0, 0.999999998, ()), (0.999999998, 1.000000002, ()), (1.000000002, 1.0001352, feet),
-                  (1.0001352, 1.2, ()))
+    bounced = run(
+        (0.0, 0.999999998, ()), (0.999999998, 1.000000002, ()), (1.000000002, 1.0001352, feet), (1.0001352, 1.2, ())
+    )
     assert _event_time_error(bounced, ref, 1e-5) == pytest.approx(2e-9, rel=1e-6)
     assert _event_time_error(bounced, ref, 1e-9) == pytest.approx(2e-9, rel=1e-6)  # same modes, merged
-    split = run((0.0, 0.999999998, ()), (0.999999998, 0.999999999, feet), (0.999999999, 1.000000002, ()),
-                (1.000000002, 1.0001352, feet), (1.0001352, 1.2, ()))
+    split = run(
+        (0.0, 0.999999998, ()),
+        (0.999999998, 0.999999999, feet),
+        (0.999999999, 1.000000002, ()),
+        (1.000000002, 1.0001352, feet),
+        (1.0001352, 1.2, ()),
+    )
     assert _event_time_error(split, ref, 1e-5) == pytest.approx(2e-9, rel=1e-6)
     assert _event_time_error(split, ref, 1e-10) == math.inf
     assert _event_time_error(run((0.0, 1.2, ())), ref, 1e-5) == math.inf
@@ -289,7 +297,8 @@ def test_two_limb_closed_form_is_consistent():
         def energy(t):
             zb, vb, zf, vf, _ = studies.two_limb_closed_form(t, m)
             s = zb - 0.5 - zf
-            return 0.5 * vb ** 2 + m * vf ** 2 + k * s ** 2 + g * (zb + 2 * m * zf)
+            return 0.5 * vb**2 + m * vf**2 + k * s**2 + g * (zb + 2 * m * zf)
+
         e0 = energy(t_lo + 1e-6)
         for t in np.linspace(t_lo + 1e-3, t_lo + 0.3, 7):
             assert energy(t) == pytest.approx(e0, abs=1e-12)
@@ -409,10 +418,10 @@ def test_gap_time_formula():
     for model, c, d in (("soft", 1.0, 0.5), ("rigid", 2 / 3, 1 / 6)):
         h_r = c - 0.25 * math.sin(p) - d * math.cos(p)
         h_f = c + 0.25 * math.sin(p) - d * math.cos(p)
-        assert studies.touchdown_gap_time(model, p) == pytest.approx(
-            math.sqrt(2 * h_f) - math.sqrt(2 * h_r), rel=1e-12)
-        assert studies.touchdown_gap_time(model, studies.pitch_for_gap_time(model, 1e-7)) == \
-            pytest.approx(1e-7, rel=1e-9)
+        assert studies.touchdown_gap_time(model, p) == pytest.approx(math.sqrt(2 * h_f) - math.sqrt(2 * h_r), rel=1e-12)
+        assert studies.touchdown_gap_time(model, studies.pitch_for_gap_time(model, 1e-7)) == pytest.approx(
+            1e-7, rel=1e-9
+        )
 
 
 @pytest.fixture(scope="module")
@@ -436,7 +445,7 @@ def test_soft_trot_continuous_and_differentiable_into_simultaneous(soft_trot_at_
     d0 = np.concatenate([pin.difference(scene.model, ref.q0, scene.q0), scene.v0 - ref.v0])
     dx = np.concatenate([pin.difference(scene.model, ref.q, traj.q), traj.v - ref.v])
     J = ref.jacobian
-    assert np.max(np.abs(dx - J @ d0)) <= 1e3 * dt ** 2 + 1e-13
+    assert np.max(np.abs(dx - J @ d0)) <= 1e3 * dt**2 + 1e-13
     assert np.max(np.abs(dx)) <= 1.01 * np.max(np.abs(J @ d0)) + 1e-13
     assert np.max(np.abs(traj.jacobian - J)) <= 1e3 * dt + 1e-9
     assert all(e.differentiable for e in traj.events)
@@ -490,26 +499,41 @@ def test_ten_thousand_elastic_impacts():
 # ----------------------------------------------------------------------------------
 # bad numbers, refused up front
 # ----------------------------------------------------------------------------------
-@pytest.mark.parametrize("option,value", [
-    ("max_events", math.nan), ("max_events", math.inf), ("max_events", -1), ("max_events", 2.5),
-    ("max_events", True), ("t0", math.nan), ("max_step", math.nan), ("zeno_speed", math.inf),
-    ("simultaneous_tol", math.nan), ("grazing_speed", -math.inf), ("project_tol", math.nan),
-    ("grazing_gap", math.inf)])
+@pytest.mark.parametrize(
+    "option,value",
+    [
+        ("max_events", math.nan),
+        ("max_events", math.inf),
+        ("max_events", -1),
+        ("max_events", 2.5),
+        ("max_events", True),
+        ("t0", math.nan),
+        ("max_step", math.nan),
+        ("zeno_speed", math.inf),
+        ("simultaneous_tol", math.nan),
+        ("grazing_speed", -math.inf),
+        ("project_tol", math.nan),
+        ("grazing_gap", math.inf),
+    ],
+)
 def test_bad_simulate_numbers(option, value):
     with pytest.raises(cd.InvalidInputError, match=option) as info:
         simulate(cd.load_scene("ball"), 1.0, **{option: value})
     assert str(value) in str(info.value) or repr(value) in str(info.value)
 
 
-@pytest.mark.parametrize("entry,where", [
-    ("[[contact]]\nframe = 'ball'\noffset = nan\n", "offset"),
-    ("[[contact]]\nframe = 'ball'\nrestitution = inf\n", "restitution"),
-    ("[[contact]]\nframe = 'ball'\nnormal = [0.0, 0.0, nan]\n", "normal"),
-    ("[[joint_spring]]\njoint = 'z'\nstiffness = nan\n", "stiffness"),
-    ("[[joint_spring]]\njoint = 'z'\nstiffness = 1.0\ndamping = inf\n", "damping"),
-    ("gravity = [0.0, 0.0, -inf]\n", "gravity"),
-    ("[initial]\nv = { z = -inf }\n", "finite"),
-])
+@pytest.mark.parametrize(
+    "entry,where",
+    [
+        ("[[contact]]\nframe = 'ball'\noffset = nan\n", "offset"),
+        ("[[contact]]\nframe = 'ball'\nrestitution = inf\n", "restitution"),
+        ("[[contact]]\nframe = 'ball'\nnormal = [0.0, 0.0, nan]\n", "normal"),
+        ("[[joint_spring]]\njoint = 'z'\nstiffness = nan\n", "stiffness"),
+        ("[[joint_spring]]\njoint = 'z'\nstiffness = 1.0\ndamping = inf\n", "damping"),
+        ("gravity = [0.0, 0.0, -inf]\n", "gravity"),
+        ("[initial]\nv = { z = -inf }\n", "finite"),
+    ],
+)
 def test_non_finite_toml_values(tmp_path, entry, where):
     """TOML's own nan and inf literals, in every numeric field of a scene file."""
     (tmp_path / "b.urdf").write_text((ROBOTS_DIR / "ball.urdf").read_text())

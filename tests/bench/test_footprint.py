@@ -108,9 +108,13 @@ def test_bench_studies_flag_puts_both_in_the_output(monkeypatch, capsys):
 
     row = studies.StudyRow("zeno", "ball", "e = 0.5", "auto", 1e-6, "limit time", 0.01, 3, 30, "ok", True)
     monkeypatch.setattr(studies, "run_studies", lambda quick: studies.StudyResult([row]))
-    monkeypatch.setattr(footprint, "measure_footprint",
-                        lambda quick: footprint.Footprint(imports={"import_time": 0.5,
-                                                                   "plotting_modules_loaded": {"matplotlib": False}}))
+    monkeypatch.setattr(
+        footprint,
+        "measure_footprint",
+        lambda quick: footprint.Footprint(
+            imports={"import_time": 0.5, "plotting_modules_loaded": {"matplotlib": False}}
+        ),
+    )
     args = ["bench", "--quick", "--scenes", "ball", "--repeats", "1", "--studies"]
     assert main(args) == 0
     text = capsys.readouterr().out

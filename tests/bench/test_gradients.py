@@ -71,12 +71,14 @@ def test_friction_task_sticks_on_the_ground_and_slides_on_the_wall():
     ball rolls (slip vx - r ω = 0), and the wall's slides: its outcome differs from the
     frictionless wall's and from a sticking one's (μ = 1), and it is affine in the wall's μ
     (a sliding impulse is μ P_n: the outcome at μ is the mean of those at μ ± 0.01)."""
-    before_wall = replace(g.WALL_FRICTION, wall=None, horizon=0.6)   # after the ground's impact, before the wall
+    before_wall = replace(g.WALL_FRICTION, wall=None, horizon=0.6)  # after the ground's impact, before the wall
     x, z, vx, vz, wy = g.ball_outcome(before_wall).real
     assert abs(vx - g.WALL_FRICTION.radius * wy) < 1e-12
     mu = g.WALL_FRICTION.wall_friction
-    finals = {m: g.ball_outcome(replace(g.WALL_FRICTION, wall_friction=m))[:2].real
-              for m in (0.0, mu - 0.01, mu, mu + 0.01, 1.0)}
+    finals = {
+        m: g.ball_outcome(replace(g.WALL_FRICTION, wall_friction=m))[:2].real
+        for m in (0.0, mu - 0.01, mu, mu + 0.01, 1.0)
+    }
     assert np.linalg.norm(finals[mu] - finals[0.0]) > 1e-3 and np.linalg.norm(finals[mu] - finals[1.0]) > 1e-3
     assert np.allclose(finals[mu], (finals[mu - 0.01] + finals[mu + 0.01]) / 2, rtol=0, atol=1e-12)
 
@@ -114,6 +116,7 @@ def test_cube_pose_gradient_against_central_differences():
     on a gradient of norm ~1: 1e-6 relative; truncation O(h²) = 1e-12 times the third
     derivative; allowed 1e-5."""
     from contactdiff.bench import gradients_cube as cube
+
     run = cube.contactdiff_cube()
     assert run.differentiable
     fd, _ = cube.cube_reference(1e-6)
@@ -121,6 +124,7 @@ def test_cube_pose_gradient_against_central_differences():
 
 
 # -- MuJoCo adapters --------------------------------------------------------------------
+
 
 def _mujoco():
     return pytest.importorskip("mujoco", reason="the MuJoCo baselines need the mujoco extra")
@@ -132,6 +136,7 @@ def test_mujoco_contact_restitution():
     contact lasting π τ = 63 ms move it by less)."""
     mujoco = _mujoco()
     from contactdiff.bench import gradients_mujoco as mj
+
     task = replace(g.BOUNCE, position=(0.0, 0.2))
     model = mj.ball_model(task, mj.Variant(1e-4, 0.02))
     data = mujoco.MjData(model)
@@ -155,8 +160,11 @@ def test_mujoco_gradients_converge_as_the_time_step_shrinks():
     least halve the error (margin 5)."""
     _mujoco()
     from contactdiff.bench import gradients_mujoco as mj
-    errors = {method: [abs(mj.mujoco_brax(g.BRAX, mj.Variant(dt, 0.02), 0.6, method)[0][0, 0] + 1.0)
-                       for dt in (1e-3, 1e-4)] for method in ("fd", "transition")}
+
+    errors = {
+        method: [abs(mj.mujoco_brax(g.BRAX, mj.Variant(dt, 0.02), 0.6, method)[0][0, 0] + 1.0) for dt in (1e-3, 1e-4)]
+        for method in ("fd", "transition")
+    }
     for method, (coarse, fine) in errors.items():
         assert fine < coarse / 2, (method, coarse, fine)
     exact = g.two_ball_gradient()
@@ -187,6 +195,7 @@ def test_mujoco_transition_product_equals_rollout_differences():
     Jacobians, ~1e-9): allowed 1e-6 relative."""
     _mujoco()
     from contactdiff.bench import gradients_mujoco as mj
+
     variant = mj.Variant(1e-3, 0.02)
     fd = mj.mujoco_brax(g.BRAX, variant, 0.6, "fd")[0]
     product = mj.mujoco_brax(g.BRAX, variant, 0.6, "transition")[0]

@@ -140,8 +140,9 @@ def test_derivatives_match_central_differences_on_the_manifold(which, request):
     robot = request.getfixturevalue(which)
     joints = robot.joint_names if which == "panda" else [f"panda_joint{i}" for i in range(1, 8)]
     stiffness = tuple(np.linspace(20.0, 80.0, len(joints)))
-    effort = JointTargets(joints, TIMES, _rows(robot, joints), stiffness=stiffness, damping=4.0,
-                          gravity_compensation=True)
+    effort = JointTargets(
+        joints, TIMES, _rows(robot, joints), stiffness=stiffness, damping=4.0, gravity_compensation=True
+    )
     ev = effort.bind(robot)
     rng = np.random.default_rng(7)
     # random q (the box's quaternion turned too), random v, inside a piece
@@ -151,10 +152,20 @@ def test_derivatives_match_central_differences_on_the_manifold(which, request):
     kin.update(q, v, derivatives=True)
     dq, dv = ev.derivatives(kin, t)
     tau = ev.tau(kin, t)
-    assert_fd(f"joint targets dtau/dq {which}", dq, _fd_q(lambda x: _tau(ev, robot, x, v, t), robot, q),
-              value=tau, rtol=FD_RTOL)
-    assert_fd(f"joint targets dtau/dv {which}", dv, fd_dv(lambda x: _tau(ev, robot, q, x, t), v, eps=H),
-              value=tau, rtol=FD_RTOL)
+    assert_fd(
+        f"joint targets dtau/dq {which}",
+        dq,
+        _fd_q(lambda x: _tau(ev, robot, x, v, t), robot, q),
+        value=tau,
+        rtol=FD_RTOL,
+    )
+    assert_fd(
+        f"joint targets dtau/dv {which}",
+        dv,
+        fd_dv(lambda x: _tau(ev, robot, q, x, t), v, eps=H),
+        value=tau,
+        rtol=FD_RTOL,
+    )
     # the gravity rows are not diagonal: the test would miss nothing by the PD terms alone
     off_diagonal = dq - np.diag(np.diag(dq))
     assert np.abs(off_diagonal).max() > 1.0  # N m/rad
@@ -171,8 +182,7 @@ def test_time_derivative_and_breakpoints(panda):
     # inside pieces and outside the knots, where tau is smooth in t
     for t in (0.0, 0.7, 1.0, 1.93, 3.0):
         fd = (ev.tau(kin, t + H) - ev.tau(kin, t - H)) / (2.0 * H)
-        assert_fd(f"joint targets dtau/dt at {t}", ev.time_derivative(kin, t), fd, value=ev.tau(kin, t),
-                  rtol=FD_RTOL)
+        assert_fd(f"joint targets dtau/dt at {t}", ev.time_derivative(kin, t), fd, value=ev.tau(kin, t), rtol=FD_RTOL)
     # at a knot ṙ = r̈ = 0, so dtau/dt = 0 exactly; but the term D ṙ of tau is only C¹ there
     # (r''' jumps: ṙ ≈ 30 Δ s² / T³ on either side), so the central difference is O(H), not
     # O(H²): |FD| <= 15 D H (|Δ_k-1| + |Δ_k|) / T² <= 30 D H max|Δ| (T = 1 s), plus round-off
@@ -203,8 +213,9 @@ def test_gravity_compensation_holds_the_arm_still(panda, panda_box):
         q[[robot.scalar_joint(j)[0] for j in joints]] = rows[0]
         zero = np.zeros(robot.nv)
         for compensated in (True, False):
-            ev = JointTargets(joints, TIMES, rows, stiffness=100.0, damping=10.0,
-                              gravity_compensation=compensated).bind(robot)
+            ev = JointTargets(
+                joints, TIMES, rows, stiffness=100.0, damping=10.0, gravity_compensation=compensated
+            ).bind(robot)
             a = pin.aba(robot.model, robot.new_data(), q, zero, _tau(ev, robot, q, zero, TIMES[0]))
             if compensated:
                 np.testing.assert_allclose(a[iv], 0.0, rtol=0, atol=1e-10)
@@ -229,23 +240,26 @@ def test_fields_are_normalised():
 GOOD = dict(joints=("j1", "j2"), times=(0.0, 1.0), targets=((0.0, 0.0), (1.0, 1.0)), stiffness=10.0)
 
 
-@pytest.mark.parametrize("change, shown", [
-    (dict(times=(0.0, 1.0, 1.0), targets=((0, 0),) * 3), "times[2] = 1.0"),
-    (dict(times=(1.0, 0.5)), "times[1] = 0.5"),
-    (dict(times=()), "()"),
-    (dict(times=(0.0, float("inf"))), "inf"),
-    (dict(targets=((0.0, 0.0),)), "(1, 2)"),
-    (dict(targets=((0.0, 0.0), (1.0, 1.0, 2.0))), "(1.0, 1.0, 2.0)"),
-    (dict(targets=((0.0, 0.0), (1.0, float("nan")))), "targets[1][1] (j2) is nan"),
-    (dict(stiffness=-1.5), "-1.5"),
-    (dict(damping=(1.0, -2.0)), "-2.0"),
-    (dict(stiffness=(1.0, 2.0, 3.0)), "(1.0, 2.0, 3.0)"),
-    (dict(joints=("j1", "j1")), "'j1'"),
-    (dict(joints="j1"), "'j1'"),
-    (dict(joints=()), "()"),
-    (dict(gravity_compensation="yes"), "'yes'"),
-    (dict(name=""), "''"),
-])
+@pytest.mark.parametrize(
+    "change, shown",
+    [
+        (dict(times=(0.0, 1.0, 1.0), targets=((0, 0),) * 3), "times[2] = 1.0"),
+        (dict(times=(1.0, 0.5)), "times[1] = 0.5"),
+        (dict(times=()), "()"),
+        (dict(times=(0.0, float("inf"))), "inf"),
+        (dict(targets=((0.0, 0.0),)), "(1, 2)"),
+        (dict(targets=((0.0, 0.0), (1.0, 1.0, 2.0))), "(1.0, 1.0, 2.0)"),
+        (dict(targets=((0.0, 0.0), (1.0, float("nan")))), "targets[1][1] (j2) is nan"),
+        (dict(stiffness=-1.5), "-1.5"),
+        (dict(damping=(1.0, -2.0)), "-2.0"),
+        (dict(stiffness=(1.0, 2.0, 3.0)), "(1.0, 2.0, 3.0)"),
+        (dict(joints=("j1", "j1")), "'j1'"),
+        (dict(joints="j1"), "'j1'"),
+        (dict(joints=()), "()"),
+        (dict(gravity_compensation="yes"), "'yes'"),
+        (dict(name=""), "''"),
+    ],
+)
 def test_bad_specs_are_refused_showing_the_value(change, shown):
     with pytest.raises(InvalidInputError, match=re.escape(shown)):
         JointTargets(**{**GOOD, **change})

@@ -17,7 +17,7 @@ def _kinked(phis):
     (phi - 0.6) switched on at 0.6."""
     phis = np.asarray(phis, dtype=float)
     u = np.clip((phis - 0.1) / 0.25, 0.0, 1.0)
-    step = u ** 3 * (10.0 - 15.0 * u + 6.0 * u ** 2)
+    step = u**3 * (10.0 - 15.0 * u + 6.0 * u**2)
     cubic = np.where(phis >= 0.6, 3.0 * (phis - 0.6) ** 3 - (phis - 0.6), 0.0)
     return np.stack([step, cubic], axis=1)
 

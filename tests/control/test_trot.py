@@ -116,6 +116,7 @@ def test_controller_derivatives_match_finite_differences(solo, t):
     def tau(q_, v_):
         kin.update(q_, v_)
         return ctrl.tau(kin, t)
+
     kin.update(q, v, derivatives=True)
     dq, dv = ctrl.derivatives(kin, t)
     value = tau(q, v)
@@ -135,10 +136,12 @@ def test_toml_scenes_equal_trot_scene():
 
 
 def test_toml_trot_table_round_trip_and_errors(tmp_path):
-    body = ('robot = "solo12"\nfloating_base = true\n[[contact]]\nframe = "FL_FOOT"\noffset = 0.0191\n'
-            'friction = "stick"\n[initial]\nq = { root_joint = [0, 0, 0.3, 0, 0, 0, 1] }\n')
+    body = (
+        'robot = "solo12"\nfloating_base = true\n[[contact]]\nframe = "FL_FOOT"\noffset = 0.0191\n'
+        'friction = "stick"\n[initial]\nq = { root_joint = [0, 0, 0.3, 0, 0, 0, 1] }\n'
+    )
     path = tmp_path / "s.toml"
-    path.write_text(body + '[trot]\nperiod = 0.35\nduty = 0.65\nkp = 12\nkd = 0.25\nstance = { FL_KFE = -1.5 }\n')
+    path.write_text(body + "[trot]\nperiod = 0.35\nduty = 0.65\nkp = 12\nkd = 0.25\nstance = { FL_KFE = -1.5 }\n")
     spec = cd.load_scene(path).effort_specs[0]
     assert spec == TrotController(period=0.35, duty=0.65, kp=12, kd=0.25, stance={"FL_KFE": -1.5})
     path.write_text(body + "[trot]\nperiod = 0.4\nspeed = 1.0\n")
@@ -156,11 +159,17 @@ def test_toml_trot_table_round_trip_and_errors(tmp_path):
 
 
 def test_bad_controller_and_scene_inputs(solo):
-    for kwargs, message in [(dict(period=0.0), "period must be > 0"), (dict(kp=-1.0), "kp must be >= 0"),
-                            (dict(kd=float("nan")), "kd must be finite"), (dict(lag=0.7), "lag must be below"),
-                            (dict(approach_height=0.1), "approach_height"), (dict(transfer=0.3), "too long"),
-                            (dict(release_gain=2.0), "release_gain must be in"), (dict(samples=4), "samples"),
-                            (dict(feedforward="yes"), "feedforward")]:
+    for kwargs, message in [
+        (dict(period=0.0), "period must be > 0"),
+        (dict(kp=-1.0), "kp must be >= 0"),
+        (dict(kd=float("nan")), "kd must be finite"),
+        (dict(lag=0.7), "lag must be below"),
+        (dict(approach_height=0.1), "approach_height"),
+        (dict(transfer=0.3), "too long"),
+        (dict(release_gain=2.0), "release_gain must be in"),
+        (dict(samples=4), "samples"),
+        (dict(feedforward="yes"), "feedforward"),
+    ]:
         with pytest.raises(InvalidInputError, match=message):
             TrotController(**kwargs)
     with pytest.raises(UnknownNameError, match="quadruped 'spot'.*solo12"):

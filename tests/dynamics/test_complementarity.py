@@ -594,8 +594,10 @@ _b2 = np.array([-1.0, 1.0])
         ({"tol": float("nan")}, r"tol is nan"),
         ({"on_infeasible": "ignore"}, r"on_infeasible is 'ignore'"),
         ({"rows": (0, 1)}, r"rows must be a ContactRows"),
-        ({"rows": ContactRows.from_sizes([3]), "G": np.eye(3), "b": np.ones(3), "method": "nnls"},
-         r"method='nnls' needs frictionless rows"),
+        (
+            {"rows": ContactRows.from_sizes([3]), "G": np.eye(3), "b": np.ones(3), "method": "nnls"},
+            r"method='nnls' needs frictionless rows",
+        ),
     ],
 )
 def test_bad_inputs(kwargs, match):

@@ -47,7 +47,8 @@ def test_friction_coefficient_spec():
 
 def test_friction_coefficient_from_toml(tmp_path):
     (tmp_path / "ball.toml").write_text(
-        'robot = "ball"\n[[contact]]\nframe = "ball"\nfriction = 0.35\n[initial]\nq = { z = 1.0 }\n')
+        'robot = "ball"\n[[contact]]\nframe = "ball"\nfriction = 0.35\n[initial]\nq = { z = 1.0 }\n'
+    )
     scene = cd.load_scene(tmp_path / "ball.toml")
     assert scene.contacts[0].spec.mu == 0.35
     # the ball moves along z only: no tangential row, so no friction acts
@@ -131,17 +132,17 @@ def test_slip_mode_derivatives_match_fd(ball, i, seed):
     mode = (dyn.sliding_key(0),)
     sol, der = dyn.solve(q, v, 0.0, mode, derivatives=True)
     name = f"slip-{CASES[i][0]}"
-    assert_fd(f"{name} ddq/dq", der.ddq_dq, fd_dq(lambda x: dyn.solve(x, v, 0.0, mode).ddq, scene.model, q),
-              sol.ddq)
+    assert_fd(f"{name} ddq/dq", der.ddq_dq, fd_dq(lambda x: dyn.solve(x, v, 0.0, mode).ddq, scene.model, q), sol.ddq)
     assert_fd(f"{name} ddq/dv", der.ddq_dv, fd_dv(lambda x: dyn.solve(q, x, 0.0, mode).ddq, v), sol.ddq)
-    assert_fd(f"{name} lam/dq", der.forces_dq, fd_dq(lambda x: dyn.solve(x, v, 0.0, mode).forces, scene.model, q),
-              sol.forces)
+    assert_fd(
+        f"{name} lam/dq", der.forces_dq, fd_dq(lambda x: dyn.solve(x, v, 0.0, mode).forces, scene.model, q), sol.forces
+    )
     assert_fd(f"{name} lam/dv", der.forces_dv, fd_dv(lambda x: dyn.solve(q, x, 0.0, mode).forces, v), sol.forces)
     # a generalised force d moves ddq by ddq_dtau d (the efforts' response)
     d = np.random.default_rng(seed).standard_normal(scene.nv)
     tau = scene.tau(scene.kinematics, 0.0)
     step = 1e-6
-    fd = (dyn.solve(q, v, 0.0, mode, tau=tau + step * d).ddq - dyn.solve(q, v, 0.0, mode, tau=tau - step * d).ddq)
+    fd = dyn.solve(q, v, 0.0, mode, tau=tau + step * d).ddq - dyn.solve(q, v, 0.0, mode, tau=tau - step * d).ddq
     assert_fd(f"{name} ddq/dtau", der.ddq_dtau @ d, fd / (2 * step), sol.ddq)
 
 
@@ -260,8 +261,12 @@ def test_slip_direction_turns_smoothly_through_the_noise_floor():
             s, D = slip_direction(u, r, eps)
             assert s @ r > 0.0  # it keeps the reference's side
             assert abs(np.linalg.norm(s) - 1.0) < 1e-15
-            fd = np.column_stack([(slip_direction(u + h * e, r, eps)[0]
-                                   - slip_direction(u - h * e, r, eps)[0]) / (2 * h) for e in np.eye(2)])
+            fd = np.column_stack(
+                [
+                    (slip_direction(u + h * e, r, eps)[0] - slip_direction(u - h * e, r, eps)[0]) / (2 * h)
+                    for e in np.eye(2)
+                ]
+            )
             # truncation ~ (h / ε)² |D|, round-off ~ 1e-16 / h: both below 1e-6 |D|
             np.testing.assert_allclose(D, fd, rtol=0, atol=1e-6 * np.abs(D).max())
 

@@ -81,9 +81,17 @@ def test_box_lands_flat_sticking_or_sliding(u_slide):
 # 15 examples: each face landing that slides enumerates up to 81 state candidates with
 # slip-direction searches on a 4-torus (about a second each)
 @settings(max_examples=15, deadline=None)
-@given(yaw=st.floats(-3.0, 3.0), mu=st.floats(0.05, 1.0), e=st.sampled_from([0.0, 0.0, 0.3, 1.0]),
-       vx=st.floats(-3.0, 3.0), vy=st.floats(-3.0, 3.0), vz=st.floats(-3.0, -0.2),
-       wx=st.floats(-1.0, 1.0), wy=st.floats(-1.0, 1.0), wz=st.floats(-5.0, 5.0))
+@given(
+    yaw=st.floats(-3.0, 3.0),
+    mu=st.floats(0.05, 1.0),
+    e=st.sampled_from([0.0, 0.0, 0.3, 1.0]),
+    vx=st.floats(-3.0, 3.0),
+    vy=st.floats(-3.0, 3.0),
+    vz=st.floats(-3.0, -0.2),
+    wx=st.floats(-1.0, 1.0),
+    wy=st.floats(-1.0, 1.0),
+    wz=st.floats(-5.0, 5.0),
+)
 def test_face_impact_properties(yaw, mu, e, vx, vy, vz, wx, wy, wz):
     """Any face landing: normal impulses push (>= 0), tangential ones in their cones,
     kinetic energy not gained when e = 0, and the impulses on the candidate's
@@ -106,8 +114,14 @@ def test_face_impact_properties(yaw, mu, e, vx, vy, vz, wx, wy, wz):
 
 
 @settings(max_examples=30, deadline=None)
-@given(mu=st.floats(0.05, 0.5), e=st.sampled_from([0.0, 0.125, 0.5]), slip=st.floats(-1e-3, 1e-3),
-       twist_x=st.floats(-0.05, 0.05), approach=st.floats(1e-10, 1e-2), spin=st.floats(-0.05, 0.05))
+@given(
+    mu=st.floats(0.05, 0.5),
+    e=st.sampled_from([0.0, 0.125, 0.5]),
+    slip=st.floats(-1e-3, 1e-3),
+    twist_x=st.floats(-0.05, 0.05),
+    approach=st.floats(1e-10, 1e-2),
+    spin=st.floats(-0.05, 0.05),
+)
 def test_edge_landings_with_small_slips_always_resolve(mu, e, slip, twist_x, approach, spin):
     """Two corners of one edge (six rows of rank 5) landing with unequal approach speeds
     and a small slip: where the compatible split of the sticking impulses would leave one
@@ -130,21 +144,68 @@ def test_edge_landings_with_small_slips_always_resolve(mu, e, slip, twist_x, app
 # an impact of a simulated toss: Delassus matrix and pre-impact row velocities (normal,
 # two tangents per corner), one corner resting (-3e-10 m/s), the other landing at
 # 1.6 mm/s, both slipping at 0.5 mm/s.
-TOSS_EDGE_G = np.array([
-    [9.482357023690358, -3.7871698741600905, 2.939251724554659, -4.076951618284953, -3.7871698741600914,
-     2.9392517245546586],
-    [-3.7871698741600905, 8.64109658688724, 3.283779690462117, 3.787169874160091, 3.5439631395058218,
-     -3.2837796904621146],
-    [2.939251724554659, 3.283779690462117, 10.323617460493479, -2.9392517245546586, -3.2837796904621177,
-     1.8614422658995842],
-    [-4.076951618284953, 3.787169874160091, -2.9392517245546586, 9.48235702369036, 3.7871698741600923,
-     -2.939251724554658],
-    [-3.7871698741600914, 3.5439631395058218, -3.2837796904621177, 3.7871698741600923, 8.641096586887242,
-     3.2837796904621173],
-    [2.9392517245546586, -3.2837796904621146, 1.8614422658995842, -2.939251724554658, 3.2837796904621173,
-     10.323617460493477]])
-TOSS_EDGE_U = np.array([-3.0357459173411053e-10, -0.0003824994508052044, 0.00029686076704244543,
-                        -0.0015824350380069575, -0.0003537351918833055, 0.0003339229668981115])
+TOSS_EDGE_G = np.array(
+    [
+        [
+            9.482357023690358,
+            -3.7871698741600905,
+            2.939251724554659,
+            -4.076951618284953,
+            -3.7871698741600914,
+            2.9392517245546586,
+        ],
+        [
+            -3.7871698741600905,
+            8.64109658688724,
+            3.283779690462117,
+            3.787169874160091,
+            3.5439631395058218,
+            -3.2837796904621146,
+        ],
+        [
+            2.939251724554659,
+            3.283779690462117,
+            10.323617460493479,
+            -2.9392517245546586,
+            -3.2837796904621177,
+            1.8614422658995842,
+        ],
+        [
+            -4.076951618284953,
+            3.787169874160091,
+            -2.9392517245546586,
+            9.48235702369036,
+            3.7871698741600923,
+            -2.939251724554658,
+        ],
+        [
+            -3.7871698741600914,
+            3.5439631395058218,
+            -3.2837796904621177,
+            3.7871698741600923,
+            8.641096586887242,
+            3.2837796904621173,
+        ],
+        [
+            2.9392517245546586,
+            -3.2837796904621146,
+            1.8614422658995842,
+            -2.939251724554658,
+            3.2837796904621173,
+            10.323617460493477,
+        ],
+    ]
+)
+TOSS_EDGE_U = np.array(
+    [
+        -3.0357459173411053e-10,
+        -0.0003824994508052044,
+        0.00029686076704244543,
+        -0.0015824350380069575,
+        -0.0003537351918833055,
+        0.0003339229668981115,
+    ]
+)
 
 
 def test_an_edge_stopped_with_one_corner_on_its_cone_resolves():

@@ -53,24 +53,40 @@ def _ball():
     """A free sphere (R = 0.1 m, 2 kg) touching the board, landing with spin: its slip's
     direction is one of the impact's unknowns (3-D)."""
     ball = SceneObject("ball", shape="sphere", radius=0.1, mass=2.0, position=(0.0, 0.0, 0.1))
-    scene = cd.Scene(add_objects(empty_robot(), [ball]),
-                     [cd.Contact("ball", friction=0.15, restitution=0.4)], gravity=(0.0, 0.0, -9.81))
+    scene = cd.Scene(
+        add_objects(empty_robot(), [ball]),
+        [cd.Contact("ball", friction=0.15, restitution=0.4)],
+        gravity=(0.0, 0.0, -9.81),
+    )
     q = np.r_[0.0, 0.0, 0.1, 0.0, 0.0, 0.0, 1.0]
     return scene, q, np.r_[1.5, -0.5, -2.0, -20.0, 30.0, -3.0]
 
 
 CASES = {
     # name: (scene, q, v-, the parameters, the expected states)
-    "cube-corner-slides": lambda: (cd.cube_scene(), *_cube_state((0.5, 0.4, 0.0), (0.9, 0.3, -0.5), (1.0, -2.0, 0.5)),
-                                   ["group:cube:friction", "group:cube:restitution", "body:cube:mass"], "slide"),
-    "cube-corner-sticks": lambda: (cd.cube_scene(friction=0.9),
-                                   *_cube_state((0.5, 0.4, 0.0), (0.05, 0.02, -0.8), (0.0, 0.0, 0.0)),
-                                   ["group:cube:friction", "group:cube:restitution", "body:cube:mass"], "stick"),
-    "cube-face-spins": lambda: (cd.cube_scene(restitution=0.0),
-                                *_cube_state((0.0, 0.0, 0.3), (0.7, -0.2, -0.9), (0.0, 0.0, 6.0)),
-                                ["group:cube:friction", "contact:cube/+x+y-z:friction", "body:cube:mass"], "slide"),
-    "sphere-spins": lambda: (*_ball(), ["contact:ball:friction", "contact:ball:restitution", "body:ball:mass"],
-                             "slide"),
+    "cube-corner-slides": lambda: (
+        cd.cube_scene(),
+        *_cube_state((0.5, 0.4, 0.0), (0.9, 0.3, -0.5), (1.0, -2.0, 0.5)),
+        ["group:cube:friction", "group:cube:restitution", "body:cube:mass"],
+        "slide",
+    ),
+    "cube-corner-sticks": lambda: (
+        cd.cube_scene(friction=0.9),
+        *_cube_state((0.5, 0.4, 0.0), (0.05, 0.02, -0.8), (0.0, 0.0, 0.0)),
+        ["group:cube:friction", "group:cube:restitution", "body:cube:mass"],
+        "stick",
+    ),
+    "cube-face-spins": lambda: (
+        cd.cube_scene(restitution=0.0),
+        *_cube_state((0.0, 0.0, 0.3), (0.7, -0.2, -0.9), (0.0, 0.0, 6.0)),
+        ["group:cube:friction", "contact:cube/+x+y-z:friction", "body:cube:mass"],
+        "slide",
+    ),
+    "sphere-spins": lambda: (
+        *_ball(),
+        ["contact:ball:friction", "contact:ball:restitution", "body:ball:mass"],
+        "slide",
+    ),
 }
 
 
@@ -129,8 +145,9 @@ def test_spinning_face_reset_jacobian_keeps_the_range_principle():
     for column, dq, dv in directions:
         sides = []
         for sign in (1.0, -1.0):
-            other = resolve_impact(ModeDynamics(scene), pin.integrate(scene.model, q, sign * h * dq), v + sign * h * dv,
-                                   closed)
+            other = resolve_impact(
+                ModeDynamics(scene), pin.integrate(scene.model, q, sign * h * dq), v + sign * h * dv, closed
+            )
             assert other.states == impact.states
             sides.append(other.v_plus)
         fd = (sides[0] - sides[1]) / (2 * h)

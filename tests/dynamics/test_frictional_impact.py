@@ -34,8 +34,7 @@ from contactdiff.errors import InvalidInputError, SolverError
 OPEN, STICK, SLIDE = ContactState.OPEN, ContactState.STICK, ContactState.SLIDE
 # derandomized: the solver's search for spatial slip directions is not proved
 # complete (module doc), so a random draw could fail a run at random.
-PROPS = settings(max_examples=40, deadline=None, derandomize=True,
-                 suppress_health_check=[HealthCheck.too_slow])
+PROPS = settings(max_examples=40, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
 seeds = st.integers(0, 2**32 - 1)
 
 
@@ -194,8 +193,7 @@ def test_rod_threshold_and_slide_closed_form(e):
         if lo <= u_t <= hi:
             D = a * c - g * g
             assert out.states == (STICK,)
-            np.testing.assert_allclose(out.impulses, [-(c * p - g * u_t) / D, -(a * u_t - g * p) / D],
-                                       rtol=1e-12)
+            np.testing.assert_allclose(out.impulses, [-(c * p - g * u_t) / D, -(a * u_t - g * p) / D], rtol=1e-12)
             np.testing.assert_allclose(out.u_plus, [-e * u_n, 0.0], atol=1e-13)
         else:
             sigma = 1.0 if u_t > hi else -1.0
@@ -433,8 +431,9 @@ def test_two_sliders_small_slip_matches_brute_force():
     ref = [np.array([np.cos(t), np.sin(t)]) for t in roots[0]]
     for k in range(2):
         np.testing.assert_allclose(out.slide_directions[k], ref[k], atol=1e-9)
-    np.testing.assert_allclose(np.arctan2(out.slide_directions[1][1], out.slide_directions[1][0]),
-                               -1.3382, atol=1e-4)  # the value found by a fine grid and Nelder-Mead
+    np.testing.assert_allclose(
+        np.arctan2(out.slide_directions[1][1], out.slide_directions[1][0]), -1.3382, atol=1e-4
+    )  # the value found by a fine grid and Nelder-Mead
 
 
 def test_one_slider_root_beside_a_pole_matches_brute_force():
@@ -499,8 +498,13 @@ def test_one_slider_root_beside_a_pole_matches_brute_force():
     ],
 )
 def test_bad_input_names_the_value(kwargs, match):
-    args = dict(G=np.eye(5), u_minus=[-1.0, 0.1, 0.2, -1.0, 0.3], rows=ContactRows.from_sizes([3, 2]),
-                restitution=0.5, friction=0.5)
+    args = dict(
+        G=np.eye(5),
+        u_minus=[-1.0, 0.1, 0.2, -1.0, 0.3],
+        rows=ContactRows.from_sizes([3, 2]),
+        restitution=0.5,
+        friction=0.5,
+    )
     args.update(kwargs)
     with pytest.raises(InvalidInputError, match=match):
         solve_frictional_impact(args.pop("G"), args.pop("u_minus"), args.pop("rows"), **args)

@@ -64,8 +64,12 @@ def test_impact_lifting_a_foot_slowly_keeps_it_closed_under_the_cascade_rule():
     model, data = scene.model, scene.model.createData()
     pin.computeJointJacobians(model, data, front.q)
     pin.updateFramePlacements(model, data)
-    A = np.array([pin.getFrameJacobian(model, data, model.getFrameId(f), pin.LOCAL_WORLD_ALIGNED)[2]
-                  for f in ("rear_foot", "front_foot")])
+    A = np.array(
+        [
+            pin.getFrameJacobian(model, data, model.getFrameId(f), pin.LOCAL_WORLD_ALIGNED)[2]
+            for f in ("rear_foot", "front_foot")
+        ]
+    )
     lift = float(A[0] @ front.v_plus)  # rear foot's separating speed (m/s)
     assert lift > 1e-3
 
@@ -96,12 +100,22 @@ def _relaxed_bouncing_leg(tmp_path):
     path = tmp_path / "leg.urdf"
     path.write_text(LEG_URDF)
     robot = cd.load_robot(path)
-    torque = cd.UserEffort(lambda q, v, t: np.array([0.0, 0.0, HIP_TORQUE]),
-                           lambda q, v, t: (np.zeros((3, 3)), np.zeros((3, 3))), name="hip torque",
-                           time_derivative=lambda q, v, t: np.zeros(3))
+    torque = cd.UserEffort(
+        lambda q, v, t: np.array([0.0, 0.0, HIP_TORQUE]),
+        lambda q, v, t: (np.zeros((3, 3)), np.zeros((3, 3))),
+        name="hip torque",
+        time_derivative=lambda q, v, t: np.zeros(3),
+    )
     q0 = np.array([0.0, 0.5 * np.cos(LEG_TILT) + 1e-4, LEG_TILT])
-    return cd.Scene(robot, [cd.Contact("foot", friction="stick")], [torque], gravity=[0, 0, -9.81],
-                    q0=q0, v0=np.array([0.1, 0.0, 0.0]), name="relaxed bouncing leg")
+    return cd.Scene(
+        robot,
+        [cd.Contact("foot", friction="stick")],
+        [torque],
+        gravity=[0, 0, -9.81],
+        q0=q0,
+        v0=np.array([0.1, 0.0, 0.0]),
+        name="relaxed bouncing leg",
+    )
 
 
 def _foot_rows(model, data, q, v, fid):
@@ -171,7 +185,6 @@ def test_a_foot_lifted_by_its_own_impact_ends_its_bounces_under_the_zeno_rule(tm
     assert traj.modes[-1] == ("foot",) and traj.t == 0.05
 
 
-
 def test_flow_jacobian_through_a_held_cascade_matches_finite_differences():
     """The reset of an impact that keeps a slowly lifted contact closed is the impact
     followed by holding that contact (an M-orthogonal velocity projection), so its
@@ -197,10 +210,14 @@ def test_flow_jacobian_through_a_held_cascade_matches_finite_differences():
     for k in range(2 * nv):
         e = np.zeros(2 * nv)
         e[k] = eps
-        ends = [cd.simulate(scene, T, q0=scene.robot.integrate(scene.q0, s * e[:nv]), v0=scene.v0 + s * e[nv:],
-                            **options) for s in (1, -1)]
-        assert all(next(x for x in run.events if "front_foot" in x.contacts).mode_after == held.mode_after
-                   for run in ends)  # the same branch
-        columns.append(np.concatenate([scene.robot.difference(ends[1].q, ends[0].q), ends[0].v - ends[1].v])
-                       / (2 * eps))
+        ends = [
+            cd.simulate(scene, T, q0=scene.robot.integrate(scene.q0, s * e[:nv]), v0=scene.v0 + s * e[nv:], **options)
+            for s in (1, -1)
+        ]
+        assert all(
+            next(x for x in run.events if "front_foot" in x.contacts).mode_after == held.mode_after for run in ends
+        )  # the same branch
+        columns.append(
+            np.concatenate([scene.robot.difference(ends[1].q, ends[0].q), ends[0].v - ends[1].v]) / (2 * eps)
+        )
     assert_fd("flow Jacobian through a held cascade", traj.jacobian, np.array(columns).T)

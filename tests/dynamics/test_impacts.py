@@ -137,8 +137,9 @@ def _check_law(scene, vm, rows, M, res, e, sticking):
     v_scale = max(1.0, np.max(np.abs(A @ vm)))
     x_scale = max(1.0, np.max(np.abs(res.row_impulses)))
     # momentum balance: v+ = v- + M^-1 A^T x (rows stacked per contact, normal first)
-    np.testing.assert_allclose(M @ (vp - vm), A.T @ res.row_impulses, rtol=0,
-                               atol=REL * x_scale * max(1, np.abs(A).max()))
+    np.testing.assert_allclose(
+        M @ (vp - vm), A.T @ res.row_impulses, rtol=0, atol=REL * x_scale * max(1, np.abs(A).max())
+    )
     np.testing.assert_allclose(res.impulses, res.row_impulses[np.cumsum([0] + [len(r) for r in rows])[:-1]], atol=0)
     # impulses never pull
     assert np.all(res.impulses >= -REL * x_scale), res.impulses
@@ -161,8 +162,7 @@ def _check_law(scene, vm, rows, M, res, e, sticking):
 # impact law properties
 # ----------------------------------------------------------------------------------
 @SETTINGS
-@given(key=st.sampled_from(FRICTIONLESS), seed=st.integers(0, 2 ** 32 - 1),
-       e=st.floats(0.0, 1.0), data=st.data())
+@given(key=st.sampled_from(FRICTIONLESS), seed=st.integers(0, 2**32 - 1), e=st.floats(0.0, 1.0), data=st.data())
 def test_frictionless_uniform_restitution(key, seed, e, data):
     """Uniform e, frictionless: impulses >= 0, complementarity, energy never
     increases (docs/design.md §2; the loss is ½ (1 - e) Σ x_k (-A_k v-) >= 0)."""
@@ -181,7 +181,7 @@ def test_frictionless_uniform_restitution(key, seed, e, data):
 
 
 @SETTINGS
-@given(key=st.sampled_from(FRICTIONLESS), seed=st.integers(0, 2 ** 32 - 1), data=st.data())
+@given(key=st.sampled_from(FRICTIONLESS), seed=st.integers(0, 2**32 - 1), data=st.data())
 def test_plastic_zeroes_normal_velocity(key, seed, data):
     """e = 0: contacts that take an impulse leave with zero normal velocity, the
     others with a non-negative one; energy never increases."""
@@ -200,8 +200,7 @@ def test_plastic_zeroes_normal_velocity(key, seed, data):
 
 
 @SETTINGS
-@given(key=st.sampled_from(FRICTIONLESS), seed=st.integers(0, 2 ** 32 - 1), e=st.floats(0.0, 1.0),
-       data=st.data())
+@given(key=st.sampled_from(FRICTIONLESS), seed=st.integers(0, 2**32 - 1), e=st.floats(0.0, 1.0), data=st.data())
 def test_single_contact_projector_formula(key, seed, e, data):
     """One contact: v+ = (I - (1 + e) P) v-, P = M^-1 a^T (a M^-1 a^T)^-1 a."""
     contact = data.draw(st.integers(0, len(_scene(key).contacts) - 1))
@@ -210,13 +209,14 @@ def test_single_contact_projector_formula(key, seed, e, data):
     a = rows[0]
     Minv_aT = np.linalg.solve(M, a.T)
     P = Minv_aT @ np.linalg.solve(a @ Minv_aT, a)
-    np.testing.assert_allclose(res.v_plus, (np.eye(scene.nv) - (1 + e) * P) @ vm, rtol=0,
-                               atol=REL * max(1.0, np.abs(vm).max()))
+    np.testing.assert_allclose(
+        res.v_plus, (np.eye(scene.nv) - (1 + e) * P) @ vm, rtol=0, atol=REL * max(1.0, np.abs(vm).max())
+    )
     assert res.normal_speeds_after[0] == pytest.approx(-e * res.normal_speeds_before[0], abs=REL)
 
 
 @SETTINGS
-@given(seed=st.integers(0, 2 ** 32 - 1), e=st.floats(0.0, 1.0))
+@given(seed=st.integers(0, 2**32 - 1), e=st.floats(0.0, 1.0))
 def test_decoupled_projector_formula(seed, e):
     """planar_trot_soft, both feet closed: rows on different feet, diagonal M
     (decoupled), so the paper's v+ = (I - (1 + e) P_J) v- holds for the pair."""
@@ -228,13 +228,13 @@ def test_decoupled_projector_formula(seed, e):
     assert abs(G[0, 1]) <= 1e-15  # decoupled
     P = Minv_AT @ np.linalg.solve(G, A)
     res = resolve_impact(_dyn(key), q, vm, (0, 1), [e, e])
-    np.testing.assert_allclose(res.v_plus, (np.eye(scene.nv) - (1 + e) * P) @ vm, rtol=0,
-                               atol=REL * max(1.0, np.abs(vm).max()))
+    np.testing.assert_allclose(
+        res.v_plus, (np.eye(scene.nv) - (1 + e) * P) @ vm, rtol=0, atol=REL * max(1.0, np.abs(vm).max())
+    )
 
 
 @SETTINGS
-@given(key=st.sampled_from(FRICTIONLESS), seed=st.integers(0, 2 ** 32 - 1), e=st.floats(0.0, 1.0),
-       data=st.data())
+@given(key=st.sampled_from(FRICTIONLESS), seed=st.integers(0, 2**32 - 1), e=st.floats(0.0, 1.0), data=st.data())
 def test_projector_formula_when_all_push(key, seed, e, data):
     """Whenever every closed contact takes an impulse (coupled or not), all rows
     satisfy A v+ = -e A v-, i.e. v+ = (I - (1 + e) P_J) v- for the whole set."""
@@ -246,12 +246,13 @@ def test_projector_formula_when_all_push(key, seed, e, data):
     A = np.vstack(rows)
     Minv_AT = np.linalg.solve(M, A.T)
     P = Minv_AT @ np.linalg.solve(A @ Minv_AT, A)
-    np.testing.assert_allclose(res.v_plus, (np.eye(scene.nv) - (1 + e) * P) @ vm, rtol=0,
-                               atol=REL * max(1.0, np.abs(vm).max()))
+    np.testing.assert_allclose(
+        res.v_plus, (np.eye(scene.nv) - (1 + e) * P) @ vm, rtol=0, atol=REL * max(1.0, np.abs(vm).max())
+    )
 
 
 @SETTINGS
-@given(key=st.sampled_from(FRICTIONLESS), seed=st.integers(0, 2 ** 32 - 1), data=st.data())
+@given(key=st.sampled_from(FRICTIONLESS), seed=st.integers(0, 2**32 - 1), data=st.data())
 def test_elastic_single_contact_keeps_energy(key, seed, data):
     """e = 1, one contact: P is M-orthogonal, so ½ v+^T M v+ = ½ v-^T M v-."""
     contact = data.draw(st.integers(0, len(_scene(key).contacts) - 1))
@@ -262,7 +263,7 @@ def test_elastic_single_contact_keeps_energy(key, seed, data):
 
 
 @SETTINGS
-@given(seed=st.integers(0, 2 ** 32 - 1))
+@given(seed=st.integers(0, 2**32 - 1))
 def test_elastic_decoupled_pair_keeps_energy(seed):
     """e = 1 on both decoupled feet of planar_trot_soft: energy kept too."""
     key = "planar_trot_soft"
@@ -272,7 +273,7 @@ def test_elastic_decoupled_pair_keeps_energy(seed):
 
 
 @SETTINGS
-@given(seed=st.integers(0, 2 ** 32 - 1), subset=_subsets(4))
+@given(seed=st.integers(0, 2**32 - 1), subset=_subsets(4))
 def test_sticking_plastic(seed, subset):
     """solo12, sticking feet, e = 0: impulses >= 0, complementarity, stuck feet stop
     in all three directions, energy never increases (change -½ x^T G x)."""
@@ -305,8 +306,10 @@ def _rigid_with_pitch_torque(tau):
     return cd.Scene(base.robot, base.contact_specs, [effort], gravity=[0, 0, -1], q0=[0.0, 1 / 6, 0.0])
 
 
-@pytest.mark.parametrize("tau, expected", [(0.0, (0, 1)), (0.7, (0, 1)), (0.8, (0,)), (2.0, (0,)),
-                                           (-0.7, (0, 1)), (-0.8, (1,)), (-2.0, (1,))])
+@pytest.mark.parametrize(
+    "tau, expected",
+    [(0.0, (0, 1)), (0.7, (0, 1)), (0.8, (0,)), (2.0, (0,)), (-0.7, (0, 1)), (-0.8, (1,)), (-2.0, (1,))],
+)
 def test_choose_mode_rigid_trot(tau, expected):
     """Rigid trot standing on both feet at rest with a pitch torque tau (positive
     lifts the front). Both active with zero acceleration needs
@@ -336,9 +339,11 @@ def test_choose_mode_soft_trot_foot_pulled_up(pull, expected):
         tau = np.zeros(base.nv)
         tau[iv] = pull
         return tau
+
     q0 = {"body_z": 0.5, "rear_foot_x": -0.25, "rear_foot_z": 0.0, "front_foot_x": 0.25, "front_foot_z": 0.0}
-    scene = cd.Scene(base.robot, base.contact_specs, list(base.effort_specs) + [cd.UserEffort(pull_up)],
-                     gravity=[0, 0, -1], q0=q0)
+    scene = cd.Scene(
+        base.robot, base.contact_specs, list(base.effort_specs) + [cd.UserEffort(pull_up)], gravity=[0, 0, -1], q0=q0
+    )
     dyn = cd.ModeDynamics(scene)
     assert choose_mode(dyn, scene.q0, scene.v0, 0.0, [0, 1]) == expected
     forces = dyn.solve(scene.q0, scene.v0, 0.0, (0, 1)).normal_forces()
@@ -349,6 +354,7 @@ def test_choose_mode_with_the_integrator():
     """The same release through simulate: a rigid trot standing on both feet with
     tau = 2 starts on the rear foot only and pivots front-up (pitch rate > 0)."""
     from contactdiff.integration.hybrid import simulate
+
     traj = simulate(_rigid_with_pitch_torque(2.0), 0.1, rtol=1e-12, atol=1e-14)
     assert traj.modes[0] == ("rear_foot",)
     assert traj.v[2] > 0

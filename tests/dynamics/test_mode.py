@@ -75,7 +75,7 @@ def test_rigid_trot_one_foot_rotating(theta, omega, rear):
     rx, rz = foot_offset(theta, FEET_X[foot])
     q = set_joints(robot, body_z=1.0, body_pitch=theta)
     v = velocity(robot, body_x=0.4, body_z=-rx * omega, body_pitch=omega)
-    lam = (g + omega ** 2 * rz) / (1 / M_RIGID + rx ** 2 / I_RIGID)
+    lam = (g + omega**2 * rz) / (1 / M_RIGID + rx**2 / I_RIGID)
     sol = ModeDynamics(scene).solve(q, v, 0.0, [scene.contact_index(foot)])
     assert sol.forces[0] == pytest.approx(lam, rel=1e-10, abs=1e-12)
     assert sol.ddq[iv(robot, "body_x")] == pytest.approx(0.0, abs=1e-12)
@@ -97,7 +97,7 @@ def test_rigid_trot_one_foot_frictionless(foot, theta):
     scene = rigid_scene()
     robot, g = scene.robot, 1.0
     rx, _ = foot_offset(theta, FEET_X[foot])
-    lam = g / (1 / M_RIGID + rx ** 2 / I_RIGID)
+    lam = g / (1 / M_RIGID + rx**2 / I_RIGID)
     q = set_joints(robot, body_x=0.2, body_z=1.0, body_pitch=theta)
     sol = ModeDynamics(scene).solve(q, np.zeros(3), 0.0, [scene.contact_index(foot)])
     assert sol.forces == pytest.approx([lam], rel=1e-12)
@@ -120,7 +120,7 @@ def test_rigid_trot_one_foot_sticking(foot, theta):
     scene = rigid_scene(("stick", "stick"))
     robot, g, m = scene.robot, 1.0, M_RIGID
     rx, rz = foot_offset(theta, FEET_X[foot])
-    th_dd = m * g * rx / (I_RIGID + m * (rx ** 2 + rz ** 2))
+    th_dd = m * g * rx / (I_RIGID + m * (rx**2 + rz**2))
     q = set_joints(robot, body_z=1.0, body_pitch=theta)
     contact = scene.contact_index(foot)
     assert scene.contacts[contact].n_rows == 2
@@ -195,8 +195,16 @@ def test_soft_trot_standing_vertical_legs():
     acceleration is -1 + 2 k (L - h); moments cancel (θ̈ = 0); no horizontal forces."""
     scene = load_source("planar_trot_soft")
     robot, h, k = scene.robot, 0.4, 27.0
-    q = set_joints(robot, body_x=0.0, body_z=h, body_pitch=0.0, rear_foot_x=-0.25, rear_foot_z=0.0,
-                   front_foot_x=0.25, front_foot_z=0.0)
+    q = set_joints(
+        robot,
+        body_x=0.0,
+        body_z=h,
+        body_pitch=0.0,
+        rear_foot_x=-0.25,
+        rear_foot_z=0.0,
+        front_foot_x=0.25,
+        front_foot_z=0.0,
+    )
     assert np.allclose(scene.gaps(q), 0.0)
     sol = ModeDynamics(scene).solve(q, np.zeros(7), 0.0, [0, 1])
     assert sol.forces == pytest.approx([k * (0.5 - h) + 1.0] * 2, rel=1e-13)
@@ -215,9 +223,16 @@ def test_soft_trot_standing_tilted(theta):
     robot, k, L = scene.robot, 27.0, 0.5
     body = np.array([0.05, 0.42])
     feet = {"rear": np.array([-0.35, 0.0]), "front": np.array([0.3, 0.0])}
-    q = set_joints(robot, body_x=body[0], body_z=body[1], body_pitch=theta,
-                   rear_foot_x=feet["rear"][0], rear_foot_z=0.0,
-                   front_foot_x=feet["front"][0], front_foot_z=0.0)
+    q = set_joints(
+        robot,
+        body_x=body[0],
+        body_z=body[1],
+        body_pitch=theta,
+        rear_foot_x=feet["rear"][0],
+        rear_foot_z=0.0,
+        front_foot_x=feet["front"][0],
+        front_foot_z=0.0,
+    )
     sol = ModeDynamics(scene).solve(q, np.zeros(7), 0.0, [0, 1])
     expected = np.zeros(7)
     expected[iv(robot, "body_z")] = -1.0
@@ -242,10 +257,18 @@ def test_soft_trot_free_fall_from_touchdown_state(theta0):
     every mass falls with g = 1 and nothing turns."""
     scene = load_source("planar_trot_soft")
     robot = scene.robot
-    feet = {bx: np.array([0.0, 1.0]) + foot_offset(theta0, bx, 0.0) + foot_offset(theta0, 0.0, -0.5)
-            for bx in (-0.25, 0.25)}
-    q = set_joints(robot, body_z=1.0, body_pitch=theta0, rear_foot_x=feet[-0.25][0], rear_foot_z=feet[-0.25][1],
-                   front_foot_x=feet[0.25][0], front_foot_z=feet[0.25][1])
+    feet = {
+        bx: np.array([0.0, 1.0]) + foot_offset(theta0, bx, 0.0) + foot_offset(theta0, 0.0, -0.5) for bx in (-0.25, 0.25)
+    }
+    q = set_joints(
+        robot,
+        body_z=1.0,
+        body_pitch=theta0,
+        rear_foot_x=feet[-0.25][0],
+        rear_foot_z=feet[-0.25][1],
+        front_foot_x=feet[0.25][0],
+        front_foot_z=feet[0.25][1],
+    )
     sol = ModeDynamics(scene).solve(q, np.zeros(7), 0.0)
     expected = velocity(robot, body_z=-1.0, rear_foot_z=-1.0, front_foot_z=-1.0)
     assert np.allclose(sol.ddq, expected, atol=1e-13)
@@ -254,9 +277,12 @@ def test_soft_trot_free_fall_from_touchdown_state(theta0):
 # -- constraint rows are held: finite differences of positions along the flow ------------------
 def _soft_sticking():
     robot = load_robot("planar_trot_soft")
-    return Scene(robot, [Contact("rear_foot", friction="stick"), Contact("front_foot", friction="stick")],
-                 [Spring("rear_hip", "rear_foot", 27.0, 0.4, 0.5), Spring("front_hip", "front_foot", 27.0, 0.4, 0.5)],
-                 gravity=[0, 0, -1])
+    return Scene(
+        robot,
+        [Contact("rear_foot", friction="stick"), Contact("front_foot", friction="stick")],
+        [Spring("rear_hip", "rear_foot", 27.0, 0.4, 0.5), Spring("front_hip", "front_foot", 27.0, 0.4, 0.5)],
+        gravity=[0, 0, -1],
+    )
 
 
 def _solo(friction="stick"):
@@ -301,6 +327,7 @@ def test_active_rows_have_zero_acceleration(case, seed):
     for i, contact in enumerate(scene.contacts):
         rows, drift = contact.rows(kin).copy(), contact.drift(kin).copy()
         for r, d in enumerate(contact.directions):
+
             def position(qq, d=d):
                 k2 = Kinematics(robot.model)
                 k2.update(qq, np.zeros(robot.nv))
@@ -308,6 +335,7 @@ def test_active_rows_have_zero_acceleration(case, seed):
                 if contact.against_fid is not None:
                     p = p - k2.position(contact.against_fid)
                 return float(d @ p)
+
             acc = second_derivative_along(position, robot.model, q, v, sol.ddq)
             if i in active:
                 assert abs(acc) < 1e-6 * scale, (case, contact.name, r, acc)
@@ -345,7 +373,7 @@ def _damping_power(scene, q, v):
             fa, fb = scene.robot.frame_id(spec.frame_a), scene.robot.frame_id(spec.frame_b)
             d = kin.position(fb) - kin.position(fa)
             rate = d @ (kin.velocity(fb) - kin.velocity(fa)) / np.linalg.norm(d)
-            power -= spec.damping * rate ** 2
+            power -= spec.damping * rate**2
         elif isinstance(spec, JointSpring):
             power -= spec.damping * v[scene.robot.scalar_joint(spec.joint)[1]] ** 2
     return power
@@ -353,9 +381,16 @@ def _damping_power(scene, q, v):
 
 def _soft_damped_mixed():
     robot = load_robot("planar_trot_soft")
-    return Scene(robot, [Contact("rear_foot"), Contact("front_foot", friction="stick")],
-                 [Spring("rear_hip", "rear_foot", 27.0, 0.6, 0.5), Spring("front_hip", "front_foot", 20.0, 0.9, 0.45),
-                  JointSpring("body_pitch", 2.0, 0.3, 0.1)], gravity=[0, 0, -1])
+    return Scene(
+        robot,
+        [Contact("rear_foot"), Contact("front_foot", friction="stick")],
+        [
+            Spring("rear_hip", "rear_foot", 27.0, 0.6, 0.5),
+            Spring("front_hip", "front_foot", 20.0, 0.9, 0.45),
+            JointSpring("body_pitch", 2.0, 0.3, 0.1),
+        ],
+        gravity=[0, 0, -1],
+    )
 
 
 ENERGY_CASES = {
@@ -388,13 +423,15 @@ def test_power_balance(case, on_manifold):
     A = np.vstack([scene.contacts[i].rows(kin) for i in active]) if active else np.zeros((0, robot.nv))
     if on_manifold and active:
         _, s, vt = np.linalg.svd(A)
-        null = vt[np.sum(s > 1e-10):]
+        null = vt[np.sum(s > 1e-10) :]
         v = null.T @ (null @ v)
         assert np.allclose(A @ v, 0, atol=1e-12)
     sol = ModeDynamics(scene).solve(q, v, 0.0, active)
     h = 1e-6
-    rate = (_energy(scene, pin.integrate(robot.model, q, h * v), v + h * sol.ddq)
-            - _energy(scene, pin.integrate(robot.model, q, -h * v), v - h * sol.ddq)) / (2 * h)
+    rate = (
+        _energy(scene, pin.integrate(robot.model, q, h * v), v + h * sol.ddq)
+        - _energy(scene, pin.integrate(robot.model, q, -h * v), v - h * sol.ddq)
+    ) / (2 * h)
     expected = sol.forces @ (A @ v) + _damping_power(scene, q, v)
     data = robot.model.createData()
     scale = max(1.0, abs(v @ pin.crba(robot.model, data, q) @ sol.ddq), abs(_energy(scene, q, v)))
@@ -456,8 +493,7 @@ def test_solo12_locked_joints_stands_still(friction):
     robot = Robot(model, "solo12_locked", floating_base=True, q_ref=full.q_ref[:7].copy())
     kin = Kinematics(model)
     kin.update(robot.q_ref, np.zeros(6))
-    contacts = [Contact(f, offset=float(kin.position(model.getFrameId(f))[2]), friction=friction)
-                for f in full.feet]
+    contacts = [Contact(f, offset=float(kin.position(model.getFrameId(f))[2]), friction=friction) for f in full.feet]
     scene = Scene(robot, contacts)
     sol = ModeDynamics(scene).solve(robot.q_ref, np.zeros(6), 0.0, range(4))
     m = pin.computeTotalMass(model)
@@ -484,8 +520,9 @@ def test_rigid_contact_path_matches_python_kkt(monkeypatch, mode, normal):
 
     robot = load_robot("solo12")
     contacts = [Contact(f, normal=normal, offset=-1.0, friction="stick") for f in robot.feet]  # never penetrating
-    scene = Scene(robot, contacts,
-                  [JointSpring("FL_KFE", 2.0, 0.1, -1.0), Spring("FL_FOOT", "HR_FOOT", 30.0, 1.5, 0.2)])
+    scene = Scene(
+        robot, contacts, [JointSpring("FL_KFE", 2.0, 0.1, -1.0), Spring("FL_FOOT", "HR_FOOT", 30.0, 1.5, 0.2)]
+    )
     q, v = _state(robot, 7)
     fast, fast_der = ModeDynamics(scene).solve(q, v, 0.0, mode, derivatives=True)
     monkeypatch.setattr(dynamics_module, "rigid_eligible", lambda contacts: False)
@@ -516,8 +553,9 @@ def test_accelerator_equals_solve(mode):
         ref = dyn.solve(q, v, 0.2, mode)
         np.testing.assert_allclose(ddq, ref.ddq, rtol=0, atol=1e-12 * max(1.0, np.abs(ref.ddq).max()))
         forces = ref.normal_forces()
-        np.testing.assert_allclose(accel.normal_forces(), forces, rtol=0,
-                                   atol=1e-12 * max(1.0, np.abs(forces).max(initial=0.0)))
+        np.testing.assert_allclose(
+            accel.normal_forces(), forces, rtol=0, atol=1e-12 * max(1.0, np.abs(forces).max(initial=0.0))
+        )
     assert (accel.rigid is not None) == (len(mode) > 0 and all(k < 4 for k in mode))
 
 
@@ -526,8 +564,10 @@ def test_accelerator_falls_back_on_redundant_contacts():
     one frame may not hold two contacts of one surface) make Pinocchio's factorisation
     fail; the accelerator then gives `solve`'s least-squares answer (the same forces split)."""
     robot = add_objects(load_robot("solo12"), frames=[RobotFrame("FL_TWIN", "FL_FOOT")])
-    contacts = [Contact("FL_FOOT", offset=-1.0, friction="stick"),
-                Contact("FL_TWIN", offset=-1.0, friction="stick", name="twin")]
+    contacts = [
+        Contact("FL_FOOT", offset=-1.0, friction="stick"),
+        Contact("FL_TWIN", offset=-1.0, friction="stick", name="twin"),
+    ]
     dyn = ModeDynamics(Scene(robot, contacts))
     q, v = _state(robot, 5)
     accel = dyn.accelerator((0, 1))

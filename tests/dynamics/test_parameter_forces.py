@@ -90,9 +90,14 @@ def _solo() -> cd.Scene:
     scene = cd.load_scene("solo12_trot")
     q = scene.q0.copy()
     q[2] += 0.1
-    return scene.with_state(q).with_parameters({
-        "joint:FL_KFE:armature": 2e-5, "contact:FL_FOOT:restitution": 0.3,
-        "contact:FR_FOOT:restitution": 0.2, "contact:HR_FOOT:restitution": 0.6})
+    return scene.with_state(q).with_parameters(
+        {
+            "joint:FL_KFE:armature": 2e-5,
+            "contact:FL_FOOT:restitution": 0.3,
+            "contact:FR_FOOT:restitution": 0.2,
+            "contact:HR_FOOT:restitution": 0.6,
+        }
+    )
 
 
 def _planar() -> cd.Scene:
@@ -102,8 +107,14 @@ def _planar() -> cd.Scene:
     base = cd.trot_touchdown("soft", 0.0)
     efforts = base.effort_specs + (cd.JointSpring("body_pitch", 2.0, 0.1, 0.05),)
     scene = cd.Scene(base.robot, base.contact_specs, efforts, None, base.q0, base.v0, name="planar")
-    return scene.with_parameters({"spring:rear_hip-rear_foot:damping": 0.3, "joint:body_pitch:armature": 0.05,
-                                  "joint:front_foot_x:armature": 0.02, "contact:rear_foot:restitution": 0.5})
+    return scene.with_parameters(
+        {
+            "spring:rear_hip-rear_foot:damping": 0.3,
+            "joint:body_pitch:armature": 0.05,
+            "joint:front_foot_x:armature": 0.02,
+            "contact:rear_foot:restitution": 0.5,
+        }
+    )
 
 
 def _bar() -> cd.Scene:
@@ -165,8 +176,9 @@ def _check(category: str, analytic, fd, value, h: float) -> float:
     scale = np.abs(fd).max(initial=0.0) + ROUND / RTOL * np.abs(np.asarray(value, dtype=float)).max(initial=0.0) / h
     err = float(np.abs(analytic - fd).max(initial=0.0)) / max(scale, 1e-300)
     FD_ERRORS[category] = max(FD_ERRORS.get(category, 0.0), err)
-    assert err <= RTOL, f"{category}: error {err:.3e} (relative to {scale:.3e}) > {RTOL:g}\n" \
-                        f"analytic = {analytic}\nfd       = {fd}"
+    assert err <= RTOL, (
+        f"{category}: error {err:.3e} (relative to {scale:.3e}) > {RTOL:g}\nanalytic = {analytic}\nfd       = {fd}"
+    )
     return err
 
 
@@ -178,23 +190,52 @@ def _rng_velocity(scene: cd.Scene, seed: int, size: float) -> np.ndarray:
 # ∂ddq/∂p and ∂λ/∂p in each code path of ModeDynamics, and the force guard
 # ----------------------------------------------------------------------------------
 SOLO_PARAMETERS = (
-    "scene:gravity_x", "scene:gravity_y", "scene:gravity_z",
-    "body:base_link:mass", "body:FL_LOWER_LEG:mass",
-    "body:base_link:com_x", "body:FL_UPPER_LEG:com_y", "body:HR_LOWER_LEG:com_z",
-    *(f"body:base_link:{f}" for f in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")), "body:FL_UPPER_LEG:iyz",
-    "joint:FL_KFE:armature", "trot:kp", "trot:kd",
-    "contact:FL_FOOT:restitution", "contact:HR_FOOT:offset")
+    "scene:gravity_x",
+    "scene:gravity_y",
+    "scene:gravity_z",
+    "body:base_link:mass",
+    "body:FL_LOWER_LEG:mass",
+    "body:base_link:com_x",
+    "body:FL_UPPER_LEG:com_y",
+    "body:HR_LOWER_LEG:com_z",
+    *(f"body:base_link:{f}" for f in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")),
+    "body:FL_UPPER_LEG:iyz",
+    "joint:FL_KFE:armature",
+    "trot:kp",
+    "trot:kd",
+    "contact:FL_FOOT:restitution",
+    "contact:HR_FOOT:offset",
+)
 PLANAR_PARAMETERS = (
-    "scene:gravity_x", "scene:gravity_z", "body:body:mass", "body:body:com_x", "body:body:iyy",
-    "body:front_foot:mass", "joint:body_pitch:armature", "joint:front_foot_x:armature",
-    "spring:rear_hip-rear_foot:stiffness", "spring:rear_hip-rear_foot:damping",
-    "spring:rear_hip-rear_foot:rest_length", "joint_spring:body_pitch:stiffness",
-    "joint_spring:body_pitch:damping", "joint_spring:body_pitch:rest",
-    "contact:rear_foot:restitution", "contact:front_foot:offset")
+    "scene:gravity_x",
+    "scene:gravity_z",
+    "body:body:mass",
+    "body:body:com_x",
+    "body:body:iyy",
+    "body:front_foot:mass",
+    "joint:body_pitch:armature",
+    "joint:front_foot_x:armature",
+    "spring:rear_hip-rear_foot:stiffness",
+    "spring:rear_hip-rear_foot:damping",
+    "spring:rear_hip-rear_foot:rest_length",
+    "joint_spring:body_pitch:stiffness",
+    "joint_spring:body_pitch:damping",
+    "joint_spring:body_pitch:rest",
+    "contact:rear_foot:restitution",
+    "contact:front_foot:offset",
+)
 BAR_PARAMETERS = (
-    "scene:gravity_x", "scene:gravity_z", "body:body:mass", "body:body:com_x", "body:body:com_z",
-    "body:body:iyy", "joint:body_pitch:armature", "joint:body_z:armature",
-    "contact:rear_foot:restitution", "contact:front_foot:offset")
+    "scene:gravity_x",
+    "scene:gravity_z",
+    "body:body:mass",
+    "body:body:com_x",
+    "body:body:com_z",
+    "body:body:iyy",
+    "joint:body_pitch:armature",
+    "joint:body_z:armature",
+    "contact:rear_foot:restitution",
+    "contact:front_foot:offset",
+)
 
 
 def _solo_air():
@@ -280,7 +321,7 @@ def test_mode_parameter_derivatives_match_finite_differences(case):
     for k, name in enumerate(names):
         # each column: the tolerance of the module notes, f = ddq (rad/s², m/s²) or λ (N)
         _check(f"ddq/{case}", ddq_p[:, k], fd[:nv, k], sol.ddq, steps[k])
-        _check(f"lambda/{case}", lam_p[:, k], fd[nv:nv + rows, k], sol.forces, steps[k])
+        _check(f"lambda/{case}", lam_p[:, k], fd[nv : nv + rows, k], sol.forces, steps[k])
         if name.startswith("contact:"):
             # restitution and offset act at events only: exactly zero, by construction
             assert not np.any(forces[:, k]), name
@@ -304,7 +345,7 @@ def test_stance_columns_include_the_trot_feedforward_share():
         assert np.abs(share).max() > 0.0, name
         without = der.forces_dtau @ (forces[:, k] - share)
         nv, rows = scene.nv, sol.forces.size
-        err = np.abs(without - fd[nv:nv + rows, k]).max() / np.abs(fd[nv:nv + rows, k]).max()
+        err = np.abs(without - fd[nv : nv + rows, k]).max() / np.abs(fd[nv : nv + rows, k]).max()
         assert err > 1e3 * RTOL, (name, err)
 
 
@@ -315,7 +356,7 @@ def test_force_guard_matches_finite_differences_of_the_normal_forces(case):
     scene_name, mode, t, _, _, names = MODE_CASES[case]
     scene, dyn, q, v, sol, _, _, fd, steps = _mode_study(case)
     jumps = ParameterJumps(ModeDynamics(scene), resolve(scene, names))
-    normals = fd[scene.nv + sol.forces.size:]
+    normals = fd[scene.nv + sol.forces.size :]
     assert normals.shape == (len(mode), len(names))
     for j, key in enumerate(mode):
         guard = jumps.force_guard(q, v, t, mode, key)
@@ -328,8 +369,13 @@ def test_gap_guard_is_minus_one_on_the_contacts_own_offset():
     """The gap ``n · p(q) - offset``: ``∂h/∂offset = -1`` for the contact's own offset, 0
     for any other parameter (finite differences of `Scene.gaps` at fixed q)."""
     scene = _scene("solo12")
-    names = ["contact:FL_FOOT:offset", "contact:HR_FOOT:offset", "body:base_link:mass",
-             "contact:FL_FOOT:restitution", "scene:gravity_z"]
+    names = [
+        "contact:FL_FOOT:offset",
+        "contact:HR_FOOT:offset",
+        "body:base_link:mass",
+        "contact:FL_FOOT:restitution",
+        "scene:gravity_z",
+    ]
     q, _ = _solo_down(0)
     jumps = ParameterJumps(ModeDynamics(scene), resolve(scene, names))
     for contact in range(4):
@@ -346,10 +392,16 @@ def test_gap_guard_is_minus_one_on_the_contacts_own_offset():
 # ----------------------------------------------------------------------------------
 # impacts
 # ----------------------------------------------------------------------------------
-SOLO_INERTIAL = ("body:base_link:mass", "body:FL_LOWER_LEG:mass", "body:base_link:com_x",
-                 "body:FL_UPPER_LEG:com_y", "body:HR_LOWER_LEG:com_z",
-                 *(f"body:base_link:{f}" for f in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")),
-                 "body:FL_LOWER_LEG:iyz", "joint:FL_KFE:armature")
+SOLO_INERTIAL = (
+    "body:base_link:mass",
+    "body:FL_LOWER_LEG:mass",
+    "body:base_link:com_x",
+    "body:FL_UPPER_LEG:com_y",
+    "body:HR_LOWER_LEG:com_z",
+    *(f"body:base_link:{f}" for f in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")),
+    "body:FL_LOWER_LEG:iyz",
+    "joint:FL_KFE:armature",
+)
 STILL = ("scene:gravity_z", "trot:kp", "contact:FL_FOOT:restitution", "contact:HR_FOOT:offset")
 
 
@@ -380,13 +432,33 @@ def test_impulse_forces_are_minus_the_derivative_of_the_momentum_change():
             assert np.abs(fd).max() > 0.0, name
 
 
-BAR_IMPACT = ("body:body:mass", "body:body:com_x", "body:body:com_z", "body:body:iyy", "body:body:ixx",
-              "joint:body_pitch:armature", "joint:body_z:armature", "contact:rear_foot:restitution",
-              "contact:front_foot:restitution", "contact:rear_foot:offset", "scene:gravity_z")
-SOLO_IMPACT = ("body:base_link:mass", "body:base_link:com_x", "body:FL_UPPER_LEG:com_y", "body:base_link:ixy",
-               "body:FL_LOWER_LEG:ixx", "joint:FL_KFE:armature", "contact:FL_FOOT:restitution",
-               "contact:HR_FOOT:restitution", "contact:FR_FOOT:restitution", "contact:FL_FOOT:offset",
-               "scene:gravity_z", "trot:kp")
+BAR_IMPACT = (
+    "body:body:mass",
+    "body:body:com_x",
+    "body:body:com_z",
+    "body:body:iyy",
+    "body:body:ixx",
+    "joint:body_pitch:armature",
+    "joint:body_z:armature",
+    "contact:rear_foot:restitution",
+    "contact:front_foot:restitution",
+    "contact:rear_foot:offset",
+    "scene:gravity_z",
+)
+SOLO_IMPACT = (
+    "body:base_link:mass",
+    "body:base_link:com_x",
+    "body:FL_UPPER_LEG:com_y",
+    "body:base_link:ixy",
+    "body:FL_LOWER_LEG:ixx",
+    "joint:FL_KFE:armature",
+    "contact:FL_FOOT:restitution",
+    "contact:HR_FOOT:restitution",
+    "contact:FR_FOOT:restitution",
+    "contact:FL_FOOT:offset",
+    "scene:gravity_z",
+    "trot:kp",
+)
 
 
 def _bar_rear():
@@ -425,23 +497,63 @@ def _rear_only(scene):
 # and the rows fix the other two (A_n v+ = -e A_n v-), whatever the inertia. Its inertial
 # columns are zero, computed through the KKT solve (not set to 0): checked against the
 # finite differences, not required to move v+.
-BAR_INERTIAL = {"body:body:mass", "body:body:com_x", "body:body:com_z", "body:body:iyy", "body:body:ixx",
-                "joint:body_pitch:armature", "joint:body_z:armature"}
+BAR_INERTIAL = {
+    "body:body:mass",
+    "body:body:com_x",
+    "body:body:com_z",
+    "body:body:iyy",
+    "body:body:ixx",
+    "joint:body_pitch:armature",
+    "joint:body_z:armature",
+}
 # case: (scene, state, closed keys, caller's restitution, live keys, active positions, parameters,
 #        parameters whose column is exactly zero by construction, parameters whose column is
 #        zero physically)
 IMPACT_CASES = {
-    "bar_rear_foot": ("bar", _bar_rear, (0,), _own, (0,), (0,), BAR_IMPACT,
-                      {"contact:front_foot:restitution", "contact:rear_foot:offset", "scene:gravity_z"},
-                      {"body:body:ixx"}),
-    "bar_both_feet": ("bar", _bar_both, (0, 1), _own, (0, 1), (0, 1), BAR_IMPACT,
-                      {"contact:rear_foot:offset", "scene:gravity_z"}, BAR_INERTIAL),
-    "bar_front_bounce_ended": ("bar", _bar_both, (0, 1), _rear_only, (0,), (0, 1), BAR_IMPACT,
-                               {"contact:front_foot:restitution", "contact:rear_foot:offset", "scene:gravity_z"},
-                               BAR_INERTIAL),
-    "solo12_two_feet": ("solo12", _solo_two_feet, (0, 3), _own, (0, 3), (0, 1), SOLO_IMPACT,
-                        {"contact:FR_FOOT:restitution", "contact:FL_FOOT:offset", "scene:gravity_z", "trot:kp"},
-                        set()),
+    "bar_rear_foot": (
+        "bar",
+        _bar_rear,
+        (0,),
+        _own,
+        (0,),
+        (0,),
+        BAR_IMPACT,
+        {"contact:front_foot:restitution", "contact:rear_foot:offset", "scene:gravity_z"},
+        {"body:body:ixx"},
+    ),
+    "bar_both_feet": (
+        "bar",
+        _bar_both,
+        (0, 1),
+        _own,
+        (0, 1),
+        (0, 1),
+        BAR_IMPACT,
+        {"contact:rear_foot:offset", "scene:gravity_z"},
+        BAR_INERTIAL,
+    ),
+    "bar_front_bounce_ended": (
+        "bar",
+        _bar_both,
+        (0, 1),
+        _rear_only,
+        (0,),
+        (0, 1),
+        BAR_IMPACT,
+        {"contact:front_foot:restitution", "contact:rear_foot:offset", "scene:gravity_z"},
+        BAR_INERTIAL,
+    ),
+    "solo12_two_feet": (
+        "solo12",
+        _solo_two_feet,
+        (0, 3),
+        _own,
+        (0, 3),
+        (0, 1),
+        SOLO_IMPACT,
+        {"contact:FR_FOOT:restitution", "contact:FL_FOOT:offset", "scene:gravity_z", "trot:kp"},
+        set(),
+    ),
 }
 
 
@@ -511,8 +623,14 @@ def test_projection_offset_columns_match_project_state():
     q = close(dyn, cd.load_scene("solo12_trot").q0, mode)
     assert np.abs(scene.gaps(q)).max() <= 1e-15
     v = _rng_velocity(scene, 8, 1.0)
-    names = ["contact:HL_FOOT:offset", "contact:FR_FOOT:offset", "contact:FL_FOOT:offset",
-             "contact:HR_FOOT:offset", "body:base_link:mass", "contact:FL_FOOT:restitution"]
+    names = [
+        "contact:HL_FOOT:offset",
+        "contact:FR_FOOT:offset",
+        "contact:FL_FOOT:offset",
+        "contact:HR_FOOT:offset",
+        "body:base_link:mass",
+        "contact:FL_FOOT:restitution",
+    ]
     jumps = ParameterJumps(dyn, resolve(scene, names))
     D = jumps.projection(q, mode)
     nv = scene.nv

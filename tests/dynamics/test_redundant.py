@@ -27,8 +27,9 @@ CORNERS = [f"box/{sx}x{sy}y-z" for sx, sy in itertools.product("+-", repeat=2)]
 
 
 def box_scene(mu=MU, gravity=(0.0, 0.0, -G)):
-    box = SceneObject("box", shape="box", size=(2 * A_HALF, 2 * B_HALF, 2 * C_HALF), mass=MASS,
-                      position=(0.0, 0.0, C_HALF))
+    box = SceneObject(
+        "box", shape="box", size=(2 * A_HALF, 2 * B_HALF, 2 * C_HALF), mass=MASS, position=(0.0, 0.0, C_HALF)
+    )
     robot = add_objects(empty_robot(), [box])
     return cd.Scene(robot, [cd.Contact(name, friction=mu) for name in CORNERS], gravity=gravity)
 
@@ -157,11 +158,13 @@ def test_redundant_mode_derivatives_match_finite_differences(case):
 
     def forces_at(qq, vv):
         return dyn.solve(qq, vv, 0.0, mode).forces
+
     eps = 1e-6
     assert_fd("redundant ddq/dq", der.ddq_dq, fd_dq(lambda qq: ddq_at(qq, v), scene.model, q, eps), sol.ddq, 1e-6)
     assert_fd("redundant ddq/dv", der.ddq_dv, fd_dv(lambda vv: ddq_at(q, vv), v, eps), sol.ddq, 1e-6)
-    assert_fd("redundant forces/dq", der.forces_dq, fd_dq(lambda qq: forces_at(qq, v), scene.model, q, eps),
-              sol.forces, 1e-6)
+    assert_fd(
+        "redundant forces/dq", der.forces_dq, fd_dq(lambda qq: forces_at(qq, v), scene.model, q, eps), sol.forces, 1e-6
+    )
     assert_fd("redundant forces/dv", der.forces_dv, fd_dv(lambda vv: forces_at(q, vv), v, eps), sol.forces, 1e-6)
 
 
@@ -180,4 +183,3 @@ def test_sticking_face_takes_the_python_path_with_least_norm_loads():
     np.testing.assert_allclose(sol.ddq, 0.0, atol=1e-12 * G)
     tangential = np.concatenate([f[1:] for f in sol.row_forces()])
     np.testing.assert_allclose(tangential, 0.0, atol=1e-12 * MASS * G)
-

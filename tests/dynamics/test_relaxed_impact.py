@@ -60,7 +60,7 @@ def _check_relaxed_law(dyn, q, v, keys, impact):
     for k in impact.tangential_only:
         A = dyn.contact(keys[k]).rows(dyn.kin)
         assert impact.row_impulses[offsets[k]] == 0.0
-        assert np.abs(impact.row_impulses[offsets[k] + 1:offsets[k + 1]]).max() > 1e-3  # N s: carries impulse
+        assert np.abs(impact.row_impulses[offsets[k] + 1 : offsets[k + 1]]).max() > 1e-3  # N s: carries impulse
         np.testing.assert_allclose(A[1:] @ impact.v_plus, 0.0, atol=1e-12)
         assert A[0] @ impact.v_plus >= -1e-12
 
@@ -69,8 +69,14 @@ def test_relaxed_single_contact_planar_leg(tmp_path):
     path = tmp_path / "leg.urdf"
     path.write_text(LEG_URDF)
     robot = cd.load_robot(path)
-    scene = cd.Scene(robot, [cd.Contact("foot", friction="stick")], [], gravity=[0, 0, -9.81],
-                     q0=np.array([0.0, 0.5, 0.0]), v0=np.zeros(3))
+    scene = cd.Scene(
+        robot,
+        [cd.Contact("foot", friction="stick")],
+        [],
+        gravity=[0, 0, -9.81],
+        q0=np.array([0.0, 0.5, 0.0]),
+        v0=np.zeros(3),
+    )
     dyn = ModeDynamics(scene)
 
     def q_on_ground(rng):

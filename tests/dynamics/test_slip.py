@@ -40,11 +40,19 @@ def leg_robot(tmp_path_factory):
 
 
 def _scene(robot, exact_rate: bool = True) -> cd.Scene:
-    effort = cd.UserEffort(leg_lift, leg_lift_jacobian, name="lift",
-                           time_derivative=leg_lift_rate if exact_rate else None)
+    effort = cd.UserEffort(
+        leg_lift, leg_lift_jacobian, name="lift", time_derivative=leg_lift_rate if exact_rate else None
+    )
     q0 = np.array([0.0, 0.5 * np.cos(TILT) + 0.01, TILT])  # foot 1 cm up
-    return cd.Scene(robot, [cd.Contact("foot", friction="stick")], [effort], gravity=[0, 0, -9.81],
-                    q0=q0, v0=np.zeros(3), name="slipping leg")
+    return cd.Scene(
+        robot,
+        [cd.Contact("foot", friction="stick")],
+        [effort],
+        gravity=[0, 0, -9.81],
+        q0=q0,
+        v0=np.zeros(3),
+        name="slipping leg",
+    )
 
 
 @pytest.fixture(scope="module")
@@ -65,7 +73,10 @@ def _foot_normal_row(model, data, q, v, fid):
 def test_slip_sequence_and_physics(leg_run):
     scene, traj = leg_run
     assert [(e.kind, e.contacts) for e in traj.events] == [
-        ("touchdown", ("foot",)), ("slip", ("foot",)), ("lift-off", ("foot",))]
+        ("touchdown", ("foot",)),
+        ("slip", ("foot",)),
+        ("lift-off", ("foot",)),
+    ]
     touchdown, slip, liftoff = traj.events
     assert slip.sliding == ("foot",) and slip.mode_after == ("foot",)
     assert liftoff.mode_after == () and liftoff.sliding == ()
@@ -168,8 +179,9 @@ def test_user_effort_time_derivative_is_validated(leg_robot):
     with pytest.raises(cd.InvalidInputError, match="time_derivative"):
         cd.UserEffort(leg_lift, time_derivative=3.0)
     bad = cd.UserEffort(leg_lift, leg_lift_jacobian, time_derivative=lambda q, v, t: np.array([np.nan, 0.0, 0.0]))
-    scene = cd.Scene(leg_robot, [cd.Contact("foot", friction="stick")], [bad], gravity=[0, 0, -9.81],
-                     q0=_scene(leg_robot).q0)
+    scene = cd.Scene(
+        leg_robot, [cd.Contact("foot", friction="stick")], [bad], gravity=[0, 0, -9.81], q0=_scene(leg_robot).q0
+    )
     kin = scene.kinematics
     kin.update(scene.q0, np.zeros(3))
     with pytest.raises(cd.InvalidInputError, match="time_derivative returned"):
@@ -189,5 +201,6 @@ def test_mode_choice_slides_where_sticking_has_no_solution(leg_run):
     J, drift = _foot_normal_row(model, data, q, v, model.getFrameId("foot"))
     assert J @ pin.aba(model, data, q, v, leg_lift(q, v, t)) + drift < 0.0  # free sinks
     from contactdiff.dynamics.impacts import choose_mode
+
     assert choose_mode(dyn, q, v, t, [0]) == (dyn.sliding_key(0),)
     assert dyn.solve(q, v, t, (dyn.sliding_key(0),)).forces.shape == (1,)

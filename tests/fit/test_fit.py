@@ -37,8 +37,11 @@ def test_residual_jacobian_matches_finite_differences():
     theta = np.array([0.7, -9.81, 0.0])
 
     def run(th):
-        return evaluate(scene, plan.parameters, Task(0, rec, plan.values(th), np.zeros(0), StateFit.NONE,
-                                                     ResidualWeights(), {"rtol": RTOL, "atol": ATOL}))
+        return evaluate(
+            scene,
+            plan.parameters,
+            Task(0, rec, plan.values(th), np.zeros(0), StateFit.NONE, ResidualWeights(), {"rtol": RTOL, "atol": ATOL}),
+        )
 
     ev = run(theta)
     assert ev.error is None and ev.differentiable
@@ -57,8 +60,9 @@ def test_fit_recovers_known_parameters_within_three_standard_errors():
     scene = cd.load_scene("ball")
     recordings = [_ball_recording(seed) for seed in (1, 2)]
     start = {"contact:ball:restitution": 0.75, "scene:gravity_z": -9.81, "contact:ball:offset": 0.0}
-    result = fit(scene.with_parameters(start), recordings, list(TRUE), options={"rtol": RTOL, "atol": ATOL},
-                 progress=False)
+    result = fit(
+        scene.with_parameters(start), recordings, list(TRUE), options={"rtol": RTOL, "atol": ATOL}, progress=False
+    )
     assert result.success
     truth = np.array(list(TRUE.values()))
     assert np.all(np.isfinite(result.standard_errors))
@@ -80,8 +84,14 @@ def test_initial_velocity_is_fitted_too():
     traj = cd.simulate(thrown, t[-1], sample_times=t, rtol=RTOL, atol=ATOL)
     q = traj.samples.q + NOISE * np.random.default_rng(5).standard_normal(traj.samples.q.shape)
     rec = Recording("thrown", t, q, 0.0, scene.q0, np.zeros(1))
-    result = fit(scene, [rec], ["contact:ball:restitution"], state="velocity",
-                 options={"rtol": RTOL, "atol": ATOL}, progress=False)
+    result = fit(
+        scene,
+        [rec],
+        ["contact:ball:restitution"],
+        state="velocity",
+        options={"rtol": RTOL, "atol": ATOL},
+        progress=False,
+    )
     assert abs(result.recordings[0].state_offset[0] - 1.0) < 3e-2
     assert abs(result.values[0] - TRUE["contact:ball:restitution"]) < 3 * result.standard_errors[0]
 

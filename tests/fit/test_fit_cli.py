@@ -29,8 +29,7 @@ def test_fit_command_recovers_restitution(tmp_path, capsys):
     each trajectory's verdict (frictionless bounces: differentiable)."""
     files = [_observation_file(tmp_path, seed) for seed in (1, 2)]
     plot = tmp_path / "fit.png"
-    assert main(["fit", "ball", *files, "--param", "contact:ball:restitution", "--json",
-                 "--plot", str(plot)]) == 0
+    assert main(["fit", "ball", *files, "--param", "contact:ball:restitution", "--json", "--plot", str(plot)]) == 0
     out = json.loads(capsys.readouterr().out)
     e = out["parameters"]["contact:ball:restitution"]
     assert abs(e["value"] - E_TRUE) < 3 * e["standard_error"]
@@ -57,16 +56,35 @@ def test_fit_command_on_windows(tmp_path, capsys):
     window's start velocity fitted; the restitution within three standard errors of E_TRUE. Bad
     window options exit 2 with one named line."""
     path = _observation_file(tmp_path, 4)
-    assert main(["fit", "ball", path, "--param", "contact:ball:restitution", "--window", "30",
-                 "--window-stride", "30", "--fit-state", "velocity", "--json"]) == 0
+    assert (
+        main(
+            [
+                "fit",
+                "ball",
+                path,
+                "--param",
+                "contact:ball:restitution",
+                "--window",
+                "30",
+                "--window-stride",
+                "30",
+                "--fit-state",
+                "velocity",
+                "--json",
+            ]
+        )
+        == 0
+    )
     out = json.loads(capsys.readouterr().out)
     names = [r["name"] for r in out["recordings"]]
     assert names[0].endswith("[2:32]") and len(names) == 5  # starts 2, 32, 62, 92, 122 of 150 samples
     e = out["parameters"]["contact:ball:restitution"]
     assert abs(e["value"] - E_TRUE) < 3 * e["standard_error"]
-    for bad, fragment in ((["--window", "0"], "length must be a whole number of samples >= 1, got 0"),
-                          (["--window", "5", "--window-stride", "-1"], "stride must be"),
-                          (["--window-stride", "5"], "needs --window")):
+    for bad, fragment in (
+        (["--window", "0"], "length must be a whole number of samples >= 1, got 0"),
+        (["--window", "5", "--window-stride", "-1"], "stride must be"),
+        (["--window-stride", "5"], "needs --window"),
+    ):
         assert main(["fit", "ball", path, "--param", "contact:ball:restitution", *bad]) == 2
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and fragment in err, err

@@ -61,8 +61,10 @@ def test_a_free_body_reads_as_pinocchio_configuration_and_local_velocity(tmp_pat
 
 
 def test_comments_blank_lines_spaces_and_column_order_are_free(tmp_path, cube):
-    text = ("# a toss\n t , cube:qz, cube:qw ,cube:x,cube:y,cube:z,cube:qx,cube:qy\n\n"
-            "0, 0, 1, 1, 2, 3, 0, 0\n# pause\n0.5, 1, 0, 4, 5, 6, 0, 0\n")
+    text = (
+        "# a toss\n t , cube:qz, cube:qw ,cube:x,cube:y,cube:z,cube:qx,cube:qy\n\n"
+        "0, 0, 1, 1, 2, 3, 0, 0\n# pause\n0.5, 1, 0, 4, 5, 6, 0, 0\n"
+    )
     obs = cd.load_observations(_csv(tmp_path, text), cube)
     assert obs.q.tolist() == [[1, 2, 3, 0, 0, 0, 1], [4, 5, 6, 0, 0, 1, 0]]
     assert obs.v is None and obs.v_mask is None
@@ -79,8 +81,10 @@ def test_joints_by_name_and_unmeasured_joints_keep_the_scene_pose(tmp_path):
     """solo12: the base and one knee measured; the mask covers the base's 6 tangent coordinates
     and the knee's one; the other joints hold the scene's initial configuration."""
     scene = cd.load_scene("solo12_trot")
-    text = ("t,root_joint:x,root_joint:y,root_joint:z,root_joint:qw,root_joint:qx,root_joint:qy,root_joint:qz,"
-            "FL_KFE,FL_KFE:v\n0,0,0,0.3,1,0,0,0,-1.5,0.25\n0.1,0,0,0.3,1,0,0,0,-1.4,0.5\n")
+    text = (
+        "t,root_joint:x,root_joint:y,root_joint:z,root_joint:qw,root_joint:qx,root_joint:qy,root_joint:qz,"
+        "FL_KFE,FL_KFE:v\n0,0,0,0.3,1,0,0,0,-1.5,0.25\n0.1,0,0,0.3,1,0,0,0,-1.4,0.5\n"
+    )
     obs = cd.load_observations(_csv(tmp_path, text), scene)
     model = scene.model
     knee = model.joints[model.getJointId("FL_KFE")]
@@ -149,39 +153,65 @@ def _refused(path, scene, *fragments):
 
 
 BAD_CSV = {
-    "missing t": (CUBE_HEADER.replace("t,", "") + "\n0.1,0.2,0.3,1,0,0,0\n0.1,0.2,0.3,1,0,0,0\n",
-                  ["missing column 't'", "valid: t, weight, cube:x"]),
-    "unknown column": (CUBE_HEADER + ",cube:roll\n" + "0,0.1,0.2,0.3,1,0,0,0,0\n1,0.1,0.2,0.3,1,0,0,0,0\n",
-                       ["unknown column(s) 'cube:roll'", "valid: t, weight, cube:x, cube:y", "cube:wz"]),
-    "part of a joint": ("t,cube:x,cube:y,cube:z,cube:qx,cube:qy,cube:qz\n0,0,0,0,0,0,0\n1,0,0,0,0,0,0\n",
-                        ["missing column(s) 'cube:qw' of joint 'cube'"]),
-    "velocity alone": ("t,cube:vx,cube:vy,cube:vz,cube:wx,cube:wy,cube:wz\n0,0,0,0,0,0,0\n1,0,0,0,0,0,0\n",
-                       ["missing column(s) 'cube:x', 'cube:y', 'cube:z', 'cube:qw'"]),
-    "part of a velocity": (CUBE_HEADER + ",cube:vx\n0,0,0,0,1,0,0,0,0\n1,0,0,0,1,0,0,0,0\n",
-                           ["missing column(s) 'cube:vy', 'cube:vz', 'cube:wx'"]),
+    "missing t": (
+        CUBE_HEADER.replace("t,", "") + "\n0.1,0.2,0.3,1,0,0,0\n0.1,0.2,0.3,1,0,0,0\n",
+        ["missing column 't'", "valid: t, weight, cube:x"],
+    ),
+    "unknown column": (
+        CUBE_HEADER + ",cube:roll\n" + "0,0.1,0.2,0.3,1,0,0,0,0\n1,0.1,0.2,0.3,1,0,0,0,0\n",
+        ["unknown column(s) 'cube:roll'", "valid: t, weight, cube:x, cube:y", "cube:wz"],
+    ),
+    "part of a joint": (
+        "t,cube:x,cube:y,cube:z,cube:qx,cube:qy,cube:qz\n0,0,0,0,0,0,0\n1,0,0,0,0,0,0\n",
+        ["missing column(s) 'cube:qw' of joint 'cube'"],
+    ),
+    "velocity alone": (
+        "t,cube:vx,cube:vy,cube:vz,cube:wx,cube:wy,cube:wz\n0,0,0,0,0,0,0\n1,0,0,0,0,0,0\n",
+        ["missing column(s) 'cube:x', 'cube:y', 'cube:z', 'cube:qw'"],
+    ),
+    "part of a velocity": (
+        CUBE_HEADER + ",cube:vx\n0,0,0,0,1,0,0,0,0\n1,0,0,0,1,0,0,0,0\n",
+        ["missing column(s) 'cube:vy', 'cube:vz', 'cube:wx'"],
+    ),
     "no configuration": ("t,weight\n0,1\n1,1\n", ["no configuration column"]),
-    "times not increasing": (CUBE_HEADER + "\n" + _rows([0, 0.1, 0.1, 0.2]) + "\n",
-                             ["times must increase: row 2 (line 4) has t = 0.1 s, not after 0.1 s of row 1"]),
-    "times going back": (CUBE_HEADER + "\n" + _rows([0, 0.2, 0.1]) + "\n",
-                         ["row 2 (line 4) has t = 0.1 s, not after 0.2 s"]),
-    "NaN": (CUBE_HEADER + "\n" + _rows([0, 0.1]) + "\n0.2,0.1,nan,0.3,1,0,0,0\n",
-            ["row 2 (line 4), column 'cube:y': nan is not a finite number"]),
-    "zero quaternion": (CUBE_HEADER + "\n" + _rows([0, 0.1]) + "\n" + _rows([0.2], qw=0.0) + "\n",
-                        ["row 2 (line 4): the quaternion of joint 'cube' has zero norm"]),
-    "quaternion far from unit": (CUBE_HEADER + "\n" + _rows([0, 0.1], qw=2.0) + "\n",
-                                 ["row 0 (line 2): the quaternion of joint 'cube' has norm 2, not 1 within 0.1"]),
+    "times not increasing": (
+        CUBE_HEADER + "\n" + _rows([0, 0.1, 0.1, 0.2]) + "\n",
+        ["times must increase: row 2 (line 4) has t = 0.1 s, not after 0.1 s of row 1"],
+    ),
+    "times going back": (
+        CUBE_HEADER + "\n" + _rows([0, 0.2, 0.1]) + "\n",
+        ["row 2 (line 4) has t = 0.1 s, not after 0.2 s"],
+    ),
+    "NaN": (
+        CUBE_HEADER + "\n" + _rows([0, 0.1]) + "\n0.2,0.1,nan,0.3,1,0,0,0\n",
+        ["row 2 (line 4), column 'cube:y': nan is not a finite number"],
+    ),
+    "zero quaternion": (
+        CUBE_HEADER + "\n" + _rows([0, 0.1]) + "\n" + _rows([0.2], qw=0.0) + "\n",
+        ["row 2 (line 4): the quaternion of joint 'cube' has zero norm"],
+    ),
+    "quaternion far from unit": (
+        CUBE_HEADER + "\n" + _rows([0, 0.1], qw=2.0) + "\n",
+        ["row 0 (line 2): the quaternion of joint 'cube' has norm 2, not 1 within 0.1"],
+    ),
     "one sample": (CUBE_HEADER + "\n" + _rows([0]) + "\n", ["at least two samples, got 1"]),
     "header only": (CUBE_HEADER + "\n", ["at least two samples, got 0"]),
     "empty": ("", ["empty"]),
-    "not a number": (CUBE_HEADER + "\n" + _rows([0]) + "\n0.1,0.1,0.2,zero,1,0,0,0\n",
-                     ["row 1 (line 3), column 'cube:z': 'zero' is not a number"]),
+    "not a number": (
+        CUBE_HEADER + "\n" + _rows([0]) + "\n0.1,0.1,0.2,zero,1,0,0,0\n",
+        ["row 1 (line 3), column 'cube:z': 'zero' is not a number"],
+    ),
     "ragged row": (CUBE_HEADER + "\n" + _rows([0]) + "\n0.1,0.1,0.2\n", ["row 1 (line 3) has 3 values for 8 columns"]),
     "column twice": (CUBE_HEADER + ",cube:x\n", ["named twice: cube:x"]),
     "nameless column": ("t,,cube:x\n", ["header column 2 has no name"]),
-    "negative weight": (CUBE_HEADER + ",weight\n0,0.1,0.2,0.3,1,0,0,0,1\n1,0.1,0.2,0.3,1,0,0,0,-1\n",
-                        ["row 1 (line 3): weight -1.0 is negative"]),
-    "all weights zero": (CUBE_HEADER + ",weight\n0,0.1,0.2,0.3,1,0,0,0,0\n1,0.1,0.2,0.3,1,0,0,0,0\n",
-                         ["every weight is 0"]),
+    "negative weight": (
+        CUBE_HEADER + ",weight\n0,0.1,0.2,0.3,1,0,0,0,1\n1,0.1,0.2,0.3,1,0,0,0,-1\n",
+        ["row 1 (line 3): weight -1.0 is negative"],
+    ),
+    "all weights zero": (
+        CUBE_HEADER + ",weight\n0,0.1,0.2,0.3,1,0,0,0,0\n1,0.1,0.2,0.3,1,0,0,0,0\n",
+        ["every weight is 0"],
+    ),
 }
 
 
@@ -192,8 +222,16 @@ def test_bad_csv_files_are_named(tmp_path, cube, case):
 
 
 def test_bad_npz_files_are_named(tmp_path, cube):
-    good = {"t": np.array([0.0, 0.1]), "cube:x": np.zeros(2), "cube:y": np.zeros(2), "cube:z": np.zeros(2),
-            "cube:qw": np.ones(2), "cube:qx": np.zeros(2), "cube:qy": np.zeros(2), "cube:qz": np.zeros(2)}
+    good = {
+        "t": np.array([0.0, 0.1]),
+        "cube:x": np.zeros(2),
+        "cube:y": np.zeros(2),
+        "cube:z": np.zeros(2),
+        "cube:qw": np.ones(2),
+        "cube:qx": np.zeros(2),
+        "cube:qy": np.zeros(2),
+        "cube:qz": np.zeros(2),
+    }
     cases = {
         "lengths": (good | {"cube:z": np.zeros(3)}, ["columns of different lengths", "cube:z 3", "t 2"]),
         "2-D column": (good | {"cube:x": np.zeros((2, 2))}, ["column 'cube:x' must be one number per sample"]),
@@ -219,8 +257,23 @@ def test_missing_unreadable_and_unknown_kinds_of_file_are_named(tmp_path, cube):
 
 
 def test_valid_columns_name_every_observable_joint(cube):
-    assert valid_columns(cube) == ["t", "weight", "cube:x", "cube:y", "cube:z", "cube:qw", "cube:qx", "cube:qy",
-                                   "cube:qz", "cube:vx", "cube:vy", "cube:vz", "cube:wx", "cube:wy", "cube:wz"]
+    assert valid_columns(cube) == [
+        "t",
+        "weight",
+        "cube:x",
+        "cube:y",
+        "cube:z",
+        "cube:qw",
+        "cube:qx",
+        "cube:qy",
+        "cube:qz",
+        "cube:vx",
+        "cube:vy",
+        "cube:vz",
+        "cube:wx",
+        "cube:wy",
+        "cube:wz",
+    ]
     ball = valid_columns(cd.load_scene("ball"))
     assert ball == ["t", "weight", "z", "z:v"]
 

@@ -30,9 +30,16 @@ def test_residual_derivative_matches_central_differences(source):
         q_sim, q_data = _random(model, rng), _random(model, rng)
         J = residual.jacobian(q_sim, q_data)
         h = 1e-6
-        fd = np.column_stack([(residual.residual(pin.integrate(model, q_sim, h * e), q_data)
-                               - residual.residual(pin.integrate(model, q_sim, -h * e), q_data)) / (2 * h)
-                              for e in np.eye(model.nv)])
+        fd = np.column_stack(
+            [
+                (
+                    residual.residual(pin.integrate(model, q_sim, h * e), q_data)
+                    - residual.residual(pin.integrate(model, q_sim, -h * e), q_data)
+                )
+                / (2 * h)
+                for e in np.eye(model.nv)
+            ]
+        )
         assert np.max(np.abs(J - fd)) < 1e-7
 
 

@@ -33,7 +33,7 @@ def _ball(seed: int, noise: float = NOISE, t_end: float = 1.5, rate: float = 100
 def _free_starts(rec: Recording, windows: Windows) -> list[int]:
     """Evenly spaced starts whose sample and the two before it are FREE above the true ground."""
     ground = TRUE["contact:ball:offset"]
-    return [k for k in range(2, len(rec.t) - 1, windows.step) if np.all(rec.q[k - 2:k + 1, 0] > ground + FREE)]
+    return [k for k in range(2, len(rec.t) - 1, windows.step) if np.all(rec.q[k - 2 : k + 1, 0] > ground + FREE)]
 
 
 def test_start_velocity_is_exact_on_a_parabola():
@@ -56,7 +56,7 @@ def test_windows_cover_their_samples_and_start_from_the_data():
     for w, k in zip(cut(rec, windows, scene.model), range(2, len(rec.t) - 1, 10)):
         e = min(k + 20, len(rec.t) - 1)
         assert w.name == f"ball-0[{k}:{e}]"
-        np.testing.assert_array_equal(w.t, rec.t[k:e + 1])
+        np.testing.assert_array_equal(w.t, rec.t[k : e + 1])
         np.testing.assert_array_equal(w.q0, rec.q[k])
         assert w.t0 == rec.t[k]
 
@@ -76,8 +76,13 @@ def test_window_jacobian_matches_central_differences():
     x = np.r_[theta, 0.05]  # the parameters, then the window's start-velocity offset (m/s)
 
     def run(window, y):
-        return evaluate(scene, plan.parameters, Task(0, window, plan.values(y[:3]), y[3:], StateFit.VELOCITY,
-                                                     ResidualWeights(), {"rtol": RTOL, "atol": ATOL}))
+        return evaluate(
+            scene,
+            plan.parameters,
+            Task(
+                0, window, plan.values(y[:3]), y[3:], StateFit.VELOCITY, ResidualWeights(), {"rtol": RTOL, "atol": ATOL}
+            ),
+        )
 
     bouncing = 0
     for window in wins:
@@ -105,19 +110,28 @@ def test_windowed_fit_recovers_known_parameters_within_three_standard_errors():
         _, rec = _ball(seed)
         recordings += cut(rec, windows, scene.model, _free_starts(rec, windows))
     start = {"contact:ball:restitution": 0.75, "scene:gravity_z": -9.81, "contact:ball:offset": 0.0}
-    result = fit(scene.with_parameters(start), recordings, list(TRUE), state="velocity",
-                 options={"rtol": RTOL, "atol": ATOL}, progress=False)
+    result = fit(
+        scene.with_parameters(start),
+        recordings,
+        list(TRUE),
+        state="velocity",
+        options={"rtol": RTOL, "atol": ATOL},
+        progress=False,
+    )
     truth = np.array(list(TRUE.values()))
     assert np.all(np.isfinite(result.standard_errors))
     assert np.all(np.abs(result.values - truth) < 3 * result.standard_errors), (result.values, result.standard_errors)
 
 
-@pytest.mark.parametrize("kwargs, fragment", [
-    ({"length": 0}, "length must be a whole number of samples >= 1, got 0"),
-    ({"length": 2.5}, "got 2.5"),
-    ({"length": True}, "got True"),
-    ({"length": 5, "stride": 0}, "stride must be a whole number of samples >= 1, got 0"),
-])
+@pytest.mark.parametrize(
+    "kwargs, fragment",
+    [
+        ({"length": 0}, "length must be a whole number of samples >= 1, got 0"),
+        ({"length": 2.5}, "got 2.5"),
+        ({"length": True}, "got True"),
+        ({"length": 5, "stride": 0}, "stride must be a whole number of samples >= 1, got 0"),
+    ],
+)
 def test_bad_window_options_are_refused_with_names(kwargs, fragment):
     with pytest.raises(InvalidInputError, match=fragment):
         Windows(**kwargs)

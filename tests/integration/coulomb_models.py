@@ -50,22 +50,32 @@ FD_RTOL = 1e-5  # module doc: worst-case FD noise 2e-6 relative to a Jacobian of
 REL = 1e-10  # closed-form values of O(1) (module doc)
 JAC_REL = 1e-8  # closed-form Jacobians and event time gradients (module doc)
 
-_JOINT = ('<joint name="{n}" type="prismatic"><parent link="{p}"/><child link="{c}"/><axis xyz="{a}"/>'
-          '<limit lower="-100" upper="100" effort="0" velocity="100"/></joint>')
-_MASS_LINK = ('<link name="block"><inertial><mass value="{m}"/>'
-              '<inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link>')
-BLOCK3_URDF = (f'<?xml version="1.0"?><robot name="block3"><link name="world"/><link name="sx"/><link name="sy"/>'
-               f'{_MASS_LINK.format(m=MASS)}'
-               f'{_JOINT.format(n="x", p="world", c="sx", a="1 0 0")}'
-               f'{_JOINT.format(n="y", p="sx", c="sy", a="0 1 0")}'
-               f'{_JOINT.format(n="z", p="sy", c="block", a="0 0 1")}</robot>')
-BLOCK2_URDF = (f'<?xml version="1.0"?><robot name="block2"><link name="world"/><link name="sx"/>'
-               f'{_MASS_LINK.format(m=MASS)}'
-               f'{_JOINT.format(n="x", p="world", c="sx", a="1 0 0")}'
-               f'{_JOINT.format(n="z", p="sx", c="block", a="0 0 1")}</robot>')
-BALL_URDF = (f'<?xml version="1.0"?><robot name="ball"><link name="ball"><inertial><origin xyz="0 0 0"/>'
-             f'<mass value="{MASS}"/><inertia ixx="{INERTIA}" iyy="{INERTIA}" izz="{INERTIA}" ixy="0" ixz="0" '
-             f'iyz="0"/></inertial></link></robot>')
+_JOINT = (
+    '<joint name="{n}" type="prismatic"><parent link="{p}"/><child link="{c}"/><axis xyz="{a}"/>'
+    '<limit lower="-100" upper="100" effort="0" velocity="100"/></joint>'
+)
+_MASS_LINK = (
+    '<link name="block"><inertial><mass value="{m}"/>'
+    '<inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link>'
+)
+BLOCK3_URDF = (
+    f'<?xml version="1.0"?><robot name="block3"><link name="world"/><link name="sx"/><link name="sy"/>'
+    f"{_MASS_LINK.format(m=MASS)}"
+    f"{_JOINT.format(n='x', p='world', c='sx', a='1 0 0')}"
+    f"{_JOINT.format(n='y', p='sx', c='sy', a='0 1 0')}"
+    f"{_JOINT.format(n='z', p='sy', c='block', a='0 0 1')}</robot>"
+)
+BLOCK2_URDF = (
+    f'<?xml version="1.0"?><robot name="block2"><link name="world"/><link name="sx"/>'
+    f"{_MASS_LINK.format(m=MASS)}"
+    f"{_JOINT.format(n='x', p='world', c='sx', a='1 0 0')}"
+    f"{_JOINT.format(n='z', p='sx', c='block', a='0 0 1')}</robot>"
+)
+BALL_URDF = (
+    f'<?xml version="1.0"?><robot name="ball"><link name="ball"><inertial><origin xyz="0 0 0"/>'
+    f'<mass value="{MASS}"/><inertia ixx="{INERTIA}" iyy="{INERTIA}" izz="{INERTIA}" ixy="0" ixz="0" '
+    f'iyz="0"/></inertial></link></robot>'
+)
 
 
 def load(tmp_path_factory, name, text, **kwargs):
@@ -78,8 +88,12 @@ def constant_force(force):
     """A constant generalised force (N on the prismatic joints) with its exact (zero) derivatives."""
     force = np.asarray(force, dtype=float)
     n = force.size
-    return cd.UserEffort(lambda q, v, t: force, lambda q, v, t: (np.zeros((n, n)), np.zeros((n, n))),
-                         name="push", time_derivative=lambda q, v, t: np.zeros(n))
+    return cd.UserEffort(
+        lambda q, v, t: force,
+        lambda q, v, t: (np.zeros((n, n)), np.zeros((n, n))),
+        name="push",
+        time_derivative=lambda q, v, t: np.zeros(n),
+    )
 
 
 def event_kinds(traj):

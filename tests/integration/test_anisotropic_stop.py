@@ -68,16 +68,21 @@ from helpers import assert_fd
 import contactdiff as cd
 
 EXTRA_X = 1.0  # kg on the x slider: m_x = 3 kg, m_y = 2 kg (module doc)
-_INERTIAL = ('<inertial><mass value="{m}"/>'
-             '<inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial>')
-_JOINT = ('<joint name="{n}" type="prismatic"><parent link="{p}"/><child link="{c}"/><axis xyz="{a}"/>'
-          '<limit lower="-100" upper="100" effort="0" velocity="100"/></joint>')
-ANISO_URDF = (f'<?xml version="1.0"?><robot name="aniso"><link name="world"/>'
-              f'<link name="sx">{_INERTIAL.format(m=EXTRA_X)}</link><link name="sy"/>'
-              f'<link name="block">{_INERTIAL.format(m=MASS)}</link>'
-              f'{_JOINT.format(n="x", p="world", c="sx", a="1 0 0")}'
-              f'{_JOINT.format(n="y", p="sx", c="sy", a="0 1 0")}'
-              f'{_JOINT.format(n="z", p="sy", c="block", a="0 0 1")}</robot>')
+_INERTIAL = (
+    '<inertial><mass value="{m}"/><inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial>'
+)
+_JOINT = (
+    '<joint name="{n}" type="prismatic"><parent link="{p}"/><child link="{c}"/><axis xyz="{a}"/>'
+    '<limit lower="-100" upper="100" effort="0" velocity="100"/></joint>'
+)
+ANISO_URDF = (
+    f'<?xml version="1.0"?><robot name="aniso"><link name="world"/>'
+    f'<link name="sx">{_INERTIAL.format(m=EXTRA_X)}</link><link name="sy"/>'
+    f'<link name="block">{_INERTIAL.format(m=MASS)}</link>'
+    f"{_JOINT.format(n='x', p='world', c='sx', a='1 0 0')}"
+    f"{_JOINT.format(n='y', p='sx', c='sy', a='0 1 0')}"
+    f"{_JOINT.format(n='z', p='sy', c='block', a='0 0 1')}</robot>"
+)
 
 # initial slip velocities (m/s): mostly along the heavy axis, mostly along the light one (the
 # slip turns by almost 90 deg), and a small transverse part
@@ -103,11 +108,13 @@ class Stop:
         k = A / (2.0 * B)
         root = math.sqrt(1.0 + 2.0 * k)
         int_r = math.sqrt(B) * ((1.0 + k) * root / 2.0 - k * k * math.log((1.0 + k + root) / k) / 2.0)
-        self.dp = np.array([x0 / al * (px(w1) - px(w0)) / B**2,
-                            y0 / al * (w1**1.5 / (3.0 * B) - A / (2.0 * B) * int_r)])
+        self.dp = np.array(
+            [x0 / al * (px(w1) - px(w0)) / B**2, y0 / al * (w1**1.5 / (3.0 * B) - A / (2.0 * B) * int_r)]
+        )
         ty = lambda w: 2.0 * w**1.5 / 3.0 - 2.0 * A * math.sqrt(w)  # noqa: E731
-        self.dt_dv0 = np.array([2.0 * x0 * (math.sqrt(w1) - math.sqrt(w0)) / (al * B),
-                                y0 / al * (ty(w1) - ty(w0)) / B**2])
+        self.dt_dv0 = np.array(
+            [2.0 * x0 * (math.sqrt(w1) - math.sqrt(w0)) / (al * B), y0 / al * (ty(w1) - ty(w0)) / B**2]
+        )
 
     def slip(self, t: float) -> np.ndarray:
         """``u(t)`` (m/s) for ``0 <= t <= t_s``."""
@@ -117,8 +124,9 @@ class Stop:
 
 
 def _scene(robot, start):
-    return cd.Scene(robot, [cd.Contact("block", friction=MU)], [], gravity=[0, 0, -G],
-                    q0=np.zeros(3), v0=np.array([*start, 0.0]))
+    return cd.Scene(
+        robot, [cd.Contact("block", friction=MU)], [], gravity=[0, 0, -G], q0=np.zeros(3), v0=np.array([*start, 0.0])
+    )
 
 
 def test_closed_form_is_consistent():
@@ -134,8 +142,9 @@ def test_closed_form_is_consistent():
         root = np.sqrt(stop.A + stop.B * z)
         trap = lambda f: float(np.sum((f[1:] + f[:-1]) * np.diff(z)) / 2.0)  # noqa: E731
         assert trap(root) / stop.alpha == pytest.approx(stop.t_s, rel=1e-9)
-        np.testing.assert_allclose([trap(start[0] * z * root) / stop.alpha, trap(start[1] * z**1.5 * root)
-                                    / stop.alpha], stop.dp, rtol=1e-7)
+        np.testing.assert_allclose(
+            [trap(start[0] * z * root) / stop.alpha, trap(start[1] * z**1.5 * root) / stop.alpha], stop.dp, rtol=1e-7
+        )
 
 
 @pytest.mark.parametrize("case", STARTS, ids=list(STARTS))
@@ -164,8 +173,7 @@ def test_anisotropic_slip_stops_on_time(aniso, case):
     directions = [unit(k, 6) for k in (0, 1, 3, 4)]
     fd, fd_times = central_differences(scene, t_final, directions, event_kinds(traj))
     assert_fd(f"anisotropic stop {case}", traj.jacobian[:, [0, 1, 3, 4]], fd, traj.q, rtol=FD_RTOL)
-    assert_fd(f"anisotropic stop time {case}", event.time_gradient[[0, 1, 3, 4]], fd_times[0], stop.t_s,
-              rtol=FD_RTOL)
+    assert_fd(f"anisotropic stop time {case}", event.time_gradient[[0, 1, 3, 4]], fd_times[0], stop.t_s, rtol=FD_RTOL)
 
 
 def test_direction_settles_like_the_square_root_of_the_time_left(aniso):

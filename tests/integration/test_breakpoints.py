@@ -23,8 +23,10 @@ T_FINAL = 0.9  # s: before the ball lands (z stays above 0.7)
 def _ball(breakpoints=()):
     def push(q, v, t):
         return np.array([FORCE * min(t / T_SWITCH, 1.0)])
-    effort = cd.UserEffort(push, jacobian=lambda q, v, t: (np.zeros((1, 1)), np.zeros((1, 1))),
-                           name="push", breakpoints=breakpoints)
+
+    effort = cd.UserEffort(
+        push, jacobian=lambda q, v, t: (np.zeros((1, 1)), np.zeros((1, 1))), name="push", breakpoints=breakpoints
+    )
     base = cd.load_scene("ball")
     return cd.Scene(base.robot, base.contact_specs, [effort], gravity=[0.0, 0.0, -1.0], q0=base.q0)
 
@@ -33,10 +35,10 @@ def _closed_form(t):
     """Height and velocity of the ball at ``t`` >= T_SWITCH (z0 = 1, at rest): on the
     ramp ``z'' = -1 + FORCE t / T_SWITCH``, then ``z'' = FORCE - 1``."""
     r = FORCE / T_SWITCH
-    z1 = 1.0 - T_SWITCH ** 2 / 2 + r * T_SWITCH ** 3 / 6
-    v1 = -T_SWITCH + r * T_SWITCH ** 2 / 2
+    z1 = 1.0 - T_SWITCH**2 / 2 + r * T_SWITCH**3 / 6
+    v1 = -T_SWITCH + r * T_SWITCH**2 / 2
     a2, s = FORCE - 1.0, t - T_SWITCH
-    return z1 + v1 * s + 0.5 * a2 * s ** 2, v1 + a2 * s
+    return z1 + v1 * s + 0.5 * a2 * s**2, v1 + a2 * s
 
 
 @pytest.mark.parametrize("method", ["DOP853", "RK45", "Radau"])

@@ -94,8 +94,13 @@ def test_oblique_impact(block3, case, e):
     slip_speed = np.linalg.norm(v_plus[:2])
     t_stop = t_td + slip_speed / (MU * G)
     T = t_td + e * V / G if e > 0 else t_stop + 0.1
-    scene = cd.Scene(block3, [cd.Contact("block", restitution=e, friction=MU)], gravity=[0, 0, -G],
-                     q0=np.array([0.0, 0.0, h]), v0=np.array([*v_t, -w]))
+    scene = cd.Scene(
+        block3,
+        [cd.Contact("block", restitution=e, friction=MU)],
+        gravity=[0, 0, -G],
+        q0=np.array([0.0, 0.0, h]),
+        v0=np.array([*v_t, -w]),
+    )
     traj = cd.simulate(scene, T, jacobian=True, **TOL)
     landing = traj.events[0]
     assert landing.kind == ("bounce" if e > 0 else "touchdown") and landing.contacts == ("block",)
@@ -104,8 +109,12 @@ def test_oblique_impact(block3, case, e):
     q_td = np.array([*(v_t * t_td), 0.0])
     if e > 0:
         assert event_kinds(traj) == [("bounce", ("block",))] and landing.mode_after == ()
-        np.testing.assert_allclose(traj.q, q_td + [*(v_plus[:2] * (T - t_td)), (e * V) ** 2 / (2 * G)], rtol=0,
-                                   atol=REL * np.linalg.norm(v_t) * T)
+        np.testing.assert_allclose(
+            traj.q,
+            q_td + [*(v_plus[:2] * (T - t_td)), (e * V) ** 2 / (2 * G)],
+            rtol=0,
+            atol=REL * np.linalg.norm(v_t) * T,
+        )
         np.testing.assert_allclose(traj.v, [*v_plus[:2], 0.0], rtol=0, atol=REL * V)
     elif sticks:
         assert event_kinds(traj) == [("touchdown", ("block",))]
@@ -116,8 +125,9 @@ def test_oblique_impact(block3, case, e):
         assert event_kinds(traj) == [("touchdown", ("block",)), ("stick", ("block",))]
         assert landing.mode_after == ("block",) and landing.sliding == ("block",)
         assert traj.events[1].t == pytest.approx(t_stop, rel=REL)
-        np.testing.assert_allclose(traj.q, q_td + [*(v_plus[:2] * slip_speed / (2 * MU * G)), 0.0], rtol=0,
-                                   atol=REL * np.linalg.norm(v_t) * T)
+        np.testing.assert_allclose(
+            traj.q, q_td + [*(v_plus[:2] * slip_speed / (2 * MU * G)), 0.0], rtol=0, atol=REL * np.linalg.norm(v_t) * T
+        )
         np.testing.assert_allclose(traj.v, 0.0, rtol=0, atol=REL * V)
     fd, fd_times = central_differences(scene, T, np.eye(6), event_kinds(traj))
     assert_fd(f"coulomb oblique impact {case} e={e}", traj.jacobian, fd, traj.q, rtol=FD_RTOL)
@@ -139,8 +149,7 @@ SPINS = {  # v0 (world = local at the identity orientation), ω0 (rad/s)
 def _ball_scene(ball, case, mu=MU):
     v0, w0 = SPINS[case]
     q0 = np.array([0.0, 0.0, RADIUS, 0.0, 0.0, 0.0, 1.0])  # touching, identity orientation
-    return cd.Scene(ball, [cd.Contact("ball", radius=RADIUS, friction=mu)], gravity=[0, 0, -G], q0=q0,
-                    v0=np.r_[v0, w0])
+    return cd.Scene(ball, [cd.Contact("ball", radius=RADIUS, friction=mu)], gravity=[0, 0, -G], q0=q0, v0=np.r_[v0, w0])
 
 
 def _world(q, v):
@@ -223,13 +232,17 @@ def test_sphere_jacobian_matches_fd(ball):
 # ==============================================================================================
 # 6. property test: the frictional impact as simulate applies it
 # ==============================================================================================
-IMPACT_PROPS = settings(max_examples=20, deadline=2000, derandomize=True,
-                        suppress_health_check=[HealthCheck.too_slow])
+IMPACT_PROPS = settings(max_examples=20, deadline=2000, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
 
 
 @IMPACT_PROPS
-@given(mu=st.floats(0.0, 2.0, exclude_min=True), e=st.one_of(st.just(0.0), st.floats(0.0, 1.0)),
-       speed=st.floats(0.0, 4.0), angle=st.floats(-math.pi, math.pi), w=st.floats(0.2, 3.0))
+@given(
+    mu=st.floats(0.0, 2.0, exclude_min=True),
+    e=st.one_of(st.just(0.0), st.floats(0.0, 1.0)),
+    speed=st.floats(0.0, 4.0),
+    angle=st.floats(-math.pi, math.pi),
+    w=st.floats(0.2, 3.0),
+)
 def test_frictional_impact_properties(block3, mu, e, speed, angle, w):
     """Random oblique impacts of the block (h = 0.01 m, downward speed w, tangential speed and
     direction at random): the touchdown's v+ is `_impact_closed_form`'s (normal e V, tangential
@@ -246,8 +259,13 @@ def test_frictional_impact_properties(block3, mu, e, speed, angle, w):
     assume(abs(speed - limit) > 1e-3 * max(speed, limit) + 1e-4)
     assume(e == 0.0 or e * V > 1e-5)
     v_t = speed * np.array([math.cos(angle), math.sin(angle)])
-    scene = cd.Scene(block3, [cd.Contact("block", restitution=e, friction=mu)], gravity=[0, 0, -G],
-                     q0=np.array([0.0, 0.0, h]), v0=np.array([*v_t, -w]))
+    scene = cd.Scene(
+        block3,
+        [cd.Contact("block", restitution=e, friction=mu)],
+        gravity=[0, 0, -G],
+        q0=np.array([0.0, 0.0, h]),
+        v0=np.array([*v_t, -w]),
+    )
     traj = cd.simulate(scene, t_td + 1e-3, **TOL)
     landing = traj.events[0]
     assert landing.kind == ("bounce" if e > 0 else "touchdown")
@@ -277,8 +295,13 @@ def test_stick_and_none_landings(block3, friction):
     v_t = np.array([0.8, -0.6])
     t_td, V = _fall(h, w)
     T = 0.3
-    scene = cd.Scene(block3, [cd.Contact("block", friction=friction)], gravity=[0, 0, -G],
-                     q0=np.array([0.0, 0.0, h]), v0=np.array([*v_t, -w]))
+    scene = cd.Scene(
+        block3,
+        [cd.Contact("block", friction=friction)],
+        gravity=[0, 0, -G],
+        q0=np.array([0.0, 0.0, h]),
+        v0=np.array([*v_t, -w]),
+    )
     traj = cd.simulate(scene, T, jacobian=True, **TOL)
     assert event_kinds(traj) == [("touchdown", ("block",))]
     (landing,) = traj.events
@@ -310,10 +333,11 @@ def test_stick_block_sliding_at_start_is_stopped(block3):
     impact at t = 0 (docs: "with "stick" an impact stops it"): a touchdown at 0 with v+ = 0; a
     ``"none"`` block keeps sliding at v0 with no event."""
     v0 = np.array([0.8, -0.6, 0.0])
-    for friction, events, q_T, v_T in (("stick", [("touchdown", ("block",))], np.zeros(3), np.zeros(3)),
-                                       ("none", [], 0.3 * v0, v0)):
-        scene = cd.Scene(block3, [cd.Contact("block", friction=friction)], gravity=[0, 0, -G], q0=np.zeros(3),
-                         v0=v0)
+    for friction, events, q_T, v_T in (
+        ("stick", [("touchdown", ("block",))], np.zeros(3), np.zeros(3)),
+        ("none", [], 0.3 * v0, v0),
+    ):
+        scene = cd.Scene(block3, [cd.Contact("block", friction=friction)], gravity=[0, 0, -G], q0=np.zeros(3), v0=v0)
         traj = cd.simulate(scene, 0.3, **TOL)
         assert event_kinds(traj) == events
         if events:

@@ -36,8 +36,14 @@ PARALLEL_FORCES = {"none": 0.0, "pushed-along": 0.4, "braked": -0.5}  # f / (μ 
 
 def _block_on_ground(block3, v0_xy, force_xy=(0.0, 0.0), mu=MU):
     efforts = [constant_force([*force_xy, 0.0])] if np.any(force_xy) else []
-    return cd.Scene(block3, [cd.Contact("block", friction=mu)], efforts, gravity=[0, 0, -G],
-                    q0=np.zeros(3), v0=np.array([*v0_xy, 0.0]))
+    return cd.Scene(
+        block3,
+        [cd.Contact("block", friction=mu)],
+        efforts,
+        gravity=[0, 0, -G],
+        q0=np.zeros(3),
+        v0=np.array([*v0_xy, 0.0]),
+    )
 
 
 @pytest.mark.parametrize("force", PARALLEL_FORCES, ids=list(PARALLEL_FORCES))
@@ -102,8 +108,9 @@ def test_block_slides_to_a_stop(block3, case, force):
     directions = [unit(k, 6) for k in (0, 1, 3, 4)]
     fd, fd_times = central_differences(scene, t_final, directions, event_kinds(traj))
     assert_fd(f"coulomb block {case} {force}", traj.jacobian[:, [0, 1, 3, 4]], fd, traj.q, rtol=FD_RTOL)
-    assert_fd(f"coulomb block stop time {case} {force}", stop.time_gradient[[0, 1, 3, 4]], fd_times[0],
-              t_s, rtol=FD_RTOL)
+    assert_fd(
+        f"coulomb block stop time {case} {force}", stop.time_gradient[[0, 1, 3, 4]], fd_times[0], t_s, rtol=FD_RTOL
+    )
 
 
 OBLIQUE_FORCES = {"perpendicular": (90.0, 0.6), "backward-oblique": (135.0, 0.8), "forward-oblique": (-40.0, 0.7)}
@@ -135,8 +142,9 @@ def _curved_slide(v0, a, c):
     t_s = W0 / D
     M = (4 * c * c - a @ a) * np.eye(2) + np.outer(a, a)
     dq = np.linalg.solve(M, a * W0 * t_s + v0 * (W0 + c * V))
-    K = np.linalg.solve(M, 2 * W0 * np.outer(a, c * v_hat + a) / D + (W0 + c * V) * np.eye(2)
-                        + np.outer(v0, 2 * c * v_hat + a))
+    K = np.linalg.solve(
+        M, 2 * W0 * np.outer(a, c * v_hat + a) / D + (W0 + c * V) * np.eye(2) + np.outer(v0, 2 * c * v_hat + a)
+    )
     return t_s, dq, (c * v_hat + a) / D, K
 
 
@@ -220,8 +228,9 @@ def test_block_with_oblique_force_curves_and_sticks(block3, force):
     directions = [unit(k, 6) for k in (0, 1, 3, 4)]
     fd, fd_times = central_differences(scene, t_final, directions, event_kinds(traj))
     assert_fd(f"coulomb block oblique force {force}", traj.jacobian[:, [0, 1, 3, 4]], fd, traj.q, rtol=FD_RTOL)
-    assert_fd(f"coulomb block oblique stop time {force}", stop.time_gradient[[0, 1, 3, 4]], fd_times[0], t_s,
-              rtol=FD_RTOL)
+    assert_fd(
+        f"coulomb block oblique stop time {force}", stop.time_gradient[[0, 1, 3, 4]], fd_times[0], t_s, rtol=FD_RTOL
+    )
 
 
 def test_curved_slide_stops_on_time_wherever_it_starts(block3):
@@ -246,8 +255,9 @@ def test_curved_slide_stops_on_time_wherever_it_starts(block3):
     times = []
     for scale in (1e-4, 1e-2):
         for k in range(1, 26):
-            run = cd.simulate(scene.with_state(np.array([k * scale, -0.7 * k * scale, 0.0]), scene.v0),
-                              t_s + 0.01, **TOL)
+            run = cd.simulate(
+                scene.with_state(np.array([k * scale, -0.7 * k * scale, 0.0]), scene.v0), t_s + 0.01, **TOL
+            )
             assert event_kinds(run) == [("stick", ("block",))]
             times.append(run.events[0].t)
     np.testing.assert_allclose(times, t_s, rtol=REL, atol=0)
@@ -263,8 +273,9 @@ def test_planar_block_slides_to_a_stop(block2, vx):
     the normal columns as in 3-D (module doc)."""
     t_s = abs(vx) / (MU * G)
     t_final = t_s + 0.2
-    scene = cd.Scene(block2, [cd.Contact("block", friction=MU)], gravity=[0, 0, -G], q0=np.zeros(2),
-                     v0=np.array([vx, 0.0]))
+    scene = cd.Scene(
+        block2, [cd.Contact("block", friction=MU)], gravity=[0, 0, -G], q0=np.zeros(2), v0=np.array([vx, 0.0])
+    )
     traj = cd.simulate(scene, t_final, jacobian=True, **TOL)
     assert event_kinds(traj) == [("stick", ("block",))]
     (stop,) = traj.events
@@ -272,8 +283,9 @@ def test_planar_block_slides_to_a_stop(block2, vx):
     assert stop.t == pytest.approx(t_s, rel=REL)
     np.testing.assert_allclose(traj.q, [vx * abs(vx) / (2 * MU * G), 0.0], rtol=0, atol=REL * abs(vx) * t_s)
     np.testing.assert_allclose(traj.v, 0.0, rtol=0, atol=REL * abs(vx))
-    np.testing.assert_allclose(stop.time_gradient, [0, 0, math.copysign(1, vx) / (MU * G), 0], rtol=0,
-                               atol=JAC_REL * t_s / abs(vx))
+    np.testing.assert_allclose(
+        stop.time_gradient, [0, 0, math.copysign(1, vx) / (MU * G), 0], rtol=0, atol=JAC_REL * t_s / abs(vx)
+    )
     J = np.zeros((4, 4))
     J[0, 0] = J[1, 1] = 1.0
     J[0, 2] = abs(vx) / (MU * G)
@@ -302,8 +314,9 @@ def test_block_at_rest_on_an_incline(block3, ratio):
     a = g (sin α - μ cos α): q(T) = ½ a T² d, v(T) = a T d."""
     alpha, normal, d = _incline(ratio)
     T = 0.5
-    scene = cd.Scene(block3, [cd.Contact("block", normal=normal, friction=MU)], gravity=[0, 0, -G],
-                     q0=np.zeros(3), v0=np.zeros(3))
+    scene = cd.Scene(
+        block3, [cd.Contact("block", normal=normal, friction=MU)], gravity=[0, 0, -G], q0=np.zeros(3), v0=np.zeros(3)
+    )
     traj = cd.simulate(scene, T, **TOL)
     assert event_kinds(traj) == []
     if ratio <= 1.0:
@@ -341,8 +354,9 @@ def test_block_launched_uphill(block3, ratio):
     t_s = w / a_up
     T = t_s + 0.3
     slides_back = ratio > 1.0
-    scene = cd.Scene(block3, [cd.Contact("block", normal=normal, friction=MU)], gravity=[0, 0, -G],
-                     q0=np.zeros(3), v0=-w * d)
+    scene = cd.Scene(
+        block3, [cd.Contact("block", normal=normal, friction=MU)], gravity=[0, 0, -G], q0=np.zeros(3), v0=-w * d
+    )
     traj = cd.simulate(scene, T, jacobian=True, **TOL)
 
     (stop,) = traj.events
@@ -350,28 +364,38 @@ def test_block_launched_uphill(block3, ratio):
     assert stop.sliding == (("block",) if slides_back else ()) and stop.mode_after == ("block",)
     assert stop.differentiable
     assert stop.t == pytest.approx(t_s, rel=REL)
-    s_T = -w**2 / (2 * a_up) + (0.5 * a_dn * (T - t_s) ** 2 if slides_back else 0.0)
+    s_T = -(w**2) / (2 * a_up) + (0.5 * a_dn * (T - t_s) ** 2 if slides_back else 0.0)
     v_T = a_dn * (T - t_s) if slides_back else 0.0
     np.testing.assert_allclose(traj.q, s_T * d, rtol=0, atol=REL * w * T)
     np.testing.assert_allclose(traj.v, v_T * d, rtol=0, atol=REL * w)
 
     zero = np.zeros(3)
     directions = [np.r_[d, zero], np.r_[y, zero], np.r_[zero, -d], np.r_[zero, y]]
-    expected = np.array([
-        np.r_[d, zero],
-        np.r_[y, zero],
-        np.r_[(-w / a_up - (a_dn * (T - t_s) / a_up if slides_back else 0.0)) * d,
-              (-a_dn / a_up if slides_back else 0.0) * d],
-        np.r_[w / (MU * G * math.cos(alpha) + a_up) * y, zero],
-    ]).T
+    expected = np.array(
+        [
+            np.r_[d, zero],
+            np.r_[y, zero],
+            np.r_[
+                (-w / a_up - (a_dn * (T - t_s) / a_up if slides_back else 0.0)) * d,
+                (-a_dn / a_up if slides_back else 0.0) * d,
+            ],
+            np.r_[w / (MU * G * math.cos(alpha) + a_up) * y, zero],
+        ]
+    ).T
     analytic = traj.jacobian @ np.array(directions).T
     np.testing.assert_allclose(analytic, expected, rtol=0, atol=JAC_REL * np.abs(expected).max())
-    np.testing.assert_allclose(stop.time_gradient @ np.array(directions).T, [0, 0, 1 / a_up, 0], rtol=0,
-                               atol=JAC_REL * t_s / w)
+    np.testing.assert_allclose(
+        stop.time_gradient @ np.array(directions).T, [0, 0, 1 / a_up, 0], rtol=0, atol=JAC_REL * t_s / w
+    )
     fd, fd_times = central_differences(scene, T, directions, event_kinds(traj))
     assert_fd(f"coulomb incline uphill {ratio}", analytic, fd, traj.q, rtol=FD_RTOL)
-    assert_fd(f"coulomb incline stop time {ratio}", stop.time_gradient @ np.array(directions).T, fd_times[0],
-              t_s, rtol=FD_RTOL)
+    assert_fd(
+        f"coulomb incline stop time {ratio}",
+        stop.time_gradient @ np.array(directions).T,
+        fd_times[0],
+        t_s,
+        rtol=FD_RTOL,
+    )
 
 
 def test_stop_on_the_cone_boundary_is_flagged_not_differentiable(block3):
@@ -384,8 +408,9 @@ def test_stop_on_the_cone_boundary_is_flagged_not_differentiable(block3):
     kinds = {}
     for ratio in (1.0 - 1e-6, 1.0, 1.0 + 1e-6):
         alpha, normal, d = _incline(ratio)
-        scene = cd.Scene(block3, [cd.Contact("block", normal=normal, friction=MU)], gravity=[0, 0, -G],
-                         q0=np.zeros(3), v0=-w * d)
+        scene = cd.Scene(
+            block3, [cd.Contact("block", normal=normal, friction=MU)], gravity=[0, 0, -G], q0=np.zeros(3), v0=-w * d
+        )
         t_s = w / (G * (math.sin(alpha) + MU * math.cos(alpha)))
         (stop,) = cd.simulate(scene, t_s + 0.1, **TOL).events
         kinds[ratio] = stop.kind
@@ -395,5 +420,3 @@ def test_stop_on_the_cone_boundary_is_flagged_not_differentiable(block3):
         else:
             assert stop.differentiable
     assert kinds[1.0 - 1e-6] == "stick" and kinds[1.0 + 1e-6] == "slip"
-
-

@@ -35,8 +35,10 @@ import contactdiff as cd
 P = cd.CubeParameters()
 B, MASS, I_C, G = P.edge / 2, P.mass, P.moment, P.gravity
 MU = 1.0  # the pivots below need at most 0.6 (`pivot_loads` checks each run's arc)
-CORNERS = ["cube/" + "".join(s + a for s, a in zip(signs, "xyz"))
-           for signs in [(sx, sy, sz) for sx in "+-" for sy in "+-" for sz in "+-"]]
+CORNERS = [
+    "cube/" + "".join(s + a for s, a in zip(signs, "xyz"))
+    for signs in [(sx, sy, sz) for sx in "+-" for sy in "+-" for sz in "+-"]
+]
 # events are located to ~(atol + rtol |x|) / |guard rate| with rates O(1), and the states
 # carry the integration error ~rtol over O(1) s: at rtol 1e-10 both are ~1e-10; the
 # quadratures of the references are good to ~1e-12
@@ -78,6 +80,7 @@ class Pivot:
             d = top - theta
             w2 = k * 2 * np.cos(self.phi0 + (top + theta) / 2) * np.sin(d / 2)
             return np.sqrt(d / w2) if d > 0 else np.sqrt(1.0 / (k * np.cos(self.phi0 + top)))
+
         value, _ = quad(smooth, 0.0, top, weight="alg", wvar=(0.0, -0.5), epsabs=1e-14, epsrel=1e-13)
         return value
 
@@ -165,8 +168,9 @@ def test_a_cube_tipped_onto_an_edge_falls_back_or_rolls_over(share):
     assert set(landing.mode_after) == new_edge
     if falls_back:
         q_peak, v_peak = traj.at(t_peak)
-        np.testing.assert_allclose(pin.difference(cube().model, q_peak, EDGE.pose(EDGE.theta_max(omega0))), 0.0,
-                                   atol=STATE_ATOL)
+        np.testing.assert_allclose(
+            pin.difference(cube().model, q_peak, EDGE.pose(EDGE.theta_max(omega0))), 0.0, atol=STATE_ATOL
+        )
         np.testing.assert_allclose(v_peak, 0.0, atol=1e-6)  # the velocity's time error: ω' t_err
 
 
@@ -245,8 +249,10 @@ def push_at_the_top(rate):
     def wrench(q, v, t, scale):
         force = pin.Quaternion(q[3:7]).matrix().T @ np.array([scale, 0.0, 0.0])
         return np.r_[force, np.cross(arm, force)]
-    return cd.UserEffort(lambda q, v, t: wrench(q, v, t, rate * t), name="push",
-                         time_derivative=lambda q, v, t: wrench(q, v, t, rate))
+
+    return cd.UserEffort(
+        lambda q, v, t: wrench(q, v, t, rate * t), name="push", time_derivative=lambda q, v, t: wrench(q, v, t, rate)
+    )
 
 
 @pytest.mark.parametrize("u0, mu", [(0.0, 0.8), (1.0, 0.3)])
@@ -386,8 +392,10 @@ def test_flow_jacobian_through_the_diagonal_stop_matches_finite_differences():
     directions = [(np.eye(6)[0], np.zeros(6)), (np.eye(6)[1], np.zeros(6)), (np.zeros(6), np.r_[d, 0.0, 0.0, 0.0])]
     eps = 1e-6
     for dq, dv in directions:
-        runs = [cd.simulate(scene.with_state(pin.integrate(model, q, s * eps * dq), v + s * eps * dv), T, **opts)
-                for s in (1.0, -1.0)]
+        runs = [
+            cd.simulate(scene.with_state(pin.integrate(model, q, s * eps * dq), v + s * eps * dv), T, **opts)
+            for s in (1.0, -1.0)
+        ]
         fd = np.r_[pin.difference(model, runs[1].q, runs[0].q), runs[0].v - runs[1].v] / (2 * eps)
         exact = traj.jacobian @ np.r_[dq, dv]
         assert np.abs(exact - fd).max() <= 1e-5 * max(1.0, np.abs(fd).max()), (exact, fd)
@@ -406,8 +414,10 @@ def couple_slide(mu, rate):
 
     def couple(q, scale):
         return np.r_[np.zeros(3), pin.Quaternion(q[3:7]).matrix().T @ (scale * u)]
-    effort = cd.UserEffort(lambda q, v, t: couple(q, rate * t), name="couple",
-                           time_derivative=lambda q, v, t: couple(q, rate))
+
+    effort = cd.UserEffort(
+        lambda q, v, t: couple(q, rate * t), name="couple", time_derivative=lambda q, v, t: couple(q, rate)
+    )
     scene = cube(mu)
     return cd.Scene(scene.robot, scene.contact_specs, efforts=[effort])
 
@@ -501,6 +511,7 @@ def test_an_impacts_open_neighbour_slides_on_along_its_own_slip():
     from types import SimpleNamespace
 
     from contactdiff.dynamics.frictional_impact import ContactState
+
     q = np.r_[0.0, 0.0, B, 0.0, 0.0, 0.0, 1.0]
     v = np.r_[1.0, 0.0, 0.0, 0.0, 0.0, 0.0]
     scene = cube(0.18).with_state(q, v)
@@ -512,9 +523,13 @@ def test_an_impacts_open_neighbour_slides_on_along_its_own_slip():
     keys_before = [dyn.sliding_key(i) if i == stale else i for i in bottom]
     slide = ContactState.SLIDE
     impact = SimpleNamespace(
-        contacts=keys_before, v_plus=v, normal_speeds_before=np.zeros(4), normal_speeds_after=np.zeros(4),
+        contacts=keys_before,
+        v_plus=v,
+        normal_speeds_before=np.zeros(4),
+        normal_speeds_after=np.zeros(4),
         states=tuple(ContactState.OPEN if i == stale else slide for i in bottom),
-        slide_directions=tuple(np.zeros(2) if i == stale else np.array([1.0, 0.0]) for i in bottom))
+        slide_directions=tuple(np.zeros(2) if i == stale else np.array([1.0, 0.0]) for i in bottom),
+    )
     keys, creeping = loop._friction_keys(q, impact)
     assert keys == [dyn.sliding_key(i) for i in bottom] and creeping == []
     dyn.kin.update(q, v)
@@ -549,13 +564,17 @@ def test_flow_jacobian_through_a_held_corners_bearing_matches_finite_differences
     assert kinds == ["lift-off", "bear", "lift-off"] and traj.differentiable
     model, eps = scene.model, 1e-6
     directions = [(np.r_[turn.T @ np.eye(3)[k], 0.0, 0.0, 0.0], np.zeros(6)) for k in (0, 1)] + [
-        (np.eye(6)[5], np.zeros(6)), (np.zeros(6), np.r_[turn.T @ d, 0.0, 0.0, 0.0]),
-        (np.zeros(6), np.r_[turn.T @ across, 0.0, 0.0, 0.0])]
+        (np.eye(6)[5], np.zeros(6)),
+        (np.zeros(6), np.r_[turn.T @ d, 0.0, 0.0, 0.0]),
+        (np.zeros(6), np.r_[turn.T @ across, 0.0, 0.0, 0.0]),
+    ]
     bear = traj.events[1]
     moved = 0.0
     for dq, dv in directions:
-        runs = [cd.simulate(scene.with_state(pin.integrate(model, q, s * eps * dq), v + s * eps * dv), T, **opts)
-                for s in (1.0, -1.0)]
+        runs = [
+            cd.simulate(scene.with_state(pin.integrate(model, q, s * eps * dq), v + s * eps * dv), T, **opts)
+            for s in (1.0, -1.0)
+        ]
         assert [e.kind for e in runs[0].events] == [e.kind for e in runs[1].events] == kinds
         fd = np.r_[pin.difference(model, runs[1].q, runs[0].q), runs[0].v - runs[1].v] / (2 * eps)
         exact = traj.jacobian @ np.r_[dq, dv]

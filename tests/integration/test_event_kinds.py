@@ -29,10 +29,27 @@ def test_event_kinds_are_the_strings_of_before_and_a_string_given_becomes_one():
     """The kinds and their order (the sweeps' ``events:<kind>`` columns) are the strings
     the events have always carried; an event built with a string holds the enum; an
     unknown kind is refused, the valid ones listed."""
-    assert [str(k) for k in EVENT_KINDS] == ["touchdown", "lift-off", "slip", "stick", "bounce", "grazing",
-                                             "zeno", "bear"]
-    fields = dict(t=0.0, contacts=("a",), simultaneous=False, q=np.zeros(1), v_minus=np.zeros(1),
-                  v_plus=np.zeros(1), impulses={}, mode_before=(), mode_after=("a",))
+    assert [str(k) for k in EVENT_KINDS] == [
+        "touchdown",
+        "lift-off",
+        "slip",
+        "stick",
+        "bounce",
+        "grazing",
+        "zeno",
+        "bear",
+    ]
+    fields = dict(
+        t=0.0,
+        contacts=("a",),
+        simultaneous=False,
+        q=np.zeros(1),
+        v_minus=np.zeros(1),
+        v_plus=np.zeros(1),
+        impulses={},
+        mode_before=(),
+        mode_after=("a",),
+    )
     assert Event(kind="lift-off", **fields).kind is EventKind.LIFT_OFF
     with pytest.raises(UnknownNameError, match=r"'landing'.*bear, bounce, grazing, lift-off"):
         Event(kind="landing", **fields)

@@ -58,6 +58,7 @@ def test_locate_crossing_where_round_off_moved_the_bracket(shift, expected):
     """The step's values bracket a crossing (1e-16 above zero at the start, below at the end)
     but the guard as evaluated does not: shifted up, it stays positive over the step, so the
     crossing is at the end; shifted down, it is already at or below zero at the start."""
+
     def guard(t):
         return 1e-16 - 2e-16 * t + shift
 
@@ -111,15 +112,19 @@ def _stop_crossing(h, t_a, t_b, from_rest: bool):
     options = SimulateOptions()
     dyn.slip_speed_floor = options.zeno_speed
     mode = tuple(dyn.sliding_key(i) for i in range(len(scene.contacts)))
-    field = SimpleNamespace(guards=[Guard(GuardKind.STOP, mode[0])],
-                            guard_values=lambda t, q, v: np.array([h(t)]))
+    field = SimpleNamespace(guards=[Guard(GuardKind.STOP, mode[0])], guard_values=lambda t, q, v: np.array([h(t)]))
     stepper = SimpleNamespace(t_old=t_a, t=t_b, q=scene.q0, q_old=scene.q0)
     zeros = np.zeros(len(scene.contacts))
     finder = GuardFinder(scene, dyn, options, 1e-12)
     finder.from_rest = {mode[0]} if from_rest else set()
     found, _ = finder.crossings(
-        stepper, lambda t: (scene.q0, scene.v0), field, mode, (zeros, zeros, np.array([h(t_a)])),
-        (zeros, zeros, np.array([h(t_b)])))
+        stepper,
+        lambda t: (scene.q0, scene.v0),
+        field,
+        mode,
+        (zeros, zeros, np.array([h(t_a)])),
+        (zeros, zeros, np.array([h(t_b)])),
+    )
     return [t for t, _ in found], options.zeno_speed
 
 

@@ -26,10 +26,10 @@ STATE_ATOL = 1e-8  # m, m/s, rad
 
 
 def box_scene(mu=MU, gravity=(0.0, 0.0, -G)):
-    box = SceneObject("box", shape="box", size=(2 * A_HALF, 2 * B_HALF, 2 * C_HALF), mass=MASS,
-                      position=(0.0, 0.0, C_HALF))
-    return cd.Scene(add_objects(empty_robot(), [box]), [cd.Contact(n, friction=mu) for n in CORNERS],
-                    gravity=gravity)
+    box = SceneObject(
+        "box", shape="box", size=(2 * A_HALF, 2 * B_HALF, 2 * C_HALF), mass=MASS, position=(0.0, 0.0, C_HALF)
+    )
+    return cd.Scene(add_objects(empty_robot(), [box]), [cd.Contact(n, friction=mu) for n in CORNERS], gravity=gravity)
 
 
 def flat_state(yaw=0.0, velocity=(0.0, 0.0), omega_z=0.0):
@@ -125,6 +125,7 @@ def test_flow_jacobian_through_the_face_stop_matches_finite_differences():
     def final(dq, dv, sign):
         run = cd.simulate(scene.with_state(pin.integrate(model, q, sign * eps * dq), v + sign * eps * dv), T, **opts)
         return run.q, run.v
+
     for dq, dv in directions:
         qp, vp = final(dq, dv, 1.0)
         qm, vm = final(dq, dv, -1.0)
@@ -140,8 +141,9 @@ def test_a_face_landing_is_flagged_by_its_landing_orders_with_or_without_sensiti
     disagree) as in a Jacobian run (which forms all 24)."""
     q, v = flat_state(0.3, (0.5, 0.2))
     q[2] += 0.05
-    scene = cd.Scene(box_scene().robot, [cd.Contact(n, friction=MU, restitution=0.5) for n in CORNERS],
-                     gravity=(0.0, 0.0, -G)).with_state(q, v)
+    scene = cd.Scene(
+        box_scene().robot, [cd.Contact(n, friction=MU, restitution=0.5) for n in CORNERS], gravity=(0.0, 0.0, -G)
+    ).with_state(q, v)
     T = np.sqrt(2 * 0.05 / G) + 1e-3
     plain = cd.simulate(scene, T)
     full = cd.simulate(scene, T, jacobian=True)
@@ -158,8 +160,11 @@ def cube_on_edge(moment=None, mu=1.0, restitution=0.0, tilt=0.05, omega=0.0, b=0
     at ``omega`` (rad/s, + tips it further up); moments ``moment`` (kg m², default uniform)."""
     cube = SceneObject("cube", shape="box", size=(2 * b,) * 3, mass=mass, moments=moment, position=(0.0, 0.0, b))
     corners = [f"cube/{sx}x{sy}y-z" for sx in "+-" for sy in "+-"]
-    scene = cd.Scene(add_objects(empty_robot(), [cube]),
-                     [cd.Contact(n, friction=mu, restitution=restitution) for n in corners], gravity=(0.0, 0.0, -G))
+    scene = cd.Scene(
+        add_objects(empty_robot(), [cube]),
+        [cd.Contact(n, friction=mu, restitution=restitution) for n in corners],
+        gravity=(0.0, 0.0, -G),
+    )
     rotation = pin.rpy.rpyToMatrix(0.0, -tilt, 0.0)  # about y: -tilt raises the +x side
     edge = np.array([-b, 0.0, 0.0])
     centre = edge + rotation @ np.array([b, 0.0, b])  # the corner (-b, y, -b) of the cube frame on the edge
@@ -196,10 +201,14 @@ def test_a_face_tilted_by_a_nanoradian_lands_without_a_cascade():
     (2.5e-11 m of height over a 0.5 m/s landing), one simultaneous event by the
     simultaneity tolerance or a short cascade: the run must end promptly, at rest on its
     face, with its energy not above the drop's."""
-    box = SceneObject("box", shape="box", size=(2 * A_HALF, 2 * B_HALF, 2 * C_HALF), mass=MASS,
-                      position=(0.0, 0.0, C_HALF))
-    scene = cd.Scene(add_objects(empty_robot(), [box]), [cd.Contact(n, friction=MU, restitution=0.3) for n in CORNERS],
-                     gravity=(0.0, 0.0, -G))
+    box = SceneObject(
+        "box", shape="box", size=(2 * A_HALF, 2 * B_HALF, 2 * C_HALF), mass=MASS, position=(0.0, 0.0, C_HALF)
+    )
+    scene = cd.Scene(
+        add_objects(empty_robot(), [box]),
+        [cd.Contact(n, friction=MU, restitution=0.3) for n in CORNERS],
+        gravity=(0.0, 0.0, -G),
+    )
     rotation = pin.rpy.rpyToMatrix(1e-9, 0.0, 0.0)
     q = np.r_[0.0, 0.0, C_HALF + 0.0125 + 2e-9, pin.Quaternion(rotation).coeffs()]
     traj = cd.simulate(scene.with_state(q, np.zeros(6)), 1.0)
@@ -237,8 +246,10 @@ def test_flow_jacobian_through_an_edge_release_matches_finite_differences():
     turn = np.linalg.svd(rows)[2][-1]  # six rows of rank 5: the one velocity they leave free
     directions.append((np.zeros(6), turn))
     for dq, dv in directions:
-        runs = [cd.simulate(scene.with_state(pin.integrate(model, q, s * eps * dq), v + s * eps * dv), T, **opts)
-                for s in (1.0, -1.0)]
+        runs = [
+            cd.simulate(scene.with_state(pin.integrate(model, q, s * eps * dq), v + s * eps * dv), T, **opts)
+            for s in (1.0, -1.0)
+        ]
         assert [e.kind for e in runs[0].events] == [e.kind for e in runs[1].events] == [e.kind for e in traj.events]
         fd = np.r_[pin.difference(model, runs[1].q, runs[0].q), runs[0].v - runs[1].v] / (2 * eps)
         exact = traj.jacobian @ np.r_[dq, dv]

@@ -29,8 +29,9 @@ RTOL, ATOL = 1e-12, 1e-13
 
 
 def _drop(z0: float, horizon: float):
-    robot = add_objects(empty_robot(), [SceneObject("ball", shape="sphere", radius=R, mass=1.0,
-                                                    position=(0.0, 0.0, z0))])
+    robot = add_objects(
+        empty_robot(), [SceneObject("ball", shape="sphere", radius=R, mass=1.0, position=(0.0, 0.0, z0))]
+    )
     scene = Scene(robot, [Contact("ball", restitution=E, name="ground")], gravity=(0.0, 0.0, -G), name="drop")
     return simulate(scene, horizon, jacobian=True, rtol=RTOL, atol=ATOL)
 

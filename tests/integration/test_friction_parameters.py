@@ -73,8 +73,14 @@ def _run(scene, T, names):
 # the friction coefficient of a sliding block
 # ==============================================================================================
 def _block(block3, v0, *, mu=MU, normal=(0.0, 0.0, 1.0), efforts=(), q0=(0.0, 0.0, 0.0), restitution=0.0):
-    return cd.Scene(block3, [cd.Contact("block", normal=normal, friction=mu, restitution=restitution)],
-                    list(efforts), gravity=[0, 0, -G], q0=np.asarray(q0, float), v0=np.asarray(v0, float))
+    return cd.Scene(
+        block3,
+        [cd.Contact("block", normal=normal, friction=mu, restitution=restitution)],
+        list(efforts),
+        gravity=[0, 0, -G],
+        q0=np.asarray(q0, float),
+        v0=np.asarray(v0, float),
+    )
 
 
 @pytest.mark.parametrize("before_stop", [True, False], ids=["sliding", "stopped"])
@@ -99,7 +105,7 @@ def test_block_sliding_to_a_stop(block3, before_stop):
         expected = np.r_[-0.5 * G * T**2 * v_hat, -G * T * v_hat]
     else:
         assert event_kinds(traj) == [("stick", ("block",))]
-        expected = np.r_[-V**2 / (2 * MU**2 * G) * v_hat, np.zeros(3)]
+        expected = np.r_[-(V**2) / (2 * MU**2 * G) * v_hat, np.zeros(3)]
         assert traj.events[0].parameter_time_gradient[0] == pytest.approx(-V / (MU**2 * G), rel=JAC_REL)
     np.testing.assert_allclose(J[:, 0], expected, rtol=0, atol=JAC_REL * np.abs(expected).max())
     fd, fd_times, steps = _fd(scene, ["contact:block:friction"], T, event_kinds(traj))
@@ -120,8 +126,12 @@ def _incline(ratio):
 def _ramp(k, d):
     """A force k t d (N; k in N/s) on the block's three prismatic joints, with its exact derivatives."""
     d = np.asarray(d, float)
-    return cd.UserEffort(lambda q, v, t: k * t * d, lambda q, v, t: (np.zeros((3, 3)), np.zeros((3, 3))),
-                         name="ramp", time_derivative=lambda q, v, t: k * d)
+    return cd.UserEffort(
+        lambda q, v, t: k * t * d,
+        lambda q, v, t: (np.zeros((3, 3)), np.zeros((3, 3))),
+        name="ramp",
+        time_derivative=lambda q, v, t: k * d,
+    )
 
 
 @pytest.mark.parametrize("case", ["below", "sliding", "pushed"])
@@ -224,8 +234,13 @@ def test_sphere_slides_then_rolls(ball):
     do not move. The columns are in the tangent space at q(T) = (p, R): a world position change
     is R δp_local, a world velocity change R (δθ × v_local + δv_local) (δθ the rotation column)."""
     v0, w0 = np.array([1.0, 0.4, 0.0]), np.array([3.0, -5.0, 2.0])
-    scene = cd.Scene(ball, [cd.Contact("ball", radius=RADIUS, friction=MU)], gravity=[0, 0, -G],
-                     q0=np.array([0.0, 0.0, RADIUS, 0.0, 0.0, 0.0, 1.0]), v0=np.r_[v0, w0])
+    scene = cd.Scene(
+        ball,
+        [cd.Contact("ball", radius=RADIUS, friction=MU)],
+        gravity=[0, 0, -G],
+        q0=np.array([0.0, 0.0, RADIUS, 0.0, 0.0, 0.0, 1.0]),
+        v0=np.r_[v0, w0],
+    )
     u0 = v0[:2] + RADIUS * np.array([-w0[1], w0[0]])
     s = u0 / np.linalg.norm(u0)
     t_r = 2 * np.linalg.norm(u0) / (7 * MU * G)
@@ -285,7 +300,7 @@ def test_cube_corner_landing_and_group_parameters(T):
     assert np.abs(J[:, others]).max() == 0.0
     # a sum of columns formed in one run: equal up to the round-off of adding them (1e-15 each)
     scale = np.abs(J[:, 0]).max()
-    np.testing.assert_allclose(J[:, 0], J[:, len(group):].sum(axis=1), rtol=0, atol=1e-12 * scale)
+    np.testing.assert_allclose(J[:, 0], J[:, len(group) :].sum(axis=1), rtol=0, atol=1e-12 * scale)
     fd, _, steps = _fd(scene, group + [members[k - len(group)] for k in landed], T, kinds)
     _check("cube corner", J[:, [0, 1, 2, *landed]], fd, np.r_[traj.q, traj.v], steps)
 
@@ -328,8 +343,11 @@ def test_cube_face_landing_slides_to_a_stop():
 # ==============================================================================================
 # a leg whose foot lands, sticks, slips and lifts off; or slides and reverses
 # ==============================================================================================
-@pytest.mark.parametrize("mu, kinds", [(1.0, ["touchdown", "slip", "lift-off"]), (0.3, ["touchdown", "slip"])],
-                         ids=["stick-slip-liftoff", "slide-reverse"])
+@pytest.mark.parametrize(
+    "mu, kinds",
+    [(1.0, ["touchdown", "slip", "lift-off"]), (0.3, ["touchdown", "slip"])],
+    ids=["stick-slip-liftoff", "slide-reverse"],
+)
 def test_leg_foot_friction(mu, kinds, tmp_path):
     """The planar leg of test_friction_events (a body free in x and z, a leg on a hip hinge, landing
     inclined by 0.4 rad; from t = 0.1 s an upward force ramps and unloads the foot) in its foot's μ,
@@ -343,8 +361,14 @@ def test_leg_foot_friction(mu, kinds, tmp_path):
     robot = cd.load_robot(str(path))
     tilt = 0.4
     effort = cd.UserEffort(leg_lift, leg_lift_jacobian, name="lift", time_derivative=leg_lift_rate)
-    scene = cd.Scene(robot, [cd.Contact("foot", friction=mu)], [effort], gravity=[0, 0, -9.81],
-                     q0=np.array([0.0, 0.5 * math.cos(tilt) + 0.01, tilt]), v0=np.zeros(3))
+    scene = cd.Scene(
+        robot,
+        [cd.Contact("foot", friction=mu)],
+        [effort],
+        gravity=[0, 0, -9.81],
+        q0=np.array([0.0, 0.5 * math.cos(tilt) + 0.01, tilt]),
+        v0=np.zeros(3),
+    )
     T = 0.6
     traj, J = _run(scene, T, ["contact:foot:friction"])
     assert [k for k, _ in event_kinds(traj)] == kinds

@@ -45,7 +45,11 @@ def stance():
 def test_slip_events_of_the_window(stance):
     _, _, _, traj = stance
     assert [(e.kind, e.contacts) for e in traj.events] == [
-        ("slip", ("FL_FOOT",)), ("lift-off", ("FL_FOOT",)), ("slip", ("HR_FOOT",)), ("lift-off", ("HR_FOOT",))]
+        ("slip", ("FL_FOOT",)),
+        ("lift-off", ("FL_FOOT",)),
+        ("slip", ("HR_FOOT",)),
+        ("lift-off", ("HR_FOOT",)),
+    ]
     assert all(not e.nonsmooth for e in traj.events)  # transversal crossings: differentiable
     assert [e.sliding for e in traj.events] == [("FL_FOOT",), (), ("HR_FOOT",), ()]
 
@@ -101,8 +105,12 @@ def test_anymal_slip_onset_passes_trial_stages_outside_the_slip_domain():
     dyn = ModeDynamics(scene)
     segment = next(s for s in traj.segments if s.t0 == onset[0].t)
     assert "RH_FOOT" in segment.sliding
-    mode = tuple(sorted(dyn.sliding_key(i) if scene.contact_names[i] in segment.sliding else i
-                        for i in (scene.contact_names.index(n) for n in segment.mode)))
+    mode = tuple(
+        sorted(
+            dyn.sliding_key(i) if scene.contact_names[i] in segment.sliding else i
+            for i in (scene.contact_names.index(n) for n in segment.mode)
+        )
+    )
     rh = mode.index(dyn.sliding_key(scene.contact_names.index("RH_FOOT")))
     for t in np.linspace(segment.t0, segment.t1, 7)[1:-1]:  # inside: the segment ends in a lift-off, λ_N = 0
         q, v = segment.at(t)

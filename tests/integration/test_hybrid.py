@@ -61,8 +61,8 @@ def _ball_events_closed_form(e, n, h=1.0, g=1.0):
     Flight k (after impact k) lasts 2 e^(k+1) sqrt(2gh)/g, so
     t_k = sqrt(2h/g) (1 + 2 sum_{j=1..k} e^j); v-_k = -e^k sqrt(2gh); v+_k = -e v-_k.
     """
-    t = [math.sqrt(2 * h / g) * (1 + 2 * sum(e ** j for j in range(1, k + 1))) for k in range(n)]
-    vm = [-(e ** k) * math.sqrt(2 * g * h) for k in range(n)]
+    t = [math.sqrt(2 * h / g) * (1 + 2 * sum(e**j for j in range(1, k + 1))) for k in range(n)]
+    vm = [-(e**k) * math.sqrt(2 * g * h) for k in range(n)]
     return np.array(t), np.array(vm), -e * np.array(vm)
 
 
@@ -278,7 +278,7 @@ class SpringHopper:
     def __init__(self, m_b, m_f, k, g=1.0):
         self.m_b, self.m_f, self.k, self.g = m_b, m_f, k, g
         self.w = math.sqrt(2 * k / m_b)
-        self.c = g / self.w ** 2
+        self.c = g / self.w**2
         self.z_lo = 0.5 + m_f * g / k
         grid = np.linspace(0.0, 2 * np.pi / self.w, 4001)
         f = self.stance(grid)[0] - self.z_lo
@@ -312,10 +312,13 @@ class SpringHopper:
 
 
 HOPPERS = {
-    "planar_trot_soft": (SpringHopper(1.0, 1.0, 27.0), "body_z", ("rear_foot_z", "front_foot_z"),
-                         ("rear_foot", "front_foot")),
-    "two_limb": (SpringHopper(1.0, 0.1, 10.0), "body_z", ("left_foot_z", "right_foot_z"),
-                 ("left_foot", "right_foot")),
+    "planar_trot_soft": (
+        SpringHopper(1.0, 1.0, 27.0),
+        "body_z",
+        ("rear_foot_z", "front_foot_z"),
+        ("rear_foot", "front_foot"),
+    ),
+    "two_limb": (SpringHopper(1.0, 0.1, 10.0), "body_z", ("left_foot_z", "right_foot_z"), ("left_foot", "right_foot")),
 }
 
 
@@ -449,10 +452,13 @@ def _pivot(sign, theta0, omega0, t0, t1, stop_at_level=False):
     (3 Z'^2 + I) thdd + 3 Z' Z'' thd^2 + 3 g Z' = 0.
     Optionally stops when theta = 0 (the other foot's gap 0.5 |sin theta| closes).
     """
+
     def Z(th):
         return -_foot_h(th, sign)
+
     def Zp(th):
         return -(sign * 0.25 * np.cos(th) + np.sin(th) / 6)
+
     def Zpp(th):
         return -(-sign * 0.25 * np.sin(th) + np.cos(th) / 6)
 
@@ -462,9 +468,18 @@ def _pivot(sign, theta0, omega0, t0, t1, stop_at_level=False):
 
     def level(t, y):
         return y[0]
+
     level.terminal, level.direction = True, 0
-    sol = solve_ivp(f, (t0, t1), [theta0, omega0], method="DOP853", rtol=1e-13, atol=1e-15,
-                    events=level if stop_at_level else None, dense_output=True)
+    sol = solve_ivp(
+        f,
+        (t0, t1),
+        [theta0, omega0],
+        method="DOP853",
+        rtol=1e-13,
+        atol=1e-15,
+        events=level if stop_at_level else None,
+        dense_output=True,
+    )
     th, w = sol.y[:, -1]
     t_end = sol.t[-1]
     # the normal force 3 (z'' + g) stays positive (the pivot holds)
@@ -699,8 +714,9 @@ def _grazing_scene(ball_robot, delta):
     The small scale keeps the 5e-13 dip far above the integration error."""
     A = 1e-8
     r = A - delta
-    scene = cd.Scene(ball_robot, [cd.Contact("ball")], [cd.JointSpring("z", 1.0, 0.0, r)],
-                     gravity=[0, 0, 0], q0={"z": 2 * A})
+    scene = cd.Scene(
+        ball_robot, [cd.Contact("ball")], [cd.JointSpring("z", 1.0, 0.0, r)], gravity=[0, 0, 0], q0={"z": 2 * A}
+    )
     t_cross = math.acos(-r / (2 * A - r))
     speed = math.sqrt((2 * A - r) ** 2 - r * r)
     return scene, t_cross, speed
@@ -756,7 +772,7 @@ def test_start_closed_approaching(ball_robot):
     assert first.t == 0.0 and first.v_minus[0] == -1.0
     assert first.v_plus[0] == pytest.approx(0.5, abs=4 * np.finfo(float).eps * (1.0 + 1.5))
     q, v = traj.at(0.25)
-    assert q[0] == pytest.approx(0.5 * 0.25 - 0.25 ** 2 / 2, abs=1e-12)
+    assert q[0] == pytest.approx(0.5 * 0.25 - 0.25**2 / 2, abs=1e-12)
     assert v[0] == pytest.approx(0.25, abs=1e-12)
     assert second.t == pytest.approx(1.0, abs=1e-10)
     assert second.v_minus[0] == pytest.approx(-0.5, abs=1e-10)
@@ -816,9 +832,13 @@ def test_start_sliding_on_sticking_feet():
     tangential velocity is stopped plastically). Whatever the impact outcome,
     every active contact must have zero row velocity in every segment."""
     base = cd.load_scene("planar_trot_rigid")
-    scene = cd.Scene(base.robot, [cd.Contact("rear_foot", friction="stick"),
-                                  cd.Contact("front_foot", friction="stick")],
-                     gravity=[0, 0, -1], q0=[0.0, 1 / 6, 0.0], v0=[1.0, 0.0, 0.0])
+    scene = cd.Scene(
+        base.robot,
+        [cd.Contact("rear_foot", friction="stick"), cd.Contact("front_foot", friction="stick")],
+        gravity=[0, 0, -1],
+        q0=[0.0, 1 / 6, 0.0],
+        v0=[1.0, 0.0, 0.0],
+    )
     traj = simulate(scene, 0.5, **TIGHT, dense=True)
     for seg in traj.segments:
         if not seg.mode or seg.t1 <= seg.t0:

@@ -39,7 +39,7 @@ def _ball_closed_form():
     kind "zeno", all before the Zeno time sqrt 2 (1 + 2e / (1 - e)) = 9 sqrt 2 = 12.728 s.
     """
     n = math.ceil(math.log(ZENO_SPEED / math.sqrt(2.0)) / math.log(E)) + 1
-    speeds = [math.sqrt(2.0) * E ** k for k in range(n)]
+    speeds = [math.sqrt(2.0) * E**k for k in range(n)]
     times = [math.sqrt(2.0)]
     for u in speeds[:-1]:
         times.append(times[-1] + 2.0 * E * u)
@@ -145,8 +145,11 @@ def _leg_scene(tmp_path):
     z = 1, hip 0.3 rad, moving at x' = 0.1 m/s, z' = 0.5 m/s."""
     path = tmp_path / "leg.urdf"
     path.write_text(LEG_URDF)
-    springs = [cd.JointSpring("body_x", 0.0, LEG_C, 0.0), cd.JointSpring("body_z", 100.0, 10.0, 1.0),
-               cd.JointSpring("hip", 5.0, 0.5, 0.0)]
+    springs = [
+        cd.JointSpring("body_x", 0.0, LEG_C, 0.0),
+        cd.JointSpring("body_z", 100.0, 10.0, 1.0),
+        cd.JointSpring("hip", 5.0, 0.5, 0.0),
+    ]
     scene = cd.Scene(load_robot(path), efforts=springs)
     return scene.with_state({"body_z": 1.0, "hip": 0.3}, {"body_x": 0.1, "body_z": 0.5})
 
@@ -210,8 +213,9 @@ def test_rest_goes_on_across_sample_times(tmp_path):
     np.testing.assert_allclose(sampled.jacobian, plain.jacobian, atol=1e-9)
     np.testing.assert_allclose(sampled.parameter_jacobian, plain.parameter_jacobian, atol=1e-9)
     resting = sampled.samples.t >= 30.0
-    np.testing.assert_allclose(sampled.samples.q[resting], np.broadcast_to(plain.q, sampled.samples.q[resting].shape),
-                               atol=1e-9)
+    np.testing.assert_allclose(
+        sampled.samples.q[resting], np.broadcast_to(plain.q, sampled.samples.q[resting].shape), atol=1e-9
+    )
     np.testing.assert_allclose(sampled.samples.jacobian[-1], plain.jacobian, atol=1e-9)
 
 

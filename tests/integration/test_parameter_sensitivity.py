@@ -53,9 +53,19 @@ def test_forced_variational_equation_matches_the_oscillator_closed_form(method):
     """q'' = -k q from q0 = 1, v0 = 0: q = cos(w t), w = sqrt(k); the last column of phi
     is (∂q/∂k, ∂v/∂k) = (-t sin(w t) / (2w), -(sin(w t) + w t cos(w t)) / (2w))."""
     k, T = 2.0, 3.0
-    st = make_stepper(method, lambda t, q, v: -k * q, VectorSpace(1), 0.0, [1.0], [0.0], rtol=1e-11, atol=1e-13,
-                      jac=lambda t, q, v: (np.array([[-k]]), np.array([[0.0]])),
-                      parameter_jac=lambda t, q, v: np.array([[-q[0]]]), variational=np.eye(2, 3))
+    st = make_stepper(
+        method,
+        lambda t, q, v: -k * q,
+        VectorSpace(1),
+        0.0,
+        [1.0],
+        [0.0],
+        rtol=1e-11,
+        atol=1e-13,
+        jac=lambda t, q, v: (np.array([[-k]]), np.array([[0.0]])),
+        parameter_jac=lambda t, q, v: np.array([[-q[0]]]),
+        variational=np.eye(2, 3),
+    )
     while st.t < T:
         st.t_bound = T
         st.step()
@@ -72,9 +82,17 @@ def test_forced_variational_equation_matches_the_oscillator_closed_form(method):
 
 
 def test_parameter_jacobian_of_the_wrong_shape_is_named():
-    st = make_stepper("DOP853", lambda t, q, v: -q, VectorSpace(1), 0.0, [1.0], [0.0],
-                      jac=lambda t, q, v: (np.array([[-1.0]]), np.array([[0.0]])),
-                      parameter_jac=lambda t, q, v: np.zeros((2, 1)), variational=np.eye(2, 3))
+    st = make_stepper(
+        "DOP853",
+        lambda t, q, v: -q,
+        VectorSpace(1),
+        0.0,
+        [1.0],
+        [0.0],
+        jac=lambda t, q, v: (np.array([[-1.0]]), np.array([[0.0]])),
+        parameter_jac=lambda t, q, v: np.zeros((2, 1)),
+        variational=np.eye(2, 3),
+    )
     with pytest.raises(InvalidInputError, match="parameter_jac"):
         st.step()
 
@@ -133,6 +151,7 @@ def _bar() -> cd.Scene:
 def _ball_on_spring() -> cd.Scene:
     """The ball with a user effort: a spring-damper pulling it to z = r with parameters
     (k, c, r), its Jacobian by hand and its parameter Jacobian left to central differences."""
+
     def force(q, v, t, k, c, r):
         return np.array([-k * (q[0] - r) - c * v[0]])
 
@@ -157,8 +176,11 @@ def _pick(scene, *patterns):
     out = []
     for prefix, suffix in patterns:
         match = [n for n in names if n.startswith(prefix) and n.endswith(suffix)]
-        match = [n for n in match if not n.startswith("body:")
-                 or scene.parameter_values([n.rsplit(":", 1)[0] + ":mass"])[0] > 0]
+        match = [
+            n
+            for n in match
+            if not n.startswith("body:") or scene.parameter_values([n.rsplit(":", 1)[0] + ":mass"])[0] > 0
+        ]
         assert match, (prefix, suffix, names)
         out.append(match[0])
     return out
@@ -177,43 +199,94 @@ def _trot_stance() -> cd.Scene:
 
 # scene builder, final time, expected events (kind, contacts), parameter patterns
 CASES = {
-    "ball": (lambda: cd.load_scene("ball"), 5.2, [("bounce", {"ball"}), ("bounce", {"ball"})],
-             [("scene:", "gravity_z"), ("contact:", "offset"), ("contact:", "restitution")]),
+    "ball": (
+        lambda: cd.load_scene("ball"),
+        5.2,
+        [("bounce", {"ball"}), ("bounce", {"ball"})],
+        [("scene:", "gravity_z"), ("contact:", "offset"), ("contact:", "restitution")],
+    ),
     # simultaneous touchdown and simultaneous lift-off, springs
-    "two_limb": (lambda: cd.load_scene("two_limb"), 2.0,
-                 [("touchdown", {"left_foot", "right_foot"}), ("lift-off", {"left_foot", "right_foot"})],
-                 [("spring:", "stiffness"), ("spring:", "rest_length"), ("body:", "mass"),
-                  ("contact:left_foot", "offset")]),
+    "two_limb": (
+        lambda: cd.load_scene("two_limb"),
+        2.0,
+        [("touchdown", {"left_foot", "right_foot"}), ("lift-off", {"left_foot", "right_foot"})],
+        [("spring:", "stiffness"), ("spring:", "rest_length"), ("body:", "mass"), ("contact:left_foot", "offset")],
+    ),
     # a user effort's own parameters (its parameter Jacobian by central differences)
-    "ball_tether": (_ball_on_spring, 4.0, [("bounce", {"ball"}), ("bounce", {"ball"})],
-                    [("effort:tether", "k"), ("effort:tether", "c"), ("effort:tether", "r")]),
+    "ball_tether": (
+        _ball_on_spring,
+        4.0,
+        [("bounce", {"ball"}), ("bounce", {"ball"})],
+        [("effort:tether", "k"), ("effort:tether", "c"), ("effort:tether", "r")],
+    ),
     # separate touchdowns and lift-offs (force guards), inertias and centres of mass
-    "soft_pitch0.05": (lambda: cd.trot_touchdown("soft", 0.05), 1.8,
-                       [("touchdown", {"rear_foot"}), ("touchdown", {"front_foot"}),
-                        ("lift-off", {"front_foot"}), ("lift-off", {"rear_foot"})],
-                       [("body:", "mass"), ("body:", "com_x"), ("body:", "iyy"), ("spring:", "damping"),
-                        ("contact:front_foot", "offset"), ("scene:", "gravity_x")]),
+    "soft_pitch0.05": (
+        lambda: cd.trot_touchdown("soft", 0.05),
+        1.8,
+        [
+            ("touchdown", {"rear_foot"}),
+            ("touchdown", {"front_foot"}),
+            ("lift-off", {"front_foot"}),
+            ("lift-off", {"rear_foot"}),
+        ],
+        [
+            ("body:", "mass"),
+            ("body:", "com_x"),
+            ("body:", "iyy"),
+            ("spring:", "damping"),
+            ("contact:front_foot", "offset"),
+            ("scene:", "gravity_x"),
+        ],
+    ),
     # rigid bar bouncing on both feet: restitution and inertia through the impact law
-    "bar": (_bar, 1.5, [("bounce", {"rear_foot"}), ("bounce", {"front_foot"})],
-            [("contact:rear_foot", "restitution"), ("contact:front_foot", "restitution"), ("body:", "mass"),
-             ("body:", "iyy"), ("body:", "com_z"), ("joint:body_pitch", "armature")]),
+    "bar": (
+        _bar,
+        1.5,
+        [("bounce", {"rear_foot"}), ("bounce", {"front_foot"})],
+        [
+            ("contact:rear_foot", "restitution"),
+            ("contact:front_foot", "restitution"),
+            ("body:", "mass"),
+            ("body:", "iyy"),
+            ("body:", "com_z"),
+            ("joint:body_pitch", "armature"),
+        ],
+    ),
     # sticking feet: lift-offs with tangential force left
-    "soft_stick": (_soft_stick, 1.8,
-                   [("touchdown", {"rear_foot"}), ("touchdown", {"front_foot"}),
-                    ("lift-off", {"front_foot"}), ("lift-off", {"rear_foot"})],
-                   [("body:", "mass"), ("spring:", "stiffness")]),
+    "soft_stick": (
+        _soft_stick,
+        1.8,
+        [
+            ("touchdown", {"rear_foot"}),
+            ("touchdown", {"front_foot"}),
+            ("lift-off", {"front_foot"}),
+            ("lift-off", {"rear_foot"}),
+        ],
+        [("body:", "mass"), ("spring:", "stiffness")],
+    ),
     # free-flyer, sticking plastic feet, three touchdowns (the state study's tighter tolerance)
-    "solo12_tilted": (_solo_tilted, 0.112,
-                      [("touchdown", {"FR_FOOT"}), ("touchdown", {"FL_FOOT"}), ("touchdown", {"FR_FOOT"})],
-                      [("body:base_link", "mass"), ("body:FL_LOWER_LEG", "com_x"), ("body:FR_UPPER_LEG", "ixx"),
-                       ("scene:", "gravity_z"), ("contact:FL_FOOT", "offset"), ("joint_spring:FR_KFE", "stiffness")]),
+    "solo12_tilted": (
+        _solo_tilted,
+        0.112,
+        [("touchdown", {"FR_FOOT"}), ("touchdown", {"FL_FOOT"}), ("touchdown", {"FR_FOOT"})],
+        [
+            ("body:base_link", "mass"),
+            ("body:FL_LOWER_LEG", "com_x"),
+            ("body:FR_UPPER_LEG", "ixx"),
+            ("scene:", "gravity_z"),
+            ("contact:FL_FOOT", "offset"),
+            ("joint_spring:FR_KFE", "stiffness"),
+        ],
+    ),
     # the controlled trot: the controller's gains, and the base's mass and gravity, which
     # its feed-forward also holds; slips (a sticking foot's release that would sink) and
     # lift-offs
-    "solo12_trot": (_trot_stance, 0.2,
-                    [("slip", {"FL_FOOT"}), ("lift-off", {"FL_FOOT"}), ("slip", {"HR_FOOT"}),
-                     ("lift-off", {"HR_FOOT"})],
-                    [("trot:", "kp"), ("trot:", "kd"), ("body:base_link", "mass"), ("scene:", "gravity_z")]),
+    "solo12_trot": (
+        _trot_stance,
+        0.2,
+        [("slip", {"FL_FOOT"}), ("lift-off", {"FL_FOOT"}), ("slip", {"HR_FOOT"}), ("lift-off", {"HR_FOOT"})],
+        [("trot:", "kp"), ("trot:", "kd"), ("body:base_link", "mass"), ("scene:", "gravity_z")],
+    ),
 }
 OPTIONS = {"solo12_tilted": dict(rtol=1e-13, atol=1e-14)}
 # parameters at the bound of their range (zero damping, armature) are moved inside it, so
@@ -222,8 +295,7 @@ OPTIONS = {"solo12_tilted": dict(rtol=1e-13, atol=1e-14)}
 # knee: there 1e-5 kg m² doubles the light shank's inertia and the perturbed runs'
 # integration error, measured, puts the FD's noise at 1e-4 relative for h = 1e-5 |p|
 # (2.8e-7 at h = 1e-4 |p|, which is where the Jacobian agrees)
-NOMINAL = {"soft_pitch0.05": {"spring:rear_hip-rear_foot:damping": 0.05},
-           "bar": {"joint:body_pitch:armature": 0.1}}
+NOMINAL = {"soft_pitch0.05": {"spring:rear_hip-rear_foot:damping": 0.05}, "bar": {"joint:body_pitch:armature": 0.1}}
 
 
 def _sequence(traj):
@@ -303,8 +375,9 @@ def test_parameters_alone_give_the_same_columns_without_the_state_jacobian(name)
     assert alone.jacobian is None and alone.events[0].time_gradient is None
     J = traj.parameter_jacobian
     assert np.abs(alone.parameter_jacobian - J).max() <= 1e-8 * np.abs(J).max()
-    assert alone.events[-1].parameter_time_gradient == pytest.approx(traj.events[-1].parameter_time_gradient,
-                                                                     rel=1e-8, abs=1e-12)
+    assert alone.events[-1].parameter_time_gradient == pytest.approx(
+        traj.events[-1].parameter_time_gradient, rel=1e-8, abs=1e-12
+    )
 
 
 def test_radau_gives_the_same_parameter_jacobian():

@@ -29,12 +29,19 @@ import pytest
 import contactdiff as cd
 
 U = 1.0  # m/s
-_JOINT = ('<joint name="z{c}" type="prismatic"><parent link="world"/><child link="{c}"/><axis xyz="0 0 1"/>'
-          '<limit lower="-100" upper="100" effort="0" velocity="100"/></joint>')
-_LINK = ('<link name="{c}"><inertial><mass value="1"/>'
-         '<inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link>')
-STACK_URDF = ('<?xml version="1.0"?><robot name="stack"><link name="world"/>'
-              + "".join(_LINK.format(c=c) + _JOINT.format(c=c) for c in "ab") + "</robot>")
+_JOINT = (
+    '<joint name="z{c}" type="prismatic"><parent link="world"/><child link="{c}"/><axis xyz="0 0 1"/>'
+    '<limit lower="-100" upper="100" effort="0" velocity="100"/></joint>'
+)
+_LINK = (
+    '<link name="{c}"><inertial><mass value="1"/>'
+    '<inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link>'
+)
+STACK_URDF = (
+    '<?xml version="1.0"?><robot name="stack"><link name="world"/>'
+    + "".join(_LINK.format(c=c) + _JOINT.format(c=c) for c in "ab")
+    + "</robot>"
+)
 # the impact law's velocities are sums of a few O(1) terms: round-off ~1e-16
 VEL_ATOL = 1e-12  # m/s
 
@@ -51,8 +58,13 @@ def _scene(robot, e_ground, gap=0.0, b_lands_on="a"):
         upper = cd.Contact("b", against="a", offset=1.0, restitution=1.0, name="ab")
     else:  # b has its own floor, 1 m down: it does not push on a
         upper = cd.Contact("b", offset=1.0, restitution=1.0, name="floor_b")
-    return cd.Scene(robot, [cd.Contact("a", restitution=e_ground, name="ground"), upper], gravity=[0, 0, 0],
-                    q0=np.array([gap, 1.5 + gap]), v0=np.array([0.0, -U]))
+    return cd.Scene(
+        robot,
+        [cd.Contact("a", restitution=e_ground, name="ground"), upper],
+        gravity=[0, 0, 0],
+        q0=np.array([gap, 1.5 + gap]),
+        v0=np.array([0.0, -U]),
+    )
 
 
 @pytest.mark.parametrize("e_ground", [0.0, 0.5])

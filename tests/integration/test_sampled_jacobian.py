@@ -45,8 +45,9 @@ def _block(tmp_path_factory):
     """A point mass (2 kg) sliding on flat ground with μ = 0.5 from (1.2, -0.9) m/s: it slips
     to a stop at V / (μ g) = 0.306 s and sticks (a slip → stick event)."""
     robot = load(tmp_path_factory, "block3", BLOCK3_URDF)
-    return cd.Scene(robot, [cd.Contact("block", friction=MU)], gravity=[0, 0, -G], q0=np.zeros(3),
-                    v0=np.array([1.2, -0.9, 0.0]))
+    return cd.Scene(
+        robot, [cd.Contact("block", friction=MU)], gravity=[0, 0, -G], q0=np.zeros(3), v0=np.array([1.2, -0.9, 0.0])
+    )
 
 
 def _cube(_):
@@ -60,11 +61,21 @@ def _cube(_):
 # directions differenced (None: all; the block's along its contact only, since lifting it
 # or moving it down starts it in the air or below the ground)
 CASES = {
-    "ball": (lambda _: cd.load_scene("ball"), 5.2, np.linspace(0.25, 5.0, 20),
-             ["contact:ball:restitution", "scene:gravity_z", "contact:ball:offset"], None),
+    "ball": (
+        lambda _: cd.load_scene("ball"),
+        5.2,
+        np.linspace(0.25, 5.0, 20),
+        ["contact:ball:restitution", "scene:gravity_z", "contact:ball:offset"],
+        None,
+    ),
     "block": (_block, 0.6, np.linspace(0.05, 0.6, 12), ["scene:gravity_z"], [0, 1, 3, 4]),
-    "cube": (_cube, 0.18, lambda: cd.load_tosses()["toss_000"].t[1:27],
-             ["scene:gravity_z", "contact:cube/+x-y+z:offset"], None),
+    "cube": (
+        _cube,
+        0.18,
+        lambda: cd.load_tosses()["toss_000"].t[1:27],
+        ["scene:gravity_z", "contact:cube/+x-y+z:offset"],
+        None,
+    ),
 }
 
 
@@ -99,8 +110,10 @@ def study(request, tmp_path_factory):
     steps = []
     for j, (name, value) in enumerate(zip(names, values)):
         h = REL_STEP * abs(value) if value else REL_STEP
-        runs = [cd.simulate(scene.with_parameters({name: value + sign * h}), T, sample_times=times, **TOL)
-                for sign in (1.0, -1.0)]
+        runs = [
+            cd.simulate(scene.with_parameters({name: value + sign * h}), T, sample_times=times, **TOL)
+            for sign in (1.0, -1.0)
+        ]
         assert all(_events(r) == kinds for r in runs), name
         fd[:, :, 2 * nv + j] = _columns(scene, *runs, h)
         steps.append(h)
@@ -116,9 +129,9 @@ def test_each_sample_jacobian_matches_central_differences(study):
         J = s.jacobian[k]
         # module doc: JAC_RTOL of the sample's largest entry plus the runs' noise over EPS
         tol = JAC_RTOL * np.abs(J).max() + NOISE * max(1.0, np.abs(np.r_[s.q[k], s.v[k]]).max()) / EPS
-        done = ~np.isnan(fd[k, 0, :2 * nv])
+        done = ~np.isnan(fd[k, 0, : 2 * nv])
         assert done.sum() >= min(4, 2 * nv)
-        assert np.abs(J[:, done] - fd[k, :, :2 * nv][:, done]).max() <= tol, (name, s.t[k])
+        assert np.abs(J[:, done] - fd[k, :, : 2 * nv][:, done]).max() <= tol, (name, s.t[k])
 
 
 def test_each_sample_parameter_jacobian_matches_central_differences(study):
@@ -146,8 +159,9 @@ def test_sampling_leaves_the_final_state_and_jacobians_as_they_were(study):
     assert np.abs(x - x0).max() <= NOISE * max(1.0, np.abs(x0).max())
     for a, b in ((traj.jacobian, plain.jacobian), (traj.parameter_jacobian, plain.parameter_jacobian)):
         assert np.abs(a - b).max() <= 1e-8 * max(1.0, np.abs(b).max()), name
-    at_end = cd.simulate(scene, traj.t, jacobian=True, parameters=list(traj.parameter_names),
-                         sample_times=[traj.t], **TOL)
+    at_end = cd.simulate(
+        scene, traj.t, jacobian=True, parameters=list(traj.parameter_names), sample_times=[traj.t], **TOL
+    )
     assert np.array_equal(at_end.samples.jacobian[0], at_end.jacobian)
     assert np.array_equal(at_end.samples.parameter_jacobian[0], at_end.parameter_jacobian)
     assert np.array_equal(at_end.samples.q[0], at_end.q) and np.array_equal(at_end.samples.v[0], at_end.v)
@@ -221,22 +235,28 @@ def test_a_sample_at_a_bounce_takes_the_state_after_it():
 # ---------------------------------------------------------------------------------------
 # bad sample times
 # ---------------------------------------------------------------------------------------
-@pytest.mark.parametrize("times, message", [
-    ([-0.1, 0.5], r"sample_times\[0\] = -0.1 s is outside the run's \[t0, t_final\] = \[0.0, 1.0\]"),
-    ([0.5, 1.5], r"sample_times\[1\] = 1.5 s is outside"),
-    ([0.5, 0.25], r"non-decreasing; sample_times\[1\] = 0.25 s comes after sample_times\[0\] = 0.5 s"),
-    ([0.5, float("nan")], r"sample_times\[1\] = nan is not a finite time"),
-    ([[0.1, 0.2]], r"1-D sequence"),
-    ("soon", r"sequence of times"),
-])
+@pytest.mark.parametrize(
+    "times, message",
+    [
+        ([-0.1, 0.5], r"sample_times\[0\] = -0.1 s is outside the run's \[t0, t_final\] = \[0.0, 1.0\]"),
+        ([0.5, 1.5], r"sample_times\[1\] = 1.5 s is outside"),
+        ([0.5, 0.25], r"non-decreasing; sample_times\[1\] = 0.25 s comes after sample_times\[0\] = 0.5 s"),
+        ([0.5, float("nan")], r"sample_times\[1\] = nan is not a finite time"),
+        ([[0.1, 0.2]], r"1-D sequence"),
+        ("soon", r"sequence of times"),
+    ],
+)
 def test_bad_sample_times_are_refused_by_name(times, message):
     with pytest.raises(InvalidInputError, match=message):
         cd.simulate(cd.load_scene("ball"), 1.0, sample_times=times)
 
 
 def test_samples_before_t0_are_refused_with_a_later_start():
-    with pytest.raises(InvalidInputError, match=r"sample_times\[0\] = 0.5 s is outside the run's "
-                                                r"\[t0, t_final\] = \[1.0, 2.0\]"):
+    with pytest.raises(
+        InvalidInputError,
+        match=r"sample_times\[0\] = 0.5 s is outside the run's "
+        r"\[t0, t_final\] = \[1.0, 2.0\]",
+    ):
         cd.simulate(cd.load_scene("ball"), 2.0, t0=1.0, sample_times=[0.5, 1.5])
 
 
@@ -247,8 +267,10 @@ def test_radau_samples_agree_with_dop853():
     scene = cd.load_scene("ball")
     times = [0.5, 1.0, 2.0, 3.0, 4.0]
     names = ["contact:ball:restitution"]
-    runs = [cd.simulate(scene, 4.5, jacobian=True, parameters=names, sample_times=times, method=m, **TOL)
-            for m in ("DOP853", "Radau")]
+    runs = [
+        cd.simulate(scene, 4.5, jacobian=True, parameters=names, sample_times=times, method=m, **TOL)
+        for m in ("DOP853", "Radau")
+    ]
     a, b = (r.samples for r in runs)
     assert np.abs(a.jacobian - b.jacobian).max() <= 1e-6 * np.abs(a.jacobian).max()
     assert np.abs(a.parameter_jacobian - b.parameter_jacobian).max() <= 1e-6 * np.abs(a.parameter_jacobian).max()

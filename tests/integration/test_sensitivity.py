@@ -60,8 +60,7 @@ def _trot_variant(model: str, pitch: float, v0=None, name=None, **contact) -> cd
     (e.g. restitution=0.5, friction="stick") and an optional initial velocity."""
     base = cd.trot_touchdown(model, pitch)
     contacts = [cd.Contact(c.frame, **contact) for c in base.contact_specs]
-    scene = cd.Scene(base.robot, contacts, base.effort_specs, None, base.q0, base.v0,
-                     name=name or f"{model}-{contact}")
+    scene = cd.Scene(base.robot, contacts, base.effort_specs, None, base.q0, base.v0, name=name or f"{model}-{contact}")
     return scene.with_state(None, v0) if v0 else scene
 
 
@@ -96,51 +95,73 @@ class Case:
 R, F = "rear_foot", "front_foot"
 CASES = {
     # two bounces at t = sqrt2 and sqrt2 (1 + 2e)
-    "ball": Case(lambda: cd.load_scene("ball"), 5.2,
-                 (("bounce", {"ball"}, False), ("bounce", {"ball"}, False))),
+    "ball": Case(lambda: cd.load_scene("ball"), 5.2, (("bounce", {"ball"}, False), ("bounce", {"ball"}, False))),
     # simultaneous touchdown at t = 1, simultaneous lift-off at t ≈ 1.81
-    "two_limb": Case(lambda: cd.load_scene("two_limb"), 2.0,
-                     (("touchdown", {"left_foot", "right_foot"}, True),
-                      ("lift-off", {"left_foot", "right_foot"}, True))),
-    "soft_pitch0": Case(lambda: cd.trot_touchdown("soft", 0.0), 1.8,
-                        (("touchdown", {R, F}, True), ("lift-off", {R, F}, True))),
-    "soft_pitch0.05": Case(lambda: cd.trot_touchdown("soft", 0.05), 1.8,
-                           (("touchdown", {R}, False), ("touchdown", {F}, False),
-                            ("lift-off", {F}, False), ("lift-off", {R}, False))),
+    "two_limb": Case(
+        lambda: cd.load_scene("two_limb"),
+        2.0,
+        (("touchdown", {"left_foot", "right_foot"}, True), ("lift-off", {"left_foot", "right_foot"}, True)),
+    ),
+    "soft_pitch0": Case(
+        lambda: cd.trot_touchdown("soft", 0.0), 1.8, (("touchdown", {R, F}, True), ("lift-off", {R, F}, True))
+    ),
+    "soft_pitch0.05": Case(
+        lambda: cd.trot_touchdown("soft", 0.05),
+        1.8,
+        (("touchdown", {R}, False), ("touchdown", {F}, False), ("lift-off", {F}, False), ("lift-off", {R}, False)),
+    ),
     # rear lands, then the front, whose impact makes the rear leave
-    "rigid_pitch0.05": Case(lambda: cd.trot_touchdown("rigid", 0.05), 1.6,
-                            (("touchdown", {R}, False), ("touchdown", {F}, False))),
+    "rigid_pitch0.05": Case(
+        lambda: cd.trot_touchdown("rigid", 0.05), 1.6, (("touchdown", {R}, False), ("touchdown", {F}, False))
+    ),
     # rigid bar bouncing (e = 0.5): rear bounce, then front bounce
-    "bar_e0.5_pitch0.05": Case(lambda: _trot_variant("rigid", 0.05, restitution=0.5), 1.5,
-                               (("bounce", {R}, False), ("bounce", {F}, False))),
+    "bar_e0.5_pitch0.05": Case(
+        lambda: _trot_variant("rigid", 0.05, restitution=0.5), 1.5, (("bounce", {R}, False), ("bounce", {F}, False))
+    ),
     # sticking feet: separate touchdowns and lift-offs with tangential force left
-    "soft_stick_pitch0.05": Case(lambda: _trot_variant("soft", 0.05, friction="stick"), 1.8,
-                                 (("touchdown", {R}, False), ("touchdown", {F}, False),
-                                  ("lift-off", {F}, False), ("lift-off", {R}, False))),
+    "soft_stick_pitch0.05": Case(
+        lambda: _trot_variant("soft", 0.05, friction="stick"),
+        1.8,
+        (("touchdown", {R}, False), ("touchdown", {F}, False), ("lift-off", {F}, False), ("lift-off", {R}, False)),
+    ),
     # sticking feet landing while gliding forward: the legs lean, and both sticking
     # feet lift off together with tangential force (regression: simultaneous lift-off)
-    "soft_stick_glide": Case(lambda: _trot_variant(
-        "soft", 0.0, {"body_x": GLIDE, "rear_foot_x": GLIDE, "front_foot_x": GLIDE}, friction="stick"), 1.8,
-        (("touchdown", {R, F}, True), ("lift-off", {R, F}, True))),
+    "soft_stick_glide": Case(
+        lambda: _trot_variant(
+            "soft", 0.0, {"body_x": GLIDE, "rear_foot_x": GLIDE, "front_foot_x": GLIDE}, friction="stick"
+        ),
+        1.8,
+        (("touchdown", {R, F}, True), ("lift-off", {R, F}, True)),
+    ),
     "solo12_one_touchdown": Case(_solo_tilted, 0.104, (("touchdown", {"FR_FOOT"}, False),)),
     # three touchdowns within 1e-5 s of each other amplify the FD noise: at rtol 1e-12
     # the FD error is 6.7e-7 (ε = 1e-5; 3.8e-6 at ε = 1e-6); one decade tighter it is
     # 1.7e-7, while the Jacobian itself moves by 7e-10 between the two tolerances
-    "solo12_three_touchdowns": Case(_solo_tilted, 0.112,
-                                    (("touchdown", {"FR_FOOT"}, False), ("touchdown", {"FL_FOOT"}, False),
-                                     ("touchdown", {"FR_FOOT"}, False)),
-                                    dict(rtol=1e-13, atol=1e-14)),
-    "rigid_pitch0.05_radau": Case(lambda: cd.trot_touchdown("rigid", 0.05), 1.6,
-                                  (("touchdown", {R}, False), ("touchdown", {F}, False)),
-                                  dict(method="Radau")),
+    "solo12_three_touchdowns": Case(
+        _solo_tilted,
+        0.112,
+        (("touchdown", {"FR_FOOT"}, False), ("touchdown", {"FL_FOOT"}, False), ("touchdown", {"FR_FOOT"}, False)),
+        dict(rtol=1e-13, atol=1e-14),
+    ),
+    "rigid_pitch0.05_radau": Case(
+        lambda: cd.trot_touchdown("rigid", 0.05),
+        1.6,
+        (("touchdown", {R}, False), ("touchdown", {F}, False)),
+        dict(method="Radau"),
+    ),
 }
 SLOW_CASES = {
-    "soft_pitch0.05_radau": Case(lambda: cd.trot_touchdown("soft", 0.05), 1.8,
-                                 CASES["soft_pitch0.05"].events, dict(method="Radau")),
-    "soft_pitch0_second_landing": Case(lambda: cd.trot_touchdown("soft", 0.0), 2.5,
-                                       CASES["soft_pitch0"].events + (("touchdown", {R, F}, True),)),
-    "two_limb_second_landing": Case(lambda: cd.load_scene("two_limb"), 4.0,
-                                    CASES["two_limb"].events + (("touchdown", {"left_foot", "right_foot"}, True),)),
+    "soft_pitch0.05_radau": Case(
+        lambda: cd.trot_touchdown("soft", 0.05), 1.8, CASES["soft_pitch0.05"].events, dict(method="Radau")
+    ),
+    "soft_pitch0_second_landing": Case(
+        lambda: cd.trot_touchdown("soft", 0.0), 2.5, CASES["soft_pitch0"].events + (("touchdown", {R, F}, True),)
+    ),
+    "two_limb_second_landing": Case(
+        lambda: cd.load_scene("two_limb"),
+        4.0,
+        CASES["two_limb"].events + (("touchdown", {"left_foot", "right_foot"}, True),),
+    ),
 }
 
 
@@ -249,10 +270,8 @@ def test_simultaneous_sticking_liftoff_is_the_product_in_either_order():
     dyn = ModeDynamics(s.scene)
     r, f = s.scene.contact_index(R), s.scene.contact_index(F)
     q, v = ev.q, ev.v_minus
-    rear_first = (liftoff_saltation(dyn, ev.t, q, v, (f,), f, ())
-                  @ liftoff_saltation(dyn, ev.t, q, v, (r, f), r, (f,)))
-    front_first = (liftoff_saltation(dyn, ev.t, q, v, (r,), r, ())
-                   @ liftoff_saltation(dyn, ev.t, q, v, (r, f), f, (r,)))
+    rear_first = liftoff_saltation(dyn, ev.t, q, v, (f,), f, ()) @ liftoff_saltation(dyn, ev.t, q, v, (r, f), r, (f,))
+    front_first = liftoff_saltation(dyn, ev.t, q, v, (r,), r, ()) @ liftoff_saltation(dyn, ev.t, q, v, (r, f), f, (r,))
     assert np.abs(rear_first - np.eye(len(rear_first))).max() > 0.1
     assert _rel(rear_first, front_first) <= 1e-12
     assert _rel(ev.saltation, rear_first) <= 1e-12
@@ -273,7 +292,7 @@ def test_ball_saltation_closed_form():
     traj = _study("ball").traj
     for k, ev in enumerate(traj.events):
         vm = float(ev.v_minus[0])
-        assert vm == pytest.approx(-(e ** k) * math.sqrt(2.0), abs=1e-10)
+        assert vm == pytest.approx(-(e**k) * math.sqrt(2.0), abs=1e-10)
         expected = np.array([[-e, 0.0], [-(1 + e) * g / vm, -e]])
         assert _rel(ev.saltation, expected) <= 1e-12, (ev.saltation, expected)
 
@@ -376,8 +395,17 @@ def _ift_time_gradient(scene, options, traj, k, delta=1e-10) -> np.ndarray:
     return -(Dh @ pre.jacobian) / float(Dh @ np.concatenate([pre.v, ddq]))
 
 
-@pytest.mark.parametrize("name", ["ball", "soft_pitch0.05", "rigid_pitch0.05", "bar_e0.5_pitch0.05",
-                                  "soft_stick_pitch0.05", "solo12_three_touchdowns"])
+@pytest.mark.parametrize(
+    "name",
+    [
+        "ball",
+        "soft_pitch0.05",
+        "rigid_pitch0.05",
+        "bar_e0.5_pitch0.05",
+        "soft_stick_pitch0.05",
+        "solo12_three_touchdowns",
+    ],
+)
 def test_time_gradient_implicit_function(name):
     case = CASES[name]
     s = _study(name)
@@ -390,9 +418,19 @@ def test_time_gradient_implicit_function(name):
     assert n >= 1
 
 
-@pytest.mark.parametrize("name", ["ball", "soft_pitch0.05", "rigid_pitch0.05", "bar_e0.5_pitch0.05",
-                                  "soft_stick_pitch0.05", "solo12_one_touchdown", "solo12_three_touchdowns",
-                                  "rigid_pitch0.05_radau"])
+@pytest.mark.parametrize(
+    "name",
+    [
+        "ball",
+        "soft_pitch0.05",
+        "rigid_pitch0.05",
+        "bar_e0.5_pitch0.05",
+        "soft_stick_pitch0.05",
+        "solo12_one_touchdown",
+        "solo12_three_touchdowns",
+        "rigid_pitch0.05_radau",
+    ],
+)
 def test_time_gradient_matches_fd(name):
     """Every event (touchdowns, bounces, lift-offs of both kinds): central FD of the
     event time over the same perturbed runs as the Jacobian FD (same event sequence)."""
@@ -412,15 +450,17 @@ def test_ball_time_gradient_closed_form():
     e, g, z0, v0 = 0.8, 1.0, 1.0, 0.3
     scene = cd.load_scene("ball").with_state({"z": z0}, {"z": v0})
     traj = simulate(scene, 5.0, jacobian=True, **TOL)
-    s = math.sqrt(v0 ** 2 + 2 * g * z0)
+    s = math.sqrt(v0**2 + 2 * g * z0)
     t1, t2 = (v0 + s) / g, (v0 + s) / g + 2 * e * s / g
     assert [ev.t for ev in traj.events[:2]] == pytest.approx([t1, t2], abs=1e-10)
     np.testing.assert_allclose(traj.events[0].time_gradient, [1 / s, (1 + v0 / s) / g], rtol=1e-10)
-    np.testing.assert_allclose(traj.events[1].time_gradient,
-                               [(1 + 2 * e) / s, (1 + (1 + 2 * e) * v0 / s) / g], rtol=1e-10)
+    np.testing.assert_allclose(
+        traj.events[1].time_gradient, [(1 + 2 * e) / s, (1 + (1 + 2 * e) * v0 / s) / g], rtol=1e-10
+    )
     # the drop of the scene file: dt1/dz0 = 1/sqrt(2 g z0), dt1/dv0 = 1/g
-    np.testing.assert_allclose(_study("ball").traj.events[0].time_gradient,
-                               [1 / math.sqrt(2 * g * z0), 1 / g], rtol=1e-10)
+    np.testing.assert_allclose(
+        _study("ball").traj.events[0].time_gradient, [1 / math.sqrt(2 * g * z0), 1 / g], rtol=1e-10
+    )
 
 
 # ----------------------------------------------------------------------------------

@@ -65,8 +65,11 @@ def corner_scene():
     cube = SceneObject("cube", shape="box", size=(2 * B,) * 3, mass=MASS, position=(0.0, 0.0, B))
     corners = [f"cube/{sx}x{sy}y-z" for sx in "+-" for sy in "+-"]
     side = 0.2  # rad: gravity tilted towards +y
-    scene = cd.Scene(add_objects(empty_robot(), [cube]), [cd.Contact(n, friction=MU) for n in corners],
-                     gravity=(0.0, G * np.sin(side), -G * np.cos(side)))
+    scene = cd.Scene(
+        add_objects(empty_robot(), [cube]),
+        [cd.Contact(n, friction=MU) for n in corners],
+        gravity=(0.0, G * np.sin(side), -G * np.cos(side)),
+    )
     rotation = pin.rpy.rpyToMatrix(-0.02, -0.6, 0.0)
     centre = -rotation @ np.array([-B, B, -B])  # the corner at the origin
     omega = np.array([0.0, 11.0, 0.0])  # rad/s, world: turning about y through the corner
@@ -136,7 +139,7 @@ def _misses(scene, traj, floor):
         runs = _runs(scene, [(q, v + EPS * d), (q, v - EPS * d)], zeno_speed=floor)
         assert all(_events(r) == _events(traj) for r in runs)
         fd = _fd(scene, runs)
-        out.append(np.abs(traj.jacobian[:, scene.nv:] @ d - fd).max() / np.abs(fd).max())
+        out.append(np.abs(traj.jacobian[:, scene.nv :] @ d - fd).max() / np.abs(fd).max())
     return np.array(out)
 
 
@@ -204,12 +207,20 @@ def test_a_start_at_rest_outside_the_cone_carries_its_reference_term(tmp_path_fa
     4 ``FD_RTOL`` (measured 6.3e-5 and 8.7e-5 of the columns)."""
     robot = coulomb_models.load(tmp_path_factory, "aniso", ANISO_URDF)
     k = 100.0  # N/m
-    spring = cd.UserEffort(lambda q, v, t: np.array([-k * q[0], -k * q[1], 0.0]),
-                           lambda q, v, t: (np.diag([-k, -k, 0.0]), np.zeros((3, 3))), name="spring",
-                           time_derivative=lambda q, v, t: np.zeros(3))
-    scene = cd.Scene(robot, [cd.Contact("block", friction=coulomb_models.MU)], [spring],
-                     gravity=[0, 0, -coulomb_models.G],
-                     q0=np.array([0.12, 0.1, 0.0]), v0=np.zeros(3))
+    spring = cd.UserEffort(
+        lambda q, v, t: np.array([-k * q[0], -k * q[1], 0.0]),
+        lambda q, v, t: (np.diag([-k, -k, 0.0]), np.zeros((3, 3))),
+        name="spring",
+        time_derivative=lambda q, v, t: np.zeros(3),
+    )
+    scene = cd.Scene(
+        robot,
+        [cd.Contact("block", friction=coulomb_models.MU)],
+        [spring],
+        gravity=[0, 0, -coulomb_models.G],
+        q0=np.array([0.12, 0.1, 0.0]),
+        v0=np.zeros(3),
+    )
     options = dict(zeno_speed=1e-3, **coulomb_models.TOL)
     step, rtol = coulomb_models.EPS, coulomb_models.FD_RTOL
     t_final = 0.3  # s: before its first stop (~0.5 s)
@@ -219,8 +230,10 @@ def test_a_start_at_rest_outside_the_cone_carries_its_reference_term(tmp_path_fa
     held = cd.simulate(scene, t_final, jacobian=True, **options)
     monkeypatch.undo()
     for d in np.eye(6)[:2]:
-        runs = [cd.simulate(scene.with_state(robot.integrate(scene.q0, s * step * d[:3]), scene.v0), t_final,
-                            **options) for s in (1.0, -1.0)]
+        runs = [
+            cd.simulate(scene.with_state(robot.integrate(scene.q0, s * step * d[:3]), scene.v0), t_final, **options)
+            for s in (1.0, -1.0)
+        ]
         assert all(r.events == [] for r in runs)
         fd = np.r_[robot.difference(runs[1].q, runs[0].q), runs[0].v - runs[1].v] / (2 * step)
         scale = max(1.0, np.abs(fd).max())
@@ -242,11 +255,13 @@ def test_a_start_whose_second_corner_slips_once_the_first_does(monkeypatch):
     cube = SceneObject("cube", shape="box", size=(2 * B,) * 3, mass=MASS, position=(0.0, 0.0, B))
     corners = [f"cube/{sx}x{sy}y-z" for sx in "+-" for sy in "+-"]
     side = 0.3  # rad
-    scene = cd.Scene(add_objects(empty_robot(), [cube]), [cd.Contact(n, friction=0.5) for n in corners],
-                     gravity=(0.0, G * np.sin(side), -G * np.cos(side)))
+    scene = cd.Scene(
+        add_objects(empty_robot(), [cube]),
+        [cd.Contact(n, friction=0.5) for n in corners],
+        gravity=(0.0, G * np.sin(side), -G * np.cos(side)),
+    )
     rotation = pin.rpy.rpyToMatrix(0.0, -0.3, 0.0)
-    scene = scene.with_state(np.r_[-rotation @ np.array([-B, 0.0, -B]), pin.Quaternion(rotation).coeffs()],
-                             np.zeros(6))
+    scene = scene.with_state(np.r_[-rotation @ np.array([-B, 0.0, -B]), pin.Quaternion(rotation).coeffs()], np.zeros(6))
     options = dict(zeno_speed=1e-3, **OPTS)
     t_final = 0.005  # s: no event before
     rounds = []
@@ -264,8 +279,9 @@ def test_a_start_whose_second_corner_slips_once_the_first_does(monkeypatch):
     assert [names[i] for i, _ in rounds] == ["cube/-x-y-z", "cube/-x+y-z"] and rounds[0][1] != rounds[1][1]
     assert traj.events == [] and traj.segments[0].sliding == ("cube/-x+y-z", "cube/-x-y-z")
     h = EPS * MASS
-    runs = [cd.simulate(scene.with_parameters({"body:cube:mass": MASS + s * h}), t_final, **options)
-            for s in (1.0, -1.0)]
+    runs = [
+        cd.simulate(scene.with_parameters({"body:cube:mass": MASS + s * h}), t_final, **options) for s in (1.0, -1.0)
+    ]
     assert all(r.events == [] for r in runs)
     fd = np.r_[pin.difference(scene.model, runs[1].q, runs[0].q), runs[0].v - runs[1].v] / (2 * h)
     scale = np.abs(fd).max()
@@ -285,9 +301,11 @@ def _landing_scene():
     cube = SceneObject("cube", shape="box", size=(2 * B,) * 3, mass=MASS, position=(0.0, 0.0, B))
     corners = [f"cube/{sx}x{sy}y-z" for sx in "+-" for sy in "+-"]
     side = 0.2  # rad
-    scene = cd.Scene(add_objects(empty_robot(), [cube]), [cd.Contact(n, friction=0.3, restitution=0.0)
-                                                          for n in corners],
-                     gravity=(0.0, G * np.sin(side), -G * np.cos(side)))
+    scene = cd.Scene(
+        add_objects(empty_robot(), [cube]),
+        [cd.Contact(n, friction=0.3, restitution=0.0) for n in corners],
+        gravity=(0.0, G * np.sin(side), -G * np.cos(side)),
+    )
     rotation = pin.rpy.rpyToMatrix(-0.02, -0.6, 0.0)
     centre = -rotation @ np.array([-B, B, -B]) + np.array([0.0, 0.0, 0.002])
     return scene.with_state(np.r_[centre, pin.Quaternion(rotation).coeffs()], np.zeros(6))
@@ -323,14 +341,17 @@ def test_a_corner_that_slips_from_rest_after_its_landing(monkeypatch):
     assert traj.events[1].sliding == ("cube/-x+y-z", "cube/-x-y-z")
     for k in (6, 11):  # v_x0 and ω_z0: the cube starts in the air, any perturbation is admissible
         d = np.eye(2 * scene.nv)[k]
-        runs = [cd.simulate(scene.with_state(scene.q0, scene.v0 + s * EPS * d[scene.nv:]), t_final, **options)
-                for s in (1.0, -1.0)]
+        runs = [
+            cd.simulate(scene.with_state(scene.q0, scene.v0 + s * EPS * d[scene.nv :]), t_final, **options)
+            for s in (1.0, -1.0)
+        ]
         assert all(_events(r) == kinds for r in runs)
         fd = _fd(scene, runs)
         assert np.abs(traj.jacobian @ d - fd).max() <= FD_RTOL * np.abs(fd).max()
     h = EPS * MASS
-    runs = [cd.simulate(scene.with_parameters({"body:cube:mass": MASS + s * h}), t_final, **options)
-            for s in (1.0, -1.0)]
+    runs = [
+        cd.simulate(scene.with_parameters({"body:cube:mass": MASS + s * h}), t_final, **options) for s in (1.0, -1.0)
+    ]
     assert all(_events(r) == kinds for r in runs)
     fd = np.r_[pin.difference(scene.model, runs[1].q, runs[0].q), runs[0].v - runs[1].v] / (2 * h)
     scale = np.abs(fd).max()
@@ -361,14 +382,16 @@ def test_a_start_on_a_landing_whose_corner_slips_from_rest_after_it(monkeypatch)
     kin = scene.kinematics
     kin.update(scene.q0, scene.v0)
     for d in null_space(scene.contacts[scene.contact_names.index("cube/-x+y-z")].rows(kin)[:1]).T:
-        runs = [cd.simulate(scene.with_state(scene.q0, scene.v0 + s * EPS * d), t_final, **options)
-                for s in (1.0, -1.0)]
+        runs = [
+            cd.simulate(scene.with_state(scene.q0, scene.v0 + s * EPS * d), t_final, **options) for s in (1.0, -1.0)
+        ]
         assert all(_events(r) == kinds for r in runs)
         fd = _fd(scene, runs)
-        assert np.abs(traj.jacobian[:, scene.nv:] @ d - fd).max() <= FD_RTOL * np.abs(fd).max()
+        assert np.abs(traj.jacobian[:, scene.nv :] @ d - fd).max() <= FD_RTOL * np.abs(fd).max()
     h = EPS * MASS
-    runs = [cd.simulate(scene.with_parameters({"body:cube:mass": MASS + s * h}), t_final, **options)
-            for s in (1.0, -1.0)]
+    runs = [
+        cd.simulate(scene.with_parameters({"body:cube:mass": MASS + s * h}), t_final, **options) for s in (1.0, -1.0)
+    ]
     assert all(_events(r) == kinds for r in runs)
     fd = np.r_[pin.difference(scene.model, runs[1].q, runs[0].q), runs[0].v - runs[1].v] / (2 * h)
     scale = np.abs(fd).max()

@@ -83,7 +83,7 @@ def test_the_projection_waits_for_a_steady_window():
     # growing by more than GROWTH between the half-windows: no projection
     growing = BudgetWatch(10_000)
     factor = (2.0 * GROWTH) ** (1.0 / (WINDOW // 2))  # the half-windows' medians differ by 2 GROWTH
-    assert all(growing.after_step(factor ** k, False, 1e6, k + 1) is None for k in range(3 * WINDOW))
+    assert all(growing.after_step(factor**k, False, 1e6, k + 1) is None for k in range(3 * WINDOW))
     # an event clears the window; clipped steps are not counted
     restarted = BudgetWatch(10_000)
     for k in range(WINDOW - 1):

@@ -66,7 +66,7 @@ def test_redundant_rows_give_the_minimum_norm_forces(solo8):
         dyn.kin.update(q, np.zeros(solo8.nv))
         rows = np.vstack([dyn.contact(k).rows(dyn.kin) for k in mode])
         _, singular, vt = np.linalg.svd(rows)
-        null = vt[int(np.sum(singular > 1e-9 * singular[0])):].T
+        null = vt[int(np.sum(singular > 1e-9 * singular[0])) :].T
         v = null @ rng.uniform(-1.0, 1.0, null.shape[1])  # A v = 0
         sol = dyn.solve(q, v, 0.0, mode)
         lam, ddq, A = _min_norm_reference(solo8, q, v, mode)
@@ -117,11 +117,19 @@ def test_a_finite_time_blow_up_stops_with_a_step_collapse():
         return np.array([2.0 / (2.0 - q[0]) ** 2])
 
     ball = cd.load_scene("ball")
-    scene = cd.Scene(ball.robot, ball.contact_specs, [cd.UserEffort(pull, name="pull")], gravity=(0.0, 0.0, -1.0),
-                     q0=ball.q0, v0=np.zeros(ball.nv))
+    scene = cd.Scene(
+        ball.robot,
+        ball.contact_specs,
+        [cd.UserEffort(pull, name="pull")],
+        gravity=(0.0, 0.0, -1.0),
+        q0=ball.q0,
+        v0=np.zeros(ball.nv),
+    )
+
     def dt_ds(s):
         z = 1.0 + s * s
         return 2.0 * s / np.sqrt(2.0 * (2.0 / (2.0 - z) - 2.0 - (z - 1.0))) if s > 0.0 else np.sqrt(2.0)
+
     t_star, _ = quad(dt_ds, 0.0, 1.0, limit=200)
     with pytest.raises(cd.StepCollapseError) as info:
         cd.simulate(scene, 10.0)
@@ -185,7 +193,7 @@ def test_redundant_mode_velocity_derivatives_match_finite_differences(solo8):
     dyn.kin.update(q, np.zeros(solo8.nv))
     A = np.vstack([dyn.contact(k).rows(dyn.kin) for k in mode])
     _, singular, vt = np.linalg.svd(A)
-    null = vt[int(np.sum(singular > 1e-9 * singular[0])):].T  # (nv, nv - rank)
+    null = vt[int(np.sum(singular > 1e-9 * singular[0])) :].T  # (nv, nv - rank)
     v = null @ rng.uniform(-1.0, 1.0, null.shape[1])
     sol, der = dyn.solve(q, v, 0.0, mode, derivatives=True)
     dyn.kin.update(q, v)

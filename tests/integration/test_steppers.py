@@ -56,8 +56,19 @@ def ho_phi(t):
 @pytest.mark.parametrize("method, tol, bound", [("DOP853", 1e-13, 1e-12), ("Radau", 1e-11, 1e-10)])
 def test_harmonic_final_state_dense_and_jacobian(method, tol, bound):
     T = 10.0
-    s = make_stepper(method, ho_accel, VectorSpace(1), 0.0, [1.0], [0.0], rtol=tol, atol=tol,
-                     jac=ho_jac, t_bound=T, variational=np.eye(2))
+    s = make_stepper(
+        method,
+        ho_accel,
+        VectorSpace(1),
+        0.0,
+        [1.0],
+        [0.0],
+        rtol=tol,
+        atol=tol,
+        jac=ho_jac,
+        t_bound=T,
+        variational=np.eye(2),
+    )
     dense_err = 0.0
     while s.t < T:
         s.step()
@@ -83,15 +94,17 @@ def test_dop853_matches_scipy_on_vector_space():
     """Same tableau, controller and first step as scipy: the same trajectory."""
     T = 20.0
     atol = np.array([1e-9, 1e-8])  # per component of (q, v)
-    s = run_to(DOP853(lambda t, q, v: -np.sin(q), VectorSpace(1), 0.0, [2.5], [0.0],
-                      rtol=1e-9, atol=atol, t_bound=T), T)
+    s = run_to(
+        DOP853(lambda t, q, v: -np.sin(q), VectorSpace(1), 0.0, [2.5], [0.0], rtol=1e-9, atol=atol, t_bound=T), T
+    )
     r = solve_ivp(lambda t, y: [y[1], -np.sin(y[0])], (0, T), [2.5, 0.0], method="DOP853", rtol=1e-9, atol=atol)
     assert s.n_steps == r.t.size - 1
     assert np.abs(np.r_[s.q, s.v] - r.y[:, -1]).max() < 1e-12
 
 
-@pytest.mark.parametrize("method, tol, bound", [("DOP853", 1e-12, 1e-10), ("Radau", 1e-11, 1e-9),
-                                                ("RK45", 1e-11, 1e-8)])
+@pytest.mark.parametrize(
+    "method, tol, bound", [("DOP853", 1e-12, 1e-10), ("Radau", 1e-11, 1e-9), ("RK45", 1e-11, 1e-8)]
+)
 def test_van_der_pol_against_scipy(method, tol, bound):
     mu = 2.0
 
@@ -102,18 +115,26 @@ def test_van_der_pol_against_scipy(method, tol, bound):
         return np.array([[-2 * mu * q[0] * v[0] - 1]]), np.array([[mu * (1 - q[0] ** 2)]])
 
     T = 8.0
-    s = run_to(make_stepper(method, accel, VectorSpace(1), 0.0, [2.0], [0.0], rtol=tol, atol=tol,
-                            jac=jac, t_bound=T), T)
-    ref = solve_ivp(lambda t, y: [y[1], mu * (1 - y[0] ** 2) * y[1] - y[0]], (0, T), [2.0, 0.0],
-                    method="DOP853", rtol=1e-13, atol=1e-13).y[:, -1]
+    s = run_to(
+        make_stepper(method, accel, VectorSpace(1), 0.0, [2.0], [0.0], rtol=tol, atol=tol, jac=jac, t_bound=T), T
+    )
+    ref = solve_ivp(
+        lambda t, y: [y[1], mu * (1 - y[0] ** 2) * y[1] - y[0]],
+        (0, T),
+        [2.0, 0.0],
+        method="DOP853",
+        rtol=1e-13,
+        atol=1e-13,
+    ).y[:, -1]
     assert np.abs(np.r_[s.q, s.v] - ref).max() < bound
 
 
 @settings(max_examples=15, deadline=None)
 @given(w=st.floats(0.1, 10.0), x0=st.floats(-2, 2), v0=st.floats(-2, 2), T=st.floats(0.1, 5.0))
 def test_harmonic_property(w, x0, v0, T):
-    s = run_to(DOP853(lambda t, q, v: -w * w * q, VectorSpace(1), 0.0, [x0], [v0],
-                      rtol=1e-10, atol=1e-10, t_bound=T), T)
+    s = run_to(
+        DOP853(lambda t, q, v: -w * w * q, VectorSpace(1), 0.0, [x0], [v0], rtol=1e-10, atol=1e-10, t_bound=T), T
+    )
     c, sn = np.cos(w * T), np.sin(w * T)
     assert abs(s.q[0] - (x0 * c + v0 * sn / w)) < 1e-8 * (1 + w * T)
     assert abs(s.v[0] - (-x0 * w * sn + v0 * c)) < 1e-8 * (1 + w) * (1 + w * T)
@@ -149,8 +170,7 @@ def stiff_exact(t, x0, v0):
 
 def test_radau_stiff_spring_long_interval():
     T = 20.0
-    s = run_to(Radau(stiff_accel, VectorSpace(1), 0.0, [0.5], [0.0], rtol=1e-7, atol=1e-9,
-                     jac=stiff_jac, t_bound=T), T)
+    s = run_to(Radau(stiff_accel, VectorSpace(1), 0.0, [0.5], [0.0], rtol=1e-7, atol=1e-9, jac=stiff_jac, t_bound=T), T)
     x, v, _, lam_min = stiff_exact(T, 0.5, 0.0)
     assert abs(s.q[0] - x) < 1e-9 and abs(s.v[0] - v) < 1e-7
     # Any explicit method needs |h lam| below its stability bound (~6 for DOP853), i.e.
@@ -164,8 +184,21 @@ def test_radau_stiff_spring_long_interval():
 
 def test_radau_stiff_flow_jacobian_and_fd_jacobian():
     T = 2e-3  # the fast transient is still visible in phi
-    s = run_to(Radau(stiff_accel, VectorSpace(1), 0.0, [0.5], [0.0], rtol=1e-10, atol=1e-12,
-                     jac=stiff_jac, t_bound=T, variational=np.eye(2)), T)
+    s = run_to(
+        Radau(
+            stiff_accel,
+            VectorSpace(1),
+            0.0,
+            [0.5],
+            [0.0],
+            rtol=1e-10,
+            atol=1e-12,
+            jac=stiff_jac,
+            t_bound=T,
+            variational=np.eye(2),
+        ),
+        T,
+    )
     x, v, phi, _ = stiff_exact(T, 0.5, 0.0)
     assert abs(s.q[0] - x) < 1e-10
     assert np.abs(s.phi - phi).max() < 1e-7 * np.abs(phi).max()
@@ -216,8 +249,9 @@ def test_free_flyer_invariants_and_flow_jacobian(method, tol):
     T = 2.0
 
     def simulate(q, v, phi=None):
-        return run_to(make_stepper(method, accel, group, 0.0, q, v, rtol=tol, atol=tol, jac=jac,
-                                   t_bound=T, variational=phi), T)
+        return run_to(
+            make_stepper(method, accel, group, 0.0, q, v, rtol=tol, atol=tol, jac=jac, t_bound=T, variational=phi), T
+        )
 
     s = simulate(q0, v0, np.eye(12))
     # dense output of the last step: q(t) = q_old ⊕ xi(t), its derivative ~ (v(t), accel)
@@ -245,8 +279,14 @@ def test_free_flyer_invariants_and_flow_jacobian(method, tol):
 def multi_joint_model():
     """Every supported Lie-group joint type plus Euclidean ones, in one chain."""
     model = pin.Model()
-    joints = [pin.JointModelFreeFlyer(), pin.JointModelSpherical(), pin.JointModelPlanar(),
-              pin.JointModelRUBZ(), pin.JointModelRX(), pin.JointModelPY()]
+    joints = [
+        pin.JointModelFreeFlyer(),
+        pin.JointModelSpherical(),
+        pin.JointModelPlanar(),
+        pin.JointModelRUBZ(),
+        pin.JointModelRX(),
+        pin.JointModelPY(),
+    ]
     parent = 0
     for i, jm in enumerate(joints):
         parent = model.addJoint(parent, jm, pin.SE3(np.eye(3), np.array([0.0, 0.0, 0.3])), f"j{i}")
@@ -280,8 +320,10 @@ def test_continuous_joint_is_not_a_vector_space():
     assert PinocchioGroup(m2).is_vector_space
 
 
-@pytest.mark.parametrize("method, control, max_step", [("DOP853", True, np.inf), ("Radau", True, np.inf),
-                                                       ("DOP853", False, 0.1), ("Radau", False, 0.01)])
+@pytest.mark.parametrize(
+    "method, control, max_step",
+    [("DOP853", True, np.inf), ("Radau", True, np.inf), ("DOP853", False, 0.1), ("Radau", False, 0.01)],
+)
 def test_free_motion_on_every_joint_group(method, control, max_step):
     """accel = 0: q(T) = q0 ⊕ T v0 and phi = [[dInt/dq, T dInt/dv], [0, I]] exactly.
 
@@ -296,10 +338,24 @@ def test_free_motion_on_every_joint_group(method, control, max_step):
     q0 = pin.integrate(model, pin.neutral(model), rng.standard_normal(nv))
     v0 = rng.standard_normal(nv)
     T = 1.5
-    s = run_to(make_stepper(method, lambda t, q, v: np.zeros(nv), model, 0.0, q0, v0, rtol=1e-11, atol=1e-11,
-                            jac=lambda t, q, v: (np.zeros((nv, nv)), np.zeros((nv, nv))), t_bound=T,
-                            variational=np.eye(2 * nv), max_step=max_step,
-                            variational_error_control=control), T)
+    s = run_to(
+        make_stepper(
+            method,
+            lambda t, q, v: np.zeros(nv),
+            model,
+            0.0,
+            q0,
+            v0,
+            rtol=1e-11,
+            atol=1e-11,
+            jac=lambda t, q, v: (np.zeros((nv, nv)), np.zeros((nv, nv))),
+            t_bound=T,
+            variational=np.eye(2 * nv),
+            max_step=max_step,
+            variational_error_control=control,
+        ),
+        T,
+    )
     assert np.abs(pin.difference(model, pin.integrate(model, q0, T * v0), s.q)).max() < 1e-9
     phi = np.eye(2 * nv)
     phi[:nv, :nv] = pin.dIntegrate(model, q0, T * v0, pin.ARG0)
@@ -338,9 +394,21 @@ def rest_spring_phi(T):
 
 
 def rest_spring(method, control, T=1.0, **kw):
-    return make_stepper(method, rest_spring_accel, VectorSpace(2), 0.0, [0.3, 0.3], [0.5, 0.5],
-                        rtol=1e-10, atol=1e-12, jac=rest_spring_jac, t_bound=T, variational=np.eye(4),
-                        variational_error_control=control, **kw)
+    return make_stepper(
+        method,
+        rest_spring_accel,
+        VectorSpace(2),
+        0.0,
+        [0.3, 0.3],
+        [0.5, 0.5],
+        rtol=1e-10,
+        atol=1e-12,
+        jac=rest_spring_jac,
+        t_bound=T,
+        variational=np.eye(4),
+        variational_error_control=control,
+        **kw,
+    )
 
 
 @pytest.mark.parametrize("method", ["DOP853", "RK45", "Radau"])
@@ -386,8 +454,19 @@ def test_variational_error_control_changes_only_the_steps(method):
 def test_truncate_matches_dense_and_continuation(method):
     tol = 1e-11
     T = 6.0
-    s = make_stepper(method, ho_accel, VectorSpace(1), 0.0, [1.0], [0.3], rtol=tol, atol=tol, jac=ho_jac,
-                     t_bound=T, variational=np.eye(2))
+    s = make_stepper(
+        method,
+        ho_accel,
+        VectorSpace(1),
+        0.0,
+        [1.0],
+        [0.3],
+        rtol=tol,
+        atol=tol,
+        jac=ho_jac,
+        t_bound=T,
+        variational=np.eye(2),
+    )
     for _ in range(3):
         s.step()
     t_cut = s.t_old + 0.37 * (s.t - s.t_old)
@@ -411,8 +490,19 @@ def test_restart_after_jump(method):
     """Velocity reversal at t1: afterwards x(t) is the oscillator from (x(t1), -v(t1))."""
     tol = 1e-11
     t1, T = 1.0, 4.0
-    s = make_stepper(method, ho_accel, VectorSpace(1), 0.0, [1.0], [0.0], rtol=tol, atol=tol, jac=ho_jac,
-                     t_bound=t1, variational=np.eye(2))
+    s = make_stepper(
+        method,
+        ho_accel,
+        VectorSpace(1),
+        0.0,
+        [1.0],
+        [0.0],
+        rtol=tol,
+        atol=tol,
+        jac=ho_jac,
+        t_bound=t1,
+        variational=np.eye(2),
+    )
     run_to(s, t1)
     x1, v1 = ho_exact(t1)
     reset = np.diag([1.0, -1.0])
@@ -468,24 +558,27 @@ def test_unknown_method_lists_valid_ones():
     assert make_stepper("radau", ho_accel, VectorSpace(1), 0.0, [1.0], [0.0], jac=ho_jac).method == "Radau"
 
 
-@pytest.mark.parametrize("kwargs, match", [
-    (dict(q0=[np.nan]), "q0"),
-    (dict(v0=[1.0, 2.0]), "v0"),
-    (dict(rtol=0.0), "rtol"),
-    (dict(rtol=-1e-3), "rtol"),
-    (dict(atol=[1e-6]), "atol"),
-    (dict(atol=-1.0), "atol"),
-    (dict(first_step=0.0), "first_step"),
-    (dict(max_step=-1.0), "max_step"),
-    (dict(t0=np.inf), "t0"),
-    (dict(t_bound=-1.0), "t_bound"),
-    (dict(variational=np.eye(3)), "phi"),
-    (dict(variational=np.eye(2), jac=None), "jac"),
-    (dict(variational=np.eye(2), variational_atol=[1e-9]), "variational_atol"),
-    (dict(variational=np.eye(2), variational_atol=0.0), "variational_atol"),
-    (dict(accel=3.0), "accel"),
-    (dict(accel=lambda t, q, v: np.zeros(2)), "shape"),
-])
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        (dict(q0=[np.nan]), "q0"),
+        (dict(v0=[1.0, 2.0]), "v0"),
+        (dict(rtol=0.0), "rtol"),
+        (dict(rtol=-1e-3), "rtol"),
+        (dict(atol=[1e-6]), "atol"),
+        (dict(atol=-1.0), "atol"),
+        (dict(first_step=0.0), "first_step"),
+        (dict(max_step=-1.0), "max_step"),
+        (dict(t0=np.inf), "t0"),
+        (dict(t_bound=-1.0), "t_bound"),
+        (dict(variational=np.eye(3)), "phi"),
+        (dict(variational=np.eye(2), jac=None), "jac"),
+        (dict(variational=np.eye(2), variational_atol=[1e-9]), "variational_atol"),
+        (dict(variational=np.eye(2), variational_atol=0.0), "variational_atol"),
+        (dict(accel=3.0), "accel"),
+        (dict(accel=lambda t, q, v: np.zeros(2)), "shape"),
+    ],
+)
 def test_bad_inputs(kwargs, match):
     args = dict(accel=ho_accel, group=VectorSpace(1), t0=0.0, q0=[1.0], v0=[0.0], jac=ho_jac)
     args.update(kwargs)
@@ -531,12 +624,15 @@ def test_lazy_dense_output_equals_the_eager_one_after_later_steps(method):
 # A field defined on part of the state space: trial stages outside it
 # --------------------------------------------------------------------------
 
+
 def _bounded(accel, limit):
     """``accel`` defined only where |q| <= limit (as a slip mode only where A_n M^-1 F^T > 0)."""
+
     def bounded(t, q, v):
         if abs(q[0]) > limit:
             raise OutsideDomainError(f"q = {q[0]!r} outside |q| <= {limit}")
         return accel(t, q, v)
+
     return bounded
 
 
@@ -545,8 +641,19 @@ def test_trial_stages_outside_the_domain_only_shorten_the_step(method):
     """The oscillator (amplitude 1) on the domain |q| <= 1.001: a first step of 1 s puts its trial
     stages far outside (|q| up to ~2 for ω = 2), so the step is rejected and retried shorter instead
     of failing, and the run ends on the closed form (tolerance as in the harmonic test above)."""
-    s = make_stepper(method, _bounded(ho_accel, 1.001), VectorSpace(1), 0.0, [1.0], [0.0], rtol=1e-11, atol=1e-11,
-                     jac=ho_jac, first_step=1.0, t_bound=3.0)
+    s = make_stepper(
+        method,
+        _bounded(ho_accel, 1.001),
+        VectorSpace(1),
+        0.0,
+        [1.0],
+        [0.0],
+        rtol=1e-11,
+        atol=1e-11,
+        jac=ho_jac,
+        first_step=1.0,
+        t_bound=3.0,
+    )
     run_to(s, 3.0)
     assert s.n_rejected >= 1
     np.testing.assert_allclose([s.q[0], s.v[0]], ho_exact(3.0), atol=1e-8)
@@ -556,8 +663,18 @@ def test_trial_stages_outside_the_domain_only_shorten_the_step(method):
 def test_a_trajectory_leaving_the_domain_raises_the_fields_error(method):
     """x'' = x from (1, 1) grows as e^t and leaves |q| <= 2 at t = ln 2: every step there has a
     stage outside, the step underflows, and the field's own error is raised, not an underflow."""
-    s = make_stepper(method, _bounded(lambda t, q, v: q, 2.0), VectorSpace(1), 0.0, [1.0], [1.0], rtol=1e-10,
-                     atol=1e-10, jac=lambda t, q, v: (np.eye(1), np.zeros((1, 1))), t_bound=3.0)
+    s = make_stepper(
+        method,
+        _bounded(lambda t, q, v: q, 2.0),
+        VectorSpace(1),
+        0.0,
+        [1.0],
+        [1.0],
+        rtol=1e-10,
+        atol=1e-10,
+        jac=lambda t, q, v: (np.eye(1), np.zeros((1, 1))),
+        t_bound=3.0,
+    )
     with pytest.raises(OutsideDomainError, match="the trajectory itself does") as info:
         run_to(s, 3.0)
     assert s.t == pytest.approx(np.log(2.0), abs=1e-6)  # s: it stopped where the state reached the edge

@@ -44,7 +44,7 @@ def run(cradle):
 
 def _momentum_energy(v):
     speeds = v[X]
-    return MASS * speeds.sum(), 0.5 * MASS * (speeds ** 2).sum()
+    return MASS * speeds.sum(), 0.5 * MASS * (speeds**2).sum()
 
 
 def test_touching_balls_take_the_simultaneous_impact(run):
@@ -60,8 +60,7 @@ def test_the_impact_against_the_resting_balls_is_flagged_with_both_outcomes(run)
     (impact,) = run.events
     assert set(impact.nonsmooth) == {cd.NonSmooth.RESTING_CONTACT} and not run.differentiable
     assert "ball2-ball3" in impact.nonsmooth[cd.NonSmooth.RESTING_CONTACT]
-    np.testing.assert_allclose(impact.outcomes["simultaneous"][X], [-U / 3, 2 * U / 3, 2 * U / 3],
-                               atol=VEL_ATOL)
+    np.testing.assert_allclose(impact.outcomes["simultaneous"][X], [-U / 3, 2 * U / 3, 2 * U / 3], atol=VEL_ATOL)
     np.testing.assert_allclose(impact.outcomes["cascade"][X], [0.0, 0.0, U], atol=VEL_ATOL)
 
 
@@ -80,7 +79,7 @@ def test_momentum_and_energy_are_kept(cradle, gap):
     p0, e0 = _momentum_energy(scene.v0)
     p1, e1 = _momentum_energy(traj.v)
     assert p1 == pytest.approx(p0, abs=1e-12 * MASS * U)
-    assert e1 == pytest.approx(e0, abs=1e-12 * MASS * U ** 2)
+    assert e1 == pytest.approx(e0, abs=1e-12 * MASS * U**2)
 
 
 def test_the_checker_finds_the_contacts_coupled_through_the_middle_ball(cradle):

@@ -149,8 +149,10 @@ def test_the_box_is_lifted_and_held(scene, run, kin):
     q_target[:7] = arm.targets[-1]
     pin.computeJointJacobians(model, data, q_target)
     pin.framesForwardKinematics(model, data, q_target)
-    J = {name: pin.getFrameJacobian(model, data, model.getFrameId(name), pin.LOCAL_WORLD_ALIGNED)[:3, :7]
-         for name in ("left_pad", "right_pad", "panda_hand_tcp")}
+    J = {
+        name: pin.getFrameJacobian(model, data, model.getFrameId(name), pin.LOCAL_WORLD_ALIGNED)[:3, :7]
+        for name in ("left_pad", "right_pad", "panda_hand_tcp")
+    }
     tau_box = -(MASS * G / 2) * (J["left_pad"][2] + J["right_pad"][2])
     sag = J["panda_hand_tcp"] @ (tau_box / np.array(arm.stiffness))
     assert -4e-4 < sag[2] < -3e-4  # m: 0.336 mm down

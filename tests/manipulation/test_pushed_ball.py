@@ -59,8 +59,8 @@ def _ball_world_velocity(scene, q, v):
     """The ball's linear and angular velocity in world axes (m/s, rad/s): its free-flyer
     velocity is in its own frame."""
     joint = scene.model.joints[scene.robot.joint_id("ball")]
-    rotation = pin.Quaternion(q[joint.idx_q + 3:joint.idx_q + 7]).matrix()
-    local = v[joint.idx_v:joint.idx_v + 6]
+    rotation = pin.Quaternion(q[joint.idx_q + 3 : joint.idx_q + 7]).matrix()
+    local = v[joint.idx_v : joint.idx_v + 6]
     return rotation @ local[:3], rotation @ local[3:]
 
 
@@ -69,7 +69,7 @@ def test_the_numbers_of_the_scene_file_are_those_of_the_closed_form(scene):
     assert (ball.mass, ball.radius) == (MASS, R)
     assert scene.model.inertias[scene.robot.joint_id("slide")].mass == M
     assert scene.contacts[0].spec.mu == MU and scene.effort_specs[0].stiffness == K
-    assert 0.4 * REST * OMEGA ** 2 < MU * G  # it rolls: the friction stays inside the cone
+    assert 0.4 * REST * OMEGA**2 < MU * G  # it rolls: the friction stays inside the cone
 
 
 def test_the_ball_rolls_with_the_finger_and_leaves_it_at_the_spring_rest(scene):
@@ -96,8 +96,8 @@ def test_energy_the_spring_gives_is_the_rolling_pair_s(scene):
     slide = scene.robot.scalar_joint("slide")
     x, xdot = traj.q[slide[0]], traj.v[slide[1]]
     spring = 0.5 * K * (REST - x) ** 2
-    kinetic = 0.5 * (M + 1.4 * MASS) * xdot ** 2
-    assert spring + kinetic == pytest.approx(0.5 * K * REST ** 2, abs=1e-9 * K * REST ** 2)
+    kinetic = 0.5 * (M + 1.4 * MASS) * xdot**2
+    assert spring + kinetic == pytest.approx(0.5 * K * REST**2, abs=1e-9 * K * REST**2)
 
 
 def test_the_ground_holds_the_weight_and_the_rolling_friction(scene):
@@ -108,13 +108,13 @@ def test_the_ground_holds_the_weight_and_the_rolling_friction(scene):
     tangents = scene.contacts[0].directions[1:]
     friction = tangents.T @ ground[1:]
     assert ground[0] == pytest.approx(MASS * G, rel=1e-12)
-    np.testing.assert_allclose(friction, [-0.4 * MASS * REST * OMEGA ** 2, 0.0, 0.0], atol=1e-12)
-    assert push[0] == pytest.approx(1.4 * MASS * REST * OMEGA ** 2, rel=1e-12)
+    np.testing.assert_allclose(friction, [-0.4 * MASS * REST * OMEGA**2, 0.0, 0.0], atol=1e-12)
+    assert push[0] == pytest.approx(1.4 * MASS * REST * OMEGA**2, rel=1e-12)
 
 
 def test_with_little_friction_the_ball_slips_then_rolls(scene):
     mu = 0.1  # below (2/5) rest Ω² / g = 0.14: it slips from the start
-    assert mu < 0.4 * REST * OMEGA ** 2 / G
+    assert mu < 0.4 * REST * OMEGA**2 / G
     slippery = scene.with_friction(mu, contacts=["ground"])
     traj = cd.simulate(slippery, T_END, **TIGHT)
     c, omega_s = REST - mu * MASS * G / K, np.sqrt(K / (M + MASS))
@@ -154,6 +154,7 @@ def test_friction_on_the_finger_too_shares_the_load_by_compatible_deflection(sce
     U = range_basis(A)
     scale = MASS * G  # N: the forces' size; round-off ~1e-15 of it
     np.testing.assert_allclose(sol.forces - U @ (U.T @ sol.forces), 0.0, atol=1e-12 * scale)
-    np.testing.assert_allclose(A @ sol.ddq + np.concatenate([dyn.contact(k).drift(dyn.kin) for k in mode]),
-                               0.0, atol=1e-12 * G)
+    np.testing.assert_allclose(
+        A @ sol.ddq + np.concatenate([dyn.contact(k).drift(dyn.kin) for k in mode]), 0.0, atol=1e-12 * G
+    )
     assert sol.normal_forces()[mode.index(ground)] > 0.0

@@ -85,7 +85,7 @@ FREE_XML = f"""<mujoco model="free">
   <worldbody>
     <body name="box" pos="0 0 1">
       <freejoint/>
-      <inertial pos="{' '.join(map(str, FREE_COM))}" mass="{FREE_MASS}"
+      <inertial pos="{" ".join(map(str, FREE_COM))}" mass="{FREE_MASS}"
         fullinertia="0.3 0.4 0.5 0.02 -0.01 0.03"/>
     </body>
   </worldbody>
@@ -117,7 +117,8 @@ def free_bias(rotation: np.ndarray, v: np.ndarray) -> np.ndarray:
     lin, ang = v[:3], v[3:]
     weight = FREE_MASS * rotation.T @ np.array([0.0, 0.0, -G])
     return np.concatenate([np.cross(ang, f), np.cross(ang, n) + np.cross(lin, f)]) - np.concatenate(
-        [weight, np.cross(FREE_COM, weight)])
+        [weight, np.cross(FREE_COM, weight)]
+    )
 
 
 def write(folder: Path, name: str, text: str) -> Path:

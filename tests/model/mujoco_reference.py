@@ -28,9 +28,11 @@ def stripped_copy(path: Path, folder: Path) -> Path:
     root = resolve(read_document(Path(path)))  # classes inline: a class's mesh geoms are seen as such
     for parent in list(root.iter()):
         for child in list(parent):
-            drop = (child.tag in ("mesh", "skin") and parent.tag == "asset") or (
-                child.tag == "geom" and (child.get("mesh") or child.get("type") == "mesh")) or (
-                child.tag in ("texture", "hfield") and child.get("file"))
+            drop = (
+                (child.tag in ("mesh", "skin") and parent.tag == "asset")
+                or (child.tag == "geom" and (child.get("mesh") or child.get("type") == "mesh"))
+                or (child.tag in ("texture", "hfield") and child.get("file"))
+            )
             if drop:
                 parent.remove(child)
             elif child.tag == "material":
@@ -66,27 +68,28 @@ class MujocoReference:
             else:
                 mj = mujoco.mj_name2id(self.mj, mujoco.mjtObj.mjOBJ_JOINT, model.names[jid])
                 assert mj >= 0, f"joint {model.names[jid]} not in MuJoCo's model"
-            self.slots.append((joint.idx_q, joint.nq, self.mj.jnt_qposadr[mj], joint.idx_v, joint.nv,
-                               self.mj.jnt_dofadr[mj]))
+            self.slots.append(
+                (joint.idx_q, joint.nq, self.mj.jnt_qposadr[mj], joint.idx_v, joint.nv, self.mj.jnt_dofadr[mj])
+            )
         assert self.mj.nv == model.nv and self.mj.nq == model.nq
 
     def qpos(self, q: np.ndarray) -> np.ndarray:
         """MuJoCo's configuration of Pinocchio's ``q``."""
         qpos = np.zeros(self.mj.nq)
         for iq, nq, adr, _, _, _ in self.slots:
-            part = q[iq:iq + nq]
+            part = q[iq : iq + nq]
             if nq == 7:
                 part = np.concatenate([part[:3], [part[6]], part[3:6]])
             elif nq == 4:
                 part = np.concatenate([[part[3]], part[:3]])
-            qpos[adr:adr + nq] = part
+            qpos[adr : adr + nq] = part
         return qpos
 
     def permutation(self) -> np.ndarray:
         """``perm[i]``: MuJoCo's dof of Pinocchio's tangent coordinate ``i``."""
         perm = np.zeros(self.pin.nv, dtype=int)
         for _, _, _, iv, nv, adr in self.slots:
-            perm[iv:iv + nv] = np.arange(adr, adr + nv)
+            perm[iv : iv + nv] = np.arange(adr, adr + nv)
         return perm
 
     def dynamics(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -118,8 +121,8 @@ def random_states(model: pin.Model, count: int, seed: int = 0):
             i, n = joint.idx_q, joint.nq
             if n in (4, 7):  # free-flyer or ball: random unit quaternion (and position)
                 quat = rng.normal(size=4)
-                q[i + n - 4:i + n] = quat / np.linalg.norm(quat)
-                q[i:i + n - 4] = rng.uniform(-1, 1, n - 4)
+                q[i + n - 4 : i + n] = quat / np.linalg.norm(quat)
+                q[i : i + n - 4] = rng.uniform(-1, 1, n - 4)
             else:
-                q[i:i + n] = rng.uniform(lower[i:i + n], upper[i:i + n])
+                q[i : i + n] = rng.uniform(lower[i : i + n], upper[i : i + n])
         yield q, rng.uniform(-2, 2, model.nv)

@@ -84,8 +84,9 @@ def test_kinematics_at_spring_rest_equal_the_original(source):
         pin.framesForwardKinematics(new.model, d1, qc)
         for f in robot.model.frames:  # every frame, feet included, is where it was
             k = new.model.getFrameId(f.name)
-            np.testing.assert_allclose(d1.oMf[k].homogeneous, d0.oMf[robot.model.getFrameId(f.name)].homogeneous,
-                                       atol=1e-14)
+            np.testing.assert_allclose(
+                d1.oMf[k].homogeneous, d0.oMf[robot.model.getFrameId(f.name)].homogeneous, atol=1e-14
+            )
     # contacts are closed at the same standing/touchdown poses
     np.testing.assert_allclose(scene.gaps(scene.q0), base.gaps(base.q0), atol=1e-15)
 
@@ -127,7 +128,7 @@ def test_scene_transform_keeps_contacts_efforts_state():
     base = cd.load_scene("planar_trot_soft")
     scene = add_compliant_feet(base, 300.0, 0.05, axis=(0, 0, -1))
     assert scene.contact_names == base.contact_names
-    assert scene.effort_specs[:len(base.effort_specs)] == base.effort_specs
+    assert scene.effort_specs[: len(base.effort_specs)] == base.effort_specs
     q0, v0 = compliant_state(base.robot, scene.robot, base.q0, base.v0)
     np.testing.assert_array_equal(scene.q0, q0)
     np.testing.assert_array_equal(scene.v0, v0)
@@ -146,6 +147,7 @@ def test_coupling_decreases_with_foot_mass_on_solo12(solo):
         at_state = cd.check_decoupling(scene, states=[state])
         sampled = cd.check_decoupling(scene, samples=3, seed=1, spread=0.2)
         return next(p.max for p in at_state.pairs if set(p.contacts) == names), sampled.max_coupling
+
     previous = coupling(rigid, (q, v))
     for foot_mass in (1e-2, 1e-3, 1e-4):
         scene = add_compliant_feet(rigid, 1e4, foot_mass)
@@ -198,8 +200,7 @@ def test_mode_dynamics_derivatives_on_a_compliant_model():
     mode = (0, 3)
     _, der = dyn.solve(q, v, 0.0, mode, derivatives=True)
     value = dyn.solve(q, v, 0.0, mode).ddq
-    assert_fd("compliant: ddq/dq", der.ddq_dq, fd_dq(lambda x: dyn.solve(x, v, 0.0, mode).ddq, scene.model, q),
-              value)
+    assert_fd("compliant: ddq/dq", der.ddq_dq, fd_dq(lambda x: dyn.solve(x, v, 0.0, mode).ddq, scene.model, q), value)
     assert_fd("compliant: ddq/dv", der.ddq_dv, fd_dv(lambda x: dyn.solve(q, x, 0.0, mode).ddq, v), value)
 
 
@@ -224,8 +225,11 @@ def test_add_compliant_feet_rejects_bad_input(solo):
         add_compliant_feet(solo, 1000.0, 0.01, axis=(0, 0, 0))
     with pytest.raises(InvalidInputError, match="Robot or a Scene"):
         add_compliant_feet("solo12", 1000.0, 0.01)
-    user = cd.Scene(solo, cd.Scene.from_robot(solo).contact_specs,
-                    efforts=[cd.UserEffort(lambda q, v, t: np.zeros(18), name="hold")])
+    user = cd.Scene(
+        solo,
+        cd.Scene.from_robot(solo).contact_specs,
+        efforts=[cd.UserEffort(lambda q, v, t: np.zeros(18), name="hold")],
+    )
     with pytest.raises(InvalidInputError, match="hold"):
         add_compliant_feet(user, 1000.0, 0.01)
     with pytest.raises(InvalidInputError, match="shape"):

@@ -37,7 +37,11 @@ def test_friction_is_a_parameter_of_coulomb_contacts_only():
     friction = [n for n in listed if n.endswith(":friction")]
     assert friction == [f"contact:{names[0]}:friction", f"contact:{names[3]}:friction"]
     assert [n for n in listed if n.startswith("group:")] == [
-        "group:a:restitution", "group:a:offset", "group:b:restitution", "group:b:offset"]
+        "group:a:restitution",
+        "group:a:offset",
+        "group:b:restitution",
+        "group:b:offset",
+    ]
     assert scene.parameter_values(friction).tolist() == [0.4, 0.7]
     with pytest.raises(UnknownNameError, match=re.escape(f"contact:{names[0]}:friction")):
         scene.parameter_values([f"contact:{names[1]}:friction"])  # the valid names are listed
@@ -52,8 +56,9 @@ def test_the_cube_shares_one_friction_restitution_and_offset():
     group = ["group:cube:friction", "group:cube:restitution", "group:cube:offset"]
     assert set(group) <= set(scene.parameter_names())
     assert scene.parameter_values(group).tolist() == [0.18, 0.125, 0.0]
-    moved = scene.with_parameters({"group:cube:friction": 0.3, "group:cube:restitution": 0.5,
-                                   "group:cube:offset": -0.01})
+    moved = scene.with_parameters(
+        {"group:cube:friction": 0.3, "group:cube:restitution": 0.5, "group:cube:offset": -0.01}
+    )
     assert [(c.friction, c.restitution, c.offset) for c in moved.contact_specs] == [(0.3, 0.5, -0.01)] * 8
     assert moved.parameter_values(group).tolist() == [0.3, 0.5, -0.01]
     assert scene.parameter_values(group).tolist() == [0.18, 0.125, 0.0]
@@ -104,10 +109,15 @@ def _ball_file(tmp_path, contacts: str) -> str:
 def test_scene_file_group_key(tmp_path):
     """``group = "feet"`` in a ``[[contact]]`` entry (a floor and a ceiling on the ball's frame); a
     group name with ':' is refused."""
+
     def write(group):
-        return _ball_file(tmp_path, f'[[contact]]\nframe = "ball"\nname = "low"\nfriction = 0.5\ngroup = {group}\n'
-                                    f'[[contact]]\nframe = "ball"\nname = "high"\nnormal = [0.0, 0.0, -1.0]\n'
-                                    f'offset = -2.0\nfriction = 0.5\ngroup = {group}\n')
+        return _ball_file(
+            tmp_path,
+            f'[[contact]]\nframe = "ball"\nname = "low"\nfriction = 0.5\ngroup = {group}\n'
+            f'[[contact]]\nframe = "ball"\nname = "high"\nnormal = [0.0, 0.0, -1.0]\n'
+            f"offset = -2.0\nfriction = 0.5\ngroup = {group}\n",
+        )
+
     scene = cd.load_scene(write('"feet"'))
     assert [c.group for c in scene.contact_specs] == ["feet", "feet"]
     assert scene.parameter_values(["group:feet:friction"]).tolist() == [0.5]
@@ -126,16 +136,24 @@ def test_cli_lists_the_friction_and_group_parameters(tmp_path, capsys):
     assert {"contact:ball:friction", "group:g:friction", "group:g:restitution", "group:g:offset"} <= set(names)
     assert main(["simulate", path, "--t-final", "0.1", "--param", "list", "--json"]) == 0
     rows = {row["name"]: row for row in json.loads(capsys.readouterr().out)}
-    assert rows["group:g:friction"] == {"name": "group:g:friction", "kind": "group", "target": "g",
-                                        "field": "friction", "value": 0.4}
+    assert rows["group:g:friction"] == {
+        "name": "group:g:friction",
+        "kind": "group",
+        "target": "g",
+        "field": "friction",
+        "value": 0.4,
+    }
 
 
 def test_cli_differentiates_a_group_whose_members_differ(tmp_path, capsys):
     """The run's parameter table shows ``(differ)`` for the value of a group whose contacts
     differ (a floor at 0 and a ceiling at -2 m along -z: offsets 0 and -2), and the column."""
-    path = _ball_file(tmp_path, '[[contact]]\nframe = "ball"\nname = "low"\ngroup = "g"\n'
-                                '[[contact]]\nframe = "ball"\nname = "high"\nnormal = [0.0, 0.0, -1.0]\n'
-                                'offset = -2.0\ngroup = "g"\n')
+    path = _ball_file(
+        tmp_path,
+        '[[contact]]\nframe = "ball"\nname = "low"\ngroup = "g"\n'
+        '[[contact]]\nframe = "ball"\nname = "high"\nnormal = [0.0, 0.0, -1.0]\n'
+        'offset = -2.0\ngroup = "g"\n',
+    )
     assert main(["simulate", path, "--t-final", "0.1", "--param", "group:g:offset"]) == 0
     line = [row for row in capsys.readouterr().out.splitlines() if row.strip().startswith("group:g:offset")]
     assert len(line) == 1 and "(differ)" in line[0]

@@ -69,8 +69,7 @@ def test_free_flight_velocity_of_a_known_throw():
 
 def test_a_short_flight_starts_at_the_first_sample():
     toss = _throw()
-    short = Toss("toss_901", toss.t[44:], toss.position[44:], toss.quaternion[44:], toss.velocity[44:],
-                 toss.omega[44:])
+    short = Toss("toss_901", toss.t[44:], toss.position[44:], toss.quaternion[44:], toss.velocity[44:], toss.omega[44:])
     assert first_touch_sample(short) < 3
     rec = toss_recording(short, "before-touch")
     assert rec.t0 == short.t[0]
@@ -84,8 +83,9 @@ def test_split_keeps_duplicates_on_one_side():
     """Duplicates (identical heights to round-off) are grouped and never split."""
     tosses = {f"toss_{i:03d}": _throw(f"toss_{i:03d}", g=9.0 + 0.1 * i) for i in range(10)}
     twin = tosses["toss_003"]
-    tosses["toss_103"] = Toss("toss_103", twin.t, twin.position + [1e-3, 0, 1e-17], twin.quaternion,
-                              twin.velocity, twin.omega)
+    tosses["toss_103"] = Toss(
+        "toss_103", twin.t, twin.position + [1e-3, 0, 1e-17], twin.quaternion, twin.velocity, twin.omega
+    )
     groups = duplicate_groups(tosses)
     assert ["toss_003", "toss_103"] in groups and len(groups) == 10
     for seed in range(5):

@@ -26,8 +26,9 @@ def test_the_shipped_subset_loads_with_its_license():
         np.testing.assert_allclose(np.linalg.norm(toss.quaternion, axis=1), 1.0, rtol=1e-12)
 
 
-@pytest.mark.skipif(not SHARED_TOSSES.is_file(), reason="the full set of tosses (shared data) is not beside the "
-                                                        "repository")
+@pytest.mark.skipif(
+    not SHARED_TOSSES.is_file(), reason="the full set of tosses (shared data) is not beside the repository"
+)
 def test_the_full_set_loads():
     tosses = cd.load_tosses(SHARED_TOSSES)
     assert len(tosses) == 450
@@ -65,13 +66,16 @@ def _good(n=5):
     return a
 
 
-@pytest.mark.parametrize("change, message", [
-    (lambda a: a[:, :13], r"\(n, 14\) array"),
-    (lambda a: a[:1], "at least two samples"),
-    (lambda a: np.where(np.arange(14) == 2, np.nan, a), "not finite"),
-    (lambda a: a[[0, 2, 1, 3, 4]], "times must increase"),
-    (lambda a: np.where(np.arange(14) >= 4, 0.0, a), "quaternion of zero norm"),
-])
+@pytest.mark.parametrize(
+    "change, message",
+    [
+        (lambda a: a[:, :13], r"\(n, 14\) array"),
+        (lambda a: a[:1], "at least two samples"),
+        (lambda a: np.where(np.arange(14) == 2, np.nan, a), "not finite"),
+        (lambda a: a[[0, 2, 1, 3, 4]], "times must increase"),
+        (lambda a: np.where(np.arange(14) >= 4, 0.0, a), "quaternion of zero norm"),
+    ],
+)
 def test_bad_tosses_are_named_with_the_file(tmp_path, change, message):
     path = _write(tmp_path, toss_001=change(_good()))
     with pytest.raises(cd.InvalidInputError, match=message) as info:
@@ -115,8 +119,9 @@ def test_object_moments_are_checked():
     np.testing.assert_allclose(box.inertia().inertia, np.diag([0.2, 0.3, 0.4]))
 
 
-@pytest.mark.skipif(not SHARED_TOSSES.is_file(), reason="the full set of tosses (shared data) is not beside the "
-                                                        "repository")
+@pytest.mark.skipif(
+    not SHARED_TOSSES.is_file(), reason="the full set of tosses (shared data) is not beside the repository"
+)
 @pytest.mark.parametrize("name, mu, e", [("toss_066", 0.5, 0.0), ("toss_170", 0.5, 0.3)])
 def test_a_landing_order_whose_slip_vanishes_is_flagged_not_fatal(name, mu, e):
     """Regression: a hypothetical landing order of a two-corner touchdown leaves a corner sliding

@@ -42,10 +42,14 @@ _LIMB = """
 
 
 def _walker(tmp_path: Path, arm_length: float, arm_end: str = "hand") -> Path:
-    limbs = "".join(_LIMB.format(name=n, end=e, x=x, y=y, half=-length / 2, length=-length)
-                    for n, e, x, y, length in (("left", "left_foot", 0.0, 0.1, LEG),
-                                               ("right", "right_foot", 0.0, -0.1, LEG),
-                                               ("arm", arm_end, 0.2, 0.0, arm_length)))
+    limbs = "".join(
+        _LIMB.format(name=n, end=e, x=x, y=y, half=-length / 2, length=-length)
+        for n, e, x, y, length in (
+            ("left", "left_foot", 0.0, 0.1, LEG),
+            ("right", "right_foot", 0.0, -0.1, LEG),
+            ("arm", arm_end, 0.2, 0.0, arm_length),
+        )
+    )
     path = tmp_path / "walker.urdf"
     path.write_text(_TWO_LEGS_AND_ARM.format(limbs=limbs))
     return path
@@ -112,20 +116,23 @@ def test_feet_given_by_hand_and_a_wrong_name_lists_the_frames(tmp_path, capsys):
 
 # -- example-robot-data models ---------------------------------------------------------
 # Expected feet: the robots' documented foot frames (their URDFs' sole / foot links).
-@pytest.mark.parametrize("name, feet", [
-    ("talos", ("left_sole_link", "right_sole_link")),
-    ("g1", ("left_ankle_roll_link", "right_ankle_roll_link")),
-    ("icub", ("l_foot", "r_foot")),
-    ("simple_humanoid", ("l_ankle", "r_ankle")),
-    ("alexander", ("LEFT_FOOT", "RIGHT_FOOT")),
-    ("bolt", ("FL_FOOT", "FR_FOOT")),
-    ("anymal_kinova", ("LF_FOOT", "LH_FOOT", "RF_FOOT", "RH_FOOT")),
-    ("b1_z1", ("FL_foot", "FR_foot", "RL_foot", "RR_foot")),
-    ("centauro", ("contact_1", "contact_2", "contact_3", "contact_4")),
-    ("solo12", ("FL_FOOT", "FR_FOOT", "HL_FOOT", "HR_FOOT")),
-    ("anymal", ("LF_FOOT", "LH_FOOT", "RF_FOOT", "RH_FOOT")),
-    ("hyq", ("lf_foot", "lh_foot", "rf_foot", "rh_foot")),
-])
+@pytest.mark.parametrize(
+    "name, feet",
+    [
+        ("talos", ("left_sole_link", "right_sole_link")),
+        ("g1", ("left_ankle_roll_link", "right_ankle_roll_link")),
+        ("icub", ("l_foot", "r_foot")),
+        ("simple_humanoid", ("l_ankle", "r_ankle")),
+        ("alexander", ("LEFT_FOOT", "RIGHT_FOOT")),
+        ("bolt", ("FL_FOOT", "FR_FOOT")),
+        ("anymal_kinova", ("LF_FOOT", "LH_FOOT", "RF_FOOT", "RH_FOOT")),
+        ("b1_z1", ("FL_foot", "FR_foot", "RL_foot", "RR_foot")),
+        ("centauro", ("contact_1", "contact_2", "contact_3", "contact_4")),
+        ("solo12", ("FL_FOOT", "FR_FOOT", "HL_FOOT", "HR_FOOT")),
+        ("anymal", ("LF_FOOT", "LH_FOOT", "RF_FOOT", "RH_FOOT")),
+        ("hyq", ("lf_foot", "lh_foot", "rf_foot", "rh_foot")),
+    ],
+)
 def test_legged_robots_stand_on_their_feet_only(name, feet):
     robot = cd.load_robot(name)
     assert robot.feet == feet, robot.foot_choice.describe()

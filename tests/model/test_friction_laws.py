@@ -9,9 +9,16 @@ from contactdiff.errors import InvalidInputError
 from contactdiff.model.contacts import FRICTION_MODES, FrictionLaw
 
 
-@pytest.mark.parametrize("given, law, mu", [
-    ("none", FrictionLaw.NONE, 0.0), (0.0, FrictionLaw.NONE, 0.0), ("stick", FrictionLaw.STICK, math.inf),
-    (math.inf, FrictionLaw.STICK, math.inf), (0.8, FrictionLaw.COULOMB, 0.8)])
+@pytest.mark.parametrize(
+    "given, law, mu",
+    [
+        ("none", FrictionLaw.NONE, 0.0),
+        (0.0, FrictionLaw.NONE, 0.0),
+        ("stick", FrictionLaw.STICK, math.inf),
+        (math.inf, FrictionLaw.STICK, math.inf),
+        (0.8, FrictionLaw.COULOMB, 0.8),
+    ],
+)
 def test_each_friction_given_is_its_law(given, law, mu):
     """A name is its law, 0 frictionless and inf sticking (the limits of Coulomb's cone
     ||λ_T|| <= μ λ_N), a finite μ > 0 Coulomb's law with that coefficient."""

@@ -100,8 +100,9 @@ def test_unknown_friction_lists_modes():
         cd.Contact("ball", friction="coulomb")
 
 
-@pytest.mark.parametrize("field,value", [("stiffness", -1.0), ("stiffness", math.inf),
-                                         ("damping", -0.5), ("rest_length", math.nan)])
+@pytest.mark.parametrize(
+    "field,value", [("stiffness", -1.0), ("stiffness", math.inf), ("damping", -0.5), ("rest_length", math.nan)]
+)
 def test_bad_spring_numbers(field, value):
     kwargs = dict(stiffness=1.0, damping=0.0, rest_length=0.5)
     kwargs[field] = value
@@ -143,19 +144,24 @@ def test_duplicate_contact_names():
         cd.Scene(cd.load_robot("ball"), [cd.Contact("ball"), cd.Contact("ball")], q0={"z": 1.0})
 
 
-@pytest.mark.parametrize("second", [
-    dict(name="again"),  # a copy
-    dict(name="again", offset=0.1, restitution=0.5, friction="stick"),  # other numbers, same surface
-    dict(name="again", normal=(0.0, 0.0, 2.0)),  # the same normal, unnormalised
-])
+@pytest.mark.parametrize(
+    "second",
+    [
+        dict(name="again"),  # a copy
+        dict(name="again", offset=0.1, restitution=0.5, friction="stick"),  # other numbers, same surface
+        dict(name="again", normal=(0.0, 0.0, 2.0)),  # the same normal, unnormalised
+    ],
+)
 def test_two_contacts_of_one_frame_on_one_surface_are_refused(second):
     """Two ground contacts of one frame along one normal have gaps that differ by a
     constant: one surface, two rows that are equal, which closed in an order set by
     round-off (the run reported a landing order between them). The error names both,
     the frame, the normal and what to do instead."""
-    with pytest.raises(cd.InvalidInputError,
-                       match=r"'ball' and 'again' are both frame 'ball' against the ground along the normal "
-                             r"\(0\.0, 0\.0, 1\.0\).*different normals"):
+    with pytest.raises(
+        cd.InvalidInputError,
+        match=r"'ball' and 'again' are both frame 'ball' against the ground along the normal "
+        r"\(0\.0, 0\.0, 1\.0\).*different normals",
+    ):
         cd.Scene(cd.load_robot("ball"), [cd.Contact("ball"), cd.Contact("ball", **second)], q0={"z": 1.0})
 
 
@@ -164,24 +170,40 @@ def test_one_frame_may_touch_different_surfaces():
     a box's contacts against a ball along two normals; the pair written once each way
     (box against ball along n, ball against box along -n) is one contact twice: refused."""
     robot = cd.load_robot("ball")
-    scene = cd.Scene(robot, [cd.Contact("ball"), cd.Contact("ball", normal=(0, 0, -1), offset=-2.0, name="ceiling")],
-                     q0={"z": 1.0})
+    scene = cd.Scene(
+        robot, [cd.Contact("ball"), cd.Contact("ball", normal=(0, 0, -1), offset=-2.0, name="ceiling")], q0={"z": 1.0}
+    )
     np.testing.assert_allclose(scene.gaps(scene.q0), [1.0, 1.0], rtol=0, atol=1e-15)  # z - 0, 2 - z
     box = cd.SceneObject("box", "box", 1.0, size=(0.1, 0.1, 0.1), position=(0.0, 0.0, 0.5))
     robot = cd.add_objects(robot, [box])
     with pytest.raises(cd.InvalidInputError, match="'box' and 'back' are both frame 'box' against frame 'ball'"):
-        cd.Scene(robot, [cd.Contact("box", against="ball", normal=(0, 0, 1)),
-                         cd.Contact("ball", against="box", normal=(0, 0, -1), name="back")], q0={"z": 1.0})
-    scene = cd.Scene(robot, [cd.Contact("box", against="ball", normal=(0, 0, 1)),
-                             cd.Contact("box", against="ball", normal=(1, 0, 0), name="side")], q0={"z": 0.0})
+        cd.Scene(
+            robot,
+            [
+                cd.Contact("box", against="ball", normal=(0, 0, 1)),
+                cd.Contact("ball", against="box", normal=(0, 0, -1), name="back"),
+            ],
+            q0={"z": 1.0},
+        )
+    scene = cd.Scene(
+        robot,
+        [
+            cd.Contact("box", against="ball", normal=(0, 0, 1)),
+            cd.Contact("box", against="ball", normal=(1, 0, 0), name="side"),
+        ],
+        q0={"z": 0.0},
+    )
     assert scene.contact_names == ["box", "side"]
 
 
-@pytest.mark.parametrize("entry, message", [
-    ("[[contact]]\nframe = 'ball'\nrestitution = true\n", "restitution must be a number, got True"),
-    ("[[contact]]\nframe = 'ball'\noffset = false\n", "offset must be a number, got False"),
-    ("[[joint_spring]]\njoint = 'z'\nstiffness = true\n", "stiffness must be a number, got True"),
-])
+@pytest.mark.parametrize(
+    "entry, message",
+    [
+        ("[[contact]]\nframe = 'ball'\nrestitution = true\n", "restitution must be a number, got True"),
+        ("[[contact]]\nframe = 'ball'\noffset = false\n", "offset must be a number, got False"),
+        ("[[joint_spring]]\njoint = 'z'\nstiffness = true\n", "stiffness must be a number, got True"),
+    ],
+)
 def test_a_boolean_is_not_a_number(tmp_path, entry, message):
     """TOML's ``true`` was taken as 1 (an elastic contact) and ``false`` as 0."""
     with pytest.raises(cd.InvalidInputError, match=message):
@@ -209,16 +231,19 @@ def test_user_effort_of_wrong_shape_is_refused():
 
 
 # -- tolerances, budgets and states that cannot be meant ------------------------------
-@pytest.mark.parametrize("options, message", [
-    (dict(rtol=1.0), r"rtol must be in \[2.22e-14, 0.1\], got 1.0"),
-    (dict(rtol=1e-16), r"rtol must be in \[2.22e-14, 0.1\]"),
-    (dict(atol=0.0), r"atol must be in \(0, 0.1\], got 0.0"),
-    (dict(atol=1.0), r"atol must be in \(0, 0.1\]"),
-    (dict(max_steps=-1), "max_steps must be an integer >= 1"),
-    (dict(max_steps=2.5), "max_steps must be an integer >= 1"),
-    (dict(max_steps=0), "max_steps must be an integer >= 1, got 0"),
-    (dict(progress="yes"), "progress must be a callable or None"),
-])
+@pytest.mark.parametrize(
+    "options, message",
+    [
+        (dict(rtol=1.0), r"rtol must be in \[2.22e-14, 0.1\], got 1.0"),
+        (dict(rtol=1e-16), r"rtol must be in \[2.22e-14, 0.1\]"),
+        (dict(atol=0.0), r"atol must be in \(0, 0.1\], got 0.0"),
+        (dict(atol=1.0), r"atol must be in \(0, 0.1\]"),
+        (dict(max_steps=-1), "max_steps must be an integer >= 1"),
+        (dict(max_steps=2.5), "max_steps must be an integer >= 1"),
+        (dict(max_steps=0), "max_steps must be an integer >= 1, got 0"),
+        (dict(progress="yes"), "progress must be a callable or None"),
+    ],
+)
 def test_simulate_refuses_options_that_cannot_be_meant(options, message):
     with pytest.raises(cd.InvalidInputError, match=message):
         cd.simulate(cd.load_scene("ball"), 1.0, **options)
@@ -253,13 +278,16 @@ def test_check_refuses_a_negative_seed():
         cd.check_decoupling("planar_trot_soft", seed=-1)
 
 
-@pytest.mark.parametrize("args, message", [
-    ((np.zeros(3), None, 0.0, ()), r"q must be 7 numbers, got shape \(3,\)"),
-    ((None, np.ones(2), 0.0, ()), r"v must be 7 numbers, got shape \(2,\)"),
-    ((None, None, 0.0, (7,)), "7 is not a contact key; valid: keys 0..1"),
-    ((None, None, 0.0, (-1,)), "-1 is not a contact key"),
-    ((None, None, 0.0, (0, 0)), "names a contact twice"),
-])
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        ((np.zeros(3), None, 0.0, ()), r"q must be 7 numbers, got shape \(3,\)"),
+        ((None, np.ones(2), 0.0, ()), r"v must be 7 numbers, got shape \(2,\)"),
+        ((None, None, 0.0, (7,)), "7 is not a contact key; valid: keys 0..1"),
+        ((None, None, 0.0, (-1,)), "-1 is not a contact key"),
+        ((None, None, 0.0, (0, 0)), "names a contact twice"),
+    ],
+)
 def test_mode_dynamics_names_bad_arguments(args, message):
     scene = cd.load_scene("planar_trot_soft")
     q, v, t, active = args

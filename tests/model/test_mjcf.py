@@ -66,8 +66,9 @@ def test_two_link_leg_with_class_joint_pos(tmp_path):
         q, v = rng.uniform(-2, 2, 2), rng.uniform(-3, 3, 2)
         np.testing.assert_allclose(_mass_matrix(robot, q), leg_mass_matrix(q), rtol=RTOL, atol=0)
         scale = np.abs(leg_bias(q, v)).max()
-        np.testing.assert_allclose(pin.nle(robot.model, robot.new_data(), q, v), leg_bias(q, v),
-                                   rtol=0, atol=RTOL * scale)
+        np.testing.assert_allclose(
+            pin.nle(robot.model, robot.new_data(), q, v), leg_bias(q, v), rtol=0, atol=RTOL * scale
+        )
 
 
 def test_leg_reference_pose_is_its_first_keyframe(tmp_path):
@@ -77,8 +78,9 @@ def test_leg_reference_pose_is_its_first_keyframe(tmp_path):
 
 
 def test_home_keyframe_wins_over_the_first(tmp_path):
-    text = LEG_XML.replace('<key name="bent" qpos="0.3 -0.6"/>',
-                           '<key name="bent" qpos="0.3 -0.6"/><key name="home" qpos="-0.1 0.2"/>')
+    text = LEG_XML.replace(
+        '<key name="bent" qpos="0.3 -0.6"/>', '<key name="bent" qpos="0.3 -0.6"/><key name="home" qpos="-0.1 0.2"/>'
+    )
     robot = load_robot(write(tmp_path, "leg.xml", text))
     np.testing.assert_array_equal(robot.q_ref, [-0.1, 0.2])
 
@@ -86,7 +88,8 @@ def test_home_keyframe_wins_over_the_first(tmp_path):
 def test_qpos0_without_keyframes_is_the_joint_refs(tmp_path):
     """Without keyframes the reference is MuJoCo's ``qpos0``: each hinge at its ``ref``."""
     text = LEG_XML.replace('<keyframe><key name="bent" qpos="0.3 -0.6"/></keyframe>', "").replace(
-        '<joint name="hip"/>', '<joint name="hip" ref="0.25"/>')
+        '<joint name="hip"/>', '<joint name="hip" ref="0.25"/>'
+    )
     robot = load_robot(write(tmp_path, "leg.xml", text))
     np.testing.assert_array_equal(robot.q_ref, [0.25, 0.0])
 
@@ -97,7 +100,8 @@ def test_leg_with_floating_base_stands_on_its_sphere_foot(tmp_path):
     ``FOOT_L`` below the knee."""
     pelvis = '<body name="pelvis" pos="0 0 1"><inertial pos="0 0 0" mass="4" diaginertia="0.1 0.1 0.1"/>'
     text = LEG_XML.replace('<body name="thigh" pos="0 0 1">', pelvis + '<body name="thigh">').replace(
-        "</worldbody>", "</body></worldbody>")
+        "</worldbody>", "</body></worldbody>"
+    )
     robot = load_robot(write(tmp_path, "leg.xml", text), floating_base=True)
     assert robot.floating_base and robot.nq == 9
     np.testing.assert_array_equal(robot.q_ref, [0, 0, 1, 0, 0, 0, 1, 0.3, -0.6])  # the key, the pelvis's pos
@@ -131,8 +135,7 @@ def test_free_body_with_full_inertia(tmp_path):
         np.testing.assert_allclose(_mass_matrix(robot, q), M, rtol=0, atol=RTOL * np.abs(M).max())
         rotation = pin.Quaternion(q[6], *q[3:6]).normalized().matrix()
         b = free_bias(rotation, v)
-        np.testing.assert_allclose(pin.nle(robot.model, robot.new_data(), q, v), b, rtol=0,
-                                   atol=RTOL * np.abs(b).max())
+        np.testing.assert_allclose(pin.nle(robot.model, robot.new_data(), q, v), b, rtol=0, atol=RTOL * np.abs(b).max())
 
 
 def test_geom_mass_and_pos_from_a_class(tmp_path):
@@ -168,17 +171,23 @@ def _with(tmp_path, extra: str, body: str = "") -> str:
     return write(tmp_path, "leg.xml", text)
 
 
-@pytest.mark.parametrize("extra, phrase", [
-    ('<equality><connect name="loop" body1="thigh" body2="shank" anchor="0 0 0"/></equality>',
-     "equality constraint(s) connect 'loop'"),
-    ('<equality><joint joint1="hip" joint2="knee"/></equality>', "equality constraint(s) joint (unnamed)"),
-    ('<tendon><fixed name="t"><joint joint="hip" coef="1"/></fixed></tendon>', "tendon(s) fixed 't'"),
-    ('<asset><hfield name="terrain" nrow="2" ncol="2" size="1 1 0.1 0.1"/></asset>',
-     "height field(s) 'terrain'"),
-    ('<actuator><general name="m" joint="hip" dyntype="filter"/></actuator>',
-     "activation dynamics of actuator(s) general 'm'"),
-    ('<actuator><cylinder name="c" joint="knee"/></actuator>', "activation dynamics of actuator(s) cylinder 'c'"),
-])
+@pytest.mark.parametrize(
+    "extra, phrase",
+    [
+        (
+            '<equality><connect name="loop" body1="thigh" body2="shank" anchor="0 0 0"/></equality>',
+            "equality constraint(s) connect 'loop'",
+        ),
+        ('<equality><joint joint1="hip" joint2="knee"/></equality>', "equality constraint(s) joint (unnamed)"),
+        ('<tendon><fixed name="t"><joint joint="hip" coef="1"/></fixed></tendon>', "tendon(s) fixed 't'"),
+        ('<asset><hfield name="terrain" nrow="2" ncol="2" size="1 1 0.1 0.1"/></asset>', "height field(s) 'terrain'"),
+        (
+            '<actuator><general name="m" joint="hip" dyntype="filter"/></actuator>',
+            "activation dynamics of actuator(s) general 'm'",
+        ),
+        ('<actuator><cylinder name="c" joint="knee"/></actuator>', "activation dynamics of actuator(s) cylinder 'c'"),
+    ],
+)
 def test_left_out_features_are_named_in_one_warning(tmp_path, extra, phrase):
     with pytest.warns(MJCFWarning) as caught:
         robot = load_robot(_with(tmp_path, extra))
@@ -192,7 +201,8 @@ def test_passive_joint_forces_are_named_in_one_warning(tmp_path):
     dynamics does not: one warning names each attribute's joints, a class's value included
     (the knee's stiffness comes from the class ``knee``), and the mass matrix is the leg's."""
     text = LEG_XML.replace('<joint pos="0 0 -0.1"/>', '<joint pos="0 0 -0.1" stiffness="30"/>').replace(
-        '<joint name="hip"/>', '<joint name="hip" damping="0.5" frictionloss="0.1"/>')
+        '<joint name="hip"/>', '<joint name="hip" damping="0.5" frictionloss="0.1"/>'
+    )
     with pytest.warns(MJCFWarning) as caught:
         robot = load_robot(write(tmp_path, "leg.xml", text))
     (message,) = [str(w.message) for w in caught]
@@ -216,8 +226,10 @@ def test_flex_is_refused(tmp_path):
 
 
 def test_replicate_is_refused(tmp_path):
-    body = '<replicate count="3" offset="0.1 0 0"><body name="r"><joint name="rj"/>' \
-           '<inertial pos="0 0 0" mass="1" diaginertia="1 1 1"/></body></replicate>'
+    body = (
+        '<replicate count="3" offset="0.1 0 0"><body name="r"><joint name="rj"/>'
+        '<inertial pos="0 0 0" mass="1" diaginertia="1 1 1"/></body></replicate>'
+    )
     with pytest.raises(UnsupportedModelError, match="<replicate>.*mj_saveLastXML"):
         load_robot(_with(tmp_path, "", body))
 
@@ -225,8 +237,11 @@ def test_replicate_is_refused(tmp_path):
 def test_mesh_mass_without_inertial_is_refused_when_its_file_is_missing(tmp_path):
     text = """<mujoco><asset><mesh name="m" file="m.stl"/></asset><worldbody><body name="b">
       <joint name="j"/><geom type="mesh" mesh="m"/></body></worldbody></mujoco>"""
-    with pytest.raises(UnsupportedModelError, match=r"1 bodies without <inertial> take mass from mesh geoms \('b'\) "
-                                                     r"whose mesh files are missing \(m.stl\)"):
+    with pytest.raises(
+        UnsupportedModelError,
+        match=r"1 bodies without <inertial> take mass from mesh geoms \('b'\) "
+        r"whose mesh files are missing \(m.stl\)",
+    ):
         load_robot(write(tmp_path, "mesh.xml", text))
 
 
@@ -279,8 +294,11 @@ def test_convex_hull_mesh_inertia_is_refused(tmp_path):
     (tmp_path / "assets").mkdir()
     write_stl(tmp_path / "assets" / "bob.stl", box_triangles([0, 0, 0], [0.125, 0.25, 0.5]))
     text = _MESH_PENDULUM.format(kind="stl", inertia=' inertia="convex"', weight='density="500"')
-    with pytest.raises(UnsupportedModelError, match=r"inertia='convex'; the mesh inertias computed here are "
-                                                     r"'legacy' and 'exact'"):
+    with pytest.raises(
+        UnsupportedModelError,
+        match=r"inertia='convex'; the mesh inertias computed here are "
+        r"'legacy' and 'exact'",
+    ):
         load_robot(write(tmp_path, "pendulum.xml", text))
 
 
@@ -383,8 +401,11 @@ def test_load_mjcf_floating_false_removes_the_free_joint(tmp_path):
     robot = load_mjcf(write(tmp_path, "free.xml", FREE_XML), floating_base=False)
     assert robot.nv == 0 and not robot.floating_base
     pelvis = '<body name="pelvis" pos="0 0 1"><freejoint/><inertial pos="0 0 0" mass="4" diaginertia="0.1 0.1 0.1"/>'
-    text = LEG_XML.replace('<body name="thigh" pos="0 0 1">', pelvis + '<body name="thigh">').replace(
-        "</worldbody>", "</body></worldbody>").replace('qpos="0.3 -0.6"', 'qpos="0 0 1 1 0 0 0 0.3 -0.6"')
+    text = (
+        LEG_XML.replace('<body name="thigh" pos="0 0 1">', pelvis + '<body name="thigh">')
+        .replace("</worldbody>", "</body></worldbody>")
+        .replace('qpos="0.3 -0.6"', 'qpos="0 0 1 1 0 0 0 0.3 -0.6"')
+    )
     robot = load_mjcf(write(tmp_path, "leg.xml", text), floating_base=False)
     np.testing.assert_array_equal(robot.q_ref, [0.3, -0.6])  # the key without the free joint's part
 
@@ -412,8 +433,9 @@ def test_a_fixed_top_body_keeps_its_placement(tmp_path):
     text = LEG_XML.replace('<body name="thigh" pos="0 0 1">', '<body name="thigh" pos="0 0 1" quat="0 1 0 0">')
     robot = load_robot(write(tmp_path, "leg.xml", text))
     q = np.array([0.4, -0.9])
-    np.testing.assert_allclose(pin.nle(robot.model, robot.new_data(), q, np.zeros(2)), -leg_bias(q, np.zeros(2)),
-                               rtol=RTOL)
+    np.testing.assert_allclose(
+        pin.nle(robot.model, robot.new_data(), q, np.zeros(2)), -leg_bias(q, np.zeros(2)), rtol=RTOL
+    )
     np.testing.assert_allclose(_mass_matrix(robot, q), leg_mass_matrix(q), rtol=RTOL)
 
 
@@ -449,6 +471,7 @@ def test_orientations_as_mujoco_defines_them():
 
     def turn(axis, angle):
         return np.concatenate([[np.cos(angle / 2)], np.sin(angle / 2) * np.eye(3)[axis]])
+
     a, b, g = 0.3, -0.7, 1.1
     intrinsic = quat_multiply(quat_multiply(turn(0, a), turn(1, b)), turn(2, g))
     extrinsic = quat_multiply(quat_multiply(turn(2, g), turn(1, b)), turn(0, a))
@@ -475,9 +498,12 @@ def test_sphere_hands_high_above_the_ground_are_not_feet(tmp_path):
     inertial = '<inertial pos="0 0 0" mass="1" diaginertia="0.01 0.01 0.01"/>'
 
     def limb(name, y, z, end):
-        return (f'<body name="{name}_upper" pos="0 {y} {z}"><joint name="{name}_1" axis="0 1 0"/>{inertial}'
-                f'<body name="{name}_end" pos="0 0 -0.4"><joint name="{name}_2" axis="0 1 0"/>{inertial}{end}'
-                "</body></body>")
+        return (
+            f'<body name="{name}_upper" pos="0 {y} {z}"><joint name="{name}_1" axis="0 1 0"/>{inertial}'
+            f'<body name="{name}_end" pos="0 0 -0.4"><joint name="{name}_2" axis="0 1 0"/>{inertial}{end}'
+            "</body></body>"
+        )
+
     foot = '<geom type="capsule" fromto="-0.05 0 -0.05 0.1 0 -0.05" size="0.02"/>'
     hand = '<geom type="sphere" size="0.03" pos="0 0 -0.3"/>'
     text = f"""<mujoco><worldbody><body name="pelvis" pos="0 0 0.87"><freejoint/>{inertial}
@@ -500,7 +526,9 @@ def test_round_feet_of_an_mjcf_robot_without_sphere_feet_is_a_named_error(tmp_pa
 
 
 def test_actuator_dynamics_from_a_class_are_named(tmp_path):
-    extra = ('<default><default class="slow"><general dyntype="filter" dynprm="0.1"/></default></default>'
-             '<actuator><general name="m" class="slow" joint="hip"/></actuator>')
+    extra = (
+        '<default><default class="slow"><general dyntype="filter" dynprm="0.1"/></default></default>'
+        '<actuator><general name="m" class="slow" joint="hip"/></actuator>'
+    )
     with pytest.warns(MJCFWarning, match="activation dynamics of actuator\\(s\\) general 'm'"):
         load_robot(_with(tmp_path, extra))

@@ -30,8 +30,9 @@ def fresh_module(monkeypatch):
     sys.modules.pop(MODULE, None)
 
 
-def _cache_with_go2(tmp_path, monkeypatch, repository="mujoco_menagerie", relative="unitree_go2/go2.xml",
-                    text=FREE_XML):
+def _cache_with_go2(
+    tmp_path, monkeypatch, repository="mujoco_menagerie", relative="unitree_go2/go2.xml", text=FREE_XML
+):
     """The package looks for ``mujoco_menagerie-<commit>/mujoco_menagerie`` in its cache when
     ``ROBOT_DESCRIPTION_COMMIT`` names a commit; a repository there with that commit checked out
     is used as it is. Its ``unitree_go2/go2.xml`` here is the free body of the MJCF tests.
@@ -75,8 +76,9 @@ def test_an_empty_cache_without_network_is_a_load_error(tmp_path, monkeypatch, f
     monkeypatch.setenv("ROBOT_DESCRIPTION_COMMIT", "0" * 40)
     monkeypatch.setenv("GIT_TERMINAL_PROMPT", "0")
     monkeypatch.setenv("GIT_ALLOW_PROTOCOL", "file")  # no https: fails at once, offline or not
-    with pytest.raises(ModelLoadError, match="robot_descriptions cannot provide 'go2_mj_description'.*"
-                                             "ROBOT_DESCRIPTIONS_CACHE"):
+    with pytest.raises(
+        ModelLoadError, match="robot_descriptions cannot provide 'go2_mj_description'.*ROBOT_DESCRIPTIONS_CACHE"
+    ):
         load_robot("go2_mj_description")
 
 
@@ -86,8 +88,7 @@ def test_a_legged_urdf_description_gets_a_floating_base(tmp_path, monkeypatch):
     from helpers import LEG_URDF
 
     monkeypatch.delitem(sys.modules, "robot_descriptions.go2_description", raising=False)
-    _cache_with_go2(tmp_path, monkeypatch, "unitree_ros", "robots/go2_description/urdf/go2_description.urdf",
-                    LEG_URDF)
+    _cache_with_go2(tmp_path, monkeypatch, "unitree_ros", "robots/go2_description/urdf/go2_description.urdf", LEG_URDF)
     try:
         robot = load_robot("go2_description")
     finally:

@@ -42,8 +42,10 @@ def test_billion_laughs_is_refused_quickly(tmp_path):
 
 def test_external_entity_is_refused(tmp_path):
     secret = write(tmp_path, "secret.txt", "secret")
-    text = (f'<?xml version="1.0"?><!DOCTYPE mujoco [<!ENTITY x SYSTEM "file://{secret}">]>'
-            '<mujoco model="&x;"><worldbody/></mujoco>')
+    text = (
+        f'<?xml version="1.0"?><!DOCTYPE mujoco [<!ENTITY x SYSTEM "file://{secret}">]>'
+        '<mujoco model="&x;"><worldbody/></mujoco>'
+    )
     with pytest.raises(UnsafeModelFileError):
         load_robot(write(tmp_path, "xxe.xml", text))
 
@@ -63,8 +65,11 @@ def test_include_outside_the_folder_is_refused_unless_allowed(tmp_path):
     (tmp_path / "model").mkdir()
     write(tmp_path, "outside.xml", FREE_XML)
     main = _main_with_include(tmp_path / "model", "../outside.xml")
-    with pytest.raises(UnsafeModelFileError, match=r"<include> file '../outside.xml' resolves to .*outside "
-                                                   r"the model's folder .*allow_outside=True"):
+    with pytest.raises(
+        UnsafeModelFileError,
+        match=r"<include> file '../outside.xml' resolves to .*outside "
+        r"the model's folder .*allow_outside=True",
+    ):
         load_robot(main)
     assert load_mjcf(main, allow_outside=True).nv == 6
 
@@ -93,8 +98,9 @@ def test_include_flood_is_refused(tmp_path):
 
 @pytest.mark.parametrize("mesh", ["../../elsewhere/part.stl", "/etc/part.stl"])
 def test_asset_path_outside_the_folder_is_refused(tmp_path, mesh):
-    text = FREE_XML.replace("<worldbody>", f'<compiler meshdir="assets"/><asset><mesh file="{mesh}"/></asset>'
-                            "<worldbody>")
+    text = FREE_XML.replace(
+        "<worldbody>", f'<compiler meshdir="assets"/><asset><mesh file="{mesh}"/></asset><worldbody>'
+    )
     with pytest.raises(UnsafeModelFileError, match="<mesh> file .*outside the model's folder"):
         load_robot(write(tmp_path, "robot.xml", text))
 
@@ -134,8 +140,9 @@ def test_missing_meshes_load_and_the_replay_draws_spheres_and_says_so(tmp_path):
     from contactdiff.model.mjcf import MJCFWarning
     from contactdiff.replay_geometry import drawn_geometry
 
-    text = FREE_XML.replace("<worldbody>", '<compiler meshdir="assets"/><asset><mesh file="hull.stl"/></asset>'
-                            "<worldbody>").replace("<freejoint/>", '<freejoint/><geom type="mesh" mesh="hull"/>')
+    text = FREE_XML.replace(
+        "<worldbody>", '<compiler meshdir="assets"/><asset><mesh file="hull.stl"/></asset><worldbody>'
+    ).replace("<freejoint/>", '<freejoint/><geom type="mesh" mesh="hull"/>')
     robot = load_robot(write(tmp_path, "hull.xml", text))
     M = pin.crba(robot.model, robot.new_data(), robot.q_ref)
     np.testing.assert_allclose(np.diag(M)[:3], 3.0, rtol=1e-14)  # FREE_XML's mass, kg
@@ -147,10 +154,17 @@ def test_missing_meshes_load_and_the_replay_draws_spheres_and_says_so(tmp_path):
 def test_a_scene_file_including_the_robot_is_the_robot(tmp_path):
     """Menagerie's ``scene.xml`` pattern: include the robot, add a <worldbody> with a floor
     and a light. MuJoCo reads the two worldbody sections as one; so does the loader."""
-    write(tmp_path, "free.xml", FREE_XML.replace("</mujoco>", '<keyframe><key name="home" '
-                                                 'qpos="0 0 0.5 1 0 0 0"/></keyframe></mujoco>'))
-    scene = write(tmp_path, "scene.xml", '<mujoco model="scene"><include file="free.xml"/><worldbody>'
-                  '<light pos="0 0 1.5"/><geom name="floor" size="0 0 0.05" type="plane"/></worldbody></mujoco>')
+    write(
+        tmp_path,
+        "free.xml",
+        FREE_XML.replace("</mujoco>", '<keyframe><key name="home" qpos="0 0 0.5 1 0 0 0"/></keyframe></mujoco>'),
+    )
+    scene = write(
+        tmp_path,
+        "scene.xml",
+        '<mujoco model="scene"><include file="free.xml"/><worldbody>'
+        '<light pos="0 0 1.5"/><geom name="floor" size="0 0 0.05" type="plane"/></worldbody></mujoco>',
+    )
     robot = load_robot(scene)
     assert robot.floating_base and robot.nv == 6
     assert list(robot.q_ref) == [0, 0, 0.5, 0, 0, 0, 1]  # the included file's keyframe home

@@ -39,8 +39,9 @@ _XML = """<mujoco model="points"><worldbody><body name="pelvis" pos="0 0 0.32"><
 
 
 def _biped(tmp_path, left=_TWO, right=_TWO, feet=None):
-    xml = _XML.format(left=_LEG.format(s="left", y=0.1, spheres=left),
-                      right=_LEG.format(s="right", y=-0.1, spheres=right))
+    xml = _XML.format(
+        left=_LEG.format(s="left", y=0.1, spheres=left), right=_LEG.format(s="right", y=-0.1, spheres=right)
+    )
     return load_robot(write(tmp_path, "points.xml", xml), feet=feet)
 
 
@@ -51,8 +52,7 @@ def _direct_coupling(robot, q, a, b) -> float:
     M = np.triu(M) + np.triu(M, 1).T  # crba fills the upper triangle
     pin.computeJointJacobians(model, data, q)
     pin.updateFramePlacements(model, data)
-    A = np.vstack([pin.getFrameJacobian(model, data, robot.frame_id(f), pin.LOCAL_WORLD_ALIGNED)[2]
-                   for f in (a, b)])
+    A = np.vstack([pin.getFrameJacobian(model, data, robot.frame_id(f), pin.LOCAL_WORLD_ALIGNED)[2] for f in (a, b)])
     G = A @ np.linalg.solve(M, A.T)
     return abs(G[0, 1]) / np.sqrt(G[0, 0] * G[1, 1])
 
@@ -113,17 +113,20 @@ def test_unnamed_sphere_frames_are_named_after_their_body(tmp_path):
     """A body's only unnamed sphere: ``<body>_sphere``; several: ``<body>_sphere1``, ... in
     file order, a named geom keeping its name and taking no index."""
     one = '<geom type="sphere" size="0.02" pos="0 0 -0.3"/>'
-    three = ('<geom type="sphere" size="0.02" pos="0.05 0 -0.3"/>'
-             '<geom name="heel" type="sphere" size="0.02" pos="-0.05 0 -0.3"/>'
-             '<geom type="sphere" size="0.02" pos="0 0.02 -0.3"/>')
+    three = (
+        '<geom type="sphere" size="0.02" pos="0.05 0 -0.3"/>'
+        '<geom name="heel" type="sphere" size="0.02" pos="-0.05 0 -0.3"/>'
+        '<geom type="sphere" size="0.02" pos="0 0.02 -0.3"/>'
+    )
     robot = _biped(tmp_path, left=one, right=three)
     assert robot.feet == ("left_foot_sphere", "right_foot_sphere1", "heel", "right_foot_sphere2")
     assert robot.foot_choice.limbs == {"right_foot": ("right_foot_sphere1", "heel", "right_foot_sphere2")}
     data = robot.new_data()
     pin.framesForwardKinematics(robot.model, data, robot.q_ref)
     hip = data.oMi[robot.joint_id("right_hip")].translation
-    np.testing.assert_allclose(data.oMf[robot.frame_id("right_foot_sphere2")].translation - hip,
-                               [0, 0.02, -0.3], rtol=0, atol=1e-15)  # its own pos, at the reference pose
+    np.testing.assert_allclose(
+        data.oMf[robot.frame_id("right_foot_sphere2")].translation - hip, [0, 0.02, -0.3], rtol=0, atol=1e-15
+    )  # its own pos, at the reference pose
 
 
 def test_sphere_feet_given_by_hand_on_one_body_are_one_limb(tmp_path):

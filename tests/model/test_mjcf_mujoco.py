@@ -101,8 +101,15 @@ def test_classes_written_inline_do_not_change_mujocos_model(tmp_path):
 
 
 @pytest.mark.filterwarnings("ignore::contactdiff.model.mjcf.MJCFWarning")  # Cassie's loops, tested elsewhere
-@pytest.mark.parametrize("relative", ["unitree_go2/go2.xml", "berkeley_humanoid/berkeley_humanoid.xml",
-                                      "leap_hand/right_hand.xml", "agility_cassie/scene.xml"])
+@pytest.mark.parametrize(
+    "relative",
+    [
+        "unitree_go2/go2.xml",
+        "berkeley_humanoid/berkeley_humanoid.xml",
+        "leap_hand/right_hand.xml",
+        "agility_cassie/scene.xml",
+    ],
+)
 def test_menagerie_model_matches_mujoco(tmp_path, relative):
     """Go2, Berkeley Humanoid, the LEAP hand (a fixed palm turned upside down by its ``quat``)
     and Cassie's scene (an include, two ball joints, its loops left out: MuJoCo's M and bias
@@ -120,8 +127,9 @@ def test_menagerie_model_matches_mujoco(tmp_path, relative):
         name = mujoco.mj_id2name(reference.mj, mujoco.mjtObj.mjOBJ_JOINT, j)
         i = robot.model.joints[robot.joint_id(name)].idx_q
         expected = reference.mj.jnt_range[j] if reference.mj.jnt_limited[j] else [-np.inf, np.inf]
-        np.testing.assert_allclose([robot.model.lowerPositionLimit[i], robot.model.upperPositionLimit[i]],
-                                   expected, rtol=1e-15, err_msg=name)  # one degree conversion: round-off
+        np.testing.assert_allclose(
+            [robot.model.lowerPositionLimit[i], robot.model.upperPositionLimit[i]], expected, rtol=1e-15, err_msg=name
+        )  # one degree conversion: round-off
     key = mujoco.mj_name2id(reference.mj, mujoco.mjtObj.mjOBJ_KEY, "home")
     if key >= 0:  # else the first keyframe or qpos0, compared in test_kinematic_tree_matches_mujoco
         mujoco.mj_resetDataKeyframe(reference.mj, reference.data, key)
@@ -130,21 +138,22 @@ def test_menagerie_model_matches_mujoco(tmp_path, relative):
         pin.framesForwardKinematics(robot.model, data, robot.q_ref)
         for b in range(1, reference.mj.nbody):
             name = mujoco.mj_id2name(reference.mj, mujoco.mjtObj.mjOBJ_BODY, b)
-            np.testing.assert_allclose(data.oMf[robot.frame_id(name)].translation, reference.data.xpos[b],
-                                       rtol=0, atol=1e-12, err_msg=name)  # m; lengths O(1), round-off 1e-15
+            np.testing.assert_allclose(
+                data.oMf[robot.frame_id(name)].translation, reference.data.xpos[b], rtol=0, atol=1e-12, err_msg=name
+            )  # m; lengths O(1), round-off 1e-15
 
 
 GEOM_CASES = {
     "visual box (contype = conaffinity = 0)": '<geom type="box" size="0.1 0.2 0.05" pos="0 0 -0.3" '
-                                              'contype="0" conaffinity="0"/>',
+    'contype="0" conaffinity="0"/>',
     "group outside inertiagrouprange": '<geom type="box" size="0.1 0.2 0.05" pos="0 0 -0.3"/>'
-                                       '<geom type="sphere" size="0.1" group="7"/>',
+    '<geom type="sphere" size="0.1" group="7"/>',
     "capsule by fromto": '<geom type="capsule" fromto="0 0 0 0.1 0 -0.4" size="0.03"/>',
     "turned cylinder with density": '<geom type="cylinder" size="0.05 0.2" quat="0.9 0.3 0.1 0" pos="0.1 0 -0.2" '
-                                    'density="500"/>',
+    'density="500"/>',
     "ellipsoid": '<geom type="ellipsoid" size="0.05 0.1 0.2" pos="0 0 -0.2"/>',
     "two geoms with masses": '<geom type="box" size="0.1 0.05 0.05" pos="0.1 0 -0.3" mass="2"/>'
-                             '<geom type="sphere" size="0.05" pos="-0.1 0 0" mass="1"/>',
+    '<geom type="sphere" size="0.05" pos="-0.1 0 0" mass="1"/>',
     "massless mesh beside a box": '<geom type="mesh" mesh="hull" mass="0"/><geom type="box" size="0.1 0.1 0.1"/>',
 }
 
@@ -190,15 +199,18 @@ _TETRA = [[0, 0, 0], [0.3, 0.05, 0], [0.1, 0.25, 0.02], [0.05, 0.1, 0.2]]
 MESH_CASES = {
     "STL tetrahedron, refpos, refquat and scale": (
         '<mesh name="t" file="t.stl" refpos="0.1 0 0.05" refquat="0.9 0.2 -0.3 0.1" scale="1.5 0.8 1.2"/>',
-        '<geom type="mesh" mesh="t" pos="0.05 0.02 -0.2" quat="0.8 0.1 0.5 0.2" density="700"/>'),
+        '<geom type="mesh" mesh="t" pos="0.05 0.02 -0.2" quat="0.8 0.1 0.5 0.2" density="700"/>',
+    ),
     "exact inertia, mirrored by a negative scale": (
         '<mesh name="t" file="t.stl" scale="-1 1 1" inertia="exact"/>',
-        '<geom type="mesh" mesh="t" pos="0 0 -0.3"/>'),
+        '<geom type="mesh" mesh="t" pos="0 0 -0.3"/>',
+    ),
     "OBJ box of quadrilaterals with a mass, beside a box and a visual mesh": (
         '<mesh name="o" file="o.obj"/><mesh name="t" file="t.stl"/>',
         '<geom type="mesh" mesh="o" mass="2" euler="10 40 -20" pos="0.1 0 -0.1"/>'
         '<geom type="box" size="0.05 0.1 0.02" pos="0 0 -0.4"/>'
-        '<geom type="mesh" mesh="t" contype="0" conaffinity="0" group="2"/>'),
+        '<geom type="mesh" mesh="t" contype="0" conaffinity="0" group="2"/>',
+    ),
 }
 
 
@@ -223,21 +235,21 @@ _INERTIAL = '<inertial pos="0.01 0.02 -0.1" quat="0.9 0.1 0.3 0.2" mass="1" diag
 TREE_CASES = {
     "joint ref in degrees": f'<body name="b" pos="0 0 -0.1"><joint name="h" axis="0 1 0" ref="30"/>{_INERTIAL}</body>',
     "axisangle in degrees, unnormalised axis": f'<body name="b" pos="0 0 -0.1" axisangle="1 1 0 40">'
-                                               f'<joint name="h" axis="1 2 3"/>{_INERTIAL}</body>',
+    f'<joint name="h" axis="1 2 3"/>{_INERTIAL}</body>',
     "euler with eulerseq ZyX": f'<body name="b" pos="0 0 -0.1" euler="10 -50 80"><joint name="h" axis="0 1 0"/>'
-                               f'{_INERTIAL}<body name="c" pos="0.1 0 0" euler="30 0 20"><joint name="k"/>'
-                               f'{_INERTIAL}</body></body>',
+    f'{_INERTIAL}<body name="c" pos="0.1 0 0" euler="30 0 20"><joint name="k"/>'
+    f"{_INERTIAL}</body></body>",
     "xyaxes and zaxis": f'<body name="b" pos="0 0 -0.1" xyaxes="1 1 0 -1 2 0.5"><joint name="h" axis="0 1 0"/>'
-                        f'{_INERTIAL}<body name="c" zaxis="0 1 1"><joint name="k" pos="0.1 0 0"/>{_INERTIAL}'
-                        '</body></body>',
+    f'{_INERTIAL}<body name="c" zaxis="0 1 1"><joint name="k" pos="0.1 0 0"/>{_INERTIAL}'
+    "</body></body>",
     "ball joint": f'<body name="b" pos="0 0 -0.1"><joint name="h" type="ball"/>{_INERTIAL}</body>',
     "frame": f'<frame pos="0.1 0 -0.2" euler="0 30 0"><frame quat="0.8 0.6 0 0"><body name="b" pos="0 0.1 0">'
-             f'<joint name="h" axis="0 1 0"/>{_INERTIAL}<geom type="box" size="0.1 0.1 0.1"/></body></frame></frame>',
+    f'<joint name="h" axis="0 1 0"/>{_INERTIAL}<geom type="box" size="0.1 0.1 0.1"/></body></frame></frame>',
     "two joints in one body": f'<body name="b" pos="0 0 -0.1" euler="0 20 0"><joint name="h" axis="0 1 0"/>'
-                              f'<joint name="h2" axis="1 0 0" pos="0 0 -0.05"/><joint name="h3" type="slide"/>'
-                              f'{_INERTIAL}</body>',
+    f'<joint name="h2" axis="1 0 0" pos="0 0 -0.05"/><joint name="h3" type="slide"/>'
+    f"{_INERTIAL}</body>",
     "childclass joint pos and armature": f'<body name="b" pos="0 0 -0.1" childclass="c"><joint name="h"/>'
-                                         f'{_INERTIAL}</body>',
+    f"{_INERTIAL}</body>",
 }
 
 
@@ -261,5 +273,6 @@ def test_kinematic_tree_matches_mujoco(tmp_path, case):
     pin.framesForwardKinematics(robot.model, data, robot.q_ref)
     for b in range(1, reference.mj.nbody):
         name = mujoco.mj_id2name(reference.mj, mujoco.mjtObj.mjOBJ_BODY, b)
-        np.testing.assert_allclose(data.oMf[robot.frame_id(name)].translation, reference.data.xpos[b],
-                                   rtol=0, atol=1e-12, err_msg=name)
+        np.testing.assert_allclose(
+            data.oMf[robot.frame_id(name)].translation, reference.data.xpos[b], rtol=0, atol=1e-12, err_msg=name
+        )

@@ -67,8 +67,9 @@ SOLO_CONTACTS = [
     Contact("HL_FOOT", against="base_link", name="under_base"),
 ]
 
-CONTACT_CASES = ([(name, i) for name, cs in PLANAR_CONTACTS.items() for i in range(len(cs))]
-                 + [("solo12", i) for i in range(len(SOLO_CONTACTS))])
+CONTACT_CASES = [(name, i) for name, cs in PLANAR_CONTACTS.items() for i in range(len(cs))] + [
+    ("solo12", i) for i in range(len(SOLO_CONTACTS))
+]
 
 
 def _contact_case(name, i, seed=3):
@@ -90,10 +91,12 @@ def test_contact_rows_and_gap(name, i):
     assert_fd("contact rows[0] vs d gap/dq", A[0], fd_dq(ev.gap, model, q), value=ev.gap(q))
     # every row is d(direction · (p - p'))/dq: check the tangent rows too
     for r, d in enumerate(c.directions):
+
         def along(qq, d=d):
             kin = ev.at(qq)
             p = kin.position(c.fid) - (kin.position(c.against_fid) if c.against_fid is not None else 0)
             return d @ p
+
         assert_fd("contact rows vs d(d·p)/dq", A[r], fd_dq(along, model, q), value=along(q))
 
 
@@ -274,8 +277,13 @@ def test_spring_tau_closed_form():
     r_hip = hip - np.array([0.1, 1.0])
     f_hip = -f_foot
     expected = np.zeros(robot.nv)
-    for n, x in (("front_foot_x", f_foot[0]), ("front_foot_z", f_foot[1]), ("body_x", f_hip[0]),
-                 ("body_z", f_hip[1]), ("body_pitch", -r_hip[1] * f_hip[0] + r_hip[0] * f_hip[1])):
+    for n, x in (
+        ("front_foot_x", f_foot[0]),
+        ("front_foot_z", f_foot[1]),
+        ("body_x", f_hip[0]),
+        ("body_z", f_hip[1]),
+        ("body_pitch", -r_hip[1] * f_hip[0] + r_hip[0] * f_hip[1]),
+    ):
         expected[robot.scalar_joint(n)[1]] = x
     kin = Kinematics(robot.model)
     kin.update(q, v)
@@ -285,16 +293,23 @@ def test_spring_tau_closed_form():
 # -- mode dynamics -------------------------------------------------------------------------
 def _soft_damped():
     robot = load_robot("planar_trot_soft")
-    return Scene(robot, [Contact("rear_foot"), Contact("front_foot", friction="stick")],
-                 [Spring("rear_hip", "rear_foot", 27.0, 0.6, 0.5), Spring("front_hip", "front_foot", 27.0, 0.9, 0.5),
-                  JointSpring("body_pitch", 2.0, 0.3)],
-                 gravity=[0, 0, -1])
+    return Scene(
+        robot,
+        [Contact("rear_foot"), Contact("front_foot", friction="stick")],
+        [
+            Spring("rear_hip", "rear_foot", 27.0, 0.6, 0.5),
+            Spring("front_hip", "front_foot", 27.0, 0.9, 0.5),
+            JointSpring("body_pitch", 2.0, 0.3),
+        ],
+        gravity=[0, 0, -1],
+    )
 
 
 def _rigid_sticking():
     robot = load_robot("planar_trot_rigid")
-    return Scene(robot, [Contact("rear_foot", friction="stick"), Contact("front_foot")], gravity=[0, 0, -1],
-                 q0={"body_z": 1.0})
+    return Scene(
+        robot, [Contact("rear_foot", friction="stick"), Contact("front_foot")], gravity=[0, 0, -1], q0={"body_z": 1.0}
+    )
 
 
 def _solo(friction):
@@ -310,8 +325,16 @@ MODE_SCENES = {
     "soft": (lambda: load_source("planar_trot_soft"), [(), (0,), (1,), (0, 1)]),
     "soft damped, sticking front": (_soft_damped, [(1,), (0, 1)]),
     "two_limb": (lambda: load_source("two_limb"), [(), (1,), (0, 1)]),
-    "ball (nv = 1)": (lambda: Scene(load_robot("ball"), [Contact("ball")], [Spring("universe", "ball", 3.0, 0.2, 0.4)],
-                                    gravity=[0, 0, -1], q0=[1.0]), [(), (0,)]),
+    "ball (nv = 1)": (
+        lambda: Scene(
+            load_robot("ball"),
+            [Contact("ball")],
+            [Spring("universe", "ball", 3.0, 0.2, 0.4)],
+            gravity=[0, 0, -1],
+            q0=[1.0],
+        ),
+        [(), (0,)],
+    ),
     "rigid": (lambda: load_source("planar_trot_rigid"), [(), (0,), (1,), (0, 1)]),
     "rigid sticking rear": (_rigid_sticking, [(0,), (0, 1)]),
     "solo sticking": (lambda: _solo("stick"), [(), (0,), (1, 2), (0, 1, 2, 3)]),
@@ -342,8 +365,7 @@ def test_mode_dynamics_derivatives(name, mode):
     assert_fd(f"{tag} ddq_dq", der.ddq_dq, fd_dq(lambda qq: ddq(qq, v), robot.model, q), value=sol.ddq)
     assert_fd(f"{tag} ddq_dv", der.ddq_dv, fd_dv(lambda vv: ddq(q, vv), v), value=sol.ddq)
     if n_rows:
-        assert_fd(f"{tag} forces_dq", der.forces_dq, fd_dq(lambda qq: forces(qq, v), robot.model, q),
-                  value=sol.forces)
+        assert_fd(f"{tag} forces_dq", der.forces_dq, fd_dq(lambda qq: forces(qq, v), robot.model, q), value=sol.forces)
         assert_fd(f"{tag} forces_dv", der.forces_dv, fd_dv(lambda vv: forces(q, vv), v), value=sol.forces)
     # derivatives=True must not change the solution
     plain = dyn.solve(q, v, T, mode)

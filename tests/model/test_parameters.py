@@ -84,9 +84,11 @@ def central_difference(scene, name, q, v, t, h):
 def test_ball_names_from_its_urdf_and_scene_file():
     """ball.urdf: one link 'ball' on the prismatic joint 'z'; ball.toml: one contact."""
     names = cd.load_scene("ball").parameter_names()
-    assert names == (["scene:gravity_x", "scene:gravity_y", "scene:gravity_z"]
-                     + [f"body:ball:{f}" for f in INERTIAL]
-                     + ["joint:z:armature", "contact:ball:restitution", "contact:ball:offset"])
+    assert names == (
+        ["scene:gravity_x", "scene:gravity_y", "scene:gravity_z"]
+        + [f"body:ball:{f}" for f in INERTIAL]
+        + ["joint:z:armature", "contact:ball:restitution", "contact:ball:offset"]
+    )
 
 
 def test_two_limb_merged_hips_are_not_bodies_and_springs_are_named_by_their_frames():
@@ -96,10 +98,15 @@ def test_two_limb_merged_hips_are_not_bodies_and_springs_are_named_by_their_fram
     bodies = sorted({n.split(":")[1] for n in names if n.startswith("body:")})
     assert bodies == ["body", "left_foot", "right_foot"]
     assert [n for n in names if n.startswith("joint:")] == [
-        "joint:body_z:armature", "joint:left_foot_z:armature", "joint:right_foot_z:armature"]
+        "joint:body_z:armature",
+        "joint:left_foot_z:armature",
+        "joint:right_foot_z:armature",
+    ]
     assert [n for n in names if n.startswith("spring:")] == [
-        f"spring:{s}:{f}" for s in ("left_hip-left_foot", "right_hip-right_foot")
-        for f in ("stiffness", "damping", "rest_length")]
+        f"spring:{s}:{f}"
+        for s in ("left_hip-left_foot", "right_hip-right_foot")
+        for f in ("stiffness", "damping", "rest_length")
+    ]
     assert len(names) == len(set(names)) == 3 + 3 * 10 + 3 + 2 * 2 + 2 * 3
 
 
@@ -115,8 +122,11 @@ def test_planar_trot_soft_names_and_its_massless_links():
     assert scene.parameter_values(["body:body:mass", "body:front_foot:mass"]).tolist() == [1.0, 1.0]
     assert sum(n.startswith("spring:") for n in names) == 6
     assert [n for n in names if n.startswith("contact:")] == [
-        "contact:rear_foot:restitution", "contact:rear_foot:offset",
-        "contact:front_foot:restitution", "contact:front_foot:offset"]
+        "contact:rear_foot:restitution",
+        "contact:rear_foot:offset",
+        "contact:front_foot:restitution",
+        "contact:front_foot:offset",
+    ]
 
 
 def test_solo12_has_130_inertial_parameters_named_after_its_urdf_links(drop):
@@ -129,10 +139,12 @@ def test_solo12_has_130_inertial_parameters_named_after_its_urdf_links(drop):
     assert names[:3] == ["scene:gravity_x", "scene:gravity_y", "scene:gravity_z"]
     assert names[3:133] == [f"body:{b}:{f}" for b in bodies for f in INERTIAL]
     assert names[133:145] == [f"joint:{j}:armature" for j in drop.robot.joint_names[1:]]
-    assert names[145:153] == [f"contact:{c}:{f}" for c in ("FL_FOOT", "FR_FOOT", "HL_FOOT", "HR_FOOT")
-                              for f in ("restitution", "offset")]
-    assert names[153:] == [f"joint_spring:{j}:{f}" for j in drop.robot.joint_names[1:]
-                           for f in ("stiffness", "damping", "rest")]
+    assert names[145:153] == [
+        f"contact:{c}:{f}" for c in ("FL_FOOT", "FR_FOOT", "HL_FOOT", "HR_FOOT") for f in ("restitution", "offset")
+    ]
+    assert names[153:] == [
+        f"joint_spring:{j}:{f}" for j in drop.robot.joint_names[1:] for f in ("stiffness", "damping", "rest")
+    ]
     assert len(set(names)) == len(names) == 3 + 130 + 12 + 8 + 36
 
 
@@ -140,11 +152,14 @@ def test_trot_names_are_the_controllers_real_numbers(trot):
     """Every float field of TrotController, none of feedforward (bool), stance (angles
     by joint), samples (a count)."""
     names = [n for n in trot.parameter_names() if n.startswith("trot:")]
-    floats = [f.name for f in dataclasses.fields(TrotController)
-              if f.name not in ("feedforward", "stance", "samples")]
+    floats = [f.name for f in dataclasses.fields(TrotController) if f.name not in ("feedforward", "stance", "samples")]
     assert names == [f"trot:{f}" for f in floats]
     assert trot.parameter_values(["trot:kp", "trot:kd", "trot:period", "trot:step_height"]).tolist() == [
-        10.0, 0.2, 0.4, 0.035]  # solo12_trot.toml
+        10.0,
+        0.2,
+        0.4,
+        0.035,
+    ]  # solo12_trot.toml
 
 
 def test_a_link_fixed_at_the_joint_origin_does_not_name_the_body():
@@ -166,8 +181,9 @@ def test_compliant_feet_bodies_and_springs():
     names = scene.parameter_names()
     assert scene.parameter_values("body:FL_FOOT:mass")[0] == pytest.approx(0.01, rel=1e-15)
     assert "joint:FL_FOOT_spring:armature" in names
-    assert scene.parameter_values(["joint_spring:FL_FOOT_spring:stiffness",
-                                   "joint_spring:FL_FOOT_spring:damping"]).tolist() == [800.0, 2.0]
+    assert scene.parameter_values(
+        ["joint_spring:FL_FOOT_spring:stiffness", "joint_spring:FL_FOOT_spring:damping"]
+    ).tolist() == [800.0, 2.0]
 
 
 def test_repeated_targets_are_numbered_and_changed_one_by_one():
@@ -175,16 +191,32 @@ def test_repeated_targets_are_numbered_and_changed_one_by_one():
     efforts with one name: #1, #2 in scene order, each changing its own spec only."""
     robot = cd.load_robot("two_limb")
     effort = UserEffort(lambda q, v, t, k: -k * v, name="drag", parameters={"k": 1.0})
-    scene = cd.Scene(robot, [], [JointSpring("body_z", 1.0), JointSpring("body_z", 2.0, rest=0.3),
-                                 Spring("left_hip", "left_foot", 3.0), Spring("left_hip", "left_foot", 4.0),
-                                 effort, dataclasses.replace(effort, parameters={"k": 5.0})],
-                     q0=[1.0, 0.5, 0.5])
+    scene = cd.Scene(
+        robot,
+        [],
+        [
+            JointSpring("body_z", 1.0),
+            JointSpring("body_z", 2.0, rest=0.3),
+            Spring("left_hip", "left_foot", 3.0),
+            Spring("left_hip", "left_foot", 4.0),
+            effort,
+            dataclasses.replace(effort, parameters={"k": 5.0}),
+        ],
+        q0=[1.0, 0.5, 0.5],
+    )
     names = scene.parameter_names()
-    for target in ("joint_spring:body_z#1", "joint_spring:body_z#2", "spring:left_hip-left_foot#1",
-                   "spring:left_hip-left_foot#2", "effort:drag#1", "effort:drag#2"):
+    for target in (
+        "joint_spring:body_z#1",
+        "joint_spring:body_z#2",
+        "spring:left_hip-left_foot#1",
+        "spring:left_hip-left_foot#2",
+        "effort:drag#1",
+        "effort:drag#2",
+    ):
         assert any(n.startswith(target + ":") for n in names), target
-    assert scene.parameter_values(["joint_spring:body_z#2:stiffness", "spring:left_hip-left_foot#2:stiffness",
-                                   "effort:drag#2:k"]).tolist() == [2.0, 4.0, 5.0]
+    assert scene.parameter_values(
+        ["joint_spring:body_z#2:stiffness", "spring:left_hip-left_foot#2:stiffness", "effort:drag#2:k"]
+    ).tolist() == [2.0, 4.0, 5.0]
     new = scene.with_parameters({"joint_spring:body_z#2:rest": 0.7, "effort:drag#1:k": 9.0})
     assert [s.rest for s in new.effort_specs[:2]] == [0.0, 0.7]
     assert [dict(s.parameters)["k"] for s in new.effort_specs[4:]] == [9.0, 5.0]
@@ -206,7 +238,8 @@ def test_each_effort_declares_its_parameters_and_a_kind_of_no_effort_is_refused(
     declaration of a kind that is not an effort's is refused naming the spec and the
     kinds an effort may declare, not listed as a body's."""
     assert JointSpring("knee", 1.0).named_parameters() == EffortParameters(
-        "joint_spring", "knee", ("stiffness", "damping", "rest"))
+        "joint_spring", "knee", ("stiffness", "damping", "rest")
+    )
     assert TrotController().named_parameters() == EffortParameters("trot", "", TrotController.NUMBERS)
     scene = cd.Scene(cd.load_robot("two_limb"), [], [_Misdeclared()], q0=[1.0, 0.5, 0.5])
     with pytest.raises(InvalidInputError, match=r"_Misdeclared.*spring, joint_spring, trot, effort"):
@@ -215,8 +248,9 @@ def test_each_effort_declares_its_parameters_and_a_kind_of_no_effort_is_refused(
 
 def test_spring_name_defaults_to_its_frames_and_can_be_given():
     assert Spring("a", "b", 1.0).name == "a-b"
-    scene = cd.Scene(cd.load_robot("two_limb"), [], [Spring("left_hip", "left_foot", 3.0, name="leg")],
-                     q0=[1.0, 0.5, 0.5])
+    scene = cd.Scene(
+        cd.load_robot("two_limb"), [], [Spring("left_hip", "left_foot", 3.0, name="leg")], q0=[1.0, 0.5, 0.5]
+    )
     assert "spring:leg:rest_length" in scene.parameter_names()
     with pytest.raises(InvalidInputError, match="name"):
         Spring("a", "b", 1.0, name="")
@@ -245,18 +279,27 @@ def test_with_parameters_round_trip_and_the_original_untouched(drop):
     before_values = drop.parameter_values("all")
     before_inertias = [pin.Inertia(i) for i in drop.model.inertias]
     before_armature = np.array(drop.model.armature)
-    changes = {"body:FL_LOWER_LEG:mass": 0.05, "body:FL_LOWER_LEG:com_x": 0.01,  # two fields of one body
-               "body:FL_LOWER_LEG:com_z": -0.08, "body:FL_LOWER_LEG:iyy": 1.5e-4,
-               "joint:FL_KFE:armature": 1e-4, "scene:gravity_x": 0.5, "contact:FL_FOOT:restitution": 0.3,
-               "contact:HR_FOOT:offset": 0.018, "joint_spring:FR_HFE:damping": 0.5}
+    changes = {
+        "body:FL_LOWER_LEG:mass": 0.05,
+        "body:FL_LOWER_LEG:com_x": 0.01,  # two fields of one body
+        "body:FL_LOWER_LEG:com_z": -0.08,
+        "body:FL_LOWER_LEG:iyy": 1.5e-4,
+        "joint:FL_KFE:armature": 1e-4,
+        "scene:gravity_x": 0.5,
+        "contact:FL_FOOT:restitution": 0.3,
+        "contact:HR_FOOT:offset": 0.018,
+        "joint_spring:FR_HFE:damping": 0.5,
+    }
     new = drop.with_parameters(changes)
     assert new.parameter_values(list(changes)).tolist() == list(changes.values())
     untouched = [n for n in drop.parameter_names() if n not in changes]
     assert np.array_equal(new.parameter_values(untouched), drop.parameter_values(untouched))
     # the original scene, its robot's model and its specs are as before
     assert np.array_equal(drop.parameter_values("all"), before_values)
-    assert all(np.array_equal(a.toDynamicParameters(), b.toDynamicParameters())
-               for a, b in zip(before_inertias, drop.model.inertias))
+    assert all(
+        np.array_equal(a.toDynamicParameters(), b.toDynamicParameters())
+        for a, b in zip(before_inertias, drop.model.inertias)
+    )
     assert np.array_equal(np.array(drop.model.armature), before_armature)
     assert drop.model.gravity.linear.tolist() == [0.0, 0.0, -9.81]
     assert new.model is not drop.model and new.robot is not drop.robot
@@ -288,15 +331,17 @@ def test_mass_matrix_follows_the_parallel_axis_theorem():
     M = [[m, 0, -m b], [0, m, m a], [-m b, m a, J + m (a² + b²)]]."""
     scene = cd.load_scene("planar_trot_rigid")
     m, a, b, J = 2.0, 0.1, -0.2, 0.5
-    new = scene.with_parameters({"body:body:mass": m, "body:body:com_x": a, "body:body:com_z": b,
-                                 "body:body:iyy": J})
+    new = scene.with_parameters({"body:body:mass": m, "body:body:com_x": a, "body:body:com_z": b, "body:body:iyy": J})
     M = pin.crba(new.model, new.model.createData(), new.q0)
     expected = np.array([[m, 0, -m * b], [0, m, m * a], [-m * b, m * a, J + m * (a * a + b * b)]])
     assert np.allclose(M, expected, rtol=0, atol=1e-14)
     # and gravity: g = -m Jcᵀ G with the same centre-of-mass Jacobian
     G = np.array([0.3, 0.0, -2.0])
-    g = pin.computeGeneralizedGravity(*(lambda s: (s.model, s.model.createData(), s.q0))(
-        new.with_parameters({"scene:gravity_x": G[0], "scene:gravity_z": G[2]})))
+    g = pin.computeGeneralizedGravity(
+        *(lambda s: (s.model, s.model.createData(), s.q0))(
+            new.with_parameters({"scene:gravity_x": G[0], "scene:gravity_z": G[2]})
+        )
+    )
     assert np.allclose(g, -m * np.array([G[0], G[2], -b * G[0] + a * G[2]]), rtol=0, atol=1e-14)
 
 
@@ -323,19 +368,22 @@ def test_unknown_names_list_the_valid_ones():
         resolve(ball, [other])
 
 
-@pytest.mark.parametrize("name, value, words", [
-    ("body:FL_LOWER_LEG:mass", 0.0, ["mass > 0", "0.0"]),
-    ("body:FL_LOWER_LEG:mass", -1.0, ["mass > 0", "-1.0"]),
-    ("body:FL_LOWER_LEG:ixy", 1e-3, ["positive", "semi-definite"]),
-    ("body:base_link:izz", 0.1, ["I1 <= I2 + I3"]),  # the largest moment above the sum of the others
-    ("body:base_link:com_y", math.nan, ["finite", "nan"]),
-    ("joint:FL_HAA:armature", -1e-3, [">= 0", "-0.001"]),
-    ("contact:FL_FOOT:restitution", -0.1, ["[0, 1]", "-0.1"]),
-    ("contact:FL_FOOT:restitution", 1.5, ["[0, 1]", "1.5"]),
-    ("contact:FL_FOOT:offset", math.inf, ["finite", "inf"]),
-    ("joint_spring:FL_HAA:stiffness", -2.0, [">= 0", "-2"]),
-    ("scene:gravity_z", "down", ["number", "down"]),
-])
+@pytest.mark.parametrize(
+    "name, value, words",
+    [
+        ("body:FL_LOWER_LEG:mass", 0.0, ["mass > 0", "0.0"]),
+        ("body:FL_LOWER_LEG:mass", -1.0, ["mass > 0", "-1.0"]),
+        ("body:FL_LOWER_LEG:ixy", 1e-3, ["positive", "semi-definite"]),
+        ("body:base_link:izz", 0.1, ["I1 <= I2 + I3"]),  # the largest moment above the sum of the others
+        ("body:base_link:com_y", math.nan, ["finite", "nan"]),
+        ("joint:FL_HAA:armature", -1e-3, [">= 0", "-0.001"]),
+        ("contact:FL_FOOT:restitution", -0.1, ["[0, 1]", "-0.1"]),
+        ("contact:FL_FOOT:restitution", 1.5, ["[0, 1]", "1.5"]),
+        ("contact:FL_FOOT:offset", math.inf, ["finite", "inf"]),
+        ("joint_spring:FL_HAA:stiffness", -2.0, [">= 0", "-2"]),
+        ("scene:gravity_z", "down", ["number", "down"]),
+    ],
+)
 def test_invalid_values_are_refused_with_the_value_in_the_message(drop, name, value, words):
     with pytest.raises(InvalidInputError) as info:
         drop.with_parameters({name: value})
@@ -500,8 +548,16 @@ def test_trot_feedforward_follows_masses_and_gravity(trot):
     does not depend on inertias or armatures (bit-identical torques)."""
     q, v, kin = state(trot, seed=7, scale=0.1)
     t = 0.2413
-    names = ["body:base_link:mass", "body:base_link:com_x", "body:FR_LOWER_LEG:mass", "body:HL_UPPER_LEG:com_z",
-             "scene:gravity_x", "scene:gravity_z", "body:base_link:izz", "joint:FL_KFE:armature"]
+    names = [
+        "body:base_link:mass",
+        "body:base_link:com_x",
+        "body:FR_LOWER_LEG:mass",
+        "body:HL_UPPER_LEG:com_z",
+        "scene:gravity_x",
+        "scene:gravity_z",
+        "body:base_link:izz",
+        "joint:FL_KFE:armature",
+    ]
     D = trot.tau_parameter_derivatives(kin, t, names)
     tau_scale = np.abs(trot.tau(kin, t)).max()
     for k, name in enumerate(names[:6]):
@@ -514,8 +570,14 @@ def test_trot_feedforward_follows_masses_and_gravity(trot):
     changed = trot.with_parameters({"body:base_link:izz": 0.02, "joint:FL_KFE:armature": 1e-3})
     assert np.array_equal(tau_at(changed, q, v, t), trot.tau(kin, t))
     # without feed-forward the model does not enter the controller
-    no_ff = cd.Scene(trot.robot, trot.contact_specs, [dataclasses.replace(trot.effort_specs[0], feedforward=False)],
-                     None, trot.q0, trot.v0)
+    no_ff = cd.Scene(
+        trot.robot,
+        trot.contact_specs,
+        [dataclasses.replace(trot.effort_specs[0], feedforward=False)],
+        None,
+        trot.q0,
+        trot.v0,
+    )
     assert not no_ff.tau_parameter_derivatives(kin, t, names).any()
 
 
@@ -535,8 +597,12 @@ def test_user_effort_parameters(closed_form):
     fd_step max(1, |p|) whose error is h²/6 |d³tau/dw³| + eps |tau| / h, with
     |d³tau/dw³| <= t³ |q|."""
     ball = cd.load_scene("ball")
-    effort = UserEffort(_drag, name="drag", parameters={"k": 0.3, "w": 2.0},
-                        parameter_jacobian=_drag_parameter_jacobian if closed_form else None)
+    effort = UserEffort(
+        _drag,
+        name="drag",
+        parameters={"k": 0.3, "w": 2.0},
+        parameter_jacobian=_drag_parameter_jacobian if closed_form else None,
+    )
     scene = cd.Scene(ball.robot, ball.contact_specs, [effort], q0=ball.q0)
     assert scene.parameter_names()[-2:] == ["effort:drag:k", "effort:drag:w"]
     q, v, t = np.array([0.8]), np.array([-0.5]), 1.7
@@ -551,7 +617,7 @@ def test_user_effort_parameters(closed_form):
         assert np.allclose(D, exact, rtol=1e-15, atol=0)
     else:
         h = effort.fd_step * 2.0
-        tol = h * h / 6 * t ** 3 * 0.8 + 10 * EPS * 1.0 / h
+        tol = h * h / 6 * t**3 * 0.8 + 10 * EPS * 1.0 / h
         assert np.abs(D - exact).max() <= tol
 
 
@@ -579,8 +645,12 @@ def test_derivatives_of_a_mixed_list_fill_their_own_columns(drop):
     """Columns in the order asked, effort and model parameters interleaved, and the same
     list twice gives the same numbers (the plan is reused)."""
     q, v, kin = state(drop, seed=8)
-    names = ["body:base_link:mass", "joint_spring:FR_KFE:stiffness", "contact:FL_FOOT:offset",
-             "joint_spring:FL_HAA:rest"]
+    names = [
+        "body:base_link:mass",
+        "joint_spring:FR_KFE:stiffness",
+        "contact:FL_FOOT:offset",
+        "joint_spring:FL_HAA:rest",
+    ]
     params = resolve(drop, names)
     D = drop.tau_parameter_derivatives(kin, 0.0, params)
     again = drop.tau_parameter_derivatives(kin, 0.0, params)

@@ -65,11 +65,11 @@ def frame_position(robot, q, frame) -> np.ndarray:
 NAMES = {
     "planar_trot_soft": (
         {"body_x", "body_z", "body_pitch", "rear_foot_x", "rear_foot_z", "front_foot_x", "front_foot_z"},
-        {"rear_hip", "front_hip", "rear_foot", "front_foot"}),
+        {"rear_hip", "front_hip", "rear_foot", "front_foot"},
+    ),
     "planar_trot_rigid": ({"body_x", "body_z", "body_pitch"}, {"rear_foot", "front_foot"}),
     "ball": ({"z"}, {"ball"}),
-    "two_limb": ({"body_z", "left_foot_z", "right_foot_z"},
-                 {"left_hip", "right_hip", "left_foot", "right_foot"}),
+    "two_limb": ({"body_z", "left_foot_z", "right_foot_z"}, {"left_hip", "right_hip", "left_foot", "right_foot"}),
 }
 
 
@@ -112,7 +112,7 @@ def test_rigid_trot_inertia_from_lumped_masses():
     from it and I = 1 + 1·(1/3)² + 2·(1/4² + (1/6)²) = 31/24."""
     m_body, m_foot, L = Fraction(1), Fraction(1), Fraction(1, 2)
     com = (m_body * 0 + 2 * m_foot * (-L)) / (m_body + 2 * m_foot)
-    inertia = 1 + m_body * com ** 2 + 2 * m_foot * (Fraction(1, 4) ** 2 + (-L - com) ** 2)
+    inertia = 1 + m_body * com**2 + 2 * m_foot * (Fraction(1, 4) ** 2 + (-L - com) ** 2)
     assert com == Fraction(-1, 3) and -L - com == Fraction(-1, 6)
     assert inertia == Fraction(31, 24)
 
@@ -140,8 +140,16 @@ def test_mass_matrix_ball_and_two_limb():
 def test_soft_trot_frames(theta):
     robot = load_robot("planar_trot_soft")
     x, z = 0.3, 1.1
-    q = config(robot, body_x=x, body_z=z, body_pitch=theta, rear_foot_x=-0.4, rear_foot_z=0.2,
-               front_foot_x=0.7, front_foot_z=-0.1)
+    q = config(
+        robot,
+        body_x=x,
+        body_z=z,
+        body_pitch=theta,
+        rear_foot_x=-0.4,
+        rear_foot_z=0.2,
+        front_foot_x=0.7,
+        front_foot_z=-0.1,
+    )
     body = np.array([x, 0.0, z])
     front = frame_position(robot, q, "front_hip")
     assert np.allclose(front, body + 0.25 * np.array([np.cos(theta), 0, np.sin(theta)]), atol=1e-14)
@@ -238,12 +246,21 @@ def test_two_limb_and_ball_scenes():
 def test_soft_trot_tilted_touchdown_state(theta0):
     """docs/design.md §6: body centre (0, 1), pitch θ0, each foot at hip + R(θ0)(0, 0, -0.5)."""
     scene = load_source("planar_trot_soft")
-    feet = {side: np.array([0, 0, 1.0]) + rotate(theta0, bx, 0) + rotate(theta0, 0, -0.5)
-            for side, bx in (("rear", -0.25), ("front", 0.25))}
+    feet = {
+        side: np.array([0, 0, 1.0]) + rotate(theta0, bx, 0) + rotate(theta0, 0, -0.5)
+        for side, bx in (("rear", -0.25), ("front", 0.25))
+    }
     # a mapping sets the named joints; the others take the robot's reference pose (0)
-    tilted = scene.with_state(q0={"body_z": 1.0, "body_pitch": theta0, "rear_foot_x": feet["rear"][0],
-                                  "rear_foot_z": feet["rear"][2], "front_foot_x": feet["front"][0],
-                                  "front_foot_z": feet["front"][2]})
+    tilted = scene.with_state(
+        q0={
+            "body_z": 1.0,
+            "body_pitch": theta0,
+            "rear_foot_x": feet["rear"][0],
+            "rear_foot_z": feet["rear"][2],
+            "front_foot_x": feet["front"][0],
+            "front_foot_z": feet["front"][2],
+        }
+    )
     for side in ("rear", "front"):
         hip = frame_position(tilted.robot, tilted.q0, f"{side}_hip")
         foot = frame_position(tilted.robot, tilted.q0, f"{side}_foot")

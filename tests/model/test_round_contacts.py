@@ -74,8 +74,7 @@ CASES = [  # (robot, contact, tangent rows kept)
     ("planar_trot_rigid", Contact("front_foot", radius=0.05, friction="stick"), 1),
     ("planar_trot_rigid", Contact("front_foot", normal=(-0.4, 0.0, 1.0), radius=0.05, friction="stick"), 1),
     # a ball object against a finger on a slide: the finger's point moves too
-    ("finger+ball", Contact("ball", against="tip", normal=TILTED, radius=RADIUS, offset=0.01,
-                            friction="stick"), 2),
+    ("finger+ball", Contact("ball", against="tip", normal=TILTED, radius=RADIUS, offset=0.01, friction="stick"), 2),
 ]
 IDS = [f"{r}-{c.frame}-r{c.radius}-n{i}" for i, (r, c, _) in enumerate(CASES)]
 
@@ -97,8 +96,9 @@ def _case(ball, i, seed):
 
 def _finger_and_ball():
     """The project's finger on its slide and a free ball (a sphere object, I = 2/5 m r²)."""
-    return cd.add_objects(cd.load_robot("finger"), [cd.SceneObject("ball", "sphere", MASS, radius=RADIUS,
-                                                                   position=(RADIUS, 0.0, 0.03))])
+    return cd.add_objects(
+        cd.load_robot("finger"), [cd.SceneObject("ball", "sphere", MASS, radius=RADIUS, position=(RADIUS, 0.0, 0.03))]
+    )
 
 
 class Evaluator(ContactEvaluator):
@@ -155,8 +155,12 @@ def test_round_rows_are_the_rolling_point_velocity(ball, i):
 
     assert_fd("round rows[0] vs d gap/dq", A[0], fd_dq(ev.gap, robot.model, q), value=ev.gap(q))
     for k, d in enumerate(c.directions):
-        assert_fd("round rows vs d(d · X)/dq", A[k], fd_dq(lambda qq, d=d: material(qq, d), robot.model, q),
-                  value=material(q, d))
+        assert_fd(
+            "round rows vs d(d · X)/dq",
+            A[k],
+            fd_dq(lambda qq, d=d: material(qq, d), robot.model, q),
+            value=material(q, d),
+        )
     # and A v = D (v_p + ω × (-r n)) from Pinocchio's frame velocity (a second reference)
     data = robot.new_data()
     pin.forwardKinematics(robot.model, data, q, v)
@@ -164,8 +168,9 @@ def test_round_rows_are_the_rolling_point_velocity(ball, i):
     twist = pin.getFrameVelocity(robot.model, data, c.fid, pin.LOCAL_WORLD_ALIGNED)
     expected = c.directions @ (twist.linear + np.cross(twist.angular, -r * n))
     if c.against_fid is not None:
-        expected -= c.directions @ pin.getFrameVelocity(robot.model, data, c.against_fid,
-                                                        pin.LOCAL_WORLD_ALIGNED).linear
+        expected -= (
+            c.directions @ pin.getFrameVelocity(robot.model, data, c.against_fid, pin.LOCAL_WORLD_ALIGNED).linear
+        )
     # one product of O(1) entries over nv terms: round-off 1e-15 relative
     np.testing.assert_allclose(A @ v, expected, rtol=0, atol=1e-13 * max(1.0, np.abs(expected).max()))
 
@@ -176,8 +181,9 @@ def test_round_drift(ball, i):
     robot, c, _, q, v = _case(ball, i, seed=5)
     ev = Evaluator(robot, c)
     h = EPS
-    rate = (ev.rows(pin.integrate(robot.model, q, h * v)) @ v
-            - ev.rows(pin.integrate(robot.model, q, -h * v)) @ v) / (2 * h)
+    rate = (ev.rows(pin.integrate(robot.model, q, h * v)) @ v - ev.rows(pin.integrate(robot.model, q, -h * v)) @ v) / (
+        2 * h
+    )
     assert_fd("round drift vs d/dt(A v) along q+tv", ev.drift(q, v), rate, value=ev.rows(q) @ v)
 
 
@@ -221,9 +227,12 @@ def test_round_contacts_are_not_pinocchio_eligible(ball):
 def _incline_scene(ball, q0=None, v0=None, restitution=0.0):
     q = ball.q_ref.copy()
     q[:3] = RADIUS * NORMAL  # touching the plane n · p = 0
-    scene = cd.Scene(ball, [Contact("ball", normal=tuple(NORMAL), radius=RADIUS, friction="stick",
-                                    restitution=restitution)],
-                     gravity=[0.0, 0.0, -G], q0=q if q0 is None else q0)
+    scene = cd.Scene(
+        ball,
+        [Contact("ball", normal=tuple(NORMAL), radius=RADIUS, friction="stick", restitution=restitution)],
+        gravity=[0.0, 0.0, -G],
+        q0=q if q0 is None else q0,
+    )
     return scene if v0 is None else scene.with_state(None, v0)
 
 
@@ -271,8 +280,12 @@ def test_ball_rolls_down_an_incline(ball):
 def test_point_contact_slides_where_the_ball_rolls(ball):
     """Contrast: with r = 0 the sticking point holds the centre still (no rolling)."""
     scene = _incline_scene(ball)
-    point = cd.Scene(ball, [dataclasses.replace(scene.contact_specs[0], radius=0.0, offset=RADIUS)],
-                     gravity=[0.0, 0.0, -G], q0=scene.q0)
+    point = cd.Scene(
+        ball,
+        [dataclasses.replace(scene.contact_specs[0], radius=0.0, offset=RADIUS)],
+        gravity=[0.0, 0.0, -G],
+        q0=scene.q0,
+    )
     traj = cd.simulate(point, 0.5, rtol=1e-10, atol=1e-12)
     assert np.abs(traj.q[:3] - scene.q0[:3]).max() < 1e-12 and np.abs(traj.v).max() < 1e-12
 
@@ -311,8 +324,7 @@ def test_flow_jacobian_of_a_spinning_ball_landing_on_an_incline(ball):
         cols.append(np.concatenate([pin.difference(model, m.q, p.q), p.v - m.v]) / (2 * JAC_EPS))
     # central differences at ε = 1e-5 of runs at rtol 1e-12: truncation ~ε² |x'''| ~ 1e-10 and
     # integration noise ~1e-12 / ε = 1e-7 relative, under the study's 1e-6
-    assert_fd("round flow jacobian (ball landing on an incline)", traj.jacobian, np.array(cols).T,
-              rtol=JAC_RTOL)
+    assert_fd("round flow jacobian (ball landing on an incline)", traj.jacobian, np.array(cols).T, rtol=JAC_RTOL)
     # after the plastic impact the ball rolls: its contact point does not move
     kin = Kinematics(model)
     kin.update(traj.q, traj.v)
@@ -330,8 +342,14 @@ def test_explicit_zero_radius_is_bit_identical():
     q[3:7] = Rotation.from_euler("xyz", [0.03, 0.05, 0.0]).as_quat()
     q[2] += 0.01
     scene = scene.with_state(q)
-    explicit = cd.Scene(scene.robot, [dataclasses.replace(c, radius=0.0) for c in scene.contact_specs],
-                        scene.effort_specs, None, scene.q0, scene.v0)
+    explicit = cd.Scene(
+        scene.robot,
+        [dataclasses.replace(c, radius=0.0) for c in scene.contact_specs],
+        scene.effort_specs,
+        None,
+        scene.q0,
+        scene.v0,
+    )
     assert all(c.rolling is None for c in explicit.contacts)
     a = cd.simulate(scene, 0.104, jacobian=True)
     b = cd.simulate(explicit, 0.104, jacobian=True)
@@ -340,12 +358,15 @@ def test_explicit_zero_radius_is_bit_identical():
 
 
 # -- input checks and the scene file --------------------------------------------------------
-@pytest.mark.parametrize("value,message", [
-    (-0.01, "radius must be >= 0, got -0.01"),
-    (float("nan"), "radius must be finite, got nan"),
-    (float("inf"), "radius must be finite, got inf"),
-    ("big", "radius must be a number, got 'big'"),
-])
+@pytest.mark.parametrize(
+    "value,message",
+    [
+        (-0.01, "radius must be >= 0, got -0.01"),
+        (float("nan"), "radius must be finite, got nan"),
+        (float("inf"), "radius must be finite, got inf"),
+        ("big", "radius must be a number, got 'big'"),
+    ],
+)
 def test_radius_validation(value, message):
     with pytest.raises(InvalidInputError, match=message):
         Contact("ball", radius=value)
@@ -362,7 +383,7 @@ def test_a_ball_rolls_down_a_sticking_vertical_face():
     sol = cd.ModeDynamics(scene).solve(scene.q0, scene.v0, 0.0, (0,))
     ball_v = robot.model.joints[robot.joint_id("ball")].idx_v
     # sums of a few O(g) products: round-off ~1e-15 g
-    np.testing.assert_allclose(sol.ddq[ball_v:ball_v + 3], [0.0, 0.0, -5 / 7 * 9.81], atol=1e-12)
+    np.testing.assert_allclose(sol.ddq[ball_v : ball_v + 3], [0.0, 0.0, -5 / 7 * 9.81], atol=1e-12)
     # the touching point c = p - r x stays: v + ω × (-r x) = 0, so falling (-z) turns about +y: α_y = a / r
     assert sol.ddq[ball_v + 4] == pytest.approx(5 / 7 * 9.81 / RADIUS, abs=1e-10)
     assert sol.ddq[robot.scalar_joint("slide")[1]] == pytest.approx(0.0, abs=1e-12)
@@ -394,9 +415,11 @@ def test_scene_file_radius(tmp_path):
     assert scene.contact_specs[0].radius == 0.02 and scene.contacts[0].radius == 0.02
     path.write_text(SCENE.format(extra=""))
     assert load_scene(path).contact_specs[0].radius == 0.0
-    for bad, message in (("radius = -0.02", "radius must be >= 0, got -0.02"),
-                         ("radius = nan", "radius must be finite, got nan"),
-                         ('radius = "2 cm"', "radius must be a number, got '2 cm'")):
+    for bad, message in (
+        ("radius = -0.02", "radius must be >= 0, got -0.02"),
+        ("radius = nan", "radius must be finite, got nan"),
+        ('radius = "2 cm"', "radius must be a number, got '2 cm'"),
+    ):
         path.write_text(SCENE.format(extra=bad))
         with pytest.raises(InvalidInputError, match=message):
             load_scene(path)
@@ -506,15 +529,19 @@ def _sphere_centres(robot, q):
     from pathlib import Path
 
     model = robot.model
-    geom = pin.buildGeomFromUrdf(model, robot.urdf, pin.GeometryType.COLLISION,
-                                 package_dirs=[str(p) for p in Path(robot.urdf).parents])
+    geom = pin.buildGeomFromUrdf(
+        model, robot.urdf, pin.GeometryType.COLLISION, package_dirs=[str(p) for p in Path(robot.urdf).parents]
+    )
     data, geom_data = model.createData(), geom.createData()
     pin.updateGeometryPlacements(model, data, geom, geom_data, q)
     centres = {}
     for foot in robot.feet:
         fid = model.getFrameId(foot)
-        found = [k for k, g in enumerate(geom.geometryObjects)
-                 if g.parentFrame == fid and isinstance(g.geometry, pin.hppfcl.Sphere)]
+        found = [
+            k
+            for k, g in enumerate(geom.geometryObjects)
+            if g.parentFrame == fid and isinstance(g.geometry, pin.hppfcl.Sphere)
+        ]
         assert len(found) == 1, (foot, found)
         centres[foot] = geom_data.oMg[found[0]].translation.copy()
     return centres
@@ -543,7 +570,8 @@ def test_anymal_feet_get_a_frame_at_the_sphere_centre(anymal_round):
     # parameters name the contact, not its frame: the same names, and they still apply
     contact_parameters = [n for n in point.parameter_names() if n.startswith("contact:")]
     assert contact_parameters and contact_parameters == [
-        n for n in rounded.parameter_names() if n.startswith("contact:")]
+        n for n in rounded.parameter_names() if n.startswith("contact:")
+    ]
     lowered = rounded.with_parameters({"contact:LF_FOOT:offset": rounded.contact_specs[0].offset - 0.001})
     assert lowered.contact_specs[0].frame == "LF_FOOT_sphere"
     assert lowered.gaps(robot.q_ref)[0] == pytest.approx(0.001, abs=1e-12)
@@ -560,8 +588,9 @@ def test_anymal_feet_get_a_frame_at_the_sphere_centre(anymal_round):
         pin.framesForwardKinematics(new.model, data, q)
         for foot, centre in centres.items():
             # two compositions of the same placements, O(1 m) coordinates: round-off 1e-15 m
-            np.testing.assert_allclose(data.oMf[new.model.getFrameId(foot + "_sphere")].translation,
-                                       centre, rtol=0, atol=1e-14)
+            np.testing.assert_allclose(
+                data.oMf[new.model.getFrameId(foot + "_sphere")].translation, centre, rtol=0, atol=1e-14
+            )
 
 
 def test_anymal_round_feet_keep_the_gaps_at_the_reference_pose(anymal_round):
@@ -614,8 +643,9 @@ def test_centred_spheres_are_unchanged():
     rounded = round_feet(point)
     assert rounded.robot is robot and [f.name for f in robot.model.frames] == frames
     assert [c.frame for c in rounded.contact_specs] == list(robot.feet)
-    by_hand = cd.Scene(robot, [dataclasses.replace(c, radius=0.02, offset=c.offset - 0.02)
-                               for c in point.contact_specs], q0=point.q0)
+    by_hand = cd.Scene(
+        robot, [dataclasses.replace(c, radius=0.02, offset=c.offset - 0.02) for c in point.contact_specs], q0=point.q0
+    )
     rng = np.random.default_rng(5)
     for q in (point.q0, robot.integrate(point.q0, 0.3 * rng.standard_normal(robot.nv))):
         assert np.array_equal(rounded.gaps(q), by_hand.gaps(q))
@@ -641,5 +671,9 @@ def test_one_foot_off_centre_moves_that_contact_only():
     data = rounded.robot.model.createData()
     pin.framesForwardKinematics(rounded.robot.model, data, q)
     foot = data.oMf[rounded.robot.model.getFrameId("FL_foot")]
-    np.testing.assert_allclose(data.oMf[rounded.robot.model.getFrameId("FL_foot_sphere")].translation,
-                               foot.act(np.array([0.01, 0.0, 0.0])), rtol=0, atol=1e-14)
+    np.testing.assert_allclose(
+        data.oMf[rounded.robot.model.getFrameId("FL_foot_sphere")].translation,
+        foot.act(np.array([0.01, 0.0, 0.0])),
+        rtol=0,
+        atol=1e-14,
+    )

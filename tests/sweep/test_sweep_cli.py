@@ -37,14 +37,23 @@ def test_out_is_written_and_resumed(tmp_path, capsys):
     assert len(out.read_text().splitlines()) == 2
 
 
-@pytest.mark.parametrize("points", [["--grid", "q:z=1:2:3"], ["--grid", "q:z=1,2", "--grid", "scene:gravity_z=-1,-2"],
-                                    ["--random", "q:z=uniform:1:2", "--random", "scene:gravity_z=normal:-1:0.1",
-                                     "--samples", "5", "--seed", "3"]])
+@pytest.mark.parametrize(
+    "points",
+    [
+        ["--grid", "q:z=1:2:3"],
+        ["--grid", "q:z=1,2", "--grid", "scene:gravity_z=-1,-2"],
+        ["--random", "q:z=uniform:1:2", "--random", "scene:gravity_z=normal:-1:0.1", "--samples", "5", "--seed", "3"],
+    ],
+)
 def test_plot_writes_a_line_or_a_heatmap(tmp_path, capsys, points):
     pytest.importorskip("matplotlib")
     png = tmp_path / "plot.png"
-    assert main(["sweep", "ball", *points, "--t-final", "3", "--jobs", "1", "--plot", str(png),
-                 "--plot-output", "q_end:z"]) == 0
+    assert (
+        main(
+            ["sweep", "ball", *points, "--t-final", "3", "--jobs", "1", "--plot", str(png), "--plot-output", "q_end:z"]
+        )
+        == 0
+    )
     assert png.stat().st_size > 1000 and png.read_bytes()[:4] == b"\x89PNG"
 
 
@@ -59,19 +68,22 @@ def test_points_from_a_file_and_a_zipped_list(tmp_path, capsys):
     assert [(r["q:z"], r["t_end"]) for r in again] == [(1, 2.0), (2, 2.5)]
 
 
-@pytest.mark.parametrize("argv, match", [
-    (["sweep", "ball", "--grid", "q:zz=1,2", "--t-final", "1"], "unknown quantity 'q:zz'"),
-    (["sweep", "ball", "--grid", "q:z=1:2:0", "--t-final", "1"], "must be a positive integer, got '0'"),
-    (["sweep", "ball", "--grid", "q:z=1,2", "--t-final", "1", "--backend", "mpi"], "valid: dask, loky, ray"),
-    (["sweep", "ball", "--grid", "q:z=1,2", "--random", "q:z=uniform:0:1", "--samples", "2"], "one way"),
-    (["sweep", "ball", "--random", "q:z=uniform:0:1", "--t-final", "1"], "--samples"),
-    (["sweep", "ball", "--grid", "q:z", "--t-final", "1"], "NAME=VALUES"),
-    (["sweep", "ball", "--grid", "q:z=1,2"], "t_final"),
-    (["sweep", "ball", "--grid", "q:z=1,2", "--t-final", "1", "--job", "nosuchmodule:f"], "cannot import"),
-    (["sweep", "ball", "--grid", "q:z=1,2", "--t-final", "1", "--out", "rows.txt"], "valid: .jsonl, .csv"),
-    (["sweep", "ball", "--grid", "q:z=1,2", "--t-final", "1", "--plot", "nowhere/p.png"], "does not exist"),
-    (["sweep", "ball", "--points", "missing.json", "--t-final", "1"], "cannot read"),
-])
+@pytest.mark.parametrize(
+    "argv, match",
+    [
+        (["sweep", "ball", "--grid", "q:zz=1,2", "--t-final", "1"], "unknown quantity 'q:zz'"),
+        (["sweep", "ball", "--grid", "q:z=1:2:0", "--t-final", "1"], "must be a positive integer, got '0'"),
+        (["sweep", "ball", "--grid", "q:z=1,2", "--t-final", "1", "--backend", "mpi"], "valid: dask, loky, ray"),
+        (["sweep", "ball", "--grid", "q:z=1,2", "--random", "q:z=uniform:0:1", "--samples", "2"], "one way"),
+        (["sweep", "ball", "--random", "q:z=uniform:0:1", "--t-final", "1"], "--samples"),
+        (["sweep", "ball", "--grid", "q:z", "--t-final", "1"], "NAME=VALUES"),
+        (["sweep", "ball", "--grid", "q:z=1,2"], "t_final"),
+        (["sweep", "ball", "--grid", "q:z=1,2", "--t-final", "1", "--job", "nosuchmodule:f"], "cannot import"),
+        (["sweep", "ball", "--grid", "q:z=1,2", "--t-final", "1", "--out", "rows.txt"], "valid: .jsonl, .csv"),
+        (["sweep", "ball", "--grid", "q:z=1,2", "--t-final", "1", "--plot", "nowhere/p.png"], "does not exist"),
+        (["sweep", "ball", "--points", "missing.json", "--t-final", "1"], "cannot read"),
+    ],
+)
 def test_bad_input_exits_2_with_one_line(argv, match, capsys, tmp_path, monkeypatch):
     if "--plot" in argv:  # without matplotlib (not in the test extra) that error comes first
         pytest.importorskip("matplotlib", reason="the plot path is checked once matplotlib is there")

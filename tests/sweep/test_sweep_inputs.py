@@ -74,11 +74,14 @@ def test_set_event_budget_is_a_count(capsys):
 
 
 # -- grids too large to build --------------------------------------------------------------
-@pytest.mark.parametrize("build, count", [
-    (lambda: grid({"q:z": "1:2:100000000"}), "100,000,000"),
-    (lambda: grid({"a": "0:1:1000", "b": "0:1:1000", "c": "0:1:1000"}), "1,000,000,000"),
-    (lambda: random_points({"q:z": "uniform:1:2"}, 10**8), "100,000,000"),
-])
+@pytest.mark.parametrize(
+    "build, count",
+    [
+        (lambda: grid({"q:z": "1:2:100000000"}), "100,000,000"),
+        (lambda: grid({"a": "0:1:1000", "b": "0:1:1000", "c": "0:1:1000"}), "1,000,000,000"),
+        (lambda: random_points({"q:z": "uniform:1:2"}, 10**8), "100,000,000"),
+    ],
+)
 def test_a_huge_sweep_is_refused_at_once_and_cheaply(build, count):
     """1e8 points as Python floats alone would take 3.2 GB; the refusal comes before any
     point is made: it allocates far less than a megabyte (the three axes of 1000 values
@@ -124,11 +127,30 @@ def test_ctrl_c_stops_the_largest_sweep_at_once_and_keeps_its_rows(tmp_path):
     command ends with one line and status 130 within seconds, and the finished rows
     are in the results file, ready to resume."""
     out = tmp_path / "rows.jsonl"
-    code = ("import signal, sys; signal.signal(signal.SIGINT, signal.default_int_handler); "
-            "from contactdiff.cli import main; sys.exit(main(sys.argv[1:]))")
-    proc = subprocess.Popen([sys.executable, "-c", code, "sweep", "ball", "--grid", f"q:z=1:2:{MAX_POINTS}",
-                             "--t-final", "0.001", "--jobs", "1", "--out", str(out)],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    code = (
+        "import signal, sys; signal.signal(signal.SIGINT, signal.default_int_handler); "
+        "from contactdiff.cli import main; sys.exit(main(sys.argv[1:]))"
+    )
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-c",
+            code,
+            "sweep",
+            "ball",
+            "--grid",
+            f"q:z=1:2:{MAX_POINTS}",
+            "--t-final",
+            "0.001",
+            "--jobs",
+            "1",
+            "--out",
+            str(out),
+        ],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     deadline = time.monotonic() + 60.0  # s: import, scene, points; the first rows follow within a second
     while not (out.exists() and out.stat().st_size) and proc.poll() is None and time.monotonic() < deadline:
         time.sleep(0.1)
@@ -165,11 +187,14 @@ def _damage(path, line: int, edit) -> None:
     path.write_text("".join(lines))
 
 
-@pytest.mark.parametrize("suffix, edit, reason", [
-    (".csv", lambda text: text.replace(",", "", 1), r"line 3: \d+ cells, the header has \d+"),
-    (".jsonl", lambda text: text[:10] + text[11:], r"line 2: not JSON"),
-    (".jsonl", lambda text: text.replace('"sweep": "', '"sweep": "x'), r"line 2: its sweep 'x[0-9a-f]+' is not"),
-])
+@pytest.mark.parametrize(
+    "suffix, edit, reason",
+    [
+        (".csv", lambda text: text.replace(",", "", 1), r"line 3: \d+ cells, the header has \d+"),
+        (".jsonl", lambda text: text[:10] + text[11:], r"line 2: not JSON"),
+        (".jsonl", lambda text: text.replace('"sweep": "', '"sweep": "x'), r"line 2: its sweep 'x[0-9a-f]+' is not"),
+    ],
+)
 def test_a_damaged_row_is_named_and_its_point_runs_again(tmp_path, fresh, suffix, edit, reason):
     """The second row is damaged (a CSV cell lost, a JSON character lost, the sweep's
     identity edited): the warning names its line and what is wrong, the three good

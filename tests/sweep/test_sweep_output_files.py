@@ -20,9 +20,23 @@ def test_a_sweep_runs_on_and_prints_its_rows_when_its_files_fail(tmp_path, capsy
     pytest.importorskip("matplotlib")
     folder = tmp_path / "out"
     folder.mkdir()
-    argv = ["sweep", "ball", "--grid", "q:z=1,2,3", "--job", "sweep_user_jobs:break_folder", "--jobs", "1",
-            "--set", f"job:folder={folder}", "--out", str(folder / "rows.jsonl"), "--plot", str(folder / "rows.png"),
-            "--json"]
+    argv = [
+        "sweep",
+        "ball",
+        "--grid",
+        "q:z=1,2,3",
+        "--job",
+        "sweep_user_jobs:break_folder",
+        "--jobs",
+        "1",
+        "--set",
+        f"job:folder={folder}",
+        "--out",
+        str(folder / "rows.jsonl"),
+        "--plot",
+        str(folder / "rows.png"),
+        "--json",
+    ]
     assert main(argv) == 2
     captured = capsys.readouterr()
     assert [r["height"] for r in json.loads(captured.out)["rows"]] == [1, 2, 3]
@@ -33,6 +47,12 @@ def test_a_sweep_whose_results_file_fails_returns_its_rows_in_the_error(tmp_path
     folder = tmp_path / "out"
     folder.mkdir()
     with pytest.raises(OutputFileError, match="--out .* could not be written") as caught:
-        sweep("ball", {"q:z": [1, 2, 3]}, "sweep_user_jobs:break_folder", fixed={"job:folder": str(folder)},
-              n_jobs=1, out=folder / "rows.csv")
+        sweep(
+            "ball",
+            {"q:z": [1, 2, 3]},
+            "sweep_user_jobs:break_folder",
+            fixed={"job:folder": str(folder)},
+            n_jobs=1,
+            out=folder / "rows.csv",
+        )
     assert [row.outputs["height"] for row in caught.value.result] == [1, 2, 3]

@@ -18,8 +18,15 @@ def solo12():
 def test_each_kind_of_name_resolves(solo12):
     names = ["q:root_joint[2]", "v:FL_KFE", "body:base_link:mass", "rtol", "t_final", "arg:pitch", "job:x"]
     kinds = [q.kind for q in resolve(names, solo12, arguments=None, job_arguments=None)]
-    assert kinds == [QuantityKind.INITIAL_Q, QuantityKind.INITIAL_V, QuantityKind.PARAMETER, QuantityKind.OPTION,
-                     QuantityKind.OPTION, QuantityKind.SCENE_ARG, QuantityKind.JOB_ARG]
+    assert kinds == [
+        QuantityKind.INITIAL_Q,
+        QuantityKind.INITIAL_V,
+        QuantityKind.PARAMETER,
+        QuantityKind.OPTION,
+        QuantityKind.OPTION,
+        QuantityKind.SCENE_ARG,
+        QuantityKind.JOB_ARG,
+    ]
 
 
 def test_an_unknown_coordinate_lists_the_valid_ones(solo12):

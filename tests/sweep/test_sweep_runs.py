@@ -66,8 +66,12 @@ def test_rows_are_identical_on_a_local_dask_cluster(ball_rows):
 
 def test_a_failing_point_is_recorded_and_the_sweep_goes_on():
     # a start below the ground penetrates the contact; a 1-step budget stops a run that needs more
-    result = sweep("ball", point_list([{"q:z": 1.0, "max_steps": 1000}, {"q:z": -0.1, "max_steps": 1000},
-                                       {"q:z": 1.0, "max_steps": 1}]), t_final=3.0, n_jobs=2)
+    result = sweep(
+        "ball",
+        point_list([{"q:z": 1.0, "max_steps": 1000}, {"q:z": -0.1, "max_steps": 1000}, {"q:z": 1.0, "max_steps": 1}]),
+        t_final=3.0,
+        n_jobs=2,
+    )
     assert [r.ok for r in result] == [True, False, False]
     assert result[1].error.kind == "InconsistentStateError" and "penetrates" in result[1].error.message
     assert result[2].error.kind == "TooManyStepsError"
@@ -130,8 +134,14 @@ def test_a_results_file_of_another_sweep_is_refused(tmp_path):
 def test_the_jacobian_job_differentiates_in_a_parameter():
     # from h = 2 (g = 1, e = 0.8): landing at t = 2 with speed 2; at t = 3, z = 2 e - 1/2 and v = 2 e - 1,
     # so dz/de = dv/de = 2 and the restitution's column has norm 2 sqrt(2)
-    row = sweep("ball", {"q:z": [2.0]}, "jacobian", t_final=3.0, n_jobs=1,
-                job_options={"parameters": ["contact:ball:restitution"]})[0]
+    row = sweep(
+        "ball",
+        {"q:z": [2.0]},
+        "jacobian",
+        t_final=3.0,
+        n_jobs=1,
+        job_options={"parameters": ["contact:ball:restitution"]},
+    )[0]
     assert row.outputs["parameter_jacobian_norm:contact:ball:restitution"] == pytest.approx(2 * math.sqrt(2), 1e-7)
     assert row.outputs["jacobian_norm"] >= 1.0 and row.outputs["differentiable"] is True
 
@@ -150,12 +160,18 @@ def test_the_order_gap_job_at_the_rigid_trot_simultaneous_touchdown():
     # level: both land at once; the hand value of docs/results/decoupling.md
     assert result[1].outputs["order_gap_events"] == 1
     assert result[1].outputs["order_gap_outcome"] == pytest.approx(
-        2 * (1908 / 5041) * math.sqrt(31 / 24) / math.sqrt(3), rel=1e-9)
+        2 * (1908 / 5041) * math.sqrt(31 / 24) / math.sqrt(3), rel=1e-9
+    )
 
 
 def test_a_scene_factory_with_swept_and_fixed_arguments():
-    result = sweep("contactdiff.paper:trot_touchdown", {"arg:pitch": [0.0, 0.1]}, t_final=1.5, n_jobs=2,
-                   fixed={"arg:model": "soft"})
+    result = sweep(
+        "contactdiff.paper:trot_touchdown",
+        {"arg:pitch": [0.0, 0.1]},
+        t_final=1.5,
+        n_jobs=2,
+        fixed={"arg:model": "soft"},
+    )
     assert result.names == ("arg:model", "arg:pitch")
     assert [r.outputs["events:touchdown"] for r in result] == [1, 2]  # together when level, one by one pitched
     assert result[0].point == {"arg:model": "soft", "arg:pitch": 0.0}
@@ -189,26 +205,29 @@ def test_rows_as_a_dataframe(ball_rows):
     assert list(frame["q:z"]) == [0.5, 1.0, 1.5, 2.0] and "run_time" in frame.columns
 
 
-@pytest.mark.parametrize("call, error, match", [
-    (lambda: sweep("ball", {"q:zz": [1.0]}, t_final=1.0), UnknownNameError, "q:z"),
-    (lambda: sweep("ball", {"q:z": "0:1:0"}, t_final=1.0), InvalidInputError, "positive integer"),
-    (lambda: sweep("ball", {"q:z": [1.0]}, t_final=1.0, backend="threads"), UnknownNameError, "dask, loky, ray"),
-    (lambda: sweep("ball", {"q:z": [1.0]}, t_final=1.0, n_jobs=0), InvalidInputError, "n_jobs"),
-    (lambda: sweep("ball", {"q:z": [1.0]}, t_final=1.0, scheduler="tcp://x:1"), InvalidInputError, "loky"),
-    (lambda: sweep("ball", {"q:z": [1.0]}, "nosuchmodule:run"), InvalidInputError, "cannot import"),
-    (lambda: sweep("ball", {"q:z": [1.0]}, "sweep_user_jobs:missing"), UnknownNameError, "fall_time"),
-    (lambda: sweep("ball", {"q:z": [1.0]}, "sweep_user_jobs:NOT_A_FUNCTION"), InvalidInputError, "not callable"),
-    (lambda: sweep("ball", {"q:z": [1.0]}, "simulat"), UnknownNameError, "order-gap"),
-    (lambda: sweep("ball", {"q:z": [1.0]}), InvalidInputError, "t_final"),
-    (lambda: sweep("ball", {"q:z": [1.0]}, "stride", t_final=1.0), InvalidInputError, "no final time"),
-    (lambda: sweep("ball", {"q:z": [1.0]}, "stride", job_options={"feet": "ball"}), UnknownNameError, "foot"),
-    (lambda: sweep("ball", {"q:z": [1.0]}, t_final=1.0, options={"rtol": -1}), InvalidInputError, "rtol"),
-    (lambda: sweep("ball", {"q:z": [1.0]}, t_final=1.0, options={"jacobian": True}), InvalidInputError, "job"),
-    (lambda: sweep(cd.load_scene("ball"), {"q:z": [1.0]}, t_final=1.0), InvalidInputError, "pickle"),
-    (lambda: sweep("no_such_scene", {"q:z": [1.0]}, t_final=1.0), UnknownNameError, "planar_trot_soft"),
-    (lambda: sweep("ball", {"arg:x": [1.0]}, t_final=1.0), InvalidInputError, "factory"),
-    (lambda: sweep("ball", {"q:z": ["high"]}, t_final=1.0), InvalidInputError, "number"),
-])
+@pytest.mark.parametrize(
+    "call, error, match",
+    [
+        (lambda: sweep("ball", {"q:zz": [1.0]}, t_final=1.0), UnknownNameError, "q:z"),
+        (lambda: sweep("ball", {"q:z": "0:1:0"}, t_final=1.0), InvalidInputError, "positive integer"),
+        (lambda: sweep("ball", {"q:z": [1.0]}, t_final=1.0, backend="threads"), UnknownNameError, "dask, loky, ray"),
+        (lambda: sweep("ball", {"q:z": [1.0]}, t_final=1.0, n_jobs=0), InvalidInputError, "n_jobs"),
+        (lambda: sweep("ball", {"q:z": [1.0]}, t_final=1.0, scheduler="tcp://x:1"), InvalidInputError, "loky"),
+        (lambda: sweep("ball", {"q:z": [1.0]}, "nosuchmodule:run"), InvalidInputError, "cannot import"),
+        (lambda: sweep("ball", {"q:z": [1.0]}, "sweep_user_jobs:missing"), UnknownNameError, "fall_time"),
+        (lambda: sweep("ball", {"q:z": [1.0]}, "sweep_user_jobs:NOT_A_FUNCTION"), InvalidInputError, "not callable"),
+        (lambda: sweep("ball", {"q:z": [1.0]}, "simulat"), UnknownNameError, "order-gap"),
+        (lambda: sweep("ball", {"q:z": [1.0]}), InvalidInputError, "t_final"),
+        (lambda: sweep("ball", {"q:z": [1.0]}, "stride", t_final=1.0), InvalidInputError, "no final time"),
+        (lambda: sweep("ball", {"q:z": [1.0]}, "stride", job_options={"feet": "ball"}), UnknownNameError, "foot"),
+        (lambda: sweep("ball", {"q:z": [1.0]}, t_final=1.0, options={"rtol": -1}), InvalidInputError, "rtol"),
+        (lambda: sweep("ball", {"q:z": [1.0]}, t_final=1.0, options={"jacobian": True}), InvalidInputError, "job"),
+        (lambda: sweep(cd.load_scene("ball"), {"q:z": [1.0]}, t_final=1.0), InvalidInputError, "pickle"),
+        (lambda: sweep("no_such_scene", {"q:z": [1.0]}, t_final=1.0), UnknownNameError, "planar_trot_soft"),
+        (lambda: sweep("ball", {"arg:x": [1.0]}, t_final=1.0), InvalidInputError, "factory"),
+        (lambda: sweep("ball", {"q:z": ["high"]}, t_final=1.0), InvalidInputError, "number"),
+    ],
+)
 def test_every_bad_input_is_a_named_error(call, error, match):
     with pytest.raises(error, match=match):
         call()

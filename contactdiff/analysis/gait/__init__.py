@@ -13,19 +13,37 @@ stance intervals in a run. The public names of all five are importable from here
 from ...errors import StrideError
 from .periodic import PeriodicGait, PeriodMap, find_periodic_gait, floquet_multipliers, period_map
 from .section import (
-                      NEUTRAL_NAMES,
-                      align,
-                      available_neutral,
-                      neutral_directions,
-                      onto_section,
-                      scene_period,
-                      section_basis,
+    NEUTRAL_NAMES,
+    align,
+    available_neutral,
+    neutral_directions,
+    onto_section,
+    scene_period,
+    section_basis,
 )
 from .sensitivity import GaitSensitivity, gait_sensitivity
 from .stances import stance_intervals
 from .stride import Stride, StrideLoop, first_touchdown, stride_map
 
-__all__ = ["GaitSensitivity", "NEUTRAL_NAMES", "PeriodMap", "PeriodicGait", "Stride", "StrideError", "StrideLoop",
-           "align", "available_neutral", "find_periodic_gait", "first_touchdown", "floquet_multipliers",
-           "gait_sensitivity", "neutral_directions", "onto_section", "period_map", "scene_period", "section_basis",
-           "stance_intervals", "stride_map"]
+__all__ = [
+    "GaitSensitivity",
+    "NEUTRAL_NAMES",
+    "PeriodMap",
+    "PeriodicGait",
+    "Stride",
+    "StrideError",
+    "StrideLoop",
+    "align",
+    "available_neutral",
+    "find_periodic_gait",
+    "first_touchdown",
+    "floquet_multipliers",
+    "gait_sensitivity",
+    "neutral_directions",
+    "onto_section",
+    "period_map",
+    "scene_period",
+    "section_basis",
+    "stance_intervals",
+    "stride_map",
+]

@@ -87,20 +87,32 @@ class PeriodicGait:
     def resolved(self) -> bool:
         """Converged by the resolution rule: the last residual is above ``tol`` but
         not above what the map resolves there."""
-        return (self.converged and self.tol is not None and self.residuals[-1] > self.tol
-                and self.resolution is not None)
+        return self.converged and self.tol is not None and self.residuals[-1] > self.tol and self.resolution is not None
 
     def to_dict(self) -> dict:
         """The result as JSON-ready data (what ``contactdiff stride --json`` prints)."""
-        return {"foot": self.foot, "t": self.t, "q": self.q.tolist(), "v": self.v.tolist(),
-                "stride_time": self.stride.stride_time, "period": self.stride.period,
-                "residuals": list(self.residuals), "steps": list(self.steps),
-                "resolutions": list(self.resolutions), "tol": self.tol, "resolved": self.resolved,
-                "multipliers": [[float(m.real), float(m.imag)] for m in self.multipliers],
-                "moduli": [float(abs(m)) for m in self.multipliers],
-                "neutral": list(self.neutral), "converged": self.converged, "drift": dict(self.drift),
-                "differentiable": self.stride.differentiable, "simultaneous": list(self.stride.simultaneous),
-                "why_not_differentiable": self.why_not_differentiable(), "run_time": self.run_time}
+        return {
+            "foot": self.foot,
+            "t": self.t,
+            "q": self.q.tolist(),
+            "v": self.v.tolist(),
+            "stride_time": self.stride.stride_time,
+            "period": self.stride.period,
+            "residuals": list(self.residuals),
+            "steps": list(self.steps),
+            "resolutions": list(self.resolutions),
+            "tol": self.tol,
+            "resolved": self.resolved,
+            "multipliers": [[float(m.real), float(m.imag)] for m in self.multipliers],
+            "moduli": [float(abs(m)) for m in self.multipliers],
+            "neutral": list(self.neutral),
+            "converged": self.converged,
+            "drift": dict(self.drift),
+            "differentiable": self.stride.differentiable,
+            "simultaneous": list(self.stride.simultaneous),
+            "why_not_differentiable": self.why_not_differentiable(),
+            "run_time": self.run_time,
+        }
 
     def why_not_differentiable(self) -> list[str]:
         """The stride's notes on its non-differentiable events (simultaneous landings
@@ -110,31 +122,48 @@ class PeriodicGait:
     def format(self) -> str:
         """The result as the text ``contactdiff stride`` prints: residuals, stride, multipliers."""
         s = self.stride
-        lines = [f"stride map of {s.scene_name}, section: touchdown of {self.foot} (state just before impact)",
-                 f"  stride time {s.stride_time:.12g} s" + (f" (clock period {s.period:g} s)" if s.period else ""),
-                 "  neutral moves removed: " + (", ".join(self.neutral) or "none")
-                 + ("".join(f"; {k} {v:+.6g} per stride" for k, v in self.drift.items())),
-                 "", "  iteration  step            residual   resolution"]
+        lines = [
+            f"stride map of {s.scene_name}, section: touchdown of {self.foot} (state just before impact)",
+            f"  stride time {s.stride_time:.12g} s" + (f" (clock period {s.period:g} s)" if s.period else ""),
+            "  neutral moves removed: "
+            + (", ".join(self.neutral) or "none")
+            + ("".join(f"; {k} {v:+.6g} per stride" for k, v in self.drift.items())),
+            "",
+            "  iteration  step            residual   resolution",
+        ]
         resolutions = list(self.resolutions) + [None] * (len(self.residuals) - len(self.resolutions))
         for k, (step, r, res) in enumerate(zip(self.steps, self.residuals, resolutions)):
             lines.append(f"  {k:9d}  {step:<14}  {r:.3e}" + (f"  {res:.3e}" if res is not None else ""))
         if self.resolved:
-            lines.append(f"  converged to the map's resolution: the residual {self.residuals[-1]:.2e} is below "
-                         f"{self.resolution:.2e}, twice its change when this stride is computed again at "
-                         f"{RESOLUTION_TIGHTENING:g} times tighter tolerances (a bound on its error); tol "
-                         f"{self.tol:g} is below what the map resolves. A periodic gait to that accuracy "
-                         "(up to the neutral moves)")
+            lines.append(
+                f"  converged to the map's resolution: the residual {self.residuals[-1]:.2e} is below "
+                f"{self.resolution:.2e}, twice its change when this stride is computed again at "
+                f"{RESOLUTION_TIGHTENING:g} times tighter tolerances (a bound on its error); tol "
+                f"{self.tol:g} is below what the map resolves. A periodic gait to that accuracy "
+                "(up to the neutral moves)"
+            )
         elif self.converged:
             lines.append("  converged: a periodic gait (up to the neutral moves)")
         elif len(self.steps) == 1:
-            lines.append("  one stride, no Newton iterations: the multipliers are those of this stride's map, "
-                         "a stability measure only at a periodic gait (residual 0)")
+            lines.append(
+                "  one stride, no Newton iterations: the multipliers are those of this stride's map, "
+                "a stability measure only at a periodic gait (residual 0)"
+            )
         else:
-            lines.append("  NOT converged: the multipliers are those of the last iterate"
-                         + (f" (its residual {self.residuals[-1]:.2e} is above the map's resolution "
-                            f"{self.resolution:.2e} there)" if self.resolution is not None else ""))
-        lines += ["", f"  Floquet multipliers ({len(self.multipliers)}, section coordinates, by modulus):",
-                  f"  {'#':>3}  {'real':>14}  {'imag':>14}  {'|λ|':>12}"]
+            lines.append(
+                "  NOT converged: the multipliers are those of the last iterate"
+                + (
+                    f" (its residual {self.residuals[-1]:.2e} is above the map's resolution "
+                    f"{self.resolution:.2e} there)"
+                    if self.resolution is not None
+                    else ""
+                )
+            )
+        lines += [
+            "",
+            f"  Floquet multipliers ({len(self.multipliers)}, section coordinates, by modulus):",
+            f"  {'#':>3}  {'real':>14}  {'imag':>14}  {'|λ|':>12}",
+        ]
         for k, m in enumerate(self.multipliers):
             lines.append(f"  {k:3d}  {m.real:14.8g}  {m.imag:14.8g}  {abs(m):12.8g}")
         top = max((abs(m) for m in self.multipliers), default=0.0)
@@ -142,13 +171,17 @@ class PeriodicGait:
         lines.append(f"  largest |λ| = {top:.8g}: {verdict}")
         if not s.differentiable:
             why = self.why_not_differentiable()
-            lines.append("  note: an event of the stride is not differentiable; the multipliers are those of "
-                         "the branch taken" + (":" if why else ""))
+            lines.append(
+                "  note: an event of the stride is not differentiable; the multipliers are those of "
+                "the branch taken" + (":" if why else "")
+            )
             lines += [f"    {n}" for n in why[:4]] + ([f"    ... {len(why) - 4} more"] if len(why) > 4 else [])
         if s.simultaneous:
-            lines.append(f"  note: {', '.join(s.simultaneous)} land(s) at the same instant as {self.foot}: the "
-                         "stride map is discontinuous there and these are one-sided multipliers (the other "
-                         "feet landing later); choose a foot that lands alone")
+            lines.append(
+                f"  note: {', '.join(s.simultaneous)} land(s) at the same instant as {self.foot}: the "
+                "stride map is discontinuous there and these are one-sided multipliers (the other "
+                "feet landing later); choose a foot that lands alone"
+            )
         lines.append(f"  run time {self.run_time:.2f} s")
         return "\n".join(lines)
 
@@ -179,13 +212,28 @@ def floquet_multipliers(scene: Scene, stride: Stride, neutral: Sequence[str] | N
     return _sorted_eigenvalues(B.T @ stride.extended_jacobian() @ B)
 
 
-def find_periodic_gait(scene: Scene, foot: str, q: ArrayLike | None = None, v: ArrayLike | None = None,
-                       t: float = 0.0, *,
-                       iterations: int = 8, tol: float = 1e-9, neutral: Sequence[str] | None = None,
-                       period: float | None = None, t_max: float = 10.0, min_stride: float | None = None,
-                       min_flight: float | None = None, warmup: float = 0.0,
-                       line_search: int = 4, resolution: bool = True, rtol: float = STRIDE_RTOL,
-                       atol: float = STRIDE_ATOL, method: str = STRIDE_METHOD, **options) -> PeriodicGait:
+def find_periodic_gait(
+    scene: Scene,
+    foot: str,
+    q: ArrayLike | None = None,
+    v: ArrayLike | None = None,
+    t: float = 0.0,
+    *,
+    iterations: int = 8,
+    tol: float = 1e-9,
+    neutral: Sequence[str] | None = None,
+    period: float | None = None,
+    t_max: float = 10.0,
+    min_stride: float | None = None,
+    min_flight: float | None = None,
+    warmup: float = 0.0,
+    line_search: int = 4,
+    resolution: bool = True,
+    rtol: float = STRIDE_RTOL,
+    atol: float = STRIDE_ATOL,
+    method: str = STRIDE_METHOD,
+    **options,
+) -> PeriodicGait:
     """Approach a periodic gait by Newton's method on the stride map, reduced state.
 
     The unknowns are the section coordinates ``s`` (`section_basis`: along the
@@ -252,8 +300,16 @@ def find_periodic_gait(scene: Scene, foot: str, q: ArrayLike | None = None, v: A
     tol = check_number("find_periodic_gait", "tol", tol, minimum=0.0)
     clock = _resolve_period(scene, period)
     warmup = check_number("find_periodic_gait", "warmup", warmup, minimum=0.0)
-    sim = dict(t_max=t_max, min_stride=min_stride, min_flight=min_flight, period=False if clock is None else clock,
-               rtol=rtol, atol=atol, method=method, **options)
+    sim = dict(
+        t_max=t_max,
+        min_stride=min_stride,
+        min_flight=min_flight,
+        period=False if clock is None else clock,
+        rtol=rtol,
+        atol=atol,
+        method=method,
+        **options,
+    )
     q = scene.q0 if q is None else np.array(q, dtype=float)
     v = scene.v0 if v is None else np.array(v, dtype=float)
     if warmup > 0:
@@ -262,9 +318,19 @@ def find_periodic_gait(scene: Scene, foot: str, q: ArrayLike | None = None, v: A
     kin = scene.kinematics
     kin.update(q, v)
     if warmup > 0 or abs(scene.contacts[i].gap(kin)) > SECTION_TOL or not scene.contacts[i].rows(kin)[0] @ v < 0:
-        t, q, v = first_touchdown(scene, foot, q, v, t, t_max=t_max,
-                                  min_flight=_min_flight(min_flight, clock, "find_periodic_gait"),
-                                  rtol=rtol, atol=atol, method=method, **options)
+        t, q, v = first_touchdown(
+            scene,
+            foot,
+            q,
+            v,
+            t,
+            t_max=t_max,
+            min_flight=_min_flight(min_flight, clock, "find_periodic_gait"),
+            rtol=rtol,
+            atol=atol,
+            method=method,
+            **options,
+        )
     neutral = _check_neutral(scene, neutral, q, v, t)
 
     def evaluate(q, v, t):
@@ -277,7 +343,7 @@ def find_periodic_gait(scene: Scene, foot: str, q: ArrayLike | None = None, v: A
         step = B @ s
         nv = scene.nv
         q1 = onto_section(scene, foot, pin.integrate(scene.model, stride.q0, step[:nv]))
-        v1 = stride.v0 + step[nv:2 * nv]
+        v1 = stride.v0 + step[nv : 2 * nv]
         t1 = stride.t0 + (step[2 * nv] if clock is not None else 0.0)
         return q1, v1, t1
 
@@ -315,9 +381,22 @@ def find_periodic_gait(scene: Scene, foot: str, q: ArrayLike | None = None, v: A
         resolutions.append(None)
     multipliers = _sorted_eigenvalues(B.T @ stride.extended_jacobian() @ B)
     converged = residuals[-1] <= tol or (resolutions[-1] is not None and residuals[-1] <= resolutions[-1])
-    return PeriodicGait(foot=foot, t=stride.t0, q=stride.q0, v=stride.v0, stride=stride, residuals=residuals,
-                        steps=steps, multipliers=multipliers, neutral=tuple(neutral), converged=converged,
-                        drift=moved, run_time=time.perf_counter() - started, resolutions=resolutions, tol=tol)
+    return PeriodicGait(
+        foot=foot,
+        t=stride.t0,
+        q=stride.q0,
+        v=stride.v0,
+        stride=stride,
+        residuals=residuals,
+        steps=steps,
+        multipliers=multipliers,
+        neutral=tuple(neutral),
+        converged=converged,
+        drift=moved,
+        run_time=time.perf_counter() - started,
+        resolutions=resolutions,
+        tol=tol,
+    )
 
 
 def _map_resolution(scene, foot, stride, B, r, neutral, clock, sim) -> float | None:
@@ -330,8 +409,15 @@ def _map_resolution(scene, foot, stride, B, r, neutral, clock, sim) -> float | N
     if rtol < RTOL_MIN:
         return None
     try:
-        again = stride_map(scene, foot, stride.q0, stride.v0, stride.t0, jacobian=False,
-                           **(sim | {"rtol": rtol, "atol": atol if atol.ndim else float(atol)}))
+        again = stride_map(
+            scene,
+            foot,
+            stride.q0,
+            stride.v0,
+            stride.t0,
+            jacobian=False,
+            **(sim | {"rtol": rtol, "atol": atol if atol.ndim else float(atol)}),
+        )
     except (StrideError, InvalidInputError, InconsistentStateError):
         return None
     r_tight, _ = _reduced_residual(scene, again, B, neutral, clock)
@@ -365,10 +451,18 @@ class PeriodMap:
     trajectory: Trajectory = field(repr=False)
 
 
-def period_map(scene: Scene, q: ArrayLike | None = None, v: ArrayLike | None = None, t: float = 0.0, *,
-               period: float | None = None,
-               neutral: Sequence[str] | None = None, rtol: float = STRIDE_RTOL, atol: float = STRIDE_ATOL,
-               **options: Any) -> PeriodMap:
+def period_map(
+    scene: Scene,
+    q: ArrayLike | None = None,
+    v: ArrayLike | None = None,
+    t: float = 0.0,
+    *,
+    period: float | None = None,
+    neutral: Sequence[str] | None = None,
+    rtol: float = STRIDE_RTOL,
+    atol: float = STRIDE_ATOL,
+    **options: Any,
+) -> PeriodMap:
     """The state after one clock period and its Jacobian (the stroboscopic Poincaré map).
 
     Args:
@@ -394,8 +488,17 @@ def period_map(scene: Scene, q: ArrayLike | None = None, v: ArrayLike | None = N
     N = neutral_directions(scene, q, neutral)
     if N.shape[1]:
         _, s, vt = np.linalg.svd(N.T)
-        B = vt[int(np.sum(s > 1e-10)):].T
+        B = vt[int(np.sum(s > 1e-10)) :].T
     else:
         B = np.eye(2 * scene.nv)
-    return PeriodMap(t0=t, q0=traj.q0, v0=traj.v0, t=traj.t, q=traj.q, v=traj.v, jacobian=traj.jacobian,
-                     multipliers=_sorted_eigenvalues(B.T @ traj.jacobian @ B), trajectory=traj)
+    return PeriodMap(
+        t0=t,
+        q0=traj.q0,
+        v0=traj.v0,
+        t=traj.t,
+        q=traj.q,
+        v=traj.v,
+        jacobian=traj.jacobian,
+        multipliers=_sorted_eigenvalues(B.T @ traj.jacobian @ B),
+        trajectory=traj,
+    )

@@ -36,6 +36,7 @@ integration error: DOP853's shrinks about 7.7 times, 10^(8/9))."""
 _SYMMETRY_TOL = 1e-9  # relative change of gaps and accelerations under a neutral move that counts as none
 _IMPACT_KINDS = (EventKind.TOUCHDOWN, EventKind.BOUNCE)
 
+
 def _positive_duration(owner: str, name: str, value) -> float:
     x = check_number(owner, name, value, minimum=0.0)
     if x <= 0:
@@ -51,8 +52,9 @@ def scene_period(scene: Scene) -> float | None:
     attribute), or None if it has none. Different periods are an error."""
     periods = {float(e.period) for e in scene.effort_specs if getattr(e, "period", None) is not None}
     if len(periods) > 1:
-        raise InvalidInputError(f"scene {scene.name!r} has efforts with different clock periods "
-                                f"{sorted(periods)}; pass period= explicitly")
+        raise InvalidInputError(
+            f"scene {scene.name!r} has efforts with different clock periods {sorted(periods)}; pass period= explicitly"
+        )
     return periods.pop() if periods else None
 
 
@@ -71,8 +73,12 @@ def _joint_jacobian_stack(scene: Scene, q: np.ndarray) -> np.ndarray:
     """Joint Jacobians (LOCAL_WORLD_ALIGNED: world axes at each joint origin), stacked, 6 rows per joint."""
     model, data = scene.model, scene.robot.new_data()
     pin.computeJointJacobians(model, data, q)
-    return np.vstack([pin.getJointJacobian(model, data, j, pin.LOCAL_WORLD_ALIGNED).reshape(6, model.nv)
-                      for j in range(1, model.njoints)])
+    return np.vstack(
+        [
+            pin.getJointJacobian(model, data, j, pin.LOCAL_WORLD_ALIGNED).reshape(6, model.nv)
+            for j in range(1, model.njoints)
+        ]
+    )
 
 
 def _neutral_vector(scene: Scene, q: np.ndarray, name: str) -> np.ndarray | None:
@@ -104,8 +110,9 @@ def _is_symmetry(scene: Scene, q: np.ndarray, v: np.ndarray, t: float, direction
     return max(np.abs(g1 - g0).max(initial=0.0), np.abs(a1 - a0).max(initial=0.0)) <= _SYMMETRY_TOL * scale
 
 
-def available_neutral(scene: Scene, q: np.ndarray | None = None, v: np.ndarray | None = None,
-                      t: float = 0.0) -> tuple[str, ...]:
+def available_neutral(
+    scene: Scene, q: np.ndarray | None = None, v: np.ndarray | None = None, t: float = 0.0
+) -> tuple[str, ...]:
     """Neutral moves of `NEUTRAL_NAMES` the scene admits at ``(q, v, t)`` (default
     its initial state): realisable by the joints and leaving gaps and dynamics unchanged."""
     q = scene.q0 if q is None else np.asarray(q, dtype=float)
@@ -130,9 +137,11 @@ def _check_neutral(scene: Scene, neutral, q, v, t) -> tuple[str, ...]:
     valid = available_neutral(scene, q, v, t)
     bad = [n for n in names if n not in valid]
     if bad:
-        raise InvalidInputError(f"scene {scene.name!r} does not admit the neutral move(s) {', '.join(bad)} "
-                                f"(not realisable by its joints, or not a symmetry); valid here: "
-                                f"{', '.join(valid) or '(none)'}")
+        raise InvalidInputError(
+            f"scene {scene.name!r} does not admit the neutral move(s) {', '.join(bad)} "
+            f"(not realisable by its joints, or not a symmetry); valid here: "
+            f"{', '.join(valid) or '(none)'}"
+        )
     return names
 
 
@@ -147,8 +156,9 @@ def neutral_directions(scene: Scene, q: np.ndarray, neutral: Sequence[str]) -> n
     return np.array(cols).T.reshape(2 * scene.nv, len(cols))
 
 
-def section_basis(scene: Scene, foot: str, q: np.ndarray, neutral: Sequence[str] = (),
-                  period: float | None = None) -> np.ndarray:
+def section_basis(
+    scene: Scene, foot: str, q: np.ndarray, neutral: Sequence[str] = (), period: float | None = None
+) -> np.ndarray:
     """Orthonormal section coordinates at ``q``: a basis (n × m) of the tangent
     vectors with ``Dh δx = 0`` (along the foot's guard) orthogonal to the neutral
     moves; with a clock (``period``) one more row and column for the phase τ.
@@ -224,5 +234,3 @@ def align(scene: Scene, q: np.ndarray, q_ref: np.ndarray, neutral: Sequence[str]
             q = pin.integrate(model, q, -shift * d)
             moved[name] = shift
     return q, moved
-
-

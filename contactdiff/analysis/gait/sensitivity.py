@@ -90,13 +90,20 @@ class GaitSensitivity:
 
     def to_dict(self) -> dict:
         """JSON-ready data (complex numbers as [real, imag])."""
+
         def cplx(a):
             return np.stack([np.real(a), np.imag(a)], axis=-1).tolist()
-        return {"parameter_names": list(self.parameter_names), "values": self.values.tolist(),
-                "fixed_point": self.fixed_point.tolist(), "stride_time": self.stride_time.tolist(),
-                "multipliers": cplx(self.multipliers), "multiplier_derivatives": cplx(self.multiplier_derivatives),
-                "modulus_gradient": [self.modulus_gradient(k).tolist() for k in range(len(self.multipliers))],
-                "steps": self.steps.tolist()}
+
+        return {
+            "parameter_names": list(self.parameter_names),
+            "values": self.values.tolist(),
+            "fixed_point": self.fixed_point.tolist(),
+            "stride_time": self.stride_time.tolist(),
+            "multipliers": cplx(self.multipliers),
+            "multiplier_derivatives": cplx(self.multiplier_derivatives),
+            "modulus_gradient": [self.modulus_gradient(k).tolist() for k in range(len(self.multipliers))],
+            "steps": self.steps.tolist(),
+        }
 
     def format(self) -> str:
         """A table: per parameter, its value, dT/dp and d|λ|/dp of each multiplier differentiated."""
@@ -117,19 +124,31 @@ def _simple_eigenpair(J: np.ndarray, lam: complex, k: int):
     m = int(np.argmin(np.abs(values - lam)))
     scale = max(1.0, abs(lam))
     if abs(values[m] - lam) > 1e-6 * scale:
-        raise InvalidInputError(f"multiplier {k} ({lam:.6g}) is not an eigenvalue of the stride Jacobian "
-                                f"(nearest {values[m]:.6g}): is the gait converged?")
+        raise InvalidInputError(
+            f"multiplier {k} ({lam:.6g}) is not an eigenvalue of the stride Jacobian "
+            f"(nearest {values[m]:.6g}): is the gait converged?"
+        )
     others = np.delete(values, m)
     if others.size and np.min(np.abs(others - values[m])) <= REPEATED_TOL * scale:
         near = others[int(np.argmin(np.abs(others - values[m])))]
-        raise InvalidInputError(f"multiplier {k} ({lam:.6g}) is a repeated eigenvalue of the stride Jacobian "
-                                f"(another at {near:.6g}): it has no derivative; choose simple ones with which=")
+        raise InvalidInputError(
+            f"multiplier {k} ({lam:.6g}) is a repeated eigenvalue of the stride Jacobian "
+            f"(another at {near:.6g}): it has no derivative; choose simple ones with which="
+        )
     return right[:, m], left[:, m]
 
 
-def gait_sensitivity(scene: Scene, gait: PeriodicGait, parameters: Sequence[str], *, which: Sequence[int] = (0,),
-                     step: float = DEFAULT_STEP, newton: int = 4, tol: float = 1e-10, **stride_options
-                     ) -> GaitSensitivity:
+def gait_sensitivity(
+    scene: Scene,
+    gait: PeriodicGait,
+    parameters: Sequence[str],
+    *,
+    which: Sequence[int] = (0,),
+    step: float = DEFAULT_STEP,
+    newton: int = 4,
+    tol: float = 1e-10,
+    **stride_options,
+) -> GaitSensitivity:
     """Derivatives of ``gait`` (a converged `find_periodic_gait` result on ``scene``) with
     respect to ``parameters``: fixed point, stride time and the multipliers ``which``
     (indices into ``gait.multipliers``, by decreasing modulus; default the largest).
@@ -154,16 +173,19 @@ def gait_sensitivity(scene: Scene, gait: PeriodicGait, parameters: Sequence[str]
     if not isinstance(gait, PeriodicGait):
         raise InvalidInputError(f"gait must be a PeriodicGait (find_periodic_gait), got {gait!r}")
     if not gait.converged:
-        raise InvalidInputError("gait_sensitivity: the gait did not converge (residual "
-                                f"{gait.residuals[-1]:.3g}); its derivatives are those of no fixed point")
+        raise InvalidInputError(
+            "gait_sensitivity: the gait did not converge (residual "
+            f"{gait.residuals[-1]:.3g}); its derivatives are those of no fixed point"
+        )
     names = [parameters] if isinstance(parameters, str) else list(parameters)
     values = scene.parameter_values(names)
     step = check_number("gait_sensitivity", "step", step, minimum=1e-12)
     which = tuple(int(k) for k in which)
     for k in which:
         if not 0 <= k < len(gait.multipliers):
-            raise InvalidInputError(f"gait_sensitivity: which = {k} is not a multiplier index; valid: "
-                                    f"0..{len(gait.multipliers) - 1}")
+            raise InvalidInputError(
+                f"gait_sensitivity: which = {k} is not a multiplier index; valid: 0..{len(gait.multipliers) - 1}"
+            )
     clock = gait.stride.period
     sim = dict(stride_options, period=False if clock is None else clock)
     stride = stride_map(scene, gait.foot, gait.q, gait.v, gait.t, parameters=names, **sim)
@@ -183,12 +205,22 @@ def gait_sensitivity(scene: Scene, gait: PeriodicGait, parameters: Sequence[str]
     if which:
         pairs = [_simple_eigenpair(J, lam, k) for lam, k in zip(lams, which)]
         for j, (name, value, h) in enumerate(zip(names, values, steps)):
-            dJ = (_reconverged_jacobian(scene, gait, name, value, h, dx[:, j], newton, tol, sim)
-                  - _reconverged_jacobian(scene, gait, name, value, -h, dx[:, j], newton, tol, sim)) / (2 * h)
+            dJ = (
+                _reconverged_jacobian(scene, gait, name, value, h, dx[:, j], newton, tol, sim)
+                - _reconverged_jacobian(scene, gait, name, value, -h, dx[:, j], newton, tol, sim)
+            ) / (2 * h)
             for i, (v, w) in enumerate(pairs):
                 dlam[i, j] = (w.conj() @ dJ @ v) / (w.conj() @ v)
-    return GaitSensitivity(parameter_names=tuple(names), values=values, fixed_point=dx, stride_time=dT,
-                           multipliers=lams, multiplier_derivatives=dlam, steps=steps, stride=stride)
+    return GaitSensitivity(
+        parameter_names=tuple(names),
+        values=values,
+        fixed_point=dx,
+        stride_time=dT,
+        multipliers=lams,
+        multiplier_derivatives=dlam,
+        steps=steps,
+        stride=stride,
+    )
 
 
 def _reconverged_jacobian(scene, gait, name, value, h, direction, newton, tol, sim) -> np.ndarray:
@@ -197,12 +229,14 @@ def _reconverged_jacobian(scene, gait, name, value, h, direction, newton, tol, s
     moved = scene.with_parameters({name: value + h})
     nv = scene.nv
     q = onto_section(moved, gait.foot, pin.integrate(scene.model, gait.q, h * direction[:nv]))
-    v = gait.v + h * direction[nv:2 * nv]
+    v = gait.v + h * direction[nv : 2 * nv]
     t = gait.t + (h * direction[2 * nv] if gait.stride.period is not None else 0.0)
     again = find_periodic_gait(moved, gait.foot, q, v, t, iterations=newton, tol=tol, neutral=gait.neutral, **sim)
     if not again.converged:
-        raise InvalidInputError(f"gait_sensitivity: the gait did not re-converge with {name} = {value + h:.9g} "
-                                f"(residual {again.residuals[-1]:.3g}); try a smaller step")
+        raise InvalidInputError(
+            f"gait_sensitivity: the gait did not re-converge with {name} = {value + h:.9g} "
+            f"(residual {again.residuals[-1]:.3g}); try a smaller step"
+        )
     return again.stride.extended_jacobian()
 
 

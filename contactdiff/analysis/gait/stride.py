@@ -203,21 +203,36 @@ class Stride:
 
     def summary(self) -> dict:
         """The stride as JSON-ready data: ends, states, Jacobians where computed."""
-        out = {"scene": self.scene_name, "foot": self.foot, "t0": self.t0, "t": self.t,
-               "stride_time": self.stride_time, "q0": self.q0.tolist(), "v0": self.v0.tolist(),
-               "q": self.q.tolist(), "v": self.v.tolist(), "period": self.period,
-               "events": [f"{e.t:.12g} {e.kind} {'+'.join(e.contacts)}" for e in self.trajectory.events],
-               "differentiable": self.differentiable, "simultaneous": list(self.simultaneous)}
+        out = {
+            "scene": self.scene_name,
+            "foot": self.foot,
+            "t0": self.t0,
+            "t": self.t,
+            "stride_time": self.stride_time,
+            "q0": self.q0.tolist(),
+            "v0": self.v0.tolist(),
+            "q": self.q.tolist(),
+            "v": self.v.tolist(),
+            "period": self.period,
+            "events": [f"{e.t:.12g} {e.kind} {'+'.join(e.contacts)}" for e in self.trajectory.events],
+            "differentiable": self.differentiable,
+            "simultaneous": list(self.simultaneous),
+        }
         if self.jacobian is not None:
             assert self.time_gradient is not None and self.start_time_column is not None  # computed with it
-            out |= {"jacobian": self.jacobian.tolist(), "time_gradient": self.time_gradient.tolist(),
-                    "start_time_column": self.start_time_column.tolist(),
-                    "start_time_derivative": self.start_time_derivative}
+            out |= {
+                "jacobian": self.jacobian.tolist(),
+                "time_gradient": self.time_gradient.tolist(),
+                "start_time_column": self.start_time_column.tolist(),
+                "start_time_derivative": self.start_time_derivative,
+            }
         if self.parameter_jacobian is not None:
             assert self.parameter_time_gradient is not None  # computed with it
-            out |= {"parameter_names": list(self.parameter_names),
-                    "parameter_jacobian": self.parameter_jacobian.tolist(),
-                    "parameter_time_gradient": self.parameter_time_gradient.tolist()}
+            out |= {
+                "parameter_names": list(self.parameter_names),
+                "parameter_jacobian": self.parameter_jacobian.tolist(),
+                "parameter_time_gradient": self.parameter_time_gradient.tolist(),
+            }
         return out
 
 
@@ -233,8 +248,18 @@ class StrideLoop(HybridLoop):
     reset Jacobian of an impact at ``t0`` by the full saltation matrix of the
     foot's guard (see the module docstring)."""
 
-    def __init__(self, scene, foot: int, t0, t_max, q0, v0, options: SimulateOptions,
-                 min_stride: float = 0.0, min_flight: float = 0.0):
+    def __init__(
+        self,
+        scene,
+        foot: int,
+        t0,
+        t_max,
+        q0,
+        v0,
+        options: SimulateOptions,
+        min_stride: float = 0.0,
+        min_flight: float = 0.0,
+    ):
         super().__init__(scene, t0, t_max, q0, v0, options)
         self.foot, self.t_earliest, self.min_flight = foot, t0 + min_stride, min_flight
         # last time the foot was on the ground (s); the start counts as such, so a
@@ -255,14 +280,14 @@ class StrideLoop(HybridLoop):
         closed = [i for i in range(len(self.contacts)) if self.names[i] in start.impulses]
         _, rates = self._gaps_and_rates(start.q, v)
         landing = [i for i in closed if i != self.foot and rates[i] < -self.options.grazing_speed]
-        before = choose_mode(self.dyn, start.q, v, self.t0,
-                             [i for i in closed if i != self.foot and i not in landing])
+        before = choose_mode(self.dyn, start.q, v, self.t0, [i for i in closed if i != self.foot and i not in landing])
         F_minus = vector_field(self.dyn, start.q, v, self.t0, before)
         if landing and self.jumps is not None:
             raise InvalidInputError(
                 f"stride map: the start touchdown of {self.names[self.foot]} is simultaneous with "
                 f"{', '.join(self.names[k] for k in landing)}; parameter derivatives of such a stride (a "
-                "one-sided derivative) are not available: start the stride from another foot's touchdown")
+                "one-sided derivative) are not available: start the stride from another foot's touchdown"
+            )
         if landing:
             # other contacts land at the same instant: on the section they can only be
             # raised (land later), so the one-sided derivative is the foot first, then
@@ -274,17 +299,24 @@ class StrideLoop(HybridLoop):
                     continue  # separating after the earlier impacts
                 step = touchdown(self.dyn, self.t0, start.q, vel, current, [k], guard=k)
                 xi, vel, current = step.saltation @ xi, step.v_plus, step.mode_after
-            self.notes.append(f"the start touchdown of {self.names[self.foot]} is simultaneous with "
-                              f"{', '.join(self.names[k] for k in landing)}: one-sided derivative "
-                              "(those landing at the same time or later)")
+            self.notes.append(
+                f"the start touchdown of {self.names[self.foot]} is simultaneous with "
+                f"{', '.join(self.names[k] for k in landing)}: one-sided derivative "
+                "(those landing at the same time or later)"
+            )
         else:
             Dh = gap_gradient(self.dyn, start.q, self.foot)
             F_plus = vector_field(self.dyn, start.q, v_plus, self.t0, mode)
             xi = saltation(start.saltation, Dh, F_minus, F_plus)
             if self.jumps is not None:  # the same guard term for the parameters (module doc)
                 start.parameter_saltation = ParameterJumps.saltation(
-                    start.parameter_saltation, self.jumps.gap_guard(self.foot), start.saltation, F_minus, F_plus,
-                    float(Dh @ F_minus))
+                    start.parameter_saltation,
+                    self.jumps.gap_guard(self.foot),
+                    start.saltation,
+                    F_minus,
+                    F_plus,
+                    float(Dh @ F_minus),
+                )
         start.saltation = xi
         self.initial_saltation = self._jumped(self._identity_phi(), start)
         self.start = (before, F_minus, tuple(self.names[k] for k in landing))
@@ -294,9 +326,13 @@ class StrideLoop(HybridLoop):
         """The foot's touchdown that ends the stride is terminal; every event where the
         foot is on the ground moves the start of its flight."""
         stop = False
-        if (self.names[self.foot] in event.contacts and event.kind not in (EventKind.LIFT_OFF, EventKind.SLIP)
-                and event.t >= self.t_earliest and event.t - self.last_contact >= self.min_flight
-                and self.hit is None):
+        if (
+            self.names[self.foot] in event.contacts
+            and event.kind not in (EventKind.LIFT_OFF, EventKind.SLIP)
+            and event.t >= self.t_earliest
+            and event.t - self.last_contact >= self.min_flight
+            and self.hit is None
+        ):
             self.hit = (event, tuple(mode_before), phi_before)
             stop = True
         if self._touches(event):
@@ -306,15 +342,28 @@ class StrideLoop(HybridLoop):
     def _touches(self, event) -> bool:
         """Whether the foot is on the ground at ``event`` (before, in or after it)."""
         name = self.names[self.foot]
-        return (name in event.contacts or name in event.impulses or name in event.mode_before
-                or name in event.mode_after)
+        return name in event.contacts or name in event.impulses or name in event.mode_before or name in event.mode_after
 
 
-def stride_map(scene: Scene, foot: str, q: ArrayLike, v: ArrayLike, t: float = 0.0, *, t_max: float = 10.0,
-               min_stride: float | None = None, min_flight: float | None = None,
-               period: float | None = None, jacobian: bool = True, parameters: Sequence[str] = (),
-               rtol: float = STRIDE_RTOL, atol: float = STRIDE_ATOL, method: str = STRIDE_METHOD,
-               max_events: int = 1000, **options: Any) -> Stride:
+def stride_map(
+    scene: Scene,
+    foot: str,
+    q: ArrayLike,
+    v: ArrayLike,
+    t: float = 0.0,
+    *,
+    t_max: float = 10.0,
+    min_stride: float | None = None,
+    min_flight: float | None = None,
+    period: float | None = None,
+    jacobian: bool = True,
+    parameters: Sequence[str] = (),
+    rtol: float = STRIDE_RTOL,
+    atol: float = STRIDE_ATOL,
+    method: str = STRIDE_METHOD,
+    max_events: int = 1000,
+    **options: Any,
+) -> Stride:
     """The stride map of ``foot``: from just before one of its touchdowns to just before the next.
 
     Args:
@@ -366,23 +415,42 @@ def stride_map(scene: Scene, foot: str, q: ArrayLike, v: ArrayLike, t: float = 0
     if abs(gap) > SECTION_TOL:
         raise InvalidInputError(
             f"stride map: the start must be a touchdown of {foot!r} (gap 0), got gap {gap:.3e} m; "
-            "start from first_touchdown(...) or move q with onto_section(...)")
+            "start from first_touchdown(...) or move q with onto_section(...)"
+        )
     if not rate < 0:
         raise InvalidInputError(
-            f"stride map: {foot!r} must be approaching the ground at the start (normal speed < 0), "
-            f"got {rate:.3e} m/s")
+            f"stride map: {foot!r} must be approaching the ground at the start (normal speed < 0), got {rate:.3e} m/s"
+        )
     q = onto_section(scene, foot, q)
     if parameters and not jacobian:
         raise InvalidInputError("stride map: parameters need jacobian=True")
     if parameters:
         options["parameters"] = parameters
-    min_stride = (0.5 * clock if clock else 0.0) if min_stride is None else \
-        check_number("stride map", "min_stride", min_stride, minimum=0.0)
+    min_stride = (
+        (0.5 * clock if clock else 0.0)
+        if min_stride is None
+        else check_number("stride map", "min_stride", min_stride, minimum=0.0)
+    )
     if min_stride >= t_max:
         raise InvalidInputError(f"stride map: min_stride ({min_stride:g} s) must be below t_max ({t_max:g} s)")
-    return _run_stride(scene, i, q, v, t, t + t_max, clock, jacobian, require_start=True, min_stride=min_stride,
-                       min_flight=_min_flight(min_flight, clock, "stride map"),
-                       rtol=rtol, atol=atol, method=method, max_events=max_events, **options)
+    return _run_stride(
+        scene,
+        i,
+        q,
+        v,
+        t,
+        t + t_max,
+        clock,
+        jacobian,
+        require_start=True,
+        min_stride=min_stride,
+        min_flight=_min_flight(min_flight, clock, "stride map"),
+        rtol=rtol,
+        atol=atol,
+        method=method,
+        max_events=max_events,
+        **options,
+    )
 
 
 def _min_flight(value, clock: float | None, where: str) -> float:
@@ -391,10 +459,21 @@ def _min_flight(value, clock: float | None, where: str) -> float:
     return check_number(where, "min_flight", value, minimum=0.0)
 
 
-def first_touchdown(scene: Scene, foot: str, q=None, v=None, t: float = 0.0, *, t_max: float = 10.0,
-                    min_flight: float | None = None, rtol: float = STRIDE_RTOL, atol: float = STRIDE_ATOL,
-                    method: str = STRIDE_METHOD, max_events: int = 1000,
-                    **options) -> tuple[float, np.ndarray, np.ndarray]:
+def first_touchdown(
+    scene: Scene,
+    foot: str,
+    q=None,
+    v=None,
+    t: float = 0.0,
+    *,
+    t_max: float = 10.0,
+    min_flight: float | None = None,
+    rtol: float = STRIDE_RTOL,
+    atol: float = STRIDE_ATOL,
+    method: str = STRIDE_METHOD,
+    max_events: int = 1000,
+    **options,
+) -> tuple[float, np.ndarray, np.ndarray]:
     """Simulate from ``(q, v, t)`` (default the scene's initial state) to the first
     touchdown of ``foot`` after ``t`` that follows a flight of at least ``min_flight``
     (s; default as in `stride_map`; the flight is counted from ``t`` at the
@@ -405,28 +484,66 @@ def first_touchdown(scene: Scene, foot: str, q=None, v=None, t: float = 0.0, *, 
     t = check_number("first touchdown", "t", t)
     q = scene.q0 if q is None else np.array(q, dtype=float)
     v = scene.v0 if v is None else np.array(v, dtype=float)
-    s = _run_stride(scene, i, q, v, t, t + _positive_duration("first touchdown", "t_max", t_max),
-                    None, False, require_start=False,
-                    min_flight=_min_flight(min_flight, scene_period(scene), "first touchdown"),
-                    rtol=rtol, atol=atol, method=method, max_events=max_events, **options)
+    s = _run_stride(
+        scene,
+        i,
+        q,
+        v,
+        t,
+        t + _positive_duration("first touchdown", "t_max", t_max),
+        None,
+        False,
+        require_start=False,
+        min_flight=_min_flight(min_flight, scene_period(scene), "first touchdown"),
+        rtol=rtol,
+        atol=atol,
+        method=method,
+        max_events=max_events,
+        **options,
+    )
     return s.t, s.q, s.v
 
 
-def _run_stride(scene, i, q, v, t0, t_end, clock, jacobian, require_start, min_stride: float = 0.0,
-                min_flight: float = 0.0, **options) -> Stride:
+def _run_stride(
+    scene,
+    i,
+    q,
+    v,
+    t0,
+    t_end,
+    clock,
+    jacobian,
+    require_start,
+    min_stride: float = 0.0,
+    min_flight: float = 0.0,
+    **options,
+) -> Stride:
     foot = scene.contact_names[i]
-    run = StrideLoop(scene, i, t0, t_end, q, v, SimulateOptions(jacobian=jacobian).replace(**options),
-                     min_stride=min_stride, min_flight=min_flight)
+    run = StrideLoop(
+        scene,
+        i,
+        t0,
+        t_end,
+        q,
+        v,
+        SimulateOptions(jacobian=jacobian).replace(**options),
+        min_stride=min_stride,
+        min_flight=min_flight,
+    )
     traj = run.run()
     if run.hit is None:
         seen = ", ".join(f"{e.kind} {'+'.join(e.contacts)} at {e.t:.6g}" for e in traj.events[-6:]) or "none"
-        raise StrideError(f"{foot!r} did not touch down again between t = {t0:g} and t_max = {t_end:g} s "
-                          f"(last events: {seen}); raise t_max or check that the gait returns to the ground")
+        raise StrideError(
+            f"{foot!r} did not touch down again between t = {t0:g} and t_max = {t_end:g} s "
+            f"(last events: {seen}); raise t_max or check that the gait returns to the ground"
+        )
     event, mode, phi = run.hit
     if event.kind not in _IMPACT_KINDS:
-        raise StrideError(f"the touchdown of {foot!r} at t = {event.t:.12g} is a {event.kind} event "
-                          f"(normal speed {event.normal_speeds.get(foot, float('nan')):.3e} m/s): the section "
-                          "is not crossed transversally, so the stride map has no derivative there")
+        raise StrideError(
+            f"the touchdown of {foot!r} at t = {event.t:.12g} is a {event.kind} event "
+            f"(normal speed {event.normal_speeds.get(foot, float('nan')):.3e} m/s): the section "
+            "is not crossed transversally, so the stride map has no derivative there"
+        )
     if require_start and (not traj.events or traj.events[0].t != t0 or foot not in traj.events[0].contacts):
         raise StrideError(f"no impact of {foot!r} at the start t = {t0:g}: the start is not a touchdown")
     t, q1, v1 = event.t, event.q.copy(), event.v_minus.copy()
@@ -438,7 +555,7 @@ def _run_stride(scene, i, q, v, t0, t_end, clock, jacobian, require_start, min_s
         F = vector_field(dyn, q1, v1, t, mode)
         rate = float(Dh @ F)
         project = np.eye(F.size) - np.outer(F, Dh) / rate
-        phi, phi_p = phi[:, :run.n_state], phi[:, run.n_state:]
+        phi, phi_p = phi[:, : run.n_state], phi[:, run.n_state :]
         J = project @ phi
         tg = -(Dh @ phi) / rate
         F0 = run.start[1] if run.start is not None else vector_field(dyn, q, v, t0, ())
@@ -452,9 +569,23 @@ def _run_stride(scene, i, q, v, t0, t_end, clock, jacobian, require_start, min_s
             if not np.all(np.isfinite(x)):
                 raise StrideError(f"the stride Jacobian of {foot!r} is not finite (touchdown rate {rate:.3e})")
     together = set(run.start[2] if run.start is not None else ()) | set(event.contacts)
-    return Stride(scene_name=scene.name, foot=foot, t0=t0, q0=traj.q0.copy(), v0=traj.v0.copy(), t=t, q=q1, v=v1,
-                  jacobian=J, time_gradient=tg, start_time_column=col, start_time_derivative=dt, period=clock,
-                  trajectory=traj, simultaneous=tuple(sorted(together - {foot})),
-                  parameter_names=traj.parameter_names, parameter_jacobian=J_p, parameter_time_gradient=tg_p)
-
-
+    return Stride(
+        scene_name=scene.name,
+        foot=foot,
+        t0=t0,
+        q0=traj.q0.copy(),
+        v0=traj.v0.copy(),
+        t=t,
+        q=q1,
+        v=v1,
+        jacobian=J,
+        time_gradient=tg,
+        start_time_column=col,
+        start_time_derivative=dt,
+        period=clock,
+        trajectory=traj,
+        simultaneous=tuple(sorted(together - {foot})),
+        parameter_names=traj.parameter_names,
+        parameter_jacobian=J_p,
+        parameter_time_gradient=tg_p,
+    )
