@@ -451,9 +451,14 @@ def _run_simulate(args) -> int:
         _check_html_path(args.html)
     scene = _scene_from_args(args)
     if args.html:  # a bad package folder or a mesh found nowhere is refused before the run
+        import warnings
+
+        from .model.mjcf import MJCFWarning
         from .replay_geometry import visual_model
 
-        visual_model(scene.robot, args.package_dir)
+        with warnings.catch_warnings():  # the replay itself says what it draws, once
+            warnings.simplefilter("ignore", MJCFWarning)
+            visual_model(scene.robot, args.package_dir)
     if "list" in args.param:
         if args.json:
             from .jsonable import to_jsonable

@@ -55,7 +55,7 @@ import pinocchio as pin
 
 from .errors import InvalidInputError, check_output_file, require_extra, write_failed
 from .errors import MissingExtraError as MissingExtraError  # its home until it moved to errors.py
-from .replay_frames import DEFAULT_FPS, Frames, ReplayedRun, _positive, sample_frames
+from .replay_frames import DEFAULT_FPS, Frames, ReplayedRun, positive_option, sample_frames
 from .replay_geometry import contact_surfaces, drawn_geometry, marker_radius, model_size, visible_marker_radius
 
 if TYPE_CHECKING:
@@ -168,9 +168,9 @@ def replay_html(
             f"{scene.name!r}'s robot has nq = {robot.nq}; pass the scene it was computed on"
         )
     size = model_size(robot, traj.q0)
-    radius = marker_radius(robot, size) if contact_radius is None else _positive(contact_radius, "contact_radius")
+    radius = marker_radius(robot, size) if contact_radius is None else positive_option(contact_radius, "contact_radius")
     frames = sample_frames(traj, fps)
-    fps = _positive(fps, "fps", "frames per second")
+    fps = positive_option(fps, "fps", "frames per second")
     distance = _camera_distance(robot, frames, size)
     points = _contact_points(scene, frames)
 

@@ -116,7 +116,7 @@ def frame_times(traj: ReplayedRun, fps: float = DEFAULT_FPS) -> tuple[np.ndarray
     misses it), merged with the event times; a grid time within 1e-9 s of an event
     is dropped for it.
     """
-    fps = _positive(fps, "fps", "frames per second")
+    fps = positive_option(fps, "fps", "frames per second")
     span = traj.t - traj.t0
     n = int(math.floor(span * fps + 1e-9)) + 1
     if n > MAX_FRAMES:
@@ -155,7 +155,7 @@ def sample_frames(traj: ReplayedRun, fps: float = DEFAULT_FPS) -> Frames:
     return Frames(times, np.array(qs), modes, is_event)
 
 
-def _positive(value, name: str, unit: str = "m") -> float:
+def positive_option(value, name: str, unit: str = "m") -> float:
     """``value`` as a finite float > 0, else `InvalidInputError` naming it and its unit."""
     try:
         out = float(value)

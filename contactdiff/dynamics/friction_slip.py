@@ -293,7 +293,7 @@ class SlipMap:
 
 
 @dataclass
-class _Eval:
+class CandidateEval:
     """One candidate of a frictional impact at given slip states and directions: its
     impulses ``lam`` (N s) and post-impact velocity ``up``, the unknowns ``z`` of its
     linear system (``lam = B z``) and that system's matrix ``K`` (None without unknowns)."""
@@ -321,7 +321,7 @@ class SlipDirections:
         _fp: tuple[np.ndarray, np.ndarray] | None
         _grids: dict[tuple[int, ...], tuple]
 
-        def evaluate(self, states, dirs, lay) -> _Eval:
+        def evaluate(self, states, dirs, lay) -> CandidateEval:
             """The candidate at the given states and slip directions (the subclass's)."""
 
     def slip_roots(self, states, dirs, spatial, lay) -> Iterator[np.ndarray]:

@@ -117,7 +117,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import EnergyGainError, InvalidInputError, SolverError
-from .friction_slip import SLIP_ZERO, SlipDirections, _Eval
+from .friction_slip import SLIP_ZERO, CandidateEval, SlipDirections
 from .lcp_problem import DEFAULT_TOL, ContactRows, _as_real_array, _as_vector, _validate
 from .redundant import gram_range_basis
 
@@ -445,11 +445,11 @@ class _Impact(SlipDirections):
             B[self.tang[k], cs] = 1.0  # the identity block of a sticking contact's tangential rows
         return B
 
-    def evaluate(self, states, dirs, lay) -> _Eval:
+    def evaluate(self, states, dirs, lay) -> CandidateEval:
         _, _, eq, p = lay
         B = self.build_B(states, dirs, lay)
         if p == 0:
-            return _Eval(np.zeros(self.m), self.u.copy(), np.zeros(0), None)
+            return CandidateEval(np.zeros(self.m), self.u.copy(), np.zeros(0), None)
         K = (self.G @ B)[eq]
         rhs = -self.b[eq]
         U = self.equality_basis(eq)
@@ -461,7 +461,7 @@ class _Impact(SlipDirections):
             except np.linalg.LinAlgError:
                 z = np.full(p, np.nan)
             lam = B @ z
-            return _Eval(lam, self.u + self.G @ lam, z, K)
+            return CandidateEval(lam, self.u + self.G @ lam, z, K)
         try:
             z = np.linalg.solve(K, rhs)
             if not np.isfinite(z).all():
@@ -469,7 +469,7 @@ class _Impact(SlipDirections):
         except np.linalg.LinAlgError:
             z = np.linalg.lstsq(K, rhs, rcond=None)[0]
         lam = B @ z
-        return _Eval(lam, self.u + self.G @ lam, z, K)
+        return CandidateEval(lam, self.u + self.G @ lam, z, K)
 
     def try_candidate(self, states, signs: dict[int, float], spatial: list[int]) -> FrictionalImpact | None:
         lay = self.layout(states)
@@ -523,7 +523,7 @@ class _Impact(SlipDirections):
                 vw = max(vw, float(np.linalg.norm(ut - np.linalg.norm(ut) * d)))
         return max(vx / xmax if vx > 0.0 else 0.0, vw / s_w)
 
-    def check(self, states, dirs, ev: _Eval, signs, method: str) -> FrictionalImpact | None:
+    def check(self, states, dirs, ev: CandidateEval, signs, method: str) -> FrictionalImpact | None:
         res = self.residual(states, dirs, ev.lam, ev.up)
         if not np.isfinite(res):
             res = np.inf

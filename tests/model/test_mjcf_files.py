@@ -151,6 +151,28 @@ def test_missing_meshes_load_and_the_replay_draws_spheres_and_says_so(tmp_path):
     assert geoms.ngeoms >= 1 and all(type(g.geometry).__name__ == "Sphere" for g in geoms.geometryObjects)
 
 
+def test_the_replay_command_says_once_that_it_draws_spheres(tmp_path):
+    """`contactdiff simulate --html` of an MJCF robot without its meshes: one warning that
+    the replay draws spheres (the command also looks for the meshes before the run)."""
+    import warnings
+
+    pytest.importorskip("meshcat", reason="the replay needs the viz extra")
+    from contactdiff.cli import main
+    from contactdiff.model.mjcf import MJCFWarning
+
+    text = FREE_XML.replace(
+        "<worldbody>", '<compiler meshdir="assets"/><asset><mesh file="hull.stl"/></asset><worldbody>'
+    ).replace("<freejoint/>", '<freejoint/><geom type="mesh" mesh="hull"/>')
+    model = write(tmp_path, "hull.xml", text)
+    scene = tmp_path / "scene.toml"
+    scene.write_text(f'robot = "{model.as_posix()}"\n')
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert main(["simulate", str(scene), "--t-final", "0.01", "--html", str(tmp_path / "r.html")]) == 0
+    drawn = [w for w in caught if issubclass(w.category, MJCFWarning) and "drawn as spheres" in str(w.message)]
+    assert len(drawn) == 1
+
+
 def test_a_scene_file_including_the_robot_is_the_robot(tmp_path):
     """Menagerie's ``scene.xml`` pattern: include the robot, add a <worldbody> with a floor
     and a light. MuJoCo reads the two worldbody sections as one; so does the loader."""
