@@ -11,8 +11,6 @@ parameters, their blocks (`contactdiff.integration.parameter_jumps`).
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 
 from ..dynamics.frictional_impact import ContactState
@@ -21,6 +19,7 @@ from ..dynamics.redundant import row_rank
 from ..errors import GrazingError
 from .friction_events import refuse_ambiguous_slip, settle_friction
 from .guards import Guard, GuardKind
+from .loop_events import LoopEvents
 from .options import OnGrazing
 from .parameter_jumps import ParameterJumps
 from .projection import close, held_velocity, held_velocity_jacobian, mode_rows
@@ -36,13 +35,6 @@ from .sensitivity import (
 )
 from .trajectory import Event, EventKind, NonSmooth
 
-if TYPE_CHECKING:
-    from ..dynamics.mode import ModeDynamics
-    from ..model.contacts import BoundContact
-    from ..model.kinematics import Kinematics
-    from ..model.scene import Scene
-    from .options import SimulateOptions
-
 CREEP_FACTOR = 10.0
 """A contact that an impact leaves slipping slower than this many slip-speed floors
 (``zeno_speed``) is held and sticks or slips by its forces: in an impact cascade the
@@ -55,29 +47,8 @@ RESTING_GAP_TOL = 1e-9
 the velocities (the impact law's round-off is about 1e-15 of them) count as one."""
 
 
-class EventResets:
+class EventResets(LoopEvents):
     """The loop's event handling (module doc)."""
-
-    if TYPE_CHECKING:  # the state it borrows from HybridLoop (set there), for the type checker only
-        scene: Scene
-        dyn: ModeDynamics
-        kin: Kinematics
-        contacts: list[BoundContact]
-        names: list[str]
-        options: SimulateOptions
-        events: list[Event]
-        notes: list[str]
-        phi: np.ndarray | None
-        n_state: int
-        jumps: ParameterJumps | None
-        sensitive: bool
-        gap_tol: float
-
-        def _gaps_and_rates(self, q, v) -> tuple[np.ndarray, np.ndarray]: ...
-        def _mode_names(self, mode) -> tuple[str, ...]: ...
-        def _sliding_names(self, mode) -> tuple[str, ...]: ...
-        def _friction_event(self, t, q, v, mode, fired: list[Guard]): ...
-        def _bear_event(self, t, q, v, mode, bearing: list[int]): ...
 
     def _event(self, t, q, v, mode, fired: list[Guard]):
         dyn = self.dyn
@@ -108,19 +79,7 @@ class EventResets:
             if any(dyn.is_sliding(k) and k not in mode and k not in unheld for k in new_mode)
             else EventKind.LIFT_OFF
         )
-        event = Event(
-            t=t,
-            kind=kind,
-            contacts=self._mode_names(releasing),
-            simultaneous=len(releasing) > 1,
-            q=q.copy(),
-            v_minus=v.copy(),
-            v_plus=v.copy(),
-            impulses={},
-            mode_before=self._mode_names(mode),
-            mode_after=self._mode_names(new_mode),
-            sliding=self._sliding_names(new_mode),
-        )
+        event = self._impulseless_event(t, kind, releasing, len(releasing) > 1, q, v, v, mode, new_mode)
         if self.sensitive:
             # guard: the normal force of the first releasing contact; with several at once
             # (a simultaneous lift-off) the saltation is the product of the single

@@ -54,8 +54,6 @@ stick or slip on): the paper's stick/slip threshold. Those events carry
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 
 from ..dynamics.mode import ModeDynamics, ModeSolution
@@ -63,14 +61,11 @@ from ..dynamics.redundant import row_rank
 from ..dynamics.slip import reference_turn
 from ..errors import PainleveError, SolverError
 from .guards import Guard, GuardKind
+from .loop_events import LoopEvents
 from .parameter_jumps import ParameterJumps
 from .projection import held_velocity, held_velocity_jacobian, mode_rows
 from .sensitivity import saltation, vector_field
 from .trajectory import Event, EventKind, NonSmooth
-
-if TYPE_CHECKING:
-    from ..model.scene import Scene
-    from .options import SimulateOptions
 
 THRESHOLD_TOL = 1e-9
 """Relative distance to the friction cone's boundary (of ``μ λ_N``), and relative
@@ -234,36 +229,8 @@ def stop_guard(dyn: ModeDynamics, q, v, key: int) -> np.ndarray:
     return np.concatenate([s @ full.rows_velocity_dq(kin)[1:], s @ A_T])
 
 
-class FrictionEvents:
+class FrictionEvents(LoopEvents):
     """The loop's stick → slip and slip → stick events (module doc)."""
-
-    if TYPE_CHECKING:  # the state it borrows from HybridLoop (set there), for the type checker only
-        scene: Scene
-        dyn: ModeDynamics
-        names: list[str]
-        options: SimulateOptions
-        events: list[Event]
-        jumps: ParameterJumps | None
-        sensitive: bool
-        gap_tol: float
-        phi: np.ndarray | None
-        n_state: int
-        onsets: dict[int, np.ndarray]
-
-        def _gaps_and_rates(self, q, v) -> tuple[np.ndarray, np.ndarray]: ...
-        def _mode_names(self, mode) -> tuple[str, ...]: ...
-        def _sliding_names(self, mode) -> tuple[str, ...]: ...
-        def _note(self, text: str) -> str: ...
-        def _attach_sensitivity(
-            self,
-            event: Event,
-            xi: np.ndarray,
-            Dh: np.ndarray,
-            F_minus: np.ndarray,
-            h_t: float = 0.0,
-            xi_p: np.ndarray | None = None,
-            h_p: np.ndarray | None = None,
-        ) -> None: ...
 
     def _friction_event(self, t, q, v, mode, fired: list[Guard]):
         dyn = self.dyn
@@ -303,20 +270,7 @@ class FrictionEvents:
                 new_mode, settled = bearing
         stuck = [dyn.contact_index(k) for k in stops if dyn.contact_index(k) in new_mode]
         kind = EventKind.STICK if stuck and not cone else EventKind.SLIP
-        fired_names = self._mode_names(cone + stops)
-        event = Event(
-            t=t,
-            kind=kind,
-            contacts=fired_names,
-            simultaneous=len(fired) > 1,
-            q=q.copy(),
-            v_minus=v.copy(),
-            v_plus=v_plus.copy(),
-            impulses={},
-            mode_before=self._mode_names(mode),
-            mode_after=self._mode_names(new_mode),
-            sliding=self._sliding_names(new_mode),
-        )
+        event = self._impulseless_event(t, kind, cone + stops, len(fired) > 1, q, v, v_plus, mode, new_mode)
         if cone:
             Dh, F_minus, h_t, solved, cone_size = cone_guard(dyn, t, q, v, mode, cone[0])
             DR = None

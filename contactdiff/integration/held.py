@@ -36,13 +36,11 @@ from ..dynamics.mode import ModeDynamics
 from ..dynamics.redundant import row_rank
 from ..errors import PainleveError, SolverError
 from .friction_events import settle_friction
+from .loop_events import LoopEvents
 from .parameter_jumps import ParameterJumps
 from .projection import mode_rows
 from .sensitivity import liftoff_guard, saltation, vector_field
-from .trajectory import Event, EventKind
-
-if TYPE_CHECKING:
-    from ..model.scene import Scene
+from .trajectory import EventKind
 
 
 def held_contacts(
@@ -146,31 +144,13 @@ class HoldingField(Protocol):
     """``{scene index: key}`` of the held contacts (`held_contacts`)."""
 
 
-class HeldEvents:
+class HeldEvents(LoopEvents):
     """The loop's ``bear`` events (module doc); a mixin of
     `contactdiff.integration.hybrid.HybridLoop` (its state as for
     `contactdiff.integration.event_resets`; ``fields[-1]`` is the mode's field)."""
 
-    if TYPE_CHECKING:  # the state it borrows from HybridLoop (set there), for the type checker only
-        scene: Scene
-        dyn: ModeDynamics
+    if TYPE_CHECKING:  # besides the state of every event mixin (LoopEvents)
         fields: Sequence[HoldingField]  # the loop's ModeField objects
-        events: list[Event]
-        jumps: ParameterJumps | None
-        sensitive: bool
-
-        def _mode_names(self, mode) -> tuple[str, ...]: ...
-        def _sliding_names(self, mode) -> tuple[str, ...]: ...
-        def _attach_sensitivity(
-            self,
-            event: Event,
-            xi: np.ndarray,
-            Dh: np.ndarray,
-            F_minus: np.ndarray,
-            h_t: float = 0.0,
-            xi_p: np.ndarray | None = None,
-            h_p: np.ndarray | None = None,
-        ) -> None: ...
 
     def _bear_event(self, t, q, v, mode, bearing: list[int]):
         """The held contacts ``bearing`` (scene indices) join ``mode`` at ``(t, q, v)``: no
@@ -180,19 +160,7 @@ class HeldEvents:
         held = self.fields[-1].held
         keys = [held[i] for i in bearing]
         new_mode, _ = settle_friction(dyn, q, v, t, tuple(sorted((*mode, *keys))))
-        event = Event(
-            t=t,
-            kind=EventKind.BEAR,
-            contacts=self._mode_names(keys),
-            simultaneous=len(keys) > 1,
-            q=q.copy(),
-            v_minus=v.copy(),
-            v_plus=v.copy(),
-            impulses={},
-            mode_before=self._mode_names(mode),
-            mode_after=self._mode_names(new_mode),
-            sliding=self._sliding_names(new_mode),
-        )
+        event = self._impulseless_event(t, EventKind.BEAR, keys, len(keys) > 1, q, v, v, mode, new_mode)
         if self.sensitive:
             Dh, h_t = bear_guard(dyn, t, q, v, mode, keys[0])
             F_minus, F_plus = vector_field(dyn, q, v, t, mode), vector_field(dyn, q, v, t, new_mode)
