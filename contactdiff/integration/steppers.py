@@ -1,37 +1,6 @@
 """The steppers' former home, kept so that ``contactdiff.integration.steppers`` imports
 keep working: the steppers live in `contactdiff.ode` (the factory in
-`contactdiff.ode.factory`)."""
+`contactdiff.ode.factory`), whose names this module re-exports as they are."""
 
-from ..ode.factory import (
-    DOP853,
-    METHODS,
-    RK45,
-    AccelFn,
-    DenseOutput,
-    ExplicitRK,
-    JacFn,
-    LazyDenseOutput,
-    LieGroup,
-    PinocchioGroup,
-    Radau,
-    Stepper,
-    VectorSpace,
-    make_stepper,
-)
-
-__all__ = [
-    "METHODS",
-    "AccelFn",
-    "JacFn",
-    "LieGroup",
-    "VectorSpace",
-    "PinocchioGroup",
-    "DenseOutput",
-    "LazyDenseOutput",
-    "Stepper",
-    "ExplicitRK",
-    "RK45",
-    "DOP853",
-    "Radau",
-    "make_stepper",
-]
+from ..ode.factory import *  # noqa: F403  (the factory's names, its __all__)
+from ..ode.factory import __all__  # noqa: F401

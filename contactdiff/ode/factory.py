@@ -4,14 +4,8 @@ The methods: `DOP853` and `RK45` (`contactdiff.ode.explicit_rk`), `Radau`
 (`contactdiff.ode.radau`), all on the `Stepper` base
 (`contactdiff.ode.base`: what a new method implements; the state, units, frames and
 the flow Jacobian are the package's contract, `contactdiff.ode`), over a configuration
-space of `contactdiff.ode.lie`. A stepper is driven one accepted step at a time::
-
-    st = make_stepper("DOP853", accel, PinocchioGroup(model), t0, q0, v0,
-                      rtol=1e-10, atol=1e-12)
-    st.step()                       # one accepted step [st.t_old, st.t]
-    dense = st.dense()              # (q, v) = dense(t) on that interval
-    st.truncate(t_event)            # keep the step only up to an event
-    st.restart(t_event, q_plus, v_plus, phi=Xi @ st.phi)   # after a jump
+space of `contactdiff.ode.lie`; how a stepper is driven, one accepted step at a time:
+the package's docstring.
 """
 
 from __future__ import annotations
