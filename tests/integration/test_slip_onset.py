@@ -124,6 +124,16 @@ def _fd(scene, runs):
     return np.r_[pin.difference(scene.model, minus.q, plus.q), plus.v - minus.v] / (2 * EPS)
 
 
+def _mass_fd(scene, t_final, **options):
+    """Central differences (step ``EPS`` of the mass) of the state at ``t_final`` in the cube's
+    mass ``body:cube:mass`` (tangent space), and the two runs."""
+    h = EPS * MASS
+    runs = [
+        cd.simulate(scene.with_parameters({"body:cube:mass": MASS + s * h}), t_final, **options) for s in (1.0, -1.0)
+    ]
+    return np.r_[pin.difference(scene.model, runs[1].q, runs[0].q), runs[0].v - runs[1].v] / (2 * h), runs
+
+
 def _without_the_onset_term(monkeypatch):
     """Make the runs carry no onset term (the flow Jacobian before it was carried) until
     ``monkeypatch.undo()``."""
@@ -167,10 +177,8 @@ def test_mass_derivative_through_the_onset_matches_free_runs(onset, monkeypatch)
     differences; without the onset term it missed by 1.1e-4 (module doc), asserted above
     2 ``FD_RTOL``."""
     scene, _, traj = onset
-    h = EPS * MASS
-    runs = [cd.simulate(scene.with_parameters({"body:cube:mass": MASS + s * h}), T, **OPTS) for s in (1.0, -1.0)]
+    fd, runs = _mass_fd(scene, T, **OPTS)
     assert all(_events(r) == _events(traj) for r in runs)
-    fd = np.r_[pin.difference(scene.model, runs[1].q, runs[0].q), runs[0].v - runs[1].v] / (2 * h)
     exact = traj.parameter_jacobian[:, 0]
     assert np.abs(exact - fd).max() <= FD_RTOL * np.abs(fd).max(), np.abs(exact - fd).max()
     _without_the_onset_term(monkeypatch)
@@ -278,12 +286,8 @@ def test_a_start_whose_second_corner_slips_once_the_first_does(monkeypatch):
     names = scene.contact_names
     assert [names[i] for i, _ in rounds] == ["cube/-x-y-z", "cube/-x+y-z"] and rounds[0][1] != rounds[1][1]
     assert traj.events == [] and traj.segments[0].sliding == ("cube/-x+y-z", "cube/-x-y-z")
-    h = EPS * MASS
-    runs = [
-        cd.simulate(scene.with_parameters({"body:cube:mass": MASS + s * h}), t_final, **options) for s in (1.0, -1.0)
-    ]
+    fd, runs = _mass_fd(scene, t_final, **options)
     assert all(r.events == [] for r in runs)
-    fd = np.r_[pin.difference(scene.model, runs[1].q, runs[0].q), runs[0].v - runs[1].v] / (2 * h)
     scale = np.abs(fd).max()
     assert np.abs(traj.parameter_jacobian[:, 0] - fd).max() <= FD_RTOL * scale
     monkeypatch.setattr(friction_events, "reference_turn", lambda *args: None)  # no chain term
@@ -348,12 +352,8 @@ def test_a_corner_that_slips_from_rest_after_its_landing(monkeypatch):
         assert all(_events(r) == kinds for r in runs)
         fd = _fd(scene, runs)
         assert np.abs(traj.jacobian @ d - fd).max() <= FD_RTOL * np.abs(fd).max()
-    h = EPS * MASS
-    runs = [
-        cd.simulate(scene.with_parameters({"body:cube:mass": MASS + s * h}), t_final, **options) for s in (1.0, -1.0)
-    ]
+    fd, runs = _mass_fd(scene, t_final, **options)
     assert all(_events(r) == kinds for r in runs)
-    fd = np.r_[pin.difference(scene.model, runs[1].q, runs[0].q), runs[0].v - runs[1].v] / (2 * h)
     scale = np.abs(fd).max()
     assert np.abs(traj.parameter_jacobian[:, 0] - fd).max() <= FD_RTOL * scale
     _without_the_onset_term(monkeypatch)
@@ -388,12 +388,8 @@ def test_a_start_on_a_landing_whose_corner_slips_from_rest_after_it(monkeypatch)
         assert all(_events(r) == kinds for r in runs)
         fd = _fd(scene, runs)
         assert np.abs(traj.jacobian[:, scene.nv :] @ d - fd).max() <= FD_RTOL * np.abs(fd).max()
-    h = EPS * MASS
-    runs = [
-        cd.simulate(scene.with_parameters({"body:cube:mass": MASS + s * h}), t_final, **options) for s in (1.0, -1.0)
-    ]
+    fd, runs = _mass_fd(scene, t_final, **options)
     assert all(_events(r) == kinds for r in runs)
-    fd = np.r_[pin.difference(scene.model, runs[1].q, runs[0].q), runs[0].v - runs[1].v] / (2 * h)
     scale = np.abs(fd).max()
     assert np.abs(traj.parameter_jacobian[:, 0] - fd).max() <= FD_RTOL * scale
     _without_the_onset_term(monkeypatch)
