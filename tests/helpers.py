@@ -19,6 +19,7 @@ category at exit (``pytest -s``).
 from __future__ import annotations
 
 import atexit
+import importlib.util
 import os
 from collections.abc import Callable
 from pathlib import Path
@@ -249,3 +250,13 @@ def menagerie_file(relative: str) -> Path:
     if not path.is_file():
         pytest.skip(f"Menagerie model {relative} is not in {MENAGERIE} (../shared/data/menagerie)")
     return path
+
+
+def load_script(name: str):
+    """The module of ``scripts/NAME.py`` (the scripts are not a package), executed once per call."""
+    path = Path(__file__).resolve().parents[1] / "scripts" / f"{name}.py"
+    spec = importlib.util.spec_from_file_location(name, path)
+    assert spec is not None and spec.loader is not None, path
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module

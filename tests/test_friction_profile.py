@@ -4,21 +4,15 @@ second of each part, and the split of the slipping ones by stops and onsets."""
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
 from types import SimpleNamespace as NS
 
 import pytest
-
-SCRIPT = Path(__file__).resolve().parents[1] / "scripts" / "friction_trots.py"
+from helpers import load_script
 
 
 @pytest.fixture(scope="module")
 def friction_trots():
-    spec = importlib.util.spec_from_file_location("friction_trots", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script("friction_trots")
 
 
 def test_time_shares_counts(friction_trots):

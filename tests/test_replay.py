@@ -3,14 +3,13 @@
 from __future__ import annotations
 
 import base64
-import importlib.util
 import json
 import re
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import load_script
 
 from contactdiff.cli import main
 from contactdiff.integration.hybrid import simulate
@@ -18,7 +17,6 @@ from contactdiff.replay import MissingExtraError
 from contactdiff.replay_frames import frame_times, sample_frames
 from contactdiff.scenes.scene_file import load_source
 
-ROOT = Path(__file__).resolve().parents[1]
 FPS = 20.0
 
 
@@ -172,10 +170,7 @@ def test_cli_html_refuses_a_missing_folder(tmp_path, capsys):
 
 
 def _screenshot_script():
-    spec = importlib.util.spec_from_file_location("replay_screenshot", ROOT / "scripts" / "replay_screenshot.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script("replay_screenshot")
 
 
 @pytest.mark.browser

@@ -22,25 +22,18 @@ and hind-left, about 60 ms in) is inside that window, which keeps this fast.
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 import pytest
+from helpers import load_script
 
 import contactdiff as cd
 from contactdiff.analysis.order_gap import diagonal_pairs, order_gap
 from contactdiff.errors import InvalidInputError
 
-SCRIPT = Path(__file__).resolve().parents[2] / "scripts" / "quadruped_decoupling_table.py"
-
 
 @pytest.fixture(scope="module")
 def script():
-    spec = importlib.util.spec_from_file_location("quadruped_decoupling_table", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script("quadruped_decoupling_table")
 
 
 @pytest.fixture(scope="module")

@@ -24,7 +24,7 @@ import math
 import numpy as np
 import pinocchio as pin
 import pytest
-from helpers import assert_fd
+from helpers import assert_fd, load_script
 
 import contactdiff as cd
 from contactdiff.analysis.order_gap import GAP_TOL, diagonal_pairs, diagonal_touchdown, order_gap
@@ -337,13 +337,7 @@ def test_quadruped_decoupling_table_script():
     are in [0, 1]; on solo12 with compliant feet the pair coupling falls with the
     foot mass at every stiffness and does not depend on the stiffness (the spring
     is at rest at touchdown: only M and the contact rows enter the coupling)."""
-    import importlib.util
-    from pathlib import Path
-
-    path = Path(__file__).resolve().parents[2] / "scripts" / "quadruped_decoupling_table.py"
-    spec = importlib.util.spec_from_file_location("quadruped_decoupling_table", path)
-    script = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(script)
+    script = load_script("quadruped_decoupling_table")
     rows = script.robot_table(cd.QUADRUPEDS, "standing")
     assert {r["robot"] for r in rows} == set(cd.QUADRUPEDS)
     for r in rows:

@@ -26,16 +26,13 @@ by 0.10 m. References:
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 import pinocchio as pin
 import pytest
+from helpers import load_script
 
 import contactdiff as cd
 
-ROOT = Path(__file__).resolve().parents[2]
 MASS = 0.2  # kg, the box
 A, B, C = 0.04, 0.05, 0.05  # m, its edges along x, y (the grasp width) and z
 G = 9.81  # m/s², the scene's gravity
@@ -89,10 +86,7 @@ def _final_hold(scene, run):
 
 
 def _targets_script():
-    spec = importlib.util.spec_from_file_location("panda_lift_targets", ROOT / "scripts" / "panda_lift_targets.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script("panda_lift_targets")
 
 
 def test_the_arm_rows_lift_the_tool_centre_straight_up(scene, kin):
