@@ -75,181 +75,21 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
-from enum import Enum
 
 import numpy as np
 import pinocchio as pin
 
-from ..errors import GroupMismatchError, InvalidInputError, unknown_name
-from .contact_parameters import contact_parameters, contact_value, stage_contact_change
-from .efforts import EffortParameters, bound_positions
+from ..errors import GroupMismatchError, InvalidInputError
+from .contact_parameters import contact_value, stage_contact_change
+from .efforts import bound_positions
 from .kinematics import Kinematics
+from .parameter_list import all_parameters, body_names, parameter_names, resolve
+from .parameter_types import BODY_FIELDS, EFFORT_KINDS, MODEL_KINDS, Parameter, ParameterKind
 from .scene import Scene
-
-
-class ParameterKind(Enum):
-    """What a parameter belongs to (its value is the first part of its name)."""
-
-    BODY = "body"
-    JOINT = "joint"
-    CONTACT = "contact"
-    SPRING = "spring"
-    JOINT_SPRING = "joint_spring"
-    TROT = "trot"
-    EFFORT = "effort"
-    SCENE = "scene"
-    GROUP = "group"
-
-
-BODY_FIELDS = ("mass", "com_x", "com_y", "com_z", "ixx", "ixy", "ixz", "iyy", "iyz", "izz")
-"""Fields of a body: mass (kg), centre of mass (m, link frame), inertia about it (kg m², link axes)."""
-JOINT_FIELDS = ("armature",)
-SCENE_FIELDS = ("gravity_x", "gravity_y", "gravity_z")
 
 _AXIS = {"x": 0, "y": 1, "z": 2}
 _INERTIA_ENTRY = {"ixx": (0, 0), "ixy": (0, 1), "ixz": (0, 2), "iyy": (1, 1), "iyz": (1, 2), "izz": (2, 2)}
-_MODEL_KINDS = (ParameterKind.BODY, ParameterKind.JOINT, ParameterKind.SCENE)
-_EFFORT_KINDS = (ParameterKind.SPRING, ParameterKind.JOINT_SPRING, ParameterKind.TROT, ParameterKind.EFFORT)
 _INERTIA_TOL = 1e-12  # relative to the largest principal moment: round-off of a valid inertia
-
-
-@dataclass(frozen=True)
-class Parameter:
-    """One named parameter of a scene.
-
-    Attributes:
-        kind: what it belongs to.
-        target: the link, joint, contact, spring or effort name ("" for ``trot`` and
-            ``scene``; ``#k`` suffixes as in the module notes).
-        field: the number's name (``mass``, ``stiffness``, ``kp``, ``gravity_z``, ...).
-        joint: Pinocchio joint index for ``body`` (``model.inertias[joint]``) and
-            ``joint`` (its tangent index is ``model.joints[joint].idx_v``); 0 otherwise.
-        index: position of the spec in ``scene.contact_specs`` (``contact``) or in
-            ``scene.effort_specs`` (``spring``, ``joint_spring``, ``trot``, ``effort``);
-            -1 otherwise.
-        members: positions in ``scene.contact_specs`` of the contacts it sets (one for
-            ``contact``, the group's for ``group``); empty otherwise.
-    """
-
-    kind: ParameterKind
-    target: str
-    field: str
-    joint: int = 0
-    index: int = -1
-    members: tuple[int, ...] = ()
-
-    @property
-    def name(self) -> str:
-        """``kind:target:field``, or ``kind:field`` when there is no target."""
-        head = f"{self.kind.value}:{self.target}" if self.target else self.kind.value
-        return f"{head}:{self.field}"
-
-    def __str__(self) -> str:
-        return self.name
-
-
-# -- listing ------------------------------------------------------------------------------
-def body_names(model: pin.Model) -> list[str]:
-    """The name of the body of each joint ``1 .. njoints - 1`` (see the module notes)."""
-    frames = model.frames
-    by_joint: dict[int, list] = {}
-    for f in frames:
-        if f.type == pin.FrameType.BODY and f.placement.isIdentity():
-            by_joint.setdefault(f.parentJoint, []).append(f)
-    names = []
-    for j in range(1, model.njoints):
-        candidates = by_joint.get(j, [])
-        own = [
-            f
-            for f in candidates
-            if frames[f.parentFrame].type == pin.FrameType.JOINT and frames[f.parentFrame].parentJoint == j
-        ]
-        names.append((own or candidates)[0].name if candidates else model.names[j])
-    return names
-
-
-def _numbered(targets: list[str]) -> list[str]:
-    """Targets with ``#k`` (1-based, in order) on those that occur more than once."""
-    seen: dict[str, int] = {}
-    out = []
-    for t in targets:
-        if targets.count(t) > 1:
-            seen[t] = seen.get(t, 0) + 1
-            out.append(f"{t}#{seen[t]}")
-        else:
-            out.append(t)
-    return out
-
-
-def all_parameters(scene: Scene) -> list[Parameter]:
-    """Every parameter of ``scene``, in the order of `parameter_names` (computed once per scene)."""
-    cached = scene.__dict__.get("_parameter_list")
-    if cached is not None:
-        return cached
-    model = scene.model
-    out = [Parameter(ParameterKind.SCENE, "", f) for f in SCENE_FIELDS]
-    for j, name in enumerate(_numbered(body_names(model)), start=1):
-        out += [Parameter(ParameterKind.BODY, name, f, joint=j) for f in BODY_FIELDS]
-    for j in range(1, model.njoints):
-        if model.joints[j].nv == 1:
-            out.append(Parameter(ParameterKind.JOINT, model.names[j], "armature", joint=j))
-    out += contact_parameters(scene)
-    declared = [(i, _declared(scene, i, s)) for i, s in enumerate(scene.effort_specs) if hasattr(s, "named_parameters")]
-    for kind in _EFFORT_KINDS:  # each effort declares its own (`EffortParameters`)
-        mine = [(i, d) for i, d in declared if d.kind == kind.value]
-        for (i, d), name in zip(mine, _numbered([d.target for _, d in mine])):
-            out += [Parameter(kind, name, f, index=i) for f in d.fields]
-    scene.__dict__["_parameter_list"] = out
-    return out
-
-
-def _declared(scene: Scene, index: int, spec) -> EffortParameters:
-    """The parameters effort spec ``index`` of ``scene`` declares, checked."""
-    declared = spec.named_parameters()
-    kinds = [k.value for k in _EFFORT_KINDS]
-    if not isinstance(declared, EffortParameters) or declared.kind not in kinds:
-        raise InvalidInputError(
-            f"scene {scene.name!r}: effort {index} ({type(spec).__name__}) declares its "
-            f"parameters as {declared!r}; expected an EffortParameters of kind "
-            f"{', '.join(kinds)}"
-        )
-    return declared
-
-
-def parameter_names(scene: Scene) -> list[str]:
-    """Names of every parameter of ``scene`` (module notes: scene, bodies, joints,
-    contacts, groups of contacts, springs, joint springs, trot, user efforts)."""
-    return [p.name for p in all_parameters(scene)]
-
-
-def resolve(scene: Scene, names) -> list[Parameter]:
-    """The `Parameter` of each name.
-
-    Args:
-        scene: the scene.
-        names: one name, a sequence of names (or `Parameter` objects of this scene),
-            or ``"all"`` for every parameter.
-
-    Raises:
-        UnknownNameError: a name the scene does not have (the message lists them all).
-    """
-    every = all_parameters(scene)
-    if isinstance(names, str):
-        if names == "all":
-            return list(every)
-        names = [names]
-    by_name = scene.__dict__.get("_parameter_index")
-    if by_name is None:
-        by_name = scene.__dict__["_parameter_index"] = {p.name: p for p in every}
-    out = []
-    for name in names:
-        key = name.name if isinstance(name, Parameter) else name
-        par = by_name.get(key) if isinstance(key, str) else None
-        if par is None or (isinstance(name, Parameter) and name != par):
-            raise unknown_name(f"parameter of scene {scene.name!r}", name, by_name)
-        out.append(par)
-    return out
 
 
 # -- values -----------------------------------------------------------------------------
@@ -393,7 +233,7 @@ def with_parameters(scene: Scene, values: Mapping) -> Scene:
     bodies: dict[int, tuple[str, list[str]]] = {}  # joint -> (its body's name, the names changed)
     specs: dict[tuple[str, int], tuple[dict, list, list]] = {}
     for p, x in zip(params, numbers):
-        if p.kind in _MODEL_KINDS:
+        if p.kind in MODEL_KINDS:
             if p.kind is ParameterKind.JOINT and x < 0:
                 raise InvalidInputError(f"parameter {p.name!r} (armature) must be >= 0, got {x!r}")
             _set_in_model(model, p, x)
@@ -450,13 +290,13 @@ class _Plan:
         positions = bound_positions(scene.effort_specs)
         own: dict[int, tuple[list[int], list]] = {}
         for col, p in enumerate(params):
-            if p.kind in _EFFORT_KINDS:
+            if p.kind in EFFORT_KINDS:
                 i, k = positions[p.index]
                 cols, fields = own.setdefault(i, ([], []))
                 cols.append(col)
                 fields.append((k, p.field))
         self.own = [(scene.efforts[i], _columns(cols), fields) for i, (cols, fields) in own.items()]
-        model_cols = [col for col, p in enumerate(params) if p.kind in _MODEL_KINDS]
+        model_cols = [col for col, p in enumerate(params) if p.kind in MODEL_KINDS]
         self.model = []
         dependent = [e for e in scene.efforts if hasattr(e, "model_parameter_derivatives")]
         if model_cols and dependent:
