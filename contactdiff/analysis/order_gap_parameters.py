@@ -33,6 +33,7 @@ from ..dynamics.mode import ModeDynamics
 from ..dynamics.parameter_forces import ParameterForces
 from ..errors import InvalidInputError
 from ..integration.sensitivity import impact_parameter_jacobian, impact_reset_jacobian
+from ..model.parameters import resolve
 from ..model.scene import Scene
 from .order_gap import OrderGap, _index, landings, order_gap
 
@@ -89,7 +90,6 @@ def order_gap_gradient(
         InvalidInputError: as `order_gap`; unknown parameters (the message lists the
             valid ones); an outcome of 0 (decoupled), where the norm has no derivative.
     """
-    from ..model.parameters import resolve  # the model's names import the dynamics' scene
 
     gap = order_gap(scene, q, v_minus, contacts, mode=mode, t=t)
     names = [parameters] if isinstance(parameters, str) else list(parameters)

@@ -37,6 +37,7 @@ import numpy as np
 from ..dynamics.impacts import ImpactResult
 from ..dynamics.mode import ModeDynamics
 from ..dynamics.parameter_forces import ParameterForces
+from ..model.parameter_types import ParameterKind
 from .projection import mode_rows, weighted_pinv
 from .sensitivity import impact_parameter_jacobian
 
@@ -53,8 +54,6 @@ class ParameterJumps:
     """
 
     def __init__(self, dyn: ModeDynamics, parameters: Sequence):
-        from ..model.parameters import ParameterKind  # the model's names import the dynamics' scene
-
         self.dyn, self.parameters = dyn, list(parameters)
         self.p = len(self.parameters)
         self.forces = ParameterForces(dyn.scene, self.parameters)

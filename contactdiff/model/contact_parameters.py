@@ -23,14 +23,10 @@ contact (nor for its group): derivatives in ``μ`` exist only where ``μ > 0``.
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
 
 from ..errors import GroupMismatchError, InvalidInputError
-
-if TYPE_CHECKING:
-    from .contacts import Contact
-    from .parameters import Parameter
-    from .scene import Scene
+from .contacts import Contact
+from .parameter_types import Parameter, ParameterKind, ParametrisedScene
 
 CONTACT_FIELDS = ("restitution", "offset", "friction")
 """Fields of a contact (and of a group): Newton's coefficient (1), the offset (m), Coulomb's μ (1)."""
@@ -41,7 +37,7 @@ def contact_fields(spec: Contact) -> tuple[str, ...]:
     return CONTACT_FIELDS if spec.coulomb else CONTACT_FIELDS[:2]
 
 
-def groups(scene: Scene) -> dict[str, tuple[int, ...]]:
+def groups(scene: ParametrisedScene) -> dict[str, tuple[int, ...]]:
     """Each group name -> the scene indices of its contacts (groups in the order of their
     first member)."""
     out: dict[str, list[int]] = {}
@@ -51,10 +47,8 @@ def groups(scene: Scene) -> dict[str, tuple[int, ...]]:
     return {name: tuple(members) for name, members in out.items()}
 
 
-def contact_parameters(scene: Scene) -> list[Parameter]:
+def contact_parameters(scene: ParametrisedScene) -> list[Parameter]:
     """The ``contact`` then ``group`` parameters of ``scene`` (module doc)."""
-    from .parameters import Parameter, ParameterKind  # the parameters' module lists these
-
     specs = scene.contact_specs
     out = [
         Parameter(ParameterKind.CONTACT, c.name, f, index=i, members=(i,))
@@ -67,7 +61,7 @@ def contact_parameters(scene: Scene) -> list[Parameter]:
     return out
 
 
-def contact_value(scene: Scene, p: Parameter) -> float:
+def contact_value(scene: ParametrisedScene, p: Parameter) -> float:
     """The value of a ``contact`` or ``group`` parameter (a group's: its members' common one).
 
     Raises:
@@ -83,7 +77,7 @@ def contact_value(scene: Scene, p: Parameter) -> float:
     return values[0]
 
 
-def stage_contact_change(scene: Scene, specs: dict, p: Parameter, x: float) -> None:
+def stage_contact_change(scene: ParametrisedScene, specs: dict, p: Parameter, x: float) -> None:
     """Note setting ``p`` (a ``contact`` or ``group`` parameter) to ``x`` on each member in
     ``specs`` (``("contact", index) -> (changes, names, values)``, as `with_parameters`
     collects them before building the new contacts).

@@ -9,8 +9,7 @@ import pinocchio as pin
 from ..errors import InvalidInputError, unknown_name
 from .contact_parameters import contact_parameters
 from .efforts import EffortParameters
-from .parameter_types import BODY_FIELDS, EFFORT_KINDS, SCENE_FIELDS, Parameter, ParameterKind
-from .scene import Scene
+from .parameter_types import BODY_FIELDS, EFFORT_KINDS, SCENE_FIELDS, Parameter, ParameterKind, ParametrisedScene
 
 
 def body_names(model: pin.Model) -> list[str]:
@@ -45,7 +44,7 @@ def _numbered(targets: list[str]) -> list[str]:
     return out
 
 
-def all_parameters(scene: Scene) -> list[Parameter]:
+def all_parameters(scene: ParametrisedScene) -> list[Parameter]:
     """Every parameter of ``scene``, in the order of `parameter_names` (computed once per scene)."""
     cached = scene.__dict__.get("_parameter_list")
     if cached is not None:
@@ -67,7 +66,7 @@ def all_parameters(scene: Scene) -> list[Parameter]:
     return out
 
 
-def _declared(scene: Scene, index: int, spec) -> EffortParameters:
+def _declared(scene: ParametrisedScene, index: int, spec) -> EffortParameters:
     """The parameters effort spec ``index`` of ``scene`` declares, checked."""
     declared = spec.named_parameters()
     kinds = [k.value for k in EFFORT_KINDS]
@@ -80,13 +79,13 @@ def _declared(scene: Scene, index: int, spec) -> EffortParameters:
     return declared
 
 
-def parameter_names(scene: Scene) -> list[str]:
+def parameter_names(scene: ParametrisedScene) -> list[str]:
     """Names of every parameter of ``scene`` (module notes: scene, bodies, joints,
     contacts, groups of contacts, springs, joint springs, trot, user efforts)."""
     return [p.name for p in all_parameters(scene)]
 
 
-def resolve(scene: Scene, names) -> list[Parameter]:
+def resolve(scene: ParametrisedScene, names) -> list[Parameter]:
     """The `Parameter` of each name.
 
     Args:

@@ -1,11 +1,20 @@
 """What a named parameter of a scene is: its kind, its name ``kind:target:field``
 and where its number lives (part of `contactdiff.model.parameters`, which has the
-naming rules and units)."""
+naming rules and units), and what of a scene the parameters read and rebuild
+(`ParametrisedScene`: `contactdiff.model.scene.Scene` is one; the parameters' code
+depends on that protocol, not on the scene's module, which calls it)."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from enum import Enum
+from typing import Any, Protocol, Self
+
+import pinocchio as pin
+
+from .contacts import Contact
+from .robot import Robot
 
 
 class ParameterKind(Enum):
@@ -68,6 +77,53 @@ class Parameter:
         return self.name
 
 
+class ParametrisedScene(Protocol):
+    """What the named parameters read of a scene and how they build a changed one
+    (`contactdiff.model.scene.Scene` has it all). Its ``__dict__`` holds the lists
+    and plans computed once per scene (``_parameter_list``, ``_parameter_index``,
+    ``_parameter_plans``)."""
+
+    @property
+    def name(self) -> str:
+        """Label for reports (named in the messages)."""
+        ...
+
+    @property
+    def robot(self) -> Robot:
+        """The robot; its model holds the body, joint and gravity numbers."""
+        ...
+
+    @property
+    def model(self) -> pin.Model:
+        """The robot's Pinocchio model."""
+        ...
+
+    @property
+    def nv(self) -> int:
+        """Tangent (velocity) size."""
+        ...
+
+    @property
+    def contact_specs(self) -> Sequence[Contact]:
+        """The contact specs, in scene order (``contact`` and ``group`` numbers)."""
+        ...
+
+    @property
+    def effort_specs(self) -> Sequence[Any]:
+        """The effort specs, in scene order (``spring``, ..., ``effort`` numbers)."""
+        ...
+
+    @property
+    def efforts(self) -> Sequence[Any]:
+        """The bound efforts (their evaluators differentiate ``tau``)."""
+        ...
+
+    def rebuilt(self, robot: Robot, contacts: Sequence[Contact], efforts: Sequence[Any] | None = None) -> Self:
+        """The same scene (state, name, feet) on ``robot`` with ``contacts`` and
+        ``efforts`` (None: its own), every spec bound again."""
+        ...
+
+
 __all__ = [
     "BODY_FIELDS",
     "EFFORT_KINDS",
@@ -76,4 +132,5 @@ __all__ = [
     "SCENE_FIELDS",
     "Parameter",
     "ParameterKind",
+    "ParametrisedScene",
 ]

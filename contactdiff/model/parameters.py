@@ -62,8 +62,8 @@ mass distribution has (positive semi-definite, principal moments obeying the
 triangle inequality ``I1 <= I2 + I3``: semi-definite, not definite, because the
 planar models' bodies are point masses with zero inertia); armature >= 0;
 restitution in [0, 1]; friction >= 0; stiffness, damping, rest length >= 0; the trot
-controller's own checks. It copies the robot and builds the new scene with the
-`Scene` constructor, so every effort is bound again on the changed model: the
+controller's own checks. It copies the robot and builds the new scene with
+`Scene.rebuilt` (the constructor), so every effort is bound again on the changed model: the
 trot controller's feed-forward (leg gravity torques and weight shares at the
 stance pose) follows the bodies' masses and gravity, and
 `tau_parameter_derivatives` differentiates it too. The initial state is kept:
@@ -75,6 +75,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Mapping
+from typing import TypeVar
 
 import numpy as np
 import pinocchio as pin
@@ -84,8 +85,9 @@ from .contact_parameters import contact_value, stage_contact_change
 from .efforts import bound_positions
 from .kinematics import Kinematics
 from .parameter_list import all_parameters, body_names, parameter_names, resolve
-from .parameter_types import BODY_FIELDS, EFFORT_KINDS, MODEL_KINDS, Parameter, ParameterKind
-from .scene import Scene
+from .parameter_types import BODY_FIELDS, EFFORT_KINDS, MODEL_KINDS, Parameter, ParameterKind, ParametrisedScene
+
+S = TypeVar("S", bound=ParametrisedScene)
 
 _AXIS = {"x": 0, "y": 1, "z": 2}
 _INERTIA_ENTRY = {"ixx": (0, 0), "ixy": (0, 1), "ixz": (0, 2), "iyy": (1, 1), "iyz": (1, 2), "izz": (2, 2)}
@@ -93,7 +95,7 @@ _INERTIA_TOL = 1e-12  # relative to the largest principal moment: round-off of a
 
 
 # -- values -----------------------------------------------------------------------------
-def _value(scene: Scene, p: Parameter) -> float:
+def _value(scene: ParametrisedScene, p: Parameter) -> float:
     model = scene.model
     kind = p.kind
     if kind is ParameterKind.SCENE:
@@ -115,12 +117,12 @@ def _value(scene: Scene, p: Parameter) -> float:
     return float(getattr(spec, p.field))
 
 
-def parameter_values(scene: Scene, names) -> np.ndarray:
+def parameter_values(scene: ParametrisedScene, names) -> np.ndarray:
     """Current values of the parameters ``names`` (see `resolve`), in their units."""
     return np.array([_value(scene, p) for p in resolve(scene, names)], dtype=float)
 
 
-def parameter_table(scene: Scene) -> list[dict]:
+def parameter_table(scene: ParametrisedScene) -> list[dict]:
     """Every parameter of ``scene`` as a dict (what ``simulate --param list --json``
     prints): ``name``, ``kind`` (a `ParameterKind` value), ``target`` ("" for
     ``trot`` and ``scene``), ``field`` and ``value`` (its current value, in its unit;
@@ -210,7 +212,7 @@ def _replaced(spec, changes: dict, names: list[str], values: list[float]):
         raise InvalidInputError(f"parameters {given}: {exc}") from None
 
 
-def with_parameters(scene: Scene, values: Mapping) -> Scene:
+def with_parameters(scene: S, values: Mapping) -> S:
     """A new scene with the parameters ``values`` (name or `Parameter` -> value, in
     their units) changed; the original scene, its robot and its model are untouched.
 
@@ -261,9 +263,7 @@ def with_parameters(scene: Scene, values: Mapping) -> Scene:
             contacts[i] = _replaced(contacts[i], changes, names, xs)
         else:
             efforts[i] = _replaced(efforts[i], changes, names, xs)
-    new = Scene(robot, contacts, efforts, None, scene.q0, scene.v0, scene.name)
-    new.foot_choice = scene.foot_choice
-    return new
+    return scene.rebuilt(robot, contacts, efforts)
 
 
 # -- derivatives of the efforts ---------------------------------------------------------------
@@ -285,7 +285,7 @@ def _columns(cols: list[int]):
 class _Plan:
     """How to fill the columns of `tau_parameter_derivatives` for one list of parameters."""
 
-    def __init__(self, scene: Scene, params: list[Parameter]):
+    def __init__(self, scene: ParametrisedScene, params: list[Parameter]):
         self.n = len(params)
         positions = bound_positions(scene.effort_specs)
         own: dict[int, tuple[list[int], list]] = {}
@@ -304,7 +304,7 @@ class _Plan:
             self.model = [(e, _columns(model_cols), perturbed) for e in dependent]
 
     @staticmethod
-    def _perturbation(scene: Scene, p: Parameter):
+    def _perturbation(scene: ParametrisedScene, p: Parameter):
         value = _value(scene, p)
 
         def make(x: float) -> pin.Model:
@@ -315,7 +315,7 @@ class _Plan:
         return p.name, MODEL_STEP * max(abs(value), 1.0), make
 
 
-def tau_parameter_derivatives(scene: Scene, kin: Kinematics, t: float, parameters) -> np.ndarray:
+def tau_parameter_derivatives(scene: ParametrisedScene, kin: Kinematics, t: float, parameters) -> np.ndarray:
     """``d tau/dp`` (nv × len(parameters)) of the scene's efforts (their sum, `Scene.tau`)
     at the state of ``kin`` (updated at ``(q, v)``) and time ``t`` (s), in generalised
     force per unit of each parameter.

@@ -20,6 +20,7 @@ from .contacts import FRICTION_MODES, BoundContact, Contact
 from .efforts import Effort, bind_efforts
 from .feet import FootChoice, up_direction
 from .kinematics import Kinematics
+from .parameters import parameter_names, parameter_values, tau_parameter_derivatives, with_parameters
 from .robot import Robot
 
 StateInput: TypeAlias = "ArrayLike | Mapping[str, ArrayLike]"
@@ -189,8 +190,6 @@ class Scene:
         bodies' masses, centres of mass and inertias, joint armatures, contact
         restitutions and offsets, spring, joint-spring, trot-controller and user-effort
         numbers (the naming rules and units are in `contactdiff.model.parameters`)."""
-        from .parameters import parameter_names
-
         return parameter_names(self)
 
     def parameter_values(self, names) -> np.ndarray:
@@ -200,8 +199,6 @@ class Scene:
         Raises:
             UnknownNameError: an unknown name (the valid ones are listed).
         """
-        from .parameters import parameter_values
-
         return parameter_values(self, names)
 
     def with_parameters(self, values: Mapping) -> Scene:
@@ -214,8 +211,6 @@ class Scene:
             InvalidInputError: a non-finite or out-of-range value.
             InconsistentStateError: the initial state penetrates a changed contact.
         """
-        from .parameters import with_parameters
-
         return with_parameters(self, values)
 
     def tau_parameter_derivatives(self, kin: Kinematics, t: float, params) -> np.ndarray:
@@ -223,8 +218,6 @@ class Scene:
         and time ``t`` (s), per unit of each parameter (`Parameter` objects of this scene
         or names); zero columns for parameters no effort depends on (see
         `contactdiff.model.parameters.tau_parameter_derivatives`)."""
-        from .parameters import tau_parameter_derivatives
-
         return tau_parameter_derivatives(self, kin, t, params)
 
     def check_state(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -299,7 +292,7 @@ class Scene:
     # -- variants ----------------------------------------------------------------------
     def with_robot(self, robot: Robot) -> Scene:
         """The same scene on another robot model (e.g. one with armature)."""
-        return self._rebuilt(robot, self.contact_specs)
+        return self.rebuilt(robot, self.contact_specs)
 
     def with_armature(self, armature: float) -> Scene:
         """The same scene with rotor inertia ``armature`` on the robot's actuated joints."""
@@ -322,12 +315,19 @@ class Scene:
         specs = [
             dataclasses.replace(spec, friction=friction) if spec.name in chosen else spec for spec in self.contact_specs
         ]
-        return self._rebuilt(self.robot, specs)
+        return self.rebuilt(self.robot, specs)
 
-    def _rebuilt(self, robot: Robot, contacts: Sequence[Contact]) -> Scene:
-        """This scene with another robot or other contacts (``robot`` already carries the
-        scene's gravity: None keeps it); efforts, state, name and feet are this scene's."""
-        scene = Scene(robot, contacts, self.effort_specs, None, self.q0, self.v0, self.name)
+    def rebuilt(self, robot: Robot, contacts: Sequence[Contact], efforts: Sequence | None = None) -> Scene:
+        """This scene on another robot, with other contacts or other efforts (None keeps
+        this scene's), every spec bound again; ``robot`` already carries the scene's
+        gravity. The initial state, name and foot choice are this scene's.
+
+        Raises:
+            InconsistentStateError: the initial state penetrates one of ``contacts``.
+        """
+        scene = Scene(
+            robot, contacts, self.effort_specs if efforts is None else efforts, None, self.q0, self.v0, self.name
+        )
         scene.foot_choice = self.foot_choice
         return scene
 
