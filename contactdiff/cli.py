@@ -14,17 +14,15 @@ SOURCE is a scene (TOML path or a name of robots/) or a robot (URDF path or
 example-robot-data name; its feet get ground contacts, chosen automatically or
 with --feet; --floating-base gives a URDF path a free-flyer base). Errors print
 one line and exit with status 2; Ctrl-C exits with 130; a closed output pipe
-ends the command quietly. Long runs draw a progress bar on stderr (a terminal).
+ends the command quietly. Long runs draw a progress bar on stderr (a terminal,
+`contactdiff.progress_bar`). What each command runs is in `contactdiff.cli_commands`.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import sys
-import time
-from typing import Any
 
 from .cli_args import (
     COUNT,
@@ -34,13 +32,9 @@ from .cli_args import (
     SEED,
     Number,
     add_plot,
-    assignment,
-    check_plot_path,
-    raise_failures,
-    write_output,
 )
-from .cli_args import print_flushed as _print
-from .errors import ContactDiffError, InvalidInputError, check_output_file
+from .cli_commands import run_bench, run_check, run_simulate, run_stride
+from .errors import ContactDiffError
 
 
 class _Parser(argparse.ArgumentParser):
@@ -95,7 +89,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--tol", type=POSITIVE, default=1e-9, help="relative size below which a coupling counts as zero (default 1e-9)"
     )
     check.add_argument("--json", action="store_true", help="print the report as JSON")
-    check.set_defaults(run=_run_check)
+    check.set_defaults(run=run_check)
 
     from .analysis.gait.stride import STRIDE_ATOL, STRIDE_METHOD, STRIDE_RTOL
     from .integration.options import ATOL_MAX, AUTO, RTOL_MAX, RTOL_MIN, SIMULATE_METHODS, OnGrazing, SimulateOptions
@@ -219,7 +213,7 @@ def build_parser() -> argparse.ArgumentParser:
         default=DEFAULT_FPS,
         help=f"with --html: frames per second of simulated time (default {DEFAULT_FPS:g}; events are frames too)",
     )
-    sim.set_defaults(run=_run_simulate)
+    sim.set_defaults(run=run_simulate)
 
     bench = sub.add_parser(
         "bench",
@@ -267,7 +261,7 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="SECONDS",
         help="with --speed: also the peak memory of a solo12 trot this long keeping events only",
     )
-    bench.set_defaults(run=_run_bench)
+    bench.set_defaults(run=run_bench)
 
     stride = sub.add_parser(
         "stride",
@@ -344,7 +338,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--atol", type=FINITE, default=STRIDE_ATOL, help=f"absolute tolerance (default {STRIDE_ATOL:g})"
     )
     stride.add_argument("--json", action="store_true", help="print the result as JSON")
-    stride.set_defaults(run=_run_stride)
+    stride.set_defaults(run=run_stride)
 
     from .sweeps.cli import add_parser as add_sweep
 
@@ -353,233 +347,6 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_fit(sub)
     return parser
-
-
-def _run_stride(args) -> int:
-    from .analysis.gait import find_periodic_gait
-
-    scene = _scene_from_args(args)
-    neutral = args.neutral
-    if neutral is not None and neutral.strip().lower() == "none":
-        neutral = ""
-    with _ProgressBar("stride search", None) as bar:
-        gait = find_periodic_gait(
-            scene,
-            args.foot,
-            t=args.t0,
-            iterations=args.newton,
-            tol=args.tol,
-            neutral=neutral,
-            period=args.period,
-            t_max=args.t_max,
-            min_stride=args.min_stride,
-            min_flight=args.min_flight,
-            warmup=args.warmup,
-            method=args.method,
-            rtol=args.rtol,
-            atol=args.atol,
-            progress=bar,
-        )
-    _print(json.dumps(gait.to_dict(), indent=2) if args.json else gait.format())
-    return 0
-
-
-def _run_bench(args) -> int:
-    from .bench.runner import run_bench
-
-    if args.speed:
-        from .bench.speed import run_speed
-
-        report = run_speed(args.scenes, t_final=args.t_final, repeats=args.repeats, memory_seconds=args.memory)
-        _print(json.dumps(report.to_dict(), indent=2) if args.json else report.format())
-        return 0
-
-    if args.plot:
-        check_plot_path(args.plot)
-    result = run_bench(scenes=args.scenes, repeats=args.repeats, quick=args.quick, studies=args.studies)
-    failed = None
-    if args.plot:
-        from .plotting import plot_bench
-
-        failed = write_output("--plot", args.plot, lambda: plot_bench(result, args.plot))
-    _print(json.dumps(result.to_dict(), indent=2) if args.json else result.format())
-    if args.plot and not args.json and not failed:
-        _print(f"plot written to {args.plot}")
-    raise_failures([failed])
-    return 0
-
-
-def _check_html_path(path: str) -> None:
-    """Refuse a replay that cannot be written, before any work is done: no meshcat,
-    a folder that does not exist or a folder as the file."""
-    from .replay import require_meshcat
-
-    require_meshcat()
-    check_output_file("--html", path, "replay.html")
-
-
-def _scene_from_args(args):
-    """The scene of ``args.source`` (with ``--feet``, ``--floating-base``) with the
-    initial state changed by ``--q`` / ``--v``."""
-    from .scenes.scene_file import load_source
-
-    scene = load_source(args.source, floating_base=args.floating_base, feet=args.feet)
-    q0, v0 = _assignments(getattr(args, "q", []), "--q"), _assignments(getattr(args, "v", []), "--v")
-    if q0 or v0:
-        scene = scene.with_state(q0 or None, v0 or None)
-    return scene
-
-
-def _assignments(items: list[str], flag: str) -> dict:
-    out = {}
-    for item in items:
-        name, value = assignment(item, flag, "JOINT=VALUE")
-        try:
-            numbers = [float(x) for x in value.split(",")]
-        except ValueError:
-            raise InvalidInputError(f"{flag} {name}: value must be numbers, got {value!r}") from None
-        out[name] = numbers[0] if len(numbers) == 1 else numbers
-    return out
-
-
-def _run_simulate(args) -> int:
-    from .integration.hybrid import simulate
-
-    if args.plot:
-        check_plot_path(args.plot)
-    if args.html:
-        _check_html_path(args.html)
-    scene = _scene_from_args(args)
-    if args.html:  # a bad package folder or a mesh found nowhere is refused before the run
-        import warnings
-
-        from .model.mjcf import MJCFWarning
-        from .replay_geometry import visual_model
-
-        with warnings.catch_warnings():  # the replay itself says what it draws, once
-            warnings.simplefilter("ignore", MJCFWarning)
-            visual_model(scene.robot, args.package_dir)
-    if "list" in args.param:
-        if args.json:
-            from .jsonable import to_jsonable
-            from .model.parameters import parameter_table
-
-            _print(json.dumps(to_jsonable(parameter_table(scene)), indent=2))
-        else:
-            _print("\n".join(scene.parameter_names()))
-        return 0
-    parameters = scene.parameter_names() if "all" in args.param else list(args.param)
-    with _ProgressBar(f"simulate {scene.name}", (0.0, args.t_final)) as bar:
-        traj = simulate(
-            scene,
-            args.t_final,
-            method=args.method,
-            rtol=args.rtol,
-            atol=args.atol,
-            jacobian=args.jacobian,
-            max_steps=args.max_steps,
-            max_events=args.max_events,
-            zeno_speed=args.zeno_speed,
-            grazing_speed=args.grazing_speed,
-            grazing_gap=args.grazing_gap,
-            on_grazing=args.on_grazing,
-            progress=bar,
-            dense=bool(args.plot or args.html),  # plot and replay sample states between events
-            parameters=parameters,
-        )
-    plotted = replayed = None  # a failed write, reported once the run is printed
-    if args.plot:
-        from .plotting import plot_gait, plot_gaps
-
-        # floating base: contact timeline, base height and attitude; else contact gaps
-        plot = plot_gait if scene.robot.floating_base else plot_gaps
-        plotted = write_output("--plot", args.plot, lambda: plot(traj, scene, args.plot))
-    if args.html:
-        replayed = write_output(
-            "--html", args.html, lambda: traj.to_html(args.html, scene, fps=args.fps, package_dirs=args.package_dir)
-        )
-    if args.json:
-        _print(json.dumps(traj.summary(), indent=2))
-    else:
-        _print(traj.format(scene))
-        if args.plot and not plotted:
-            _print(f"plot written to {args.plot}")
-        if args.html and not replayed:
-            _print(f"replay written to {args.html}")
-    raise_failures([plotted, replayed])
-    return 0
-
-
-class _ProgressBar:
-    """A progress bar on stderr (only on a terminal, and only once a run has lasted a
-    second), fed by `simulate`'s ``progress(t, events, steps)`` callback: simulated
-    time against the horizon, events and accepted steps. Without a horizon
-    (``span=None``: a search of many runs) it counts steps."""
-
-    _EVERY = 0.2  # s of wall time between redraws: the callback is called every step
-
-    def __init__(self, label: str, span: tuple[float, float] | None):
-        self.label, self.span = label, span
-        self.bar: Any = None  # a tqdm bar while entered
-        self.last = 0.0
-
-    def __enter__(self):
-        from tqdm import tqdm
-
-        total = None if self.span is None else self.span[1] - self.span[0]
-        fmt = "{desc} {percentage:3.0f}%|{bar}| [{elapsed}<{remaining}]" if total else "{desc} [{elapsed}]"
-        self.bar = tqdm(
-            total=total,
-            desc=self.label,
-            file=sys.stderr,
-            delay=1.0,
-            disable=None,
-            bar_format=fmt,
-            leave=False,
-            dynamic_ncols=True,
-        )
-        return self
-
-    def __call__(self, t: float, events: int, steps: int) -> None:
-        now = time.monotonic()
-        if now - self.last < self._EVERY or self.bar.disable:
-            return
-        self.last = now
-        if self.span is None:
-            self.bar.set_description_str(
-                f"{self.label}: t = {t:.4g} s, {events} events, {steps} steps in this run", refresh=False
-            )
-            self.bar.update(0)
-            return
-        self.bar.set_description_str(
-            f"{self.label}: t = {t:.4g} / {self.span[1]:g} s, {events} events, {steps} steps", refresh=False
-        )
-        self.bar.update((t - self.span[0]) - self.bar.n)
-
-    def __exit__(self, *exc) -> None:
-        self.bar.close()
-
-
-def _run_check(args) -> int:
-    from .analysis.decoupling import check_decoupling
-
-    scene = _scene_from_args(args)
-    options = dict(samples=args.samples, seed=args.seed, tol=args.tol)
-    report = check_decoupling(scene, armature=args.armature, **options)
-    baseline = check_decoupling(scene, **options) if args.armature else None
-    if args.json:
-        out = report.to_dict()
-        if baseline is not None:
-            out["without_armature"] = baseline.to_dict()
-        _print(json.dumps(out, indent=2))
-        return 0
-    _print(report.format())
-    if baseline is not None and report.verdict is not None:
-        _print(
-            f"\narmature {args.armature:g}: max coupling {baseline.max_coupling:.3e} -> "
-            f"{report.max_coupling:.3e}; verdict {baseline.verdict} -> {report.verdict}"
-        )
-    return 0
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -175,7 +175,7 @@ def test_a_long_run_draws_a_progress_bar_on_a_terminal(monkeypatch):
     import io
     import time
 
-    from contactdiff.cli import _ProgressBar
+    from contactdiff.progress_bar import ProgressBar
 
     class Terminal(io.StringIO):
         def isatty(self):
@@ -183,7 +183,7 @@ def test_a_long_run_draws_a_progress_bar_on_a_terminal(monkeypatch):
 
     for stream, shown in ((Terminal(), True), (io.StringIO(), False)):
         monkeypatch.setattr(sys, "stderr", stream)
-        with _ProgressBar("simulate ball", (0.0, 2.0)) as bar:
+        with ProgressBar("simulate ball", (0.0, 2.0)) as bar:
             start = time.monotonic()
             while time.monotonic() - start < 1.3:  # s: past the bar's 1-s delay
                 bar(0.5, 3, 40)
