@@ -7,7 +7,8 @@ the ground's neutral moves (x, y, yaw) and the Floquet multipliers of a stride;
 `periodic` the search for a periodic gait up to those moves and the
 stroboscopic period map of a clock-driven scene; `sensitivity` the derivatives of
 a periodic gait with respect to the scene's parameters; `stances` a foot's
-stance intervals in a run. The public names of all five are importable from here.
+stance intervals in a run (`stride_result` holds a stride's result, `stride_loop`
+the hybrid loop of one stride). The public names of all are importable from here.
 """
 
 from ...errors import StrideError
@@ -23,7 +24,9 @@ from .section import (
 )
 from .sensitivity import GaitSensitivity, gait_sensitivity
 from .stances import stance_intervals
-from .stride import Stride, StrideLoop, first_touchdown, stride_map
+from .stride import first_touchdown, stride_map
+from .stride_loop import StrideLoop
+from .stride_result import Stride
 
 __all__ = [
     "GaitSensitivity",

@@ -33,7 +33,8 @@ from .section import (
     onto_section,
     section_basis,
 )
-from .stride import STRIDE_ATOL, STRIDE_METHOD, STRIDE_RTOL, Stride, _min_flight, first_touchdown, stride_map
+from .stride import STRIDE_ATOL, STRIDE_METHOD, STRIDE_RTOL, _min_flight, first_touchdown, stride_map
+from .stride_result import Stride
 
 
 @dataclass(kw_only=True)

@@ -46,7 +46,8 @@ from ...errors import InvalidInputError, check_number
 from ...model.scene import Scene
 from .periodic import PeriodicGait, find_periodic_gait
 from .section import onto_section, section_basis
-from .stride import Stride, stride_map
+from .stride import stride_map
+from .stride_result import Stride
 
 REPEATED_TOL = 1e-6
 """Relative distance (to ``max(1, |λ|)``) below which two eigenvalues of the stride

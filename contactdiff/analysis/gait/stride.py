@@ -84,19 +84,14 @@ foot's touchdown a terminal event and keeps the flow Jacobian just before it.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ...dynamics.impacts import choose_mode
 from ...errors import InvalidInputError, StrideError, check_number
-from ...integration.hybrid import HybridLoop
 from ...integration.options import SimulateOptions
-from ...integration.parameter_jumps import ParameterJumps
-from ...integration.sensitivity import gap_gradient, saltation, touchdown, vector_field
-from ...integration.trajectory import Event, EventKind, Trajectory
+from ...integration.sensitivity import gap_gradient, vector_field
 from ...model.scene import Scene
 from .section import (
     _IMPACT_KINDS,
@@ -108,6 +103,8 @@ from .section import (
     onto_section,
     scene_period,
 )
+from .stride_loop import StrideLoop
+from .stride_result import Stride
 
 STRIDE_RTOL = 1e-10
 """Default relative tolerance of the runs of a stride (`stride_map`, `first_touchdown`,
@@ -116,233 +113,6 @@ STRIDE_ATOL = 1e-12
 """Default absolute tolerance of those runs (m, rad, m/s)."""
 STRIDE_METHOD = "DOP853"
 """Default stepper of those runs."""
-
-
-# ----------------------------------------------------------------------------------
-# results
-# ----------------------------------------------------------------------------------
-@dataclass(kw_only=True)
-class Stride:
-    """One stride: touchdown of ``foot`` to its next touchdown, both just before impact.
-
-    Attributes:
-        scene_name, foot: the scene and the contact whose touchdowns bound the stride.
-        t0, q0, v0: start (s; q as Pinocchio, nq; v in the tangent space, nv).
-        t, q, v: the next touchdown of the foot, just before its impact.
-        jacobian: ``P = dx'/dx0`` (2nv × 2nv, tangent space) or None.
-        time_gradient: ``dt'/dx0`` (2nv,) (s per tangent unit) or None.
-        start_time_column: ``∂x'/∂t0`` (2nv,) or None.
-        start_time_derivative: ``∂t'/∂t0`` (1 for an autonomous scene) or None.
-        period: clock period (s) of a clock-driven scene, None if autonomous.
-        trajectory: the simulated run (its events end with the foot's touchdown).
-        simultaneous: other contacts landing at the same instant as the foot, at the
-            start or at the end. There the pre-impact state is discontinuous (the other
-            foot's velocity jumps if it lands first), and the Jacobian is the one-sided
-            derivative for the other contacts landing at the same time or later.
-        parameter_names: the scene parameters differentiated (``parameters=[...]``).
-        parameter_jacobian: ``∂x'/∂p`` (2nv × p, tangent space, per unit of each) at a
-            fixed start, or None: with the start's impact taken with the foot's guard
-            (``Ξ0_p``, as ``Ξ0`` for the state) and the end's touchdown time moving with
-            the parameters (``-F' (Dh' ∂x/∂p + ∂h/∂p) / (Dh' F')``).
-        parameter_time_gradient: ``∂t'/∂p`` (p,) (s per unit of each), or None.
-    """
-
-    scene_name: str
-    foot: str
-    t0: float
-    q0: np.ndarray
-    v0: np.ndarray
-    t: float
-    q: np.ndarray
-    v: np.ndarray
-    jacobian: np.ndarray | None
-    time_gradient: np.ndarray | None
-    start_time_column: np.ndarray | None
-    start_time_derivative: float | None
-    period: float | None
-    trajectory: Trajectory = field(repr=False)
-    simultaneous: tuple[str, ...] = ()
-    parameter_names: tuple[str, ...] = ()
-    parameter_jacobian: np.ndarray | None = None
-    parameter_time_gradient: np.ndarray | None = None
-
-    @property
-    def stride_time(self) -> float:
-        """``t - t0`` (s)."""
-        return self.t - self.t0
-
-    @property
-    def differentiable(self) -> bool:
-        """False if any event of the stride has only a piecewise-linear derivative."""
-        return self.trajectory.differentiable
-
-    def extended_jacobian(self) -> np.ndarray:
-        """The Jacobian in the map's state: ``P`` (autonomous), or in ``(x, τ)``
-        ``[[P, ∂x'/∂t0], [dt'/dx0, ∂t'/∂t0]]`` ((2nv+1)², clock-driven)."""
-        if self.jacobian is None:
-            raise InvalidInputError("this stride was computed without its Jacobian (jacobian=False)")
-        if self.period is None:
-            return self.jacobian
-        n = self.jacobian.shape[0]
-        J = np.zeros((n + 1, n + 1))
-        J[:n, :n] = self.jacobian
-        J[:n, n] = self.start_time_column
-        J[n, :n] = self.time_gradient
-        J[n, n] = self.start_time_derivative
-        return J
-
-    def extended_parameter_jacobian(self) -> np.ndarray:
-        """``∂x'/∂p`` in the map's state: (2nv × p), or in ``(x, τ)`` with the row ``∂t'/∂p``
-        ((2nv+1) × p, clock-driven)."""
-        if self.parameter_jacobian is None:
-            raise InvalidInputError("this stride was computed without parameters (stride_map(..., parameters=[...]))")
-        if self.period is None:
-            return self.parameter_jacobian
-        assert self.parameter_time_gradient is not None  # computed with the parameters' Jacobian
-        return np.vstack([self.parameter_jacobian, self.parameter_time_gradient])
-
-    def summary(self) -> dict:
-        """The stride as JSON-ready data: ends, states, Jacobians where computed."""
-        out = {
-            "scene": self.scene_name,
-            "foot": self.foot,
-            "t0": self.t0,
-            "t": self.t,
-            "stride_time": self.stride_time,
-            "q0": self.q0.tolist(),
-            "v0": self.v0.tolist(),
-            "q": self.q.tolist(),
-            "v": self.v.tolist(),
-            "period": self.period,
-            "events": [f"{e.t:.12g} {e.kind} {'+'.join(e.contacts)}" for e in self.trajectory.events],
-            "differentiable": self.differentiable,
-            "simultaneous": list(self.simultaneous),
-        }
-        if self.jacobian is not None:
-            assert self.time_gradient is not None and self.start_time_column is not None  # computed with it
-            out |= {
-                "jacobian": self.jacobian.tolist(),
-                "time_gradient": self.time_gradient.tolist(),
-                "start_time_column": self.start_time_column.tolist(),
-                "start_time_derivative": self.start_time_derivative,
-            }
-        if self.parameter_jacobian is not None:
-            assert self.parameter_time_gradient is not None  # computed with it
-            out |= {
-                "parameter_names": list(self.parameter_names),
-                "parameter_jacobian": self.parameter_jacobian.tolist(),
-                "parameter_time_gradient": self.parameter_time_gradient.tolist(),
-            }
-        return out
-
-
-# ----------------------------------------------------------------------------------
-# the stride map
-# ----------------------------------------------------------------------------------
-class StrideLoop(HybridLoop):
-    """The hybrid loop, stopped at the first touchdown of one contact after ``t0``
-    that follows at least ``min_stride`` and a flight of at least ``min_flight``
-    (a terminal event, `HybridLoop.on_event`).
-
-    Records the state and flow Jacobian just before that impact, and replaces the
-    reset Jacobian of an impact at ``t0`` by the full saltation matrix of the
-    foot's guard (see the module docstring)."""
-
-    def __init__(
-        self,
-        scene,
-        foot: int,
-        t0,
-        t_max,
-        q0,
-        v0,
-        options: SimulateOptions,
-        min_stride: float = 0.0,
-        min_flight: float = 0.0,
-    ):
-        super().__init__(scene, t0, t_max, q0, v0, options)
-        self.foot, self.t_earliest, self.min_flight = foot, t0 + min_stride, min_flight
-        # last time the foot was on the ground (s); the start counts as such, so a
-        # foot a few nanometres up after a restart does not "land" at once
-        self.last_contact = t0
-        # (event, mode before as keys, Φ just before)
-        self.hit: tuple[Event, tuple[int, ...], np.ndarray | None] | None = None
-        self.start = None  # (mode before, F- at the start, contacts landing with the foot)
-
-    def initial_mode(self, q, v):
-        """The loop's consistent start; an impact of the foot there takes the full
-        saltation matrix of the foot's guard (module docstring)."""
-        n = len(self.events)
-        mode, v_plus = super().initial_mode(q, v)
-        if not (self.options.jacobian and len(self.events) > n and self.names[self.foot] in self.events[-1].contacts):
-            return mode, v_plus
-        start = self.events[-1]
-        closed = [i for i in range(len(self.contacts)) if self.names[i] in start.impulses]
-        _, rates = self._gaps_and_rates(start.q, v)
-        landing = [i for i in closed if i != self.foot and rates[i] < -self.options.grazing_speed]
-        before = choose_mode(self.dyn, start.q, v, self.t0, [i for i in closed if i != self.foot and i not in landing])
-        F_minus = vector_field(self.dyn, start.q, v, self.t0, before)
-        if landing and self.jumps is not None:
-            raise InvalidInputError(
-                f"stride map: the start touchdown of {self.names[self.foot]} is simultaneous with "
-                f"{', '.join(self.names[k] for k in landing)}; parameter derivatives of such a stride (a "
-                "one-sided derivative) are not available: start the stride from another foot's touchdown"
-            )
-        if landing:
-            # other contacts land at the same instant: on the section they can only be
-            # raised (land later), so the one-sided derivative is the foot first, then
-            # each of them (the product of single-contact saltation matrices)
-            xi, vel, current = np.eye(2 * self.scene.nv), v, before
-            for k in [self.foot] + landing:
-                self.kin.update(start.q, vel)
-                if self.contacts[k].rows(self.kin)[0] @ vel >= 0.0:
-                    continue  # separating after the earlier impacts
-                step = touchdown(self.dyn, self.t0, start.q, vel, current, [k], guard=k)
-                xi, vel, current = step.saltation @ xi, step.v_plus, step.mode_after
-            self.notes.append(
-                f"the start touchdown of {self.names[self.foot]} is simultaneous with "
-                f"{', '.join(self.names[k] for k in landing)}: one-sided derivative "
-                "(those landing at the same time or later)"
-            )
-        else:
-            Dh = gap_gradient(self.dyn, start.q, self.foot)
-            F_plus = vector_field(self.dyn, start.q, v_plus, self.t0, mode)
-            xi = saltation(start.saltation, Dh, F_minus, F_plus)
-            if self.jumps is not None:  # the same guard term for the parameters (module doc)
-                start.parameter_saltation = ParameterJumps.saltation(
-                    start.parameter_saltation,
-                    self.jumps.gap_guard(self.foot),
-                    start.saltation,
-                    F_minus,
-                    F_plus,
-                    float(Dh @ F_minus),
-                )
-        start.saltation = xi
-        self.initial_saltation = self._jumped(self._identity_phi(), start)
-        self.start = (before, F_minus, tuple(self.names[k] for k in landing))
-        return mode, v_plus
-
-    def on_event(self, event, mode_before, phi_before) -> bool:
-        """The foot's touchdown that ends the stride is terminal; every event where the
-        foot is on the ground moves the start of its flight."""
-        stop = False
-        if (
-            self.names[self.foot] in event.contacts
-            and event.kind not in (EventKind.LIFT_OFF, EventKind.SLIP)
-            and event.t >= self.t_earliest
-            and event.t - self.last_contact >= self.min_flight
-            and self.hit is None
-        ):
-            self.hit = (event, tuple(mode_before), phi_before)
-            stop = True
-        if self._touches(event):
-            self.last_contact = event.t
-        return stop
-
-    def _touches(self, event) -> bool:
-        """Whether the foot is on the ground at ``event`` (before, in or after it)."""
-        name = self.names[self.foot]
-        return name in event.contacts or name in event.impulses or name in event.mode_before or name in event.mode_after
 
 
 def stride_map(
