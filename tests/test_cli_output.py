@@ -8,8 +8,10 @@ import sys
 
 import pytest
 
-from contactdiff.bench.runner import QUICK_SCENES, _Progress
-from contactdiff.cli import _ProgressBar, main
+from contactdiff.bench.runner import _Progress
+from contactdiff.bench.scene_table import QUICK_SCENES
+from contactdiff.cli import main
+from contactdiff.progress_bar import ProgressBar
 
 
 class _Terminal(io.StringIO):
@@ -39,7 +41,7 @@ def test_the_bench_bar_draws_only_on_a_terminal(monkeypatch, stream, progress, d
 def test_the_simulate_bar_is_off_when_stderr_is_not_a_terminal(monkeypatch):
     err = io.StringIO()
     monkeypatch.setattr(sys, "stderr", err)
-    with _ProgressBar("run", (0.0, 1.0)) as bar:
+    with ProgressBar("run", (0.0, 1.0)) as bar:
         assert bar.bar.disable
         bar(0.5, 1, 10)
     assert err.getvalue() == ""
