@@ -118,18 +118,7 @@ from .foot_paths import SWING_RISE, foot_offset, reference_spline, smooth_step
 from .legs import PAIR_A, PAIR_B, Leg, base_at_origin, check_quadruped, find_legs
 from .piecewise import PiecewisePolynomial
 from .trot_parameters import TrotParameterDerivatives
-
-
-def _unload_window(spec) -> tuple[float, float]:
-    """Leg phases between which the load falls from 1 to ``-liftoff_pull``: length
-    ``2 transfer``, crossing 0 at ``duty`` (where ``S(u) = 1 / (1 + liftoff_pull)``)."""
-    target = 1.0 / (1.0 + spec.liftoff_pull)
-    lo, hi = 0.0, 1.0
-    for _ in range(60):  # bisection: S is increasing on [0, 1]
-        mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if smooth_step(mid) < target else (lo, mid)
-    start = spec.duty - 2.0 * spec.transfer * 0.5 * (lo + hi)
-    return start, start + 2.0 * spec.transfer
+from .trot_schedule import TrotSchedule, unload_window
 
 
 @dataclass(frozen=True)
@@ -224,7 +213,7 @@ class TrotController:
                 bad(f"{name} must be in [0, 1], got {getattr(self, name)!r}")
         if self.transfer == 0:
             bad("transfer must be > 0, got 0")
-        start, end = _unload_window(self)
+        start, end = unload_window(self)
         if start < self.transfer or end + self.transfer > 1.0 - self.transfer:
             bad(
                 f"transfer = {self.transfer!r} is too long for duty = {self.duty!r}: the load transitions "
@@ -262,7 +251,7 @@ TrotController.NUMBERS = tuple(f.name for f in fields(TrotController) if type(f.
 parameters ``trot:<field>`` (`contactdiff.model.parameters`)."""
 
 
-class TrotControllerEvaluator(TrotParameterDerivatives):
+class TrotControllerEvaluator(TrotSchedule, TrotParameterDerivatives):
     """`TrotController` bound to a robot.
 
     Attributes:
@@ -287,12 +276,8 @@ class TrotControllerEvaluator(TrotParameterDerivatives):
         self.iq = np.array([i for leg in self.legs for i in leg.iq])
         self.iv = np.array([i for leg in self.legs for i in leg.iv])
         self._sizes = [len(leg.iv) for leg in self.legs]
-        c = 0.5 * (spec.duty + spec.lag)
-        self._offsets = [
-            c - (0.0 if leg.pair == PAIR_A else 0.5) - (0.0 if leg.front else spec.lag) for leg in self.legs
-        ]
-        self._unload = _unload_window(spec)  # fixed by the spec: a 60-step bisection, once
-        self._spline = reference_spline(spec, robot, self.legs, self._offsets, q_stance, self.iq.size)
+        TrotSchedule.__init__(self, spec, self.legs)
+        self._spline = reference_spline(spec, robot, self.legs, self.offsets, q_stance, self.iq.size)
         # the spline's pieces, evaluated by hand in `reference` (Horner, as SciPy does, to the
         # same bits): a CubicSpline call costs ~20 µs of Python for a dozen numbers
         self._knots, self._coef = self._spline.x, self._spline.c
@@ -307,78 +292,12 @@ class TrotControllerEvaluator(TrotParameterDerivatives):
         self._q_of_v = np.zeros(self.nv, dtype=int)
         self._q_of_v[self.iv] = self.iq
 
-    # -- schedule -------------------------------------------------------------------
-    def phase(self, t: float) -> float:
-        """Gait phase ``phi`` in [0, 1) at time ``t`` (s)."""
-        return ((t - self.spec.t_start) / self.spec.period) % 1.0
-
-    def leg_phase(self, leg: int, phi: float) -> float:
-        """Phase ``psi`` of leg number ``leg`` (in ``legs``) at gait phase ``phi``; 0 = its touchdown."""
-        return (phi + self._offsets[leg]) % 1.0
-
-    def scheduled_stance(self, t: float) -> list[bool]:
-        """Which feet the schedule has on the ground at time ``t`` (``legs`` order)."""
-        phi = self.phase(t)
-        return [self.leg_phase(k, phi) < self.spec.duty for k in range(4)]
-
-    def scheduled_touchdown(self, leg: int) -> float:
-        """Gait phase of the scheduled touchdown of leg number ``leg``."""
-        return (-self._offsets[leg]) % 1.0
-
-    def scheduled_liftoff(self, leg: int) -> float:
-        """Gait phase of the scheduled lift-off of leg number ``leg``."""
-        return (self.spec.duty - self._offsets[leg]) % 1.0
-
-    def load(self, psi: float) -> float:
-        """Scheduled vertical load ``w`` of a leg at leg phase ``psi`` (1: its share of the
-        weight before scaling; negative: a pull), with ``r = transfer``, ``d = duty`` and smooth
-        steps between the levels (C² in time):
-
-        * ``touchdown_load`` at ``psi = 0`` (rising from 0 over the last ``r`` of the swing),
-          to 1 by ``psi = r``;
-        * 1 until the unloading: from 1 down to ``-liftoff_pull`` over a window of length
-          ``2 r``, placed so that ``w`` crosses 0 at ``psi = d`` (the scheduled lift-off);
-        * from ``-liftoff_pull`` back to 0 over the next ``r``; 0 for the rest of the swing.
-        """
-        s = self.spec
-        r, pull, tl = s.transfer, s.liftoff_pull, s.touchdown_load
-        start, end = self._unload
-        if psi < r:
-            return tl + (1.0 - tl) * float(smooth_step(psi / r))
-        if psi < start:
-            return 1.0
-        if psi < end:
-            return 1.0 - (1.0 + pull) * float(smooth_step((psi - start) / (end - start)))
-        if psi < end + r:
-            return -pull * (1.0 - float(smooth_step((psi - end) / r)))
-        if psi < 1.0 - r:
-            return 0.0
-        return tl * float(smooth_step((psi - (1.0 - r)) / r))
-
-    def gain(self, psi: float) -> float:
-        """Scale ``g`` of the PD gains of a leg at leg phase ``psi``: ``release_gain`` at the
-        scheduled lift-off (``psi = duty``), back to 1 over ``transfer`` on either side
-        (smooth steps)."""
-        s = self.spec
-        distance = abs(psi - s.duty)
-        distance = min(distance, 1.0 - distance)
-        if distance >= s.transfer:
-            return 1.0
-        return s.release_gain + (1.0 - s.release_gain) * float(smooth_step(distance / s.transfer))
-
     def _breakpoint_phases(self) -> np.ndarray:
         """Gait phases in [0, 1) where the schedule is not smooth: the reference spline's
         knots (its third derivative jumps there) and, per leg, the ends of the smooth-step
         pieces of the load and of the gain scale (``S'''`` jumps there), sorted, with
         phases closer than 1e-12 merged."""
-        s = self.spec
-        start, end = self._unload
-        r = s.transfer
-        leg_breaks = [0.0, r, start, end, end + r, 1.0 - r] if s.feedforward else []
-        if s.release_gain != 1.0:
-            leg_breaks += [s.duty - s.transfer, s.duty, s.duty + s.transfer]
-        knots = list(self._knots[:-1])
-        knots += [(psi - offset) % 1.0 for offset in self._offsets for psi in leg_breaks]
+        knots = list(self._knots[:-1]) + self.leg_breakpoint_phases()
         phases = np.sort(np.mod(knots, 1.0))
         keep = np.concatenate(([True], np.diff(phases) > 1e-12))
         return phases[keep]
@@ -467,7 +386,7 @@ class TrotControllerEvaluator(TrotParameterDerivatives):
         s = self.spec
         q_ref = self._spline(phis)
         v_ref = self._spline(phis, 1) / s.period
-        psis = [(phis + offset) % 1.0 for offset in self._offsets]
+        psis = [(phis + offset) % 1.0 for offset in self.offsets]
         g = np.repeat(np.array([[self.gain(p) for p in psi] for psi in psis]).T, self._sizes, axis=1)
         loads = np.array([[self.load(p) for p in psi] for psi in psis]).T if s.feedforward else np.zeros((len(phis), 4))
         return q_ref, v_ref, g, loads
