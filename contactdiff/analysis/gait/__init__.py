@@ -12,7 +12,8 @@ the hybrid loop of one stride). The public names of all are importable from here
 """
 
 from ...errors import StrideError
-from .periodic import PeriodicGait, PeriodMap, find_periodic_gait, floquet_multipliers, period_map
+from .period_map import PeriodMap, period_map
+from .periodic import PeriodicGait, find_periodic_gait, floquet_multipliers
 from .section import (
     NEUTRAL_NAMES,
     align,
