@@ -24,7 +24,8 @@ from ..errors import (
 from .dense import DenseOutput
 from .field_types import AccelFn, JacFn, ParameterJacFn
 from .lie import _as_group
-from .step_control import _EPS, initial_step, roundoff_error
+from .step_control import initial_step, roundoff_error
+from .tolerances import checked_atol, checked_rtol, column_scaled_atol, variational_row_atol
 from .variational import VariationalAlgebra
 
 if TYPE_CHECKING:
@@ -193,16 +194,8 @@ class Stepper(VariationalAlgebra, abc.ABC):
         t0 = _scalar("t0", t0)
         self.q = _vector("q0", q0, self.nq)
         self.v = _vector("v0", v0, self.nv)
-        rtol = _scalar("rtol", rtol)
-        if rtol < 100 * _EPS:
-            raise InvalidInputError(f"rtol must be >= 100*eps = {100 * _EPS:.3g}, got {rtol!r}")
-        self.rtol = rtol
-        atol_arr = np.array(atol, dtype=float)
-        if atol_arr.shape not in ((), (self.n,)):
-            raise InvalidInputError(f"atol must be a scalar or have shape ({self.n},), got shape {atol_arr.shape}")
-        if not (np.isfinite(atol_arr).all() and (atol_arr > 0).all()):
-            raise InvalidInputError(f"atol must be positive and finite, got {atol!r}")
-        self.atol = float(atol_arr) if atol_arr.ndim == 0 else atol_arr
+        self.rtol = checked_rtol(rtol)
+        self.atol = checked_atol(atol, self.n)
         self.max_step = _scalar("max_step", max_step, allow_inf=True)
         if not self.max_step > 0:
             raise InvalidInputError(f"max_step must be > 0, got {max_step!r}")
@@ -210,28 +203,12 @@ class Stepper(VariationalAlgebra, abc.ABC):
         if self.t_bound < t0:
             raise InvalidInputError(f"t_bound must be >= t0 = {t0!r} (forward integration only), got {t_bound!r}")
         self.variational_error_control = bool(variational_error_control)
-        if variational_atol is None:
-            self._atol_phi = self.atol if atol_arr.ndim == 0 else atol_arr[:, None]
-        else:
-            va = np.array(variational_atol, dtype=float)
-            if va.shape not in ((), (self.n,)):
-                raise InvalidInputError(
-                    f"variational_atol must be a scalar or have shape ({self.n},), got shape {va.shape}"
-                )
-            if not (np.isfinite(va).all() and (va > 0).all()):
-                raise InvalidInputError(f"variational_atol must be positive and finite, got {variational_atol!r}")
-            self._atol_phi = float(va) if va.ndim == 0 else va[:, None]
+        self._atol_phi = variational_row_atol(self.atol, variational_atol, self.n)
         self.t = t0
         self.phi = None if variational is None else self._check_phi(variational)
         if variational_column_scale is not None:
             m = 0 if self.phi is None else self.phi.shape[1]
-            pbar = np.array(variational_column_scale, dtype=float)
-            if pbar.shape != (m,) or not (np.isfinite(pbar).all() and (pbar > 0).all()):
-                raise InvalidInputError(
-                    f"variational_column_scale must be {m} positive finite numbers (one per "
-                    f"column of variational), got {variational_column_scale!r}"
-                )
-            self._atol_phi = np.reshape(self._atol_phi, (-1, 1)) / pbar[None, :]
+            self._atol_phi = column_scaled_atol(self._atol_phi, variational_column_scale, m)
 
         self.n_steps = self.n_rejected = self.n_accel = self.n_jac = 0
         self._outside = None
