@@ -432,11 +432,12 @@ class EventResets(LoopEvents):
         rate = float(Dh @ F_minus) + h_t
         event.saltation = xi
         assert self.phi is not None  # set before every event of a run with derivatives
+        band = np.zeros(self.phi.shape[1]) if self.band_dt is None else self.band_dt  # an onset's θ (`BandEvents`)
         if self.options.jacobian:
-            event.time_gradient = -(Dh @ self.phi[:, :n]) / rate
+            event.time_gradient = -(Dh @ self.phi[:, :n]) / rate + band[:n]
         if self.jumps is not None:
             event.parameter_saltation = xi_p
-            event.parameter_time_gradient = -(Dh @ self.phi[:, n:] + h_p) / rate
+            event.parameter_time_gradient = -(Dh @ self.phi[:, n:] + h_p) / rate + band[n:]
 
     def _note(self, text: str) -> str:
         """Add a note to the run's notes; return it (for an event's ``nonsmooth``)."""
