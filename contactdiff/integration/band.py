@@ -72,6 +72,35 @@ def reference_forces(dyn, sol, v, band: dict[int, BandOnset]) -> dict[int, np.nd
     return out
 
 
+def guard_reference_rates(dyn, t, q, v, mode, guard: Guard, band, held_key: int | None = None):
+    """The rate ``Dh F- + h_t`` of a guard that reads the forces (`FORCE_GUARDS`) of ``mode``
+    at ``(t, q, v)``, and its ``h_θ = ∂h/∂θ`` at that fixed state for each slip of ``band``
+    (scene indices) whose direction depends on its reference there (module doc):
+    ``(rate, {index: h_θ})``. ``held_key``: the held contact's key of a `GuardKind.BEAR`
+    guard (its guard is minus its load in the set of ``mode`` and it)."""
+    mode = tuple(mode)
+    weights = None
+    if guard.kind is GuardKind.BEAR:
+        key = held_key
+        Dh, h_t = bear_guard(dyn, t, q, v, mode, key)
+        rate = float(Dh @ vector_field(dyn, q, v, t, mode)) + h_t
+        solved, sign = enlarged(mode, key), -1.0
+    else:
+        key, solved, sign = guard.contact, mode, 1.0
+        if guard.kind is GuardKind.FORCE:
+            Dh, F_minus, h_t = liftoff_guard(dyn, t, q, v, mode, key)
+        else:
+            Dh, F_minus, h_t, (_, _, _, weights), _ = cone_guard(dyn, t, q, v, mode, key)
+        rate = float(Dh @ F_minus) + h_t
+    sol, der = dyn.solve(q, v, t, solved, derivatives=True)
+    rows = sol.row_slices[solved.index(key)]
+    rates = {}
+    for index, force in reference_forces(dyn, sol, v, band).items():
+        response = der.forces_dtau[rows] @ force
+        rates[index] = sign * float(response[0] if weights is None else weights @ response)
+    return rate, rates
+
+
 class BandEvents(LoopEvents):
     """The loop's handling of an event in the band (module doc); a mixin of
     `contactdiff.integration.hybrid.HybridLoop`."""
@@ -93,29 +122,11 @@ class BandEvents(LoopEvents):
             return True  # gap and other slips' stop guards: no θ in the guard
         if len(fired) > 1:
             return False
-        guard, dyn, mode = reading[0], self.dyn, tuple(mode)
-        if guard.kind is GuardKind.BEAR:
-            key = self.fields[-1].held[guard.contact]
-            Dh, h_t = bear_guard(dyn, t, q, v, mode, key)
-            rate = float(Dh @ vector_field(dyn, q, v, t, mode)) + h_t
-            solved = enlarged(mode, key)
-            sign, weights = -1.0, None
-        else:
-            key = guard.contact
-            if guard.kind is GuardKind.FORCE:
-                Dh, F_minus, h_t = liftoff_guard(dyn, t, q, v, mode, key)
-                sign, weights = 1.0, None
-            else:
-                Dh, F_minus, h_t, (_, _, _, weights), _ = cone_guard(dyn, t, q, v, mode, key)
-                sign = 1.0
-            rate = float(Dh @ F_minus) + h_t
-            solved = mode
-        sol, der = dyn.solve(q, v, t, solved, derivatives=True)
-        rows = sol.row_slices[solved.index(key)]
+        guard = reading[0]
+        held_key = self.fields[-1].held[guard.contact] if guard.kind is GuardKind.BEAR else None
+        rate, rates = guard_reference_rates(self.dyn, t, q, v, mode, guard, band, held_key)
         dt = np.zeros(self.phi.shape[1])
-        for index, force in reference_forces(dyn, sol, v, band).items():
-            response = der.forces_dtau[rows] @ force
-            h_theta = sign * float(response[0] if weights is None else weights @ response)
+        for index, h_theta in rates.items():
             dt -= h_theta * band[index].w / rate
         self.band_dt = dt
         return True
@@ -153,4 +164,4 @@ class BandEvents(LoopEvents):
         return correction
 
 
-__all__ = ["BandEvents", "BandOnset", "reference_forces"]
+__all__ = ["BandEvents", "BandOnset", "guard_reference_rates", "reference_forces"]

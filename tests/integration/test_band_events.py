@@ -39,7 +39,8 @@ from test_slip_onset import (
 )
 
 import contactdiff as cd
-from contactdiff.integration.band import BandEvents
+from contactdiff.integration.band import BandEvents, guard_reference_rates
+from contactdiff.integration.guards import Guard, GuardKind
 from contactdiff.model.objects import SceneObject, add_objects, empty_robot
 
 EDGE = ("cube/-x+y-z", "cube/-x-y-z")
@@ -174,3 +175,41 @@ def test_a_stop_of_the_band_slip_itself_ends_the_term_with_a_note():
     traj = cd.simulate(edge_scene(0.7), 0.06, jacobian=True, zeno_speed=1e-3, **OPTS)
     assert _events(traj) == [("slip", (EDGE[1],))]
     assert any(EDGE[1] in n and "holds the reference direction" in n for n in traj.notes), traj.notes
+
+
+@pytest.mark.parametrize("kind, corner", [("force", 0), ("force", 1), ("cone", 0)])
+def test_a_guards_reference_rate_matches_central_differences(crossing, kind, corner):
+    """``h_θ`` of a guard that reads the forces (`guard_reference_rates`), at the state just
+    before the crossing of the test above, where ``-x-y-z`` slips in the band: the normal force
+    of either edge corner and the cone margin of the sticking one, against central differences
+    of the guard's value over a turn of the slip's reference by ±δ at that fixed state. δ = 1e-6
+    rad: the forces (~1 N) are solved to ~1e-14 relative, so the differences are good to
+    ~1e-8 N/rad, and their truncation δ² |h'''| ~ 1e-12: 1e-7 (N/rad) of the rate's size keeps
+    a 10x margin."""
+    scene, options, traj = crossing
+    event = traj.events[0]
+    loop = cd.HybridLoop(scene, 0.0, 1.0, options=cd.SimulateOptions(zeno_speed=options["zeno_speed"]))
+    dyn, names = loop.dyn, scene.contact_names
+    sticking, slipping = (names.index(n) for n in EDGE)
+    mode = tuple(sorted((sticking, dyn.sliding_key(slipping))))
+    q, v, t = event.q, event.v_minus, event.t
+    dyn.kin.update(q, v)
+    u_T = dyn.contact(dyn.sliding_key(slipping)).full.rows(dyn.kin)[1:] @ v
+    assert np.linalg.norm(u_T) < 2 * options["zeno_speed"]  # in the band: s depends on r
+    key = [sticking, dyn.sliding_key(slipping)][corner]
+    guard = Guard(GuardKind.FORCE if kind == "force" else GuardKind.CONE, key)
+    r = np.array([np.cos(0.4), np.sin(0.4)])  # any reference: h_θ is a derivative at a fixed state
+
+    def value(angle):
+        c, s = np.cos(angle), np.sin(angle)
+        dyn.slip_reference[slipping] = np.array([c * r[0] - s * r[1], s * r[0] + c * r[1]])
+        sol = dyn.solve(q, v, t, mode)
+        f = sol.forces[sol.row_slices[mode.index(key)]]
+        return f[0] if kind == "force" else dyn.contact(key).spec.mu * f[0] - np.linalg.norm(f[1:])
+
+    delta = 1e-6
+    fd = (value(delta) - value(-delta)) / (2 * delta)
+    dyn.slip_reference[slipping] = r
+    _, rates = guard_reference_rates(dyn, t, q, v, mode, guard, {slipping: None})
+    assert abs(rates[slipping] - fd) <= 1e-7 * max(1.0, abs(fd)), (rates, fd)
+    assert abs(fd) > 1e-3  # the guard does move with the reference
