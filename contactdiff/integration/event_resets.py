@@ -334,6 +334,8 @@ class EventResets(LoopEvents):
                     for k, (jump, rate) in sim.corrections.items():
                         xi_p += np.outer(jump, self.jumps.gap_guard(k)) / rate
                 event.saltation_orders = {tuple(self.names[i] for i in k): m for k, m in sim.orders.items()}
+                if from_rest:  # the state after the reset at the event's time: Ξ φ + Ξ_p + F+ ∂t
+                    self._simultaneous_onsets(t, q, v_plus, Dh, F_minus, xi, xi_p, h_p, from_rest, new_mode)
             else:
                 DR = reset_jacobian()
                 F_plus = vector_field(self.dyn, q, v_plus, t, new_mode)
@@ -355,6 +357,21 @@ class EventResets(LoopEvents):
             self._landing_orders(event, t, q, v_minus, mode, touching, closed, e, verdict_only=True)
         self.events.append(event)
         return new_mode, v_plus
+
+    def _simultaneous_onsets(self, t, q, v_plus, Dh, F_minus, xi, xi_p, h_p, from_rest, new_mode) -> None:
+        """The slips from rest that Coulomb's law settles after a simultaneous landing
+        (`_onset_columns`): the state after the reset moved with the event's time,
+        ``Ξ φ + Ξ_p + F+ ∂t`` (for a single landing ``DR (φ + F- ∂t) + ∂R/∂p``), ``∂t`` that of
+        the guard the event's time gradient uses."""
+        rate = float(Dh @ F_minus)
+        dt = -(Dh @ self.phi)
+        if h_p is not None:
+            dt[self.n_state :] -= h_p
+        dt /= rate
+        moved = xi @ self.phi + np.outer(vector_field(self.dyn, q, v_plus, t, new_mode), dt)
+        if xi_p is not None:
+            moved[:, self.n_state :] += xi_p
+        self._onset_columns(t, q, from_rest, moved, dt, new_mode)
 
     def _landing_orders(self, event, t, q, v_minus, mode, touching, closed, e, verdict_only=False):
         """The saltation matrices of every landing order of a simultaneous touchdown
