@@ -11,6 +11,8 @@ parameters, their blocks (`contactdiff.integration.parameter_jumps`).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
 from ..dynamics.frictional_impact import ContactState
@@ -203,7 +205,7 @@ class EventResets(LoopEvents):
         impact_keys = list(closed)
         v_plus = impact.v_plus
         if impact.states is not None:  # Coulomb friction: each contact sticks or slides on
-            closed, creeping = self._friction_keys(q, impact)
+            closed, creeping = self._friction_keys(q, impact, closed)
             if creeping:  # a slip below the noise floor is held: the contact sticks or slips by its forces
                 v_plus = held_velocity(dyn, q, v_plus, creeping)
         scale = max(1.0, float(np.max(np.abs(impact.normal_speeds_before))))
@@ -332,6 +334,8 @@ class EventResets(LoopEvents):
                     for k, (jump, rate) in sim.corrections.items():
                         xi_p += np.outer(jump, self.jumps.gap_guard(k)) / rate
                 event.saltation_orders = {tuple(self.names[i] for i in k): m for k, m in sim.orders.items()}
+                if from_rest:  # the state after the reset at the event's time: Ξ φ + Ξ_p + F+ ∂t
+                    self._simultaneous_onsets(t, q, v_plus, Dh, F_minus, xi, xi_p, h_p, from_rest, new_mode)
             else:
                 DR = reset_jacobian()
                 F_plus = vector_field(self.dyn, q, v_plus, t, new_mode)
@@ -353,6 +357,21 @@ class EventResets(LoopEvents):
             self._landing_orders(event, t, q, v_minus, mode, touching, closed, e, verdict_only=True)
         self.events.append(event)
         return new_mode, v_plus
+
+    def _simultaneous_onsets(self, t, q, v_plus, Dh, F_minus, xi, xi_p, h_p, from_rest, new_mode) -> None:
+        """The slips from rest that Coulomb's law settles after a simultaneous landing
+        (`_onset_columns`): the state after the reset moved with the event's time,
+        ``Ξ φ + Ξ_p + F+ ∂t`` (for a single landing ``DR (φ + F- ∂t) + ∂R/∂p``), ``∂t`` that of
+        the guard the event's time gradient uses."""
+        rate = float(Dh @ F_minus)
+        dt = -(Dh @ self.phi)
+        if h_p is not None:
+            dt[self.n_state :] -= h_p
+        dt /= rate
+        moved = xi @ self.phi + np.outer(vector_field(self.dyn, q, v_plus, t, new_mode), dt)
+        if xi_p is not None:
+            moved[:, self.n_state :] += xi_p
+        self._onset_columns(t, q, from_rest, moved, dt, new_mode)
 
     def _landing_orders(self, event, t, q, v_minus, mode, touching, closed, e, verdict_only=False):
         """The saltation matrices of every landing order of a simultaneous touchdown
@@ -377,7 +396,7 @@ class EventResets(LoopEvents):
             )
         return sim
 
-    def _friction_keys(self, q, impact) -> tuple[list[int], list[int]]:
+    def _friction_keys(self, q, impact, before: Sequence[int]) -> tuple[list[int], list[int]]:
         """The keys of a frictional impact's contacts after it, and the closed ones whose
         slip is below `CREEP_FACTOR` noise floors (``dyn.slip_speed_floor``). A contact with Coulomb
         friction that slides faster takes its slipping key, its slip direction the
@@ -385,12 +404,14 @@ class EventResets(LoopEvents):
         One that slid before and that the law leaves open at zero normal speed with no
         impulse (a grazing landing's neighbours) slides on along its own slip, not along
         a direction an earlier mode left (a stale one makes its slip look stopped, and
-        the stop holds a sliding face still)."""
+        the stop holds a sliding face still). ``before``: the contacts' keys before the
+        impact, in the order of ``impact.contacts`` (which holds scene indices with
+        Coulomb friction)."""
         dyn, keys, creeping = self.dyn, [], []
         dyn.kin.update(q, impact.v_plus)
         scale = max(1.0, float(np.max(np.abs(impact.normal_speeds_before))))
-        for k, state, s, u_n in zip(
-            impact.contacts, impact.states, impact.slide_directions, impact.normal_speeds_after
+        for k, key_before, state, s, u_n in zip(
+            impact.contacts, before, impact.states, impact.slide_directions, impact.normal_speeds_after, strict=True
         ):
             contact = dyn.contact(k)
             if contact.spec.coulomb and state is ContactState.SLIDE and np.any(s):
@@ -400,13 +421,14 @@ class EventResets(LoopEvents):
                     k = dyn.sliding_key(k)
                 elif u_n <= SPEED_TOL * scale:
                     creeping.append(k)
-            elif contact.spec.coulomb and state is ContactState.OPEN and dyn.is_sliding(k):
+            elif contact.spec.coulomb and state is ContactState.OPEN and dyn.is_sliding(key_before):
                 # left open at zero normal speed, it stays in the mode sliding: along its own slip
                 index = dyn.contact_index(k)
-                u_T = contact.full.rows(dyn.kin)[1:] @ impact.v_plus
+                u_T = dyn.contact(key_before).full.rows(dyn.kin)[1:] @ impact.v_plus
                 slip = float(np.linalg.norm(u_T))
                 if slip > CREEP_FACTOR * dyn.slip_speed_floor:
                     dyn.slip_reference[index] = u_T / slip
+                k = dyn.sliding_key(index)
             keys.append(k)
         return keys, creeping
 
@@ -427,11 +449,12 @@ class EventResets(LoopEvents):
         rate = float(Dh @ F_minus) + h_t
         event.saltation = xi
         assert self.phi is not None  # set before every event of a run with derivatives
+        band = np.zeros(self.phi.shape[1]) if self.band_dt is None else self.band_dt  # an onset's θ (`BandEvents`)
         if self.options.jacobian:
-            event.time_gradient = -(Dh @ self.phi[:, :n]) / rate
+            event.time_gradient = -(Dh @ self.phi[:, :n]) / rate + band[:n]
         if self.jumps is not None:
             event.parameter_saltation = xi_p
-            event.parameter_time_gradient = -(Dh @ self.phi[:, n:] + h_p) / rate
+            event.parameter_time_gradient = -(Dh @ self.phi[:, n:] + h_p) / rate + band[n:]
 
     def _note(self, text: str) -> str:
         """Add a note to the run's notes; return it (for an event's ``nonsmooth``)."""

@@ -301,6 +301,8 @@ class FrictionEvents(LoopEvents):
                 if h_p is not None:
                     dt[self.n_state :] -= h_p
                 dt /= rate
+                if self.band_dt is not None:  # through an earlier onset's θ (`BandEvents`)
+                    dt += self.band_dt
                 moved = self.phi + np.outer(F_minus, dt)  # the event's state before its reset
                 self._onset_columns(t, q, found, moved if DR is None else DR @ moved, dt, new_mode)
             self._attach_sensitivity(event, xi, Dh, F_minus, h_t, xi_p=xi_p, h_p=h_p)

@@ -80,6 +80,7 @@ from ..ode.method_choice import EXPLICIT, MethodChooser, spectral_radius
 from ..ode.step_budget import BudgetWatch, budget_message
 from ..ode.step_collapse import COLLAPSE_RATIO, COLLAPSE_STEPS, CollapseWatch
 from ..scenes.scene_file import passive_note
+from .band import BandEvents, BandOnset
 from .event_resets import EventResets
 from .final_time import final_touches
 from .friction_events import FrictionEvents, refuse_ambiguous_slip, settle_friction
@@ -147,7 +148,7 @@ def simulate(
     return HybridLoop(scene, t0, t_final, q0, v0, options).run()
 
 
-class HybridLoop(EventResets, FrictionEvents, HeldEvents):
+class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents):
     """The hybrid loop of one run (module docstring); `simulate` is ``HybridLoop(...).run()``.
 
     Args:
@@ -207,8 +208,9 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
         self.initial_saltation = None
         self.jumps = None  # the parameters' blocks at events, with options.parameters
         # the slips from rest that follow the reference set at the last event: scene index ->
-        # ∂θ/∂ of phi's columns (`ModeField`; set by `FrictionEvents`, cleared at every event)
+        # ∂θ/∂ of phi's columns (`ModeField`; set by `FrictionEvents`; an event keeps those in the band, `BandEvents`)
         self.onsets: dict[int, np.ndarray] = {}
+        self.band_dt = None  # ∂t/∂ of the columns through an onset's θ, at an event in the band (`BandEvents`)
         # phi's columns: the state's 2nv (with options.jacobian), then the parameters'
         self.sensitive = self.options.jacobian or bool(self.options.parameters)
         self.n_state = 2 * self.scene.nv if self.options.jacobian else 0
@@ -440,8 +442,14 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
             dense.t = segment.t1 = t_event
             self.phi = stepper.phi
             n_before, mode_before = len(self.events), tuple(mode)
-            self._end_onsets(field, t_event, stepper.q, stepper.v)
+            band = self._band_onsets(field, stepper.q, stepper.v)
+            exact = not band or self._band_guard(band, t_event, stepper.q, stepper.v, mode, fired)
             mode, v_plus = self._event(t_event, stepper.q, stepper.v, mode, fired)
+            correction = None
+            if band:
+                exact = exact and len(self.events) == n_before + 1
+                q_after = self.events[-1].q
+                correction = self._band_after(band, t_event, q_after, stepper.v, mode_before, mode, v_plus, exact)
             self.guards.restart_from_rest(mode_before, mode, fired)
             if len(self.events) > options.max_events:
                 raise TooManyEventsError(
@@ -464,7 +472,9 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
                 accel=field.accel,
                 jac=field.jac,
                 parameter_jac=field.parameter_jac if self.sensitive else None,
-                phi=None if self.events[-1].saltation is None else self._jumped(stepper.phi, self.events[-1]),
+                phi=None
+                if self.events[-1].saltation is None
+                else self._jumped(stepper.phi, self.events[-1]) + (0.0 if correction is None else correction),
             )
             if self.chooser is not None:
                 self.chooser.new_mode(self._probe(mode))
@@ -488,19 +498,15 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents):
             self.notes.extend(touches)
         return traj
 
-    def _end_onsets(self, field: ModeField, t: float, q, v) -> None:
-        """At an event: the slips from rest stop carrying their onset's term (`ModeField`; the
-        event's own dependence on the reference is not formed), noted where one is still
-        below ``2 zeno_speed`` at ``(q, v)``, so its field still depends on the reference there
-        (docs/design.md, Coulomb friction)."""
+    def _band_onsets(self, field: ModeField, q, v) -> dict[int, BandOnset]:
+        """At an event at ``(q, v)``: the slips from rest still in the band (`ModeField`,
+        `contactdiff.integration.band`), which alone keep their term in ``self.onsets`` through
+        the event; the others' references no longer act."""
+        band = {}
         if self.onsets:
-            for index in field.onsets_in_band(q, v):
-                self.notes.append(
-                    f"flow Jacobian: from t = {t:.12g} it holds the reference direction of "
-                    f"{self.names[index]}'s slip from rest fixed (an event before the slip "
-                    f"reached 2 zeno_speed = {2.0 * self.dyn.slip_speed_floor:.3g} m/s)"
-                )
-        self.onsets = {}
+            band = {i: BandOnset(self.onsets[i], self.dyn.slip_reference[i].copy()) for i in field.onsets_in_band(q, v)}
+        self.onsets = {i: onset.w for i, onset in band.items()}
+        return band
 
     def _collapse(self, stepper, mode, h: float, typical: float, underflow: str | None = None):
         """Raise `StepCollapseError` (`contactdiff.ode.step_collapse`) at the stepper's

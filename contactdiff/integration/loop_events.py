@@ -43,6 +43,7 @@ class LoopEvents:
         sensitive: bool
         gap_tol: float
         onsets: dict[int, np.ndarray]
+        band_dt: np.ndarray | None
 
         def _gaps_and_rates(self, q, v) -> tuple[np.ndarray, np.ndarray]: ...
         def _mode_names(self, mode) -> tuple[str, ...]: ...

@@ -30,7 +30,8 @@ class ModeField:
     gap, each watched by a `GuardKind.BEAR` guard.
 
     ``onsets`` (``{scene index: w}``): the 3-D slips that started from rest at the
-    event the mode began with and still follow the reference ``r`` set there; ``w``
+    event the mode began with (or before it, still in the band: `contactdiff.integration.band`)
+    and still follow the reference ``r`` set there; ``w``
     (m,) is ``∂θ/∂`` of the flow Jacobian's columns (the state's and the parameters'),
     ``θ`` the angle of ``r`` in the tangent plane. While the slip is below ``2 floor``
     the field depends on ``r`` (`contactdiff.dynamics.slip.reference_turn`), so every

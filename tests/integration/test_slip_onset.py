@@ -27,8 +27,7 @@ floor ε = 1e-6 m/s and 2.2e-3 at ε = 1e-5 (from a cone crossing the slip grows
 The other slips from rest, whose references Coulomb's law sets as it settles a mode: at
 the start (a spring-held point mass; a cube on its edge whose second corner leaves its
 cone once the first slips, its reference then moving with the first one's angle), after
-an impact, and after the start's impact; and an event inside the band, which ends the
-term with a note.
+an impact, and after the start's impact. Events inside the band: test_band_events.
 """
 
 from __future__ import annotations
@@ -185,22 +184,6 @@ def test_mass_derivative_through_the_onset_matches_free_runs(onset, monkeypatch)
     held = cd.simulate(scene, T, parameters=["body:cube:mass"], **OPTS)
     monkeypatch.undo()
     assert np.abs(held.parameter_jacobian[:, 0] - fd).max() > 2 * FD_RTOL * np.abs(fd).max()
-
-
-def test_an_event_inside_the_band_ends_the_onset_term_with_a_note():
-    """The onset's term is carried up to the next event (docs/design.md, Coulomb friction): an
-    event while the slip is still below 2ε says that the flow Jacobian holds the reference from
-    there. With ε = 0.2 m/s the corner slips slower than 0.4 m/s when the next corner lands
-    (t ≈ 0.052 s, the cube falling onto its bottom face); at the default floor it left the band
-    long before (|u_T| > 1e-3 m/s by T, the first test), so no note."""
-    scene = corner_scene()
-    options = dict(jacobian=True, **OPTS)
-    slow = cd.simulate(scene, 0.054, zeno_speed=0.2, **options)
-    assert [e.kind for e in slow.events] == ["slip", "touchdown"]
-    assert any(CORNER in n and "holds the reference direction" in n for n in slow.notes), slow.notes
-    usual = cd.simulate(scene, 0.054, **options)
-    assert [e.kind for e in usual.events] == ["slip", "touchdown"]
-    assert not any("reference direction" in n for n in usual.notes), usual.notes
 
 
 def test_a_start_at_rest_outside_the_cone_carries_its_reference_term(tmp_path_factory, monkeypatch):
