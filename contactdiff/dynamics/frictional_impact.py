@@ -117,7 +117,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import EnergyGainError, InvalidInputError, SolverError
-from .friction_slip import SLIP_ZERO, CandidateEval, SlipDirections
+from .friction_slip import SLIP_ZERO, CandidateEval, SlipDirections, SlipMap
 from .lcp_problem import DEFAULT_TOL, ContactRows, _as_real_array, _as_vector, _validate
 from .redundant import gram_range_basis
 
@@ -138,6 +138,12 @@ FRICTION_ENUMERATE_MAX = 8
 # candidate tried first: its sweeps stop at 1e-14 relative change (or at the cap,
 # `friction_slip._FP_SWEEPS`), so a contact that should open or stick is far below this.
 _GUESS_ZERO = 1e-6
+
+# A slip root whose impulses break an inequality of the law by more than this many
+# times the check's tolerance (relative to their scale) is skipped unchecked: the two
+# evaluations of its impulses (the batch's and the check's own) differ by round-off,
+# far below this margin (`SlipMap.violating`).
+_SKIP_SHARE = 1e3
 
 
 class ContactState(enum.Enum):
@@ -477,17 +483,29 @@ class _Impact(SlipDirections):
         if not spatial:
             ev = self.evaluate(states, dirs, lay)
             return self.check(states, dirs, ev, signs, "enumerate")
-        found_any = False
-        for theta in self.slip_roots(states, dirs, spatial, lay):
-            found_any = True
+        roots = list(self.slip_roots(states, dirs, spatial, lay))
+        if not roots:
+            self.newton_failed.append(_describe(states, signs))
+            return None
+        # roots that break an inequality of the law by far more than the check's tolerance
+        # (a pulling normal impulse, most often: a face's corner the others lift) are
+        # rejected in one batch, before each is evaluated and checked on its own; the
+        # first root that passes the check is the same. A planar slider's friction is not
+        # in `SlipMap.violating`'s impulse scale: with one, every root is checked.
+        skip = (
+            SlipMap(self, states, dirs, spatial, lay, cross=True).violating(np.array(roots), _SKIP_SHARE * self.tol)
+            if not signs
+            else np.zeros(len(roots), dtype=bool)
+        )
+        for theta, skipped in zip(roots, skip):
+            if skipped:
+                continue
             d = dict(dirs)
             for j, k in enumerate(spatial):
                 d[k] = np.array([np.cos(theta[j]), np.sin(theta[j])])
             out = self.check(states, d, self.evaluate(states, d, lay), signs, "enumerate-newton")
             if out is not None:
                 return out
-        if not found_any:
-            self.newton_failed.append(_describe(states, signs))
         return None
 
     # ---- slip directions of spatial sliding contacts ----------------------
