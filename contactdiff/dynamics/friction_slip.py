@@ -33,6 +33,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from .slip_lowrank import LowRankSolve
+
 if TYPE_CHECKING:
     from .lcp_problem import ContactRows
 
@@ -181,6 +183,7 @@ class SlipMap:
         self.stick = [(cols_n[k], cols_t[k], prob.mu[k]) for k in cols_t if prob.mu[k] < np.inf]
         self.open_k = np.array([k for k in range(prob.n) if k not in cols_n], dtype=np.intp)
         self.U = prob.equality_basis(eq)
+        self._low_rank: LowRankSolve | None = None  # formed at the first low-rank evaluation
 
     def _solve(self, K: np.ndarray, rhs: np.ndarray) -> np.ndarray:
         """``K[i] x[i] = rhs[i]`` for a stack, by the compatible-impulse principle when the
@@ -208,17 +211,25 @@ class SlipMap:
         a = [_thin_matmul(self.GT[j], np.stack([cs[:, j], sn[:, j]])) for j in range(theta.shape[1])]
         return cs, sn, a
 
-    def _impulses(self, theta: np.ndarray, turns=None):
+    def _impulses(self, theta: np.ndarray, turns=None, low_rank: bool = False):
         """At angles ``theta`` (P, ns): `turns`, the candidate's matrices ``K(θ)``
-        (P, p, p), unknowns ``z`` (P, p) and those of the sliders' normal impulses
-        ``zc`` (P, ns), post-impact row velocities ``u+`` (P, m) and the impulse scale
-        (P,): the largest ``|z|`` or slider's ``μ |Λ_N|``."""
+        (P, p, p; None by the low-rank path), unknowns ``z`` (P, p) and those of the
+        sliders' normal impulses ``zc`` (P, ns), post-impact row velocities ``u+`` (P, m)
+        and the impulse scale (P,): the largest ``|z|`` or slider's ``μ |Λ_N|``. With
+        ``low_rank``, ``z`` by `contactdiff.dynamics.slip_lowrank` where ``K0`` is well
+        conditioned (equal to the direct solve's up to round-off)."""
         P, ns = theta.shape
         cs, sn, a = self.turns(theta) if turns is None else turns  # a: (m, P) each
-        K = np.repeat(self.K0[None], P, axis=0)
-        for j in range(ns):
-            K[:, :, self.c[j]] += a[j][self.eq].T
-        z = self._solve_r(K)[..., 0]
+        if low_rank and self._low_rank is None:
+            self._low_rank = LowRankSolve(self.K0, self.r, self.U, self.c, [g[self.eq] for g in self.GT], _thin_matmul)
+        if low_rank and self._low_rank.usable:
+            K = None
+            z = self._low_rank.solve(cs, sn)
+        else:
+            K = np.repeat(self.K0[None], P, axis=0)
+            for j in range(ns):
+                K[:, :, self.c[j]] += a[j][self.eq].T
+            z = self._solve_r(K)[..., 0]
         zc = z[:, self.c]
         up = self.prob.u + _thin_matmul(z, self.GB0.T)
         for j in range(ns):
@@ -236,15 +247,16 @@ class SlipMap:
         ok = np.isfinite(z).all(axis=1) & np.isfinite(up).all(axis=1) & np.isfinite(lam_max)
         return ok & ~self.feasible(z, up, lam_max, self.prob.bmax + self.prob.gmax * lam_max, rel)
 
-    def __call__(self, theta: np.ndarray, jac: bool = True, turns=None):
+    def __call__(self, theta: np.ndarray, jac: bool = True, turns=None, low_rank: bool = False):
         """For angles ``theta`` of shape (P, ns): the residual f (P, ns), its
         Jacobian (P, ns, ns) or None, the feasibility of the law's other
         conditions (P,), whether every slip is along (not against) its ``s``
         (P,) and the scale of f (P,). With ``cross``, ``f_k = s_k x u+_T,k``
         (smooth; scale: the velocity scale), else ``f_k = g_k`` (scale 1).
-        ``turns``: `turns` of ``theta`` if already formed."""
+        ``turns``: `turns` of ``theta`` if already formed; ``low_rank`` (without
+        ``jac``): the unknowns by the low-rank path (`_impulses`)."""
         P, ns = theta.shape
-        cs, sn, a, K, z, zc, up, lam_max = self._impulses(theta, turns)
+        cs, sn, a, K, z, zc, up, lam_max = self._impulses(theta, turns, low_rank and not jac)
         vscale = self.prob.bmax + self.prob.gmax * lam_max
         v = np.stack([up[:, t] for t in self.T], axis=1)  # (P, ns, 2)
         r2 = (v * v).sum(axis=2)
@@ -403,7 +415,9 @@ class SlipDirections:
         starts.append(np.array([np.arctan2(free.up[self.tang[k][1]], free.up[self.tang[k][0]]) for k in spatial]))
         per_axis, grid, turns = self.grid_turns(fmap, spatial, pre)
         ns = len(spatial)
-        f, _, feas, _, vscale = fmap(grid, jac=False, turns=turns)
+        # the grid only ranks Newton's starts: its points solved as low-rank updates of
+        # one factorisation (`contactdiff.dynamics.slip_lowrank`), the roots then by the direct path
+        f, _, feas, _, vscale = fmap(grid, jac=False, turns=turns, low_rank=True)
         merit = np.abs(f).max(axis=1) / vscale + np.where(feas, 0.0, 1.0)
         merit = np.where(np.isfinite(merit), merit, np.inf).reshape((per_axis,) * ns)
         local = np.isfinite(merit)

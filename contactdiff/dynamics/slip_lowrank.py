@@ -1,0 +1,82 @@
+"""A frictional-impact candidate's unknowns at many slip angles at once, as a low-rank
+update of one factorisation: the fast path of the slip search's grid
+(`contactdiff.dynamics.friction_slip.SlipMap`).
+
+The candidate's equations are ``K(θ) z = r`` with ``K(θ) = K0 + Σ_j g_j(θ) e_cjᵀ``:
+slider ``j``'s friction adds the column ``g_j(θ) = Gt_j (cos θ_j, sin θ_j)`` (``Gt_j``
+its rows ``-μ_j G[eq, T_j]``, p x 2) to column ``c_j`` (its normal impulse's unknown)
+of the angle-free ``K0``. With ``W = K0⁻¹`` (or, where the equality rows are dependent,
+``W = U (Uᵀ K0 U)⁻¹ Uᵀ``, the compatible-impulse solve of
+`contactdiff.dynamics.redundant` with ``U`` a basis of the range of ``G[eq, eq]``), the
+Sherman-Morrison-Woodbury identity gives
+
+    z(θ) = z0 - Y(θ) S(θ)⁻¹ z0[c],   z0 = W r,   Y(θ) = [W g_j(θ)]_j,   S(θ) = I + Y(θ)[c],
+
+and ``W g_j(θ) = (W Gt_j) (cos θ_j, sin θ_j)`` is linear in the two precomputed columns
+``W Gt_j``: a point costs an ``ns x ns`` solve (``ns`` sliders) instead of a ``p x p``
+one and the stacked matrices it takes. For the dependent case, ``(Uᵀ K U)⁻¹ Uᵀ`` with
+``Uᵀ K U = Uᵀ K0 U + Σ_j (Uᵀ g_j)(U[c_j])`` is the same identity in the coordinates of
+``U``, and multiplied by ``U`` it is the formula above.
+
+The two paths agree to round-off times the condition of ``K0`` and ``S(θ)``; the solver
+takes this one only where ``K0`` (in ``U``'s coordinates) is well conditioned
+(`COND_MAX`), and only to rank a grid's points as Newton's starts, whose roots the
+direct path then polishes and checks.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+#: Largest condition number of ``K0`` (in ``U``'s coordinates) for which the low-rank
+#: path is taken: its results then differ from the direct solve's by at most about
+#: ``COND_MAX * cond(S) * eps`` relative, far below the grid's purpose (ranking starts).
+COND_MAX = 1e8
+
+
+class LowRankSolve:
+    """``z(θ)`` of one candidate by the identity of the module doc.
+
+    Args:
+        K0: the angle-free matrix (p, p).
+        r: the right-hand side (p,).
+        U: a basis of the range of the equality rows (p, q) where they are dependent,
+            else None.
+        c: the sliders' normal-impulse columns (ns,).
+        Gt: each slider's friction rows on the equations, ``-μ G[eq, T]`` (p, 2).
+        matmul: the product of two matrices (the slip search's, which keeps OpenBLAS
+            on one thread for its long thin products).
+
+    ``usable`` is False where ``K0`` is singular or worse conditioned than `COND_MAX`:
+    then `solve` must not be called.
+    """
+
+    def __init__(self, K0, r, U, c, Gt: list[np.ndarray], matmul: Callable[[np.ndarray, np.ndarray], np.ndarray]):
+        self.matmul = matmul
+        K = K0 if U is None else U.T @ K0 @ U
+        self.usable = bool(K.size) and bool(np.isfinite(K).all()) and float(np.linalg.cond(K)) < COND_MAX
+        if not self.usable:
+            return
+        inv = np.linalg.inv(K)
+        W = inv if U is None else U @ inv @ U.T
+        self.z0 = W @ r
+        self.c = c
+        WG = [W @ g for g in Gt]  # (p, 2) each: W g_j(θ) = WG_j (cos θ_j, sin θ_j)
+        # S(θ) = I + cos θ_j WG_j[c_i, 0] + sin θ_j WG_j[c_i, 1] (row i, column j), and
+        # Y(θ) β = [cos θ ∘ β, sin θ ∘ β] @ WGᵀ with the columns of all WG_j in that order
+        self.S_cos = np.stack([wg[c, 0] for wg in WG], axis=1)
+        self.S_sin = np.stack([wg[c, 1] for wg in WG], axis=1)
+        self.WGt = np.concatenate([np.stack([wg[:, 0] for wg in WG]), np.stack([wg[:, 1] for wg in WG])])
+
+    def solve(self, cs: np.ndarray, sn: np.ndarray) -> np.ndarray:
+        """The unknowns ``z`` (P, p) at angles with cosines ``cs`` and sines ``sn`` (P, ns)."""
+        P, ns = cs.shape
+        S = cs[:, None, :] * self.S_cos + sn[:, None, :] * self.S_sin + np.eye(ns)  # (P, ns, ns)
+        rhs = np.broadcast_to(self.z0[self.c], (P, ns))[..., None]
+        try:
+            beta = np.linalg.solve(S, rhs)[..., 0]
+        except np.linalg.LinAlgError:  # a pole on a grid point: the least-squares answer there
+            beta = (np.linalg.pinv(S) @ rhs)[..., 0]
+        return self.z0 - self.matmul(np.concatenate([cs * beta, sn * beta], axis=1), self.WGt)
