@@ -211,6 +211,12 @@ class SlipMap:
         a = [_thin_matmul(self.GT[j], np.stack([cs[:, j], sn[:, j]])) for j in range(theta.shape[1])]
         return cs, sn, a
 
+    def low_rank(self) -> LowRankSolve:
+        """The candidate's low-rank solve (`contactdiff.dynamics.slip_lowrank`), formed once."""
+        if self._low_rank is None:
+            self._low_rank = LowRankSolve(self.K0, self.r, self.U, self.c, [g[self.eq] for g in self.GT], _thin_matmul)
+        return self._low_rank
+
     def _impulses(self, theta: np.ndarray, turns=None, low_rank: bool = False):
         """At angles ``theta`` (P, ns): `turns`, the candidate's matrices ``K(θ)``
         (P, p, p; None by the low-rank path), unknowns ``z`` (P, p) and those of the
@@ -220,11 +226,9 @@ class SlipMap:
         conditioned (equal to the direct solve's up to round-off)."""
         P, ns = theta.shape
         cs, sn, a = self.turns(theta) if turns is None else turns  # a: (m, P) each
-        if low_rank and self._low_rank is None:
-            self._low_rank = LowRankSolve(self.K0, self.r, self.U, self.c, [g[self.eq] for g in self.GT], _thin_matmul)
-        if low_rank and self._low_rank.usable:
+        if low_rank and self.low_rank().usable:
             K = None
-            z = self._low_rank.solve(cs, sn)
+            z = self.low_rank().solve(cs, sn)
         else:
             K = np.repeat(self.K0[None], P, axis=0)
             for j in range(ns):

@@ -483,6 +483,8 @@ class _Impact(SlipDirections):
         if not spatial:
             ev = self.evaluate(states, dirs, lay)
             return self.check(states, dirs, ev, signs, "enumerate")
+        if self.pulls_everywhere(states, dirs, spatial, lay):
+            return None
         roots = list(self.slip_roots(states, dirs, spatial, lay))
         if not roots:
             self.newton_failed.append(_describe(states, signs))
@@ -507,6 +509,19 @@ class _Impact(SlipDirections):
             if out is not None:
                 return out
         return None
+
+    def pulls_everywhere(self, states, dirs, spatial, lay) -> bool:
+        """Whether the candidate fails the law at every slip direction of its spatial
+        sliders, a closed contact pulling by far more than the check's tolerance
+        (`LowRankSolve.pulls_everywhere`, where its angle-free matrix is well
+        conditioned): its search for slip directions is then skipped."""
+        fmap = SlipMap(self, states, dirs, spatial, lay, cross=True)
+        low = fmap.low_rank()
+        if not low.usable:
+            return False
+        # every sliding contact's friction, planar ones too, bounds the impulses' scale
+        mu_max = max((float(self.mu[k]) for k, s in enumerate(states) if s is ContactState.SLIDE), default=0.0)
+        return low.pulls_everywhere(fmap.closed, mu_max, _SKIP_SHARE * self.tol)
 
     # ---- slip directions of spatial sliding contacts ----------------------
     def residual(self, states, dirs, lam, up) -> float:

@@ -36,6 +36,12 @@ import numpy as np
 COND_MAX = 1e8
 
 
+#: `LowRankSolve.pulls_everywhere` answers only where ``K0`` is conditioned below this
+#: and the friction's share ``σ`` of ``S(θ)`` is at most `CERTIFY_SIGMA`.
+CERTIFY_COND = 1e6
+CERTIFY_SIGMA = 0.5
+
+
 class LowRankSolve:
     """``z(θ)`` of one candidate by the identity of the module doc.
 
@@ -56,7 +62,8 @@ class LowRankSolve:
     def __init__(self, K0, r, U, c, Gt: list[np.ndarray], matmul: Callable[[np.ndarray, np.ndarray], np.ndarray]):
         self.matmul = matmul
         K = K0 if U is None else U.T @ K0 @ U
-        self.usable = bool(K.size) and bool(np.isfinite(K).all()) and float(np.linalg.cond(K)) < COND_MAX
+        self.cond = float(np.linalg.cond(K)) if K.size and np.isfinite(K).all() else np.inf
+        self.usable = self.cond < COND_MAX
         if not self.usable:
             return
         inv = np.linalg.inv(K)
@@ -80,3 +87,33 @@ class LowRankSolve:
         except np.linalg.LinAlgError:  # a pole on a grid point: the least-squares answer there
             beta = (np.linalg.pinv(S) @ rhs)[..., 0]
         return self.z0 - self.matmul(np.concatenate([cs * beta, sn * beta], axis=1), self.WGt)
+
+    def pulls_everywhere(self, closed: np.ndarray, mu_max: float, rel: float) -> bool:
+        """Whether, at every slip angle of the sliders, a contact of the candidate pulls
+        by more than ``rel`` of the impulses' scale: some normal-impulse unknown among
+        ``closed`` (columns of ``z``) is below ``-rel · L`` for every ``θ``, with ``L`` a
+        bound of the largest impulse (``max |z|``, or a slider's ``μ |Λ_N|``, ``μ`` up to
+        ``mu_max``) over all angles. Then no slip direction satisfies the law.
+
+        The bound (module doc's identity): ``|(Y β)_i| <= ||w_i|| ||β||`` with
+        ``w_i = (||WG_j[i]||)_j`` (``|cos θ a + sin θ b| <= ||(a, b)||``), and
+        ``||β|| <= ||z0[c]|| / (1 - σ)`` with ``σ = ||(||WG_j[c_i]||)_ij||_F``, a bound
+        of ``||S(θ) - I||``. Only where ``σ <= CERTIFY_SIGMA`` and ``cond(K0) <=
+        CERTIFY_COND`` (otherwise False): ``K(θ)`` is then conditioned below
+        ``CERTIFY_COND (1 + σ) / (1 - σ) = 3e6``, so the candidate's own evaluation of
+        ``z`` is within about ``3e6 · p · eps < 1e-8`` of its scale of the exact one,
+        far inside a ``rel`` of 1e-6."""
+        if not self.cond <= CERTIFY_COND:
+            return False
+        norms = np.sqrt(sum(wg * wg for wg in self._WG_parts()))  # (p, ns): ||WG_j[i, :]||
+        sigma = float(np.sqrt((norms[self.c] ** 2).sum()))
+        if not sigma <= CERTIFY_SIGMA:
+            return False
+        spread = np.sqrt((norms**2).sum(axis=1)) * float(np.linalg.norm(self.z0[self.c])) / (1.0 - sigma)
+        scale = float((np.abs(self.z0) + spread).max()) * max(1.0, mu_max)
+        return bool(np.any(self.z0[closed] + spread[closed] < -rel * scale))
+
+    def _WG_parts(self) -> tuple[np.ndarray, np.ndarray]:
+        """The columns ``WG_j[:, 0]`` and ``WG_j[:, 1]`` of every slider, (p, ns) each."""
+        ns = self.S_cos.shape[1]
+        return self.WGt[:ns].T, self.WGt[ns:].T

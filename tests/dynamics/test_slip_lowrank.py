@@ -99,3 +99,70 @@ def test_singular_or_ill_conditioned_K0_is_not_used(K0):
     p = K0.shape[0]
     solve = LowRankSolve(K0, np.ones(p), None, np.array([0]), [np.ones((p, 2))], _thin_matmul)
     assert not solve.usable
+
+
+def _edge_bounce(slide: float) -> _Impact:
+    """The face's edge at x = -HALF hits the board at 1 m/s while the opposite edge rests
+    on it (zero normal speed), the level cube sliding at ``slide`` m/s towards the
+    hitting edge (along -x): a face event of the tosses."""
+    mass = 0.37
+    m_inv = np.zeros((6, 6))
+    m_inv[:3, :3] = np.eye(3) / mass
+    m_inv[3:, 3:] = np.eye(3) / (mass * (2 * HALF) ** 2 / 6)
+    A = np.array([np.concatenate([d, np.cross(r, d)]) for r in FACE for d in np.eye(3)[[2, 0, 1]]])
+    G = A @ m_inv @ A.T
+    # a corner's normal speed vz + (ω × r)_z = vz + ωx ry - ωy rx: -1 at rx = -HALF and 0
+    # at rx = +HALF for vz = -1/2, ωy = -1 / (2 HALF)
+    u = A @ np.array([-slide, 0.0, -0.5, 0.0, -0.5 / HALF, 0.0])
+    rows = ContactRows.from_sizes([3] * 4)
+    e = np.where(u[list(rows.normal)] < -1e-12, 0.125, 0.0)
+    return _Impact(0.5 * (G + G.T), u, rows, e, np.full(4, 0.18), 1e-9)
+
+
+def _pulls_on_a_grid(prob: _Impact, states, spatial, per_axis: int) -> bool:
+    """Brute force by the direct solve: at every point of a grid of the sliders' angles
+    some closed contact pulls by more than 1e-6 of the largest impulse."""
+    fmap = SlipMap(prob, states, {}, spatial, prob.layout(states), cross=True)
+    axes = np.meshgrid(*([2 * np.pi * np.arange(per_axis) / per_axis] * len(spatial)), indexing="ij")
+    theta = np.stack([a.ravel() for a in axes], axis=1)
+    *_, z, _, _, lam_max = fmap._impulses(theta)
+    return bool(np.all((z[:, fmap.closed] < -1e-6 * lam_max[:, None]).any(axis=1)))
+
+
+@pytest.mark.parametrize("slide", [0.3, 1.0, 3.0])
+def test_a_face_whose_sticking_corners_pull_is_certified_without_a_search(slide):
+    """On the edge bounce (`_edge_bounce`) each of the 14 candidates with all four
+    corners closed, some sliding and some sticking, makes a corner pull: a sticking
+    corner stops its slip, and that tangential impulse at the board, below the centre,
+    tips the cube about the hitting edge and lifts the resting one, which equal
+    compliant supports would then have to hold down. The certificate holds for each
+    (and the grid by the direct solve agrees: a pull at every point); it does not hold
+    for the four sliding corners, the solver's answer."""
+    prob = _edge_bounce(slide)
+    certified = []
+    for states, sliding in prob.candidates():
+        if any(s is OPEN for s in states) or not sliding:
+            continue
+        if prob.pulls_everywhere(states, {}, list(sliding), prob.layout(states)):
+            certified.append(states)
+            assert _pulls_on_a_grid(prob, states, list(sliding), 12 if len(sliding) < 4 else 6)
+    assert len(certified) == 14 and (SLIDE,) * 4 not in certified
+    assert prob.solve().states == (SLIDE,) * 4
+
+
+@pytest.mark.parametrize("corners", [FACE, EDGE, FACE[:3]])
+def test_certificate_never_holds_where_a_grid_point_is_feasible(corners):
+    """On random cube impacts, every candidate with sliders: where the certificate
+    holds, the direct solve finds a pulling contact at every grid point (it is a bound,
+    so the converse need not hold)."""
+    rng = np.random.default_rng(14)
+    checked = 0
+    for _ in range(4):
+        prob = _cube_problem(rng, corners)
+        for states, sliding in prob.candidates():
+            if not sliding:
+                continue
+            if prob.pulls_everywhere(states, {}, list(sliding), prob.layout(states)):
+                checked += 1
+                assert _pulls_on_a_grid(prob, states, list(sliding), 12 if len(sliding) < 4 else 6)
+    assert checked > 0
