@@ -95,21 +95,26 @@ class LowRankSolve:
         bound of the largest impulse (``max |z|``, or a slider's ``μ |Λ_N|``, ``μ`` up to
         ``mu_max``) over all angles. Then no slip direction satisfies the law.
 
-        The bound (module doc's identity): ``|(Y β)_i| <= ||w_i|| ||β||`` with
-        ``w_i = (||WG_j[i]||)_j`` (``|cos θ a + sin θ b| <= ||(a, b)||``), and
-        ``||β|| <= ||z0[c]|| / (1 - σ)`` with ``σ = ||(||WG_j[c_i]||)_ij||_F``, a bound
-        of ``||S(θ) - I||``. Only where ``σ <= CERTIFY_SIGMA`` and ``cond(K0) <=
-        CERTIFY_COND`` (otherwise False): ``K(θ)`` is then conditioned below
-        ``CERTIFY_COND (1 + σ) / (1 - σ) = 3e6``, so the candidate's own evaluation of
-        ``z`` is within about ``3e6 · p · eps < 1e-8`` of its scale of the exact one,
-        far inside a ``rel`` of 1e-6."""
+        The bound, from the module doc's identity: each entry of ``W g_j(θ)`` is
+        ``cos θ_j a + sin θ_j b``, at most ``N_ij = ||(a, b)||`` in size (``WG_j``'s row
+        ``i``), so ``|S(θ) - I| <= N[c]`` entry by entry; with ``β = z0[c] - (S - I) β``
+        that gives ``|β| <= (I - N[c])⁻¹ |z0[c]|`` (a nonnegative inverse while the
+        spectral norm ``σ`` of ``N[c]`` is below 1), and ``|z_i(θ) - z0_i| <= N_i · |β|``.
+        Only where ``σ <= CERTIFY_SIGMA`` and ``cond(K0) <= CERTIFY_COND`` (otherwise
+        False): ``K(θ)`` is then conditioned below ``CERTIFY_COND (1 + σ) / (1 - σ) =
+        3e6``, so the candidate's own evaluation of ``z`` is within about
+        ``3e6 · p · eps < 1e-8`` of its scale of the exact one, far inside a ``rel`` of
+        1e-6."""
         if not self.cond <= CERTIFY_COND:
             return False
-        norms = np.sqrt(sum(wg * wg for wg in self._WG_parts()))  # (p, ns): ||WG_j[i, :]||
-        sigma = float(np.sqrt((norms[self.c] ** 2).sum()))
+        cos_part, sin_part = self._WG_parts()
+        N = np.sqrt(cos_part**2 + sin_part**2)  # (p, ns)
+        Nc = N[self.c]
+        sigma = float(np.linalg.norm(Nc, 2)) if np.isfinite(Nc).all() else np.inf
         if not sigma <= CERTIFY_SIGMA:
             return False
-        spread = np.sqrt((norms**2).sum(axis=1)) * float(np.linalg.norm(self.z0[self.c])) / (1.0 - sigma)
+        beta = np.linalg.solve(np.eye(len(self.c)) - Nc, np.abs(self.z0[self.c]))
+        spread = N @ beta
         scale = float((np.abs(self.z0) + spread).max()) * max(1.0, mu_max)
         return bool(np.any(self.z0[closed] + spread[closed] < -rel * scale))
 
