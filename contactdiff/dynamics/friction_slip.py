@@ -13,7 +13,8 @@ direction is a root of that form only). Several: the cross form
 2π and, where a slip is small, turns so fast that a root is a needle a grid
 misses), solved by Newton's method with a backtracking line search run at once
 from every local minimum of ``max|f|`` on a grid (infeasible points ranked
-last), the pre-impact slip, a rough solution of the whole law (a projected
+last; the grid's points solved as low-rank updates of one factorisation,
+`contactdiff.dynamics.slip_lowrank`), the pre-impact slip, a rough solution of the whole law (a projected
 fixed point) and the frictionless slip; roots with a slip against ``s``
 (``g = π``, also roots of ``f``) are dropped. Of two copies of one root (2π apart, or
 found from two starts) the first is tried, and the other after it where Newton stopped

@@ -45,7 +45,12 @@ frictionless slip and every local minimum of a grid on the torus (see
 `contactdiff.dynamics.friction_slip`). The roots of a candidate are tried
 nearest the pre-impact slip directions first. Every condition of the
 law is then checked on the candidate, and the first candidate that satisfies
-all within the tolerance is returned. "Exact" means: the true circular cone
+all within the tolerance is returned. Two rejections skip work without changing
+which candidate that is: a candidate whose closed contact pulls, by far more than
+the tolerance, at every slip angle of its sliders (a bound over all angles,
+`contactdiff.dynamics.slip_lowrank`) is not searched, and a candidate's roots that
+break an inequality of the law by that much are rejected in one batch before the
+others are checked one by one. "Exact" means: the true circular cone
 (no polyhedral approximation, no regularisation or penalty), and an answer
 that satisfies every condition of the law up to the scaled residual ``tol``
 (about 1e-15 in practice: the linear solves are backward stable and Newton
