@@ -57,6 +57,7 @@ def test_an_event_moved_beyond_the_tolerance_is_reported(script, recording, tmp_
 
 def test_another_event_kind_or_a_missing_event_is_reported(script, recording, tmp_path):
     """A different kind at the first event, or one event fewer, fails whatever the tolerances."""
+
     def other_kind(events):
         events[0][0] = "grazing" if events[0][0] != "grazing" else "bounce"
         return events
