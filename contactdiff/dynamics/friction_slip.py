@@ -13,7 +13,8 @@ direction is a root of that form only). Several: the cross form
 2π and, where a slip is small, turns so fast that a root is a needle a grid
 misses), solved by Newton's method with a backtracking line search run at once
 from every local minimum of ``max|f|`` on a grid (infeasible points ranked
-last), the pre-impact slip, a rough solution of the whole law (a projected
+last; the grid's points solved as low-rank updates of one factorisation,
+`contactdiff.dynamics.slip_lowrank`), the pre-impact slip, a rough solution of the whole law (a projected
 fixed point) and the frictionless slip; roots with a slip against ``s``
 (``g = π``, also roots of ``f``) are dropped. Of two copies of one root (2π apart, or
 found from two starts) the first is tried, and the other after it where Newton stopped
@@ -26,11 +27,14 @@ from __future__ import annotations
 
 import functools
 import math
+import operator
 from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
+
+from .slip_lowrank import LowRankSolve
 
 if TYPE_CHECKING:
     from .lcp_problem import ContactRows
@@ -180,6 +184,7 @@ class SlipMap:
         self.stick = [(cols_n[k], cols_t[k], prob.mu[k]) for k in cols_t if prob.mu[k] < np.inf]
         self.open_k = np.array([k for k in range(prob.n) if k not in cols_n], dtype=np.intp)
         self.U = prob.equality_basis(eq)
+        self._low_rank: LowRankSolve | None = None  # formed at the first low-rank evaluation
 
     def _solve(self, K: np.ndarray, rhs: np.ndarray) -> np.ndarray:
         """``K[i] x[i] = rhs[i]`` for a stack, by the compatible-impulse principle when the
@@ -207,24 +212,56 @@ class SlipMap:
         a = [_thin_matmul(self.GT[j], np.stack([cs[:, j], sn[:, j]])) for j in range(theta.shape[1])]
         return cs, sn, a
 
-    def __call__(self, theta: np.ndarray, jac: bool = True, turns=None):
-        """For angles ``theta`` of shape (P, ns): the residual f (P, ns), its
-        Jacobian (P, ns, ns) or None, the feasibility of the law's other
-        conditions (P,), whether every slip is along (not against) its ``s``
-        (P,) and the scale of f (P,). With ``cross``, ``f_k = s_k x u+_T,k``
-        (smooth; scale: the velocity scale), else ``f_k = g_k`` (scale 1).
-        ``turns``: `turns` of ``theta`` if already formed."""
+    def low_rank(self) -> LowRankSolve:
+        """The candidate's low-rank solve (`contactdiff.dynamics.slip_lowrank`), formed once."""
+        if self._low_rank is None:
+            self._low_rank = LowRankSolve(self.K0, self.r, self.U, self.c, [g[self.eq] for g in self.GT], _thin_matmul)
+        return self._low_rank
+
+    def _impulses(self, theta: np.ndarray, turns=None, low_rank: bool = False):
+        """At angles ``theta`` (P, ns): `turns`, the candidate's matrices ``K(θ)``
+        (P, p, p; None by the low-rank path), unknowns ``z`` (P, p) and those of the
+        sliders' normal impulses ``zc`` (P, ns), post-impact row velocities ``u+`` (P, m)
+        and the impulse scale (P,): the largest ``|z|`` or slider's ``μ |Λ_N|``. With
+        ``low_rank``, ``z`` by `contactdiff.dynamics.slip_lowrank` where ``K0`` is well
+        conditioned (equal to the direct solve's up to round-off)."""
         P, ns = theta.shape
         cs, sn, a = self.turns(theta) if turns is None else turns  # a: (m, P) each
-        K = np.repeat(self.K0[None], P, axis=0)
-        for j in range(ns):
-            K[:, :, self.c[j]] += a[j][self.eq].T
-        z = self._solve_r(K)[..., 0]
+        if low_rank and self.low_rank().usable:
+            K = None
+            z = self.low_rank().solve(cs, sn)
+        else:
+            K = np.repeat(self.K0[None], P, axis=0)
+            for j in range(ns):
+                K[:, :, self.c[j]] += a[j][self.eq].T
+            z = self._solve_r(K)[..., 0]
         zc = z[:, self.c]
         up = self.prob.u + _thin_matmul(z, self.GB0.T)
         for j in range(ns):
             up += a[j].T * zc[:, j, None]
         lam_max = np.maximum(np.abs(z).max(axis=1, initial=0.0), (np.abs(zc) * self.mu_s).max(axis=1))
+        return cs, sn, a, K, z, zc, up, lam_max
+
+    def violating(self, theta: np.ndarray, rel: float) -> np.ndarray:
+        """At angles ``theta`` (P, ns): where the candidate's impulses are finite and
+        break one of the law's inequalities (`feasible`) by more than ``rel`` of their
+        scale (P,), a negative normal impulse by ``rel`` of the largest impulse, say.
+        With ``rel`` far above the candidate check's tolerance such a point fails that
+        check whatever the round-off of the two evaluations: the solver skips it."""
+        *_, z, _, up, lam_max = self._impulses(theta)
+        ok = np.isfinite(z).all(axis=1) & np.isfinite(up).all(axis=1) & np.isfinite(lam_max)
+        return ok & ~self.feasible(z, up, lam_max, self.prob.bmax + self.prob.gmax * lam_max, rel)
+
+    def __call__(self, theta: np.ndarray, jac: bool = True, turns=None, low_rank: bool = False):
+        """For angles ``theta`` of shape (P, ns): the residual f (P, ns), its
+        Jacobian (P, ns, ns) or None, the feasibility of the law's other
+        conditions (P,), whether every slip is along (not against) its ``s``
+        (P,) and the scale of f (P,). With ``cross``, ``f_k = s_k x u+_T,k``
+        (smooth; scale: the velocity scale), else ``f_k = g_k`` (scale 1).
+        ``turns``: `turns` of ``theta`` if already formed; ``low_rank`` (without
+        ``jac``): the unknowns by the low-rank path (`_impulses`)."""
+        P, ns = theta.shape
+        cs, sn, a, K, z, zc, up, lam_max = self._impulses(theta, turns, low_rank and not jac)
         vscale = self.prob.bmax + self.prob.gmax * lam_max
         v = np.stack([up[:, t] for t in self.T], axis=1)  # (P, ns, 2)
         r2 = (v * v).sum(axis=2)
@@ -383,7 +420,9 @@ class SlipDirections:
         starts.append(np.array([np.arctan2(free.up[self.tang[k][1]], free.up[self.tang[k][0]]) for k in spatial]))
         per_axis, grid, turns = self.grid_turns(fmap, spatial, pre)
         ns = len(spatial)
-        f, _, feas, _, vscale = fmap(grid, jac=False, turns=turns)
+        # the grid only ranks Newton's starts: its points solved as low-rank updates of
+        # one factorisation (`contactdiff.dynamics.slip_lowrank`), the roots then by the direct path
+        f, _, feas, _, vscale = fmap(grid, jac=False, turns=turns, low_rank=True)
         merit = np.abs(f).max(axis=1) / vscale + np.where(feas, 0.0, 1.0)
         merit = np.where(np.isfinite(merit), merit, np.inf).reshape((per_axis,) * ns)
         local = np.isfinite(merit)
@@ -497,8 +536,11 @@ class SlipDirections:
                 )
             )
         recent = [lam.copy()]  # the iterates after the last sweeps (L_0 first), at most _FP_CYCLE
+        # their values as tuples of floats, to compare: == on floats is np.array_equal's
+        # test element by element (0.0 equals -0.0, NaN nothing), at a tenth of its cost
+        recent_values = [tuple(lam.tolist())]
+        old_values = recent_values[0]
         for done in range(1, _FP_SWEEPS + 1):
-            old = lam.copy()
             for at_rows, u_r, G_r, restitution, friction, coulomb, dg, cone in sweep:
                 w = u_r + G_r @ lam
                 if coulomb:
@@ -522,20 +564,27 @@ class SlipDirections:
                     xt *= cone * n2 / xt_norm
                     x[0] = n2
                     lam[at_rows] = x
-            if np.abs(lam - old).max() <= 1e-14 * max(np.abs(lam).max(), 1e-300):
+            values = tuple(lam.tolist())
+            if math.isfinite(sum(values)):  # every element finite: Python's max is numpy's
+                change, size = max(map(abs, map(operator.sub, values, old_values))), max(map(abs, values))
+            else:
+                change, size = float(np.abs(lam - np.array(old_values)).max()), float(np.abs(lam).max())
+            if change <= 1e-14 * max(size, 1e-300):
                 break
+            old_values = values
             # a cycle in round-off: the iterate equals one p sweeps back, bit for bit. A
             # sweep is a function of the iterate alone, so the iterates repeat with period p
             # from there, and the stop test, failed at every step of one period, fails
             # forever: the loop would end at the cap, on the iterate of its phase there
-            period = next((p for p in range(1, len(recent) + 1) if np.array_equal(recent[-p], lam)), None)
+            period = next((p for p in range(1, len(recent) + 1) if recent_values[-p] == values), None)
             if period is not None:
                 phase = (_FP_SWEEPS - done) % period
                 lam = recent[phase - period] if phase else lam
                 break
             recent.append(lam.copy())
+            recent_values.append(values)
             if len(recent) > _FP_CYCLE:
-                del recent[0]
+                del recent[0], recent_values[0]
         self._fp = (lam, self.u + self.G @ lam)
         return self._fp
 

@@ -45,7 +45,12 @@ frictionless slip and every local minimum of a grid on the torus (see
 `contactdiff.dynamics.friction_slip`). The roots of a candidate are tried
 nearest the pre-impact slip directions first. Every condition of the
 law is then checked on the candidate, and the first candidate that satisfies
-all within the tolerance is returned. "Exact" means: the true circular cone
+all within the tolerance is returned. Two rejections skip work without changing
+which candidate that is: a candidate whose closed contact pulls, by far more than
+the tolerance, at every slip angle of its sliders (a bound over all angles,
+`contactdiff.dynamics.slip_lowrank`) is not searched, and a candidate's roots that
+break an inequality of the law by that much are rejected in one batch before the
+others are checked one by one. "Exact" means: the true circular cone
 (no polyhedral approximation, no regularisation or penalty), and an answer
 that satisfies every condition of the law up to the scaled residual ``tol``
 (about 1e-15 in practice: the linear solves are backward stable and Newton
@@ -117,7 +122,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import EnergyGainError, InvalidInputError, SolverError
-from .friction_slip import SLIP_ZERO, CandidateEval, SlipDirections
+from .friction_slip import SLIP_ZERO, CandidateEval, SlipDirections, SlipMap
 from .lcp_problem import DEFAULT_TOL, ContactRows, _as_real_array, _as_vector, _validate
 from .redundant import gram_range_basis
 
@@ -138,6 +143,12 @@ FRICTION_ENUMERATE_MAX = 8
 # candidate tried first: its sweeps stop at 1e-14 relative change (or at the cap,
 # `friction_slip._FP_SWEEPS`), so a contact that should open or stick is far below this.
 _GUESS_ZERO = 1e-6
+
+# A slip root whose impulses break an inequality of the law by more than this many
+# times the check's tolerance (relative to their scale) is skipped unchecked: the two
+# evaluations of its impulses (the batch's and the check's own) differ by round-off,
+# far below this margin (`SlipMap.violating`).
+_SKIP_SHARE = 1e3
 
 
 class ContactState(enum.Enum):
@@ -477,18 +488,45 @@ class _Impact(SlipDirections):
         if not spatial:
             ev = self.evaluate(states, dirs, lay)
             return self.check(states, dirs, ev, signs, "enumerate")
-        found_any = False
-        for theta in self.slip_roots(states, dirs, spatial, lay):
-            found_any = True
+        if self.pulls_everywhere(states, dirs, spatial, lay):
+            return None
+        roots = list(self.slip_roots(states, dirs, spatial, lay))
+        if not roots:
+            self.newton_failed.append(_describe(states, signs))
+            return None
+        # roots that break an inequality of the law by far more than the check's tolerance
+        # (a pulling normal impulse, most often: a face's corner the others lift) are
+        # rejected in one batch, before each is evaluated and checked on its own; the
+        # first root that passes the check is the same. A planar slider's friction is not
+        # in `SlipMap.violating`'s impulse scale: with one, every root is checked.
+        skip = (
+            SlipMap(self, states, dirs, spatial, lay, cross=True).violating(np.array(roots), _SKIP_SHARE * self.tol)
+            if not signs
+            else np.zeros(len(roots), dtype=bool)
+        )
+        for theta, skipped in zip(roots, skip):
+            if skipped:
+                continue
             d = dict(dirs)
             for j, k in enumerate(spatial):
                 d[k] = np.array([np.cos(theta[j]), np.sin(theta[j])])
             out = self.check(states, d, self.evaluate(states, d, lay), signs, "enumerate-newton")
             if out is not None:
                 return out
-        if not found_any:
-            self.newton_failed.append(_describe(states, signs))
         return None
+
+    def pulls_everywhere(self, states, dirs, spatial, lay) -> bool:
+        """Whether the candidate fails the law at every slip direction of its spatial
+        sliders, a closed contact pulling by far more than the check's tolerance
+        (`LowRankSolve.pulls_everywhere`, where its angle-free matrix is well
+        conditioned): its search for slip directions is then skipped."""
+        fmap = SlipMap(self, states, dirs, spatial, lay, cross=True)
+        low = fmap.low_rank()
+        if not low.usable:
+            return False
+        # every sliding contact's friction, planar ones too, bounds the impulses' scale
+        mu_max = max((float(self.mu[k]) for k, s in enumerate(states) if s is ContactState.SLIDE), default=0.0)
+        return low.pulls_everywhere(fmap.closed, mu_max, _SKIP_SHARE * self.tol)
 
     # ---- slip directions of spatial sliding contacts ----------------------
     def residual(self, states, dirs, lam, up) -> float:
