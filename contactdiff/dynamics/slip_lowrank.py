@@ -1,6 +1,6 @@
 """A frictional-impact candidate's unknowns at many slip angles at once, as a low-rank
 update of one factorisation: the fast path of the slip search's grid
-(`contactdiff.dynamics.friction_slip.SlipMap`).
+(`contactdiff.dynamics.slip_map.SlipMap`).
 
 The candidate's equations are ``K(θ) z = r`` with ``K(θ) = K0 + Σ_j g_j(θ) e_cjᵀ``:
 slider ``j``'s friction adds the column ``g_j(θ) = Gt_j (cos θ_j, sin θ_j)`` (``Gt_j``

@@ -16,10 +16,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from contactdiff.dynamics.friction_slip import SlipMap, _thin_matmul
 from contactdiff.dynamics.frictional_impact import ContactState, _Impact
 from contactdiff.dynamics.lcp_problem import ContactRows
 from contactdiff.dynamics.slip_lowrank import LowRankSolve
+from contactdiff.dynamics.slip_map import SlipMap, _thin_matmul
 
 SLIDE, STICK, OPEN = ContactState.SLIDE, ContactState.STICK, ContactState.OPEN
 HALF = 0.05  # m, half the edge

@@ -1,4 +1,4 @@
-"""The slip search's blocked products (`contactdiff.dynamics.friction_slip`): the same
+"""The slip search's blocked products (`contactdiff.dynamics.slip_map`): the same
 values as numpy's whole products, at every block boundary.
 
 Each element of a product is a sum of ``k`` terms; two correct evaluations of it
@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from contactdiff.dynamics.friction_slip import _ONE_THREAD, _congruence, _thin_matmul
+from contactdiff.dynamics.slip_map import _ONE_THREAD, _congruence, _thin_matmul
 
 EPS = np.finfo(float).eps
 
