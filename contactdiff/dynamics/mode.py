@@ -38,65 +38,24 @@ solutions (Painlevé's paradox, `contactdiff.dynamics.slip`).
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
 from typing import Literal, overload
 
 import numpy as np
 import pinocchio as pin
-from scipy.linalg.lapack import dposv as _dposv
 
-from ..errors import InvalidInputError, OutsideDomainError, PainleveError, SolverError, check_number
+from ..errors import InvalidInputError, check_number
 from ..model.contacts import BoundContact
 from ..model.kinematics import Kinematics
 from ..model.scene import Scene
 from .constraint_dynamics import RigidContactMode
 from .constraint_dynamics import eligible as rigid_eligible
-from .redundant import gram_range_basis, range_basis, solve_in_range
-from .slip import SLIP_SPEED_EPS, SlipRow, painleve_check, slip_direction
+from .mode_derivatives import kkt_derivatives
+from .mode_forces import force_solver
+from .mode_solution import ModeDerivatives, ModeSolution
+from .redundant import gram_range_basis, range_basis
+from .slip import SLIP_SPEED_EPS, SlipRow, slip_direction
 
-
-@dataclass
-class ModeSolution:
-    """Accelerations and forces of one mode at one state.
-
-    Attributes:
-        ddq: joint accelerations (nv,), tangent space.
-        forces: row forces (n_rows,), rows stacked in the order of ``active``.
-        active: indices of the active contacts.
-        row_slices: for each active contact, its slice of ``forces``.
-    """
-
-    ddq: np.ndarray
-    forces: np.ndarray
-    active: tuple[int, ...]
-    row_slices: tuple[slice, ...]
-
-    def normal_forces(self) -> np.ndarray:
-        """Normal force of each active contact (N), in the order of ``active``."""
-        return np.array([self.forces[s.start] for s in self.row_slices])
-
-    def row_forces(self) -> list[np.ndarray]:
-        """Row forces of each active contact (N: normal, then tangential), in the order
-        of ``active``."""
-        return [self.forces[s] for s in self.row_slices]
-
-
-@dataclass
-class ModeDerivatives:
-    """Derivatives of a `ModeSolution` in the tangent space (each column a perturbation).
-
-    ``ddq_dtau`` (nv × nv) and ``forces_dtau`` (n_rows × nv) are the responses to a
-    generalised force added to the efforts (``M^-1`` in flight, the constrained
-    inverse mass in contact): a parameter that enters as a generalised force ``∂f/∂p``
-    moves the solution by ``ddq_dtau @ ∂f/∂p`` (`contactdiff.dynamics.parameter_forces`).
-    """
-
-    ddq_dq: np.ndarray
-    ddq_dv: np.ndarray
-    forces_dq: np.ndarray
-    forces_dv: np.ndarray
-    ddq_dtau: np.ndarray
-    forces_dtau: np.ndarray
+__all__ = ["ModeAccelerator", "ModeDerivatives", "ModeDynamics", "ModeSolution"]  # the records' former path
 
 
 class ModeDynamics:
@@ -358,86 +317,13 @@ class ModeDynamics:
             G = A @ MinvFT
         else:
             MinvFT, G = MinvAT, delassus
-        solve = self._solver(slips, U, delassus, contacts)
+        solve = force_solver(self.scene, slips, U, delassus, contacts)
         forces = solve(G, -(drift + A @ a_free))
         solution = ModeSolution(a_free + MinvFT @ forces, forces, active, slices)
         if not derivatives:
             return solution
-        return solution, self._derivatives(q, v, t, solution, contacts, A, Minv, MinvAT, MinvFT, G, slips, solve, U)
-
-    def _solver(self, slips, U, delassus, contacts):
-        """``solve(G, b)`` of the mode's force problem: Cholesky for independent rows
-        without slip, LU with Painlevé's check for slipping ones, and the compatible
-        load (`contactdiff.dynamics.redundant`) for dependent rows."""
-        scene = self.scene
-        if U is None:
-            if slips:
-                return lambda G, b: _solve_general(G, b, slips, scene, delassus, contacts)
-            return _solve_spd
-
-        def solve(G, b):
-            if slips:
-                painleve_check(G, slips, scene.contact_names)
-            try:
-                return solve_in_range(G, b, U)
-            except SolverError as exc:
-                if not slips:
-                    raise
-                names = ", ".join(scene.contacts[s.index].name for s in slips)
-                raise PainleveError(
-                    f"the sliding problem of {names} has no unique force even among the loads "
-                    f"of compatible support deflections ({exc}): Painlevé's paradox"
-                ) from None
-
-        return solve
-
-    def _derivatives(
-        self, q, v, t, sol: ModeSolution, contacts, A, Minv, MinvAT, MinvFT, G, slips, solve, U
-    ) -> ModeDerivatives:
-        """Differentiate the KKT system implicitly.
-
-        With ``r(q, v, ddq) = M ddq + nle`` (RNEA), both sides differentiated give
-            [M  -A^T] [d ddq]   [R = dtau - dr/d(q,v)|ddq + d(A^T lam)/dq]
-            [A   0  ] [d lam] = [C = -d drift - d(A ddq)/dq|ddq           ]
-        solved by the Schur complement on the Delassus matrix ``G = A M^-1 A^T``:
-        ``G d lam = C - A M^-1 R`` and ``d ddq = M^-1 (R + A^T d lam)``. A slipping
-        contact's force row ``F = A_n - μ s^T A_T`` replaces ``A^T`` by ``F^T`` on the
-        force side (``G = A M^-1 F^T``), and ``R`` gets the derivative of ``F^T lam``,
-        through the rows at fixed ``s`` and through ``s(q, v)`` (`SlipRow.force_derivatives`).
-        Dependent rows (``U`` a basis of ``range(A)``) add the turn of ``range(A)``:
-        ``(I - U Uᵀ) dλ = (I - U Uᵀ) d(A w)/dq``, ``w = A⁺ λ`` (`contactdiff.dynamics.redundant`).
-        """
-        kin, nv = self.kin, self.model.nv
-        dtau_dq, dtau_dv = self.scene.tau_derivatives(kin, t)
-        dr_dq, dr_dv, _ = pin.computeRNEADerivatives(self.model, self.data, q, v, sol.ddq)
-        R = np.hstack((dtau_dq - dr_dq, dtau_dv - dr_dv))
-        C = np.zeros((A.shape[0], 2 * nv))
-        slipping = {slip.row: slip for slip in slips}
-        for c, s in zip(contacts, sol.row_slices):
-            slip = slipping.get(s.start)
-            if slip is None:
-                R[:, :nv] += c.rows_transpose_dq(kin, sol.forces[s])
-            else:
-                R += slip.force_derivatives(kin, sol.forces[s.start])
-            drift_dq, drift_dv = c.drift_derivatives(kin)
-            C[s, :nv] = -drift_dq - c.rows_times_dq(kin, sol.ddq)
-            C[s, nv:] = -drift_dv
-        MinvR = Minv @ R
-        rhs = C - A @ MinvR
-        if U is not None:
-            w = np.linalg.lstsq(A, sol.forces, rcond=None)[0]
-            turn = np.zeros((A.shape[0], 2 * nv))
-            for c, s in zip(contacts, sol.row_slices):
-                turn[s, :nv] = c.rows_times_dq(kin, w)
-            turn -= U @ (U.T @ turn)
-            dlam = solve(G, rhs - G @ turn) + turn
-        else:
-            dlam = solve(G, rhs)
-        dddq = MinvR + MinvFT @ dlam
-        # a generalised force d: lam moves by -G^-1 A M^-1 d, ddq by M^-1 (d + F^T dlam)
-        dlam_dtau = -solve(G, MinvAT.T)
-        return ModeDerivatives(
-            dddq[:, :nv], dddq[:, nv:], dlam[:, :nv], dlam[:, nv:], Minv + MinvFT @ dlam_dtau, dlam_dtau
+        return solution, kkt_derivatives(
+            self.scene, model, data, kin, q, v, t, solution, contacts, A, Minv, MinvAT, MinvFT, G, slips, solve, U
         )
 
 
@@ -493,61 +379,3 @@ class ModeAccelerator:
             return [c.directions @ self._raw[3 * k : 3 * k + 3] for k, c in enumerate(self._contacts)]
         assert self._solution is not None  # set by __call__ whenever _raw is None
         return self._solution.row_forces()
-
-
-def _solve_general(
-    G: np.ndarray, b: np.ndarray, slips, scene, delassus: np.ndarray | None = None, contacts=()
-) -> np.ndarray:
-    """Solve ``G x = b`` for the non-symmetric ``G = A M^-1 F^T`` of a mode with slipping
-    contacts (LU); a slipping contact whose own block of ``G`` is not positive, or a
-    singular ``G``, is Painlevé's paradox (`PainleveError`), unless the rows themselves
-    became dependent at this state (``delassus = A M^-1 A^T`` singular in a mode whose
-    rows were independent), an `OutsideDomainError` that says so."""
-    painleve_check(G, slips, scene.contact_names)
-    try:
-        x = np.linalg.solve(G, b)
-    except np.linalg.LinAlgError:
-        x = None
-    if x is None or not np.all(np.isfinite(x)):
-        names = ", ".join(scene.contacts[s.index].name for s in slips)
-        try:
-            rank = np.linalg.matrix_rank(delassus) if delassus is not None else len(G)
-        except np.linalg.LinAlgError:  # not finite: a trial stage far outside the mode's domain
-            raise OutsideDomainError(
-                f"the sliding problem of {names} has no finite solution at this state "
-                "(its Delassus matrix is not finite)"
-            ) from None
-        if rank < len(G):
-            held = ", ".join(dict.fromkeys(c.name for c in contacts))
-            # rows of distinct contacts that were independent where the mode began become dependent
-            # only at states far from it (two corners of an edge, the edge along the normal): a
-            # trial stage's, outside the mode's domain, which the stepper answers with a shorter step
-            raise OutsideDomainError(
-                f"the rows of contacts {held} are dependent at this state (rank {rank} of {len(G)}) but "
-                f"were not where the mode began, so the friction of sliding {names} has no unique force "
-                "(rows that hold the same motion everywhere, as a face's corners, are solved by the "
-                "compatible-load principle: contactdiff.dynamics.redundant)"
-            )
-        raise PainleveError(
-            f"the sliding problem of {names} is singular (G = A M^-1 F^T = {G.tolist()}): "
-            "no force makes the contacts' normal accelerations zero (Painlevé's paradox)"
-        )
-    return x
-
-
-def _solve_spd(G: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Solve ``G x = b`` for a symmetric positive (semi)definite Delassus matrix.
-
-    Cholesky (LAPACK ``dposv``, called directly: numpy's and scipy's wrappers
-    cost ten times the factorisation of these small G) when ``G`` is definite;
-    otherwise (rows that became dependent at this state, not where the mode began)
-    the minimum-norm least-squares solution. Modes of dependent rows solve by
-    `contactdiff.dynamics.redundant` instead.
-    """
-    _, x, info = _dposv(G, b, lower=1)
-    if info == 0:
-        return x
-    x, *_ = np.linalg.lstsq(G, b, rcond=None)
-    if not np.all(np.isfinite(x)):
-        raise SolverError(f"contact forces are not finite for Delassus matrix {G} and b={b}") from None
-    return x
