@@ -39,16 +39,13 @@ in an instant).
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
 
 import numpy as np
 import pinocchio as pin
 
 from ..model.kinematics import Kinematics
+from ..model.parameter_types import Parameter, ParameterKind
 from ..model.scene import Scene
-
-if TYPE_CHECKING:
-    from ..model.parameters import Parameter
 
 _INERTIA_FIELDS = ("ixx", "ixy", "iyy", "ixz", "iyz", "izz")  # Pinocchio's order of the six
 _RNEA_COLUMNS = 4  # bodies + inertial columns up to which RNEA differences beat the regressor
@@ -92,8 +89,6 @@ class ParameterForces:
     """
 
     def __init__(self, scene: Scene, parameters: Sequence[Parameter]):
-        from ..model.parameters import ParameterKind  # the model's names import the dynamics' scene
-
         self.scene, self.parameters = scene, list(parameters)
         model = scene.model
         self.model, self.nv, self.p = model, model.nv, len(self.parameters)

@@ -67,6 +67,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..errors import PainleveError
+
 if TYPE_CHECKING:
     from ..model.contacts import BoundContact
 
@@ -207,8 +209,6 @@ def painleve_check(G: np.ndarray, slips, names) -> None:
     """Raise `PainleveError` where a slipping contact's own block ``g = A_n M^-1 F^T`` of
     ``G`` is not positive (module doc); ``slips`` are the mode's `SlipRow`, ``names``
     the scene's contact names."""
-    from ..errors import PainleveError
-
     diagonal = G.diagonal()
     floor = 1e-12 * max(1e-300, float(np.abs(diagonal).max()))
     for slip in slips:
