@@ -66,18 +66,18 @@ from scipy.optimize import nnls
 
 from ..errors import InvalidInputError
 from .lcp_problem import (
-    _EIG_RCOND,
-    _METHODS,
     AUTO_ENUMERATE_MAX,
     DEFAULT_TOL,
+    EIG_RCOND,
     ENUMERATE_MAX,
+    LCP_METHODS,
     RELAX_ENUMERATE_MAX,
     ContactRows,
+    LCPProblem,
     LCPSolution,
-    _as_real_array,
-    _as_vector,
-    _Problem,
-    _validate,
+    as_real_array,
+    as_row_vector,
+    validate_lcp,
 )
 
 __all__ = [
@@ -111,8 +111,8 @@ def impact_rhs(
         ``b`` with ``(1 + e_k) (A v-)_n`` on normal rows and ``(A v-)_t`` on
         tangential rows (restitution acts on the normal row only).
     """
-    u = _as_vector(A_v_minus, "A_v_minus", rows.n_rows)
-    e = _as_real_array(restitution, "restitution")
+    u = as_row_vector(A_v_minus, "A_v_minus", rows.n_rows)
+    e = as_real_array(restitution, "restitution")
     n = rows.n_contacts
     if e.ndim == 0:
         e_c = np.full(n, float(e))
@@ -189,14 +189,14 @@ def solve_contact_lcp(
             negative diagonal, bad ``tol``, ``method`` or ``on_infeasible``.
         SolverError: No active set satisfies the conditions within ``tol``.
     """
-    G, b = _validate(G, b, rows, tol, method)
+    G, b = validate_lcp(G, b, rows, tol, method)
     if on_infeasible not in ("raise", "relax"):
         raise InvalidInputError(f"on_infeasible is {on_infeasible!r}; valid: 'raise', 'relax'")
     n = rows.n_contacts
     if method == "nnls" and not rows.frictionless:
         raise InvalidInputError(
             "method='nnls' needs frictionless rows (one row per contact); "
-            f"got tangential rows {rows.tangential}; valid methods: {', '.join(_METHODS)}"
+            f"got tangential rows {rows.tangential}; valid methods: {', '.join(LCP_METHODS)}"
         )
     if method == "enumerate" and n > ENUMERATE_MAX:
         raise InvalidInputError(f"method='enumerate' accepts at most {ENUMERATE_MAX} contacts; got {n}")
@@ -210,7 +210,7 @@ def solve_contact_lcp(
         x0 = -b0 / g
         w0 = g * x0 + b0
         return LCPSolution(np.array([x0]), np.array([w0]), (0,), abs(w0) / (abs(b0) + g * x0), "closed-form")
-    prob = _Problem(G, b, rows, tol)
+    prob = LCPProblem(G, b, rows, tol)
     out = _solve(prob, method)
     if out is None and on_infeasible == "relax" and n <= RELAX_ENUMERATE_MAX:
         out = _enumerate_relaxed(prob)
@@ -219,7 +219,7 @@ def solve_contact_lcp(
     return out
 
 
-def _solve(prob: _Problem, method: str) -> LCPSolution | None:
+def _solve(prob: LCPProblem, method: str) -> LCPSolution | None:
     """Dispatch on method; None if no valid active set is found."""
     rows, n = prob.rows, prob.n
 
@@ -252,7 +252,7 @@ def _solve(prob: _Problem, method: str) -> LCPSolution | None:
     return _chain(prob, (_pivot, _enumerate))
 
 
-def _chain(prob: _Problem, solvers) -> LCPSolution | None:
+def _chain(prob: LCPProblem, solvers) -> LCPSolution | None:
     """Run solvers in order until one returns a valid solution."""
     for solver in solvers:
         if solver is _enumerate and prob.n > ENUMERATE_MAX:
@@ -263,7 +263,7 @@ def _chain(prob: _Problem, solvers) -> LCPSolution | None:
     return None
 
 
-def _enumerate(prob: _Problem) -> LCPSolution | None:
+def _enumerate(prob: LCPProblem) -> LCPSolution | None:
     """All active sets, most contacts first, lexicographic within a size.
 
     Most-first makes the choice deterministic when several sets are valid
@@ -279,7 +279,7 @@ def _enumerate(prob: _Problem) -> LCPSolution | None:
     return None
 
 
-def _enumerate_relaxed(prob: _Problem) -> LCPSolution | None:
+def _enumerate_relaxed(prob: LCPProblem) -> LCPSolution | None:
     """Three-state search: fewest tangential-only contacts T first (|T| >= 1,
     since |T| = 0 was searched already), then most active contacts, then
     lexicographic."""
@@ -295,7 +295,7 @@ def _enumerate_relaxed(prob: _Problem) -> LCPSolution | None:
     return None
 
 
-def _pivot(prob: _Problem, start: tuple[int, ...] | None = None) -> LCPSolution | None:
+def _pivot(prob: LCPProblem, start: tuple[int, ...] | None = None) -> LCPSolution | None:
     """Murty's least-index principal pivoting, from "all active" by default.
 
     Each step toggles the lowest-index contact that violates its condition
@@ -342,7 +342,7 @@ def _pivot(prob: _Problem, start: tuple[int, ...] | None = None) -> LCPSolution 
     return None
 
 
-def _nnls(prob: _Problem) -> LCPSolution | None:
+def _nnls(prob: LCPProblem) -> LCPSolution | None:
     """Frictionless rows: min ½ x^T G x + b^T x, x >= 0, as an NNLS.
 
     With G = L L^T: ½ x^T G x + b^T x = ½ ||L^T x + L^-1 b||^2 - const. The
@@ -357,7 +357,7 @@ def _nnls(prob: _Problem) -> LCPSolution | None:
         # Semidefinite: G = F^T F from the eigendecomposition; b's component
         # in the null space is dropped, so this is only a guess to polish.
         lam, V = np.linalg.eigh(G)
-        keep = lam > _EIG_RCOND * max(float(lam[-1]), 0.0)
+        keep = lam > EIG_RCOND * max(float(lam[-1]), 0.0)
         if not keep.any():
             return None
         F = np.sqrt(lam[keep])[:, None] * V[:, keep].T

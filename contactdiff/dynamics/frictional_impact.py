@@ -121,7 +121,7 @@ import numpy as np
 
 from ..errors import EnergyGainError, InvalidInputError, SolverError
 from .impact_candidate import ContactState, FrictionalImpact, ImpactCandidates, describe_states
-from .lcp_problem import DEFAULT_TOL, ContactRows, _as_real_array, _as_vector, _validate
+from .lcp_problem import DEFAULT_TOL, ContactRows, as_real_array, as_row_vector, validate_lcp
 
 __all__ = [
     "ContactState",
@@ -181,8 +181,8 @@ def solve_frictional_impact(
     if not isinstance(rows, ContactRows):
         raise InvalidInputError(f"rows must be a ContactRows; got {type(rows).__name__}")
     m, n = rows.n_rows, rows.n_contacts
-    G, _ = _validate(G, np.zeros(m), rows, tol, "auto")
-    u = _as_vector(u_minus, "u_minus", m)
+    G, _ = validate_lcp(G, np.zeros(m), rows, tol, "auto")
+    u = as_row_vector(u_minus, "u_minus", m)
     e = _per_contact(restitution, "restitution", n)
     bad = ~np.isfinite(e) | (e < 0.0) | (e > 1.0)
     if bad.any():
@@ -217,7 +217,7 @@ def solve_frictional_impact(
 
 
 def _per_contact(value: object, name: str, n: int) -> np.ndarray:
-    arr = _as_real_array(value, name)
+    arr = as_real_array(value, name)
     if arr.ndim == 0:
         return np.full(n, float(arr))
     if arr.shape != (n,):

@@ -37,15 +37,16 @@ RELAX_ENUMERATE_MAX = 8
 # A Cholesky pivot below this fraction of the largest pivot marks a set
 # matrix as (nearly) singular: redundant rows, e.g. four coplanar sticking
 # feet. It is then solved by eigendecomposition dropping eigenvalues below
-# _EIG_RCOND * largest (exact redundancy leaves ~1e-16), which gives the
+# EIG_RCOND * largest (exact redundancy leaves ~1e-16), which gives the
 # minimum-norm solution; if that is not valid but Cholesky succeeded (an
 # ill-conditioned, not redundant, set) the plain solve is tried as well.
 # Pivots bound the eigenvalues from above, so the pivot test is the more
 # cautious one of the two.
 _PIVOT_RTOL = 1e-10
-_EIG_RCOND = 1e-12
+EIG_RCOND = 1e-12
 
-_METHODS = ("auto", "enumerate", "pivot", "nnls")
+#: The methods of `contactdiff.dynamics.complementarity.solve_contact_lcp`.
+LCP_METHODS = ("auto", "enumerate", "pivot", "nnls")
 
 
 @dataclass(frozen=True)
@@ -173,7 +174,7 @@ class _Candidate:
     singular: bool  # the set matrix was rank deficient
 
 
-class _Problem:
+class LCPProblem:
     """One validated problem: set solves, checks, and the best failure seen.
 
     A set is ``(S, T)``: ``S`` the active contacts, ``T`` the tangential-only
@@ -241,6 +242,7 @@ class _Problem:
     def evaluate(
         self, S: tuple[int, ...], T: tuple[int, ...], idx: np.ndarray, xs: np.ndarray, singular: bool
     ) -> _Candidate:
+        """The set's solution ``xs`` on rows ``idx`` extended by zeros, its ``w`` and check."""
         x = np.zeros(self.m)
         x[idx] = xs
         w = self.G @ x + self.b
@@ -248,6 +250,7 @@ class _Problem:
         return _Candidate(x, w, res, res <= self.tol, singular)
 
     def store(self, key, cand: _Candidate) -> _Candidate:
+        """Keep the candidate of set ``key`` (and note it if it is the best so far)."""
         self.cache[key] = cand
         if cand.residual < self.best[0]:
             self.best = (cand.residual, *key)
@@ -282,6 +285,7 @@ class _Problem:
         return LCPSolution(x, w.copy(), tuple(sorted(S)), res, method, tuple(sorted(T)))
 
     def fail(self) -> SolverError:
+        """The error for no valid set: the best candidate seen and a hint why."""
         res, S, T = self.best
         b_txt = np.array2string(self.b, precision=6, max_line_width=200)
         where = f"active contacts {S}" + (f", tangential-only {T}" if T else "")
@@ -314,11 +318,11 @@ def _min_norm(Gs: np.ndarray, rhs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Minimum-norm least-squares solution of Gs x = rhs (Gs symmetric PSD).
 
     Returns:
-        ``(x, N)``: ``x`` drops eigenvalues below _EIG_RCOND * the largest;
+        ``(x, N)``: ``x`` drops eigenvalues below EIG_RCOND * the largest;
         ``N`` is an orthonormal basis of the dropped (numerical null) space.
     """
     lam, V = np.linalg.eigh(Gs)
-    keep = lam > _EIG_RCOND * max(float(lam[-1]), 0.0)
+    keep = lam > EIG_RCOND * max(float(lam[-1]), 0.0)
     Vk = V[:, keep]
     return Vk @ ((Vk.T @ rhs) / lam[keep]), V[:, ~keep]
 
@@ -344,7 +348,7 @@ def _ldp(E: np.ndarray, f: np.ndarray) -> np.ndarray | None:
     return -res[:-1] / res[-1]
 
 
-def _as_real_array(a: object, name: str) -> np.ndarray:
+def as_real_array(a: object, name: str) -> np.ndarray:
     """``a`` as a float array; InvalidInputError if it is not real numbers."""
     try:
         arr = np.asarray(a)
@@ -366,8 +370,10 @@ def _as_index(i: object, name: str) -> int:
     return int(i)
 
 
-def _as_vector(v: object, name: str, m: int) -> np.ndarray:
-    arr = _as_real_array(v, name)
+def as_row_vector(v: object, name: str, m: int) -> np.ndarray:
+    """``v`` as a finite float vector of the ``m`` rows; InvalidInputError naming ``name``
+    and the bad entry otherwise."""
+    arr = as_real_array(v, name)
     if arr.shape != (m,):
         raise InvalidInputError(f"{name} has shape {arr.shape}; expected ({m},) to match the rows")
     if not np.isfinite(arr).all():
@@ -376,14 +382,18 @@ def _as_vector(v: object, name: str, m: int) -> np.ndarray:
     return arr
 
 
-def _validate(G, b, rows: ContactRows, tol: float, method: str) -> tuple[np.ndarray, np.ndarray]:
+def validate_lcp(G, b, rows: ContactRows, tol: float, method: str) -> tuple[np.ndarray, np.ndarray]:
+    """The inputs of a contact problem on ``rows`` checked: ``method`` one of the LCP's,
+    ``tol`` positive and finite, the Delassus matrix ``G`` (m, m) finite, symmetric to a
+    relative 1e-8 and with a non-negative diagonal, ``b`` (m,) finite. Returns ``G``
+    symmetrised and ``b`` as float arrays; InvalidInputError naming the bad value otherwise."""
     if not isinstance(rows, ContactRows):
         raise InvalidInputError(f"rows must be a ContactRows; got {type(rows).__name__}")
-    if method not in _METHODS:
-        raise InvalidInputError(f"method {method!r} is not known; valid: {', '.join(_METHODS)}")
+    if method not in LCP_METHODS:
+        raise InvalidInputError(f"method {method!r} is not known; valid: {', '.join(LCP_METHODS)}")
     if not (isinstance(tol, (int, float, np.floating)) and np.isfinite(tol) and tol > 0):
         raise InvalidInputError(f"tol is {_show(tol)}; it must be a positive finite number")
-    G = _as_real_array(G, "G")
+    G = as_real_array(G, "G")
     m = rows.n_rows
     if G.shape != (m, m):
         raise InvalidInputError(
@@ -392,7 +402,7 @@ def _validate(G, b, rows: ContactRows, tol: float, method: str) -> tuple[np.ndar
     if not np.isfinite(G).all():
         i, j = np.argwhere(~np.isfinite(G))[0]
         raise InvalidInputError(f"G[{i}, {j}] is {float(G[i, j])!r}; entries must be finite")
-    b = _as_vector(b, "b", m)
+    b = as_row_vector(b, "b", m)
     if m:
         gmax = float(np.abs(G).max())
         asym = np.abs(G - G.T)
