@@ -270,7 +270,7 @@ class SlipDirections:
         if self._fp is not None:
             return self._fp
         lam = np.zeros(self.m)
-        blocks = self.rows._rows_of
+        blocks = self.rows.contact_rows
         # each contact's rows of G, restitution term, step and cone, formed once (a sweep
         # repeats them up to _FP_SWEEPS times; the arithmetic of a sweep is unchanged)
         sweep = []

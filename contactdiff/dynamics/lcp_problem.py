@@ -127,6 +127,12 @@ class ContactRows:
         """True if no contact has tangential rows."""
         return all(len(t) == 0 for t in self.tangential)
 
+    @property
+    def contact_rows(self) -> tuple[np.ndarray, ...]:
+        """Row indices of each contact, normal first (one index array per contact, formed
+        once; not to be written)."""
+        return self._rows_of
+
     def rows_of(self, contacts: Sequence[int]) -> np.ndarray:
         """Row indices of the given contacts (each contact's normal row first)."""
         if len(contacts) == 0:
@@ -185,7 +191,7 @@ class LCPProblem:
         self.G, self.b, self.rows, self.tol = G, b, rows, tol
         self.m, self.n = G.shape[0], rows.n_contacts
         self.normal = np.array(rows.normal, dtype=np.intp)
-        self.blocks = rows._rows_of
+        self.blocks = rows.contact_rows
         self.tang = tuple(np.array(t, dtype=np.intp) for t in rows.tangential)
         self.gmax = float(np.abs(G).max())
         self.bmax = float(np.abs(b).max())

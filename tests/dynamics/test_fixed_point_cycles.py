@@ -26,7 +26,7 @@ ROWS = ContactRows.from_sizes([3, 3, 3, 3])
 def sweeps_to_the_cap(prob) -> np.ndarray:
     """Projected Gauss-Seidel as `fixed_point`'s doc states it, with no cycle shortcut."""
     lam = np.zeros(prob.m)
-    blocks = [np.asarray(b) for b in prob.rows._rows_of]
+    blocks = [np.asarray(b) for b in prob.rows.contact_rows]
     for _ in range(_FP_SWEEPS):
         old = lam.copy()
         for k, r in enumerate(blocks):
