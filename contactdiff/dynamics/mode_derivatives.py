@@ -28,8 +28,10 @@ def kkt_derivatives(
     or None (all from the solve).
 
     With ``r(q, v, ddq) = M ddq + nle`` (RNEA), both sides differentiated give
+
         [M  -A^T] [d ddq]   [R = dtau - dr/d(q,v)|ddq + d(A^T lam)/dq]
         [A   0  ] [d lam] = [C = -d drift - d(A ddq)/dq|ddq           ]
+
     solved by the Schur complement on the Delassus matrix ``G = A M^-1 A^T``:
     ``G d lam = C - A M^-1 R`` and ``d ddq = M^-1 (R + A^T d lam)``. A slipping
     contact's force row ``F = A_n - μ s^T A_T`` replaces ``A^T`` by ``F^T`` on the
