@@ -82,7 +82,7 @@ def compare(old_path: str, new_path: str, time_tol: float, state_tol: float) -> 
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     sub = parser.add_subparsers(dest="command", required=True)
     rec = sub.add_parser("record", help="run tosses and write their events")
     rec.add_argument("output", help="the .npz file to write")

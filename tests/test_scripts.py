@@ -58,6 +58,7 @@ SMOKE = {
     "sweep_bench.py": (["--quick"], [], "speed-up of 2 workers over 1"),
     "trot_design_gradient.py": (["--quick", "--plot", "{tmp}/gradient.png"], ["gradient.png"], "check at step 0"),
     "trot_floquet.py": (["--quick"], [], "stroboscopic map"),
+    "toss_events.py": (["record", "--limit", "1", "{tmp}/events.npz"], ["events.npz"], "1 tosses recorded"),
     "trot_table.py": (["--quick"], [], "solo12"),
 }
 
@@ -100,6 +101,8 @@ def test_script_runs(script, tmp_path):
             assert data.startswith(PNG) and len(data) > 1000
         elif name.endswith(".md"):
             assert data.startswith(b"# ")
+        elif name.endswith(".npz"):
+            assert data.startswith(b"PK")  # numpy's archive is a zip file
         else:
             json.loads(data)
     # nothing else was written: not beside the named files, not into docs/ (where the full runs write)
