@@ -257,11 +257,17 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents):
 
     def _jumped(self, phi: np.ndarray | None, event: Event) -> np.ndarray:
         """The flow Jacobian just after ``event`` from ``phi`` just before: ``Ξ phi``, plus
-        ``Ξ_p`` on the parameter columns."""
+        ``Ξ_p`` on the parameter columns, plus the event's terms through a slip's reference in
+        the band (``reference_jump``, ``parameter_reference_jump``: `Event`)."""
         assert phi is not None and event.saltation is not None  # called only in a sensitive run
         out = event.saltation @ phi
+        n = self.n_state
         if event.parameter_saltation is not None:
-            out[:, self.n_state :] += event.parameter_saltation
+            out[:, n:] += event.parameter_saltation
+        if event.reference_jump is not None:
+            out[:, :n] += event.reference_jump
+        if event.parameter_reference_jump is not None:
+            out[:, n:] += event.parameter_reference_jump
         return out
 
     # -- hooks ----------------------------------------------------------------------
@@ -450,6 +456,12 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents):
                 exact = exact and len(self.events) == n_before + 1
                 q_after = self.events[-1].q
                 correction = self._band_after(band, t_event, q_after, stepper.v, mode_before, mode, v_plus, exact)
+                if correction is not None:  # recorded on the event, which `_jumped` applies
+                    last = self.events[-1]
+                    if self.options.jacobian:
+                        last.reference_jump = correction[:, : self.n_state]
+                    if self.jumps is not None:
+                        last.parameter_reference_jump = correction[:, self.n_state :]
             self.guards.restart_from_rest(mode_before, mode, fired)
             if len(self.events) > options.max_events:
                 raise TooManyEventsError(
@@ -472,9 +484,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents):
                 accel=field.accel,
                 jac=field.jac,
                 parameter_jac=field.parameter_jac if self.sensitive else None,
-                phi=None
-                if self.events[-1].saltation is None
-                else self._jumped(stepper.phi, self.events[-1]) + (0.0 if correction is None else correction),
+                phi=None if self.events[-1].saltation is None else self._jumped(stepper.phi, self.events[-1]),
             )
             if self.chooser is not None:
                 self.chooser.new_mode(self._probe(mode))

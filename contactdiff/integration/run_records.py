@@ -142,6 +142,12 @@ class Event:
             (2nv × p): ``∂x+/∂p = Ξ ∂x-/∂p + Ξ_p`` (`contactdiff.integration.parameter_jumps`).
         parameter_time_gradient: with parameters, the derivative of the event time
             with respect to them (s per unit of each, p,).
+        reference_jump, parameter_reference_jump: at an event whose guard reads the forces
+            while a slip from rest still follows its onset's reference ``θ``
+            (`contactdiff.integration.band`), the term ``(F+ - F-) h_θ w / rate`` the flow
+            Jacobian gains there besides the saltation: ``∂x+/∂x0 = Ξ ∂x-/∂x0 +
+            reference_jump`` (2nv × 2nv, with the Jacobian) and ``∂x+/∂p = Ξ ∂x-/∂p + Ξ_p +
+            parameter_reference_jump`` (2nv × p, with parameters); None elsewhere.
         nonsmooth: why the flow is not differentiable here, each `NonSmooth`
             reason with its remark (empty where it is differentiable).
         saltation_orders: at a simultaneous touchdown, the saltation matrix of
@@ -172,6 +178,8 @@ class Event:
     parameter_saltation: np.ndarray | None = None
     parameter_time_gradient: np.ndarray | None = None
     outcomes: dict[str, np.ndarray] | None = None
+    reference_jump: np.ndarray | None = None
+    parameter_reference_jump: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if self.kind not in EVENT_KINDS:
@@ -198,6 +206,9 @@ class Event:
             extra["parameter_saltation"] = self.parameter_saltation.tolist()
             if self.parameter_time_gradient is not None:
                 extra["parameter_time_gradient"] = self.parameter_time_gradient.tolist()
+        for name in ("reference_jump", "parameter_reference_jump"):
+            if (value := getattr(self, name)) is not None:
+                extra[name] = value.tolist()
         if self.outcomes:
             extra["outcomes"] = {name: v.tolist() for name, v in self.outcomes.items()}
         if self.saltation_orders:

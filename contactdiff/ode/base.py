@@ -121,8 +121,9 @@ class Stepper(VariationalAlgebra, abc.ABC):
             absolute floor (CVODES' default ``atolS = atol / pbar`` with
             ``pbar = 1``). The error of ``phi`` is the RMS over the rows of
             each column of its local error divided by
-            ``variational_atol + rtol * |phi|`` (entrywise), maximised over
-            the columns (CVODES' norm for a set of sensitivities).
+            ``variational_atol + rtol * |phi|`` (entrywise, at least 100 eps times
+            the column's largest entry: its round-off), maximised over the columns
+            (CVODES' norm for a set of sensitivities).
         parameter_jac: ``parameter_jac(t, q, v) -> J_p`` (nv x p), the derivative of
             ``accel`` with respect to p parameters at fixed state. The last p
             columns of ``phi`` are then the state's sensitivities to those

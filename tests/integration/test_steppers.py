@@ -679,3 +679,29 @@ def test_a_trajectory_leaving_the_domain_raises_the_fields_error(method):
         run_to(s, 3.0)
     assert s.t == pytest.approx(np.log(2.0), abs=1e-6)  # s: it stopped where the state reached the edge
     assert "outside |q| <= 2.0" in str(info.value)
+
+
+def test_the_flow_jacobians_error_scale_has_a_floor_at_its_columns_round_off():
+    """An entry of phi is formed by the field's Jacobian mixing its column's rows, so it carries
+    round-off of ~eps times the column's largest entry: its error scale is at least
+    ``RTOL_FLOOR`` (100 eps) times that entry, and otherwise ``atol + rtol |phi|``."""
+    from contactdiff.ode.tolerances import RTOL_FLOOR
+
+    s = make_stepper(
+        "DOP853",
+        lambda t, q, v: -q,
+        VectorSpace(2),
+        0.0,
+        [1.0, 0.0],
+        [0.0, 1.0],
+        rtol=1e-8,
+        atol=1e-10,
+        jac=lambda t, q, v: (-np.eye(2), np.zeros((2, 2))),
+        t_bound=1.0,
+        variational=np.eye(4),
+    )
+    P = np.array([[2.5e5, 1.0], [1e-7, 0.5], [0.0, 0.0], [0.0, 0.0]])
+    scale = s._phi_scale(P, P)
+    assert scale[1, 0] == pytest.approx(RTOL_FLOOR * 2.5e5)  # the floor binds: atol + rtol 1e-7 ~ 1e-10
+    assert scale[0, 0] == pytest.approx(1e-10 + 1e-8 * 2.5e5)
+    assert scale[1, 1] == pytest.approx(1e-10 + 1e-8 * 0.5)  # a column of size 1: atol + rtol |phi|
