@@ -87,6 +87,8 @@ def guard_reference_rates(dyn, t, q, v, mode, guard: Guard, band, held_key: int 
     mode = tuple(mode)
     weights = None
     if guard.kind is GuardKind.BEAR:
+        if held_key is None:
+            raise ValueError(f"a bearing guard of contact {guard.contact} needs its held key")
         key = held_key
         Dh, h_t = bear_guard(dyn, t, q, v, mode, key)
         rate = float(Dh @ vector_field(dyn, q, v, t, mode)) + h_t
@@ -131,6 +133,7 @@ class BandEvents(LoopEvents):
         guard = reading[0]
         held_key = self.fields[-1].held[guard.contact] if guard.kind is GuardKind.BEAR else None
         rate, rates = guard_reference_rates(self.dyn, t, q, v, mode, guard, band, held_key)
+        assert self.phi is not None  # onsets are carried only with a flow Jacobian
         dt = np.zeros(self.phi.shape[1])
         for index, h_theta in rates.items():
             dt -= h_theta * band[index].w / rate
