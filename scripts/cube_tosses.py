@@ -46,9 +46,10 @@ from contactdiff.data.cube_recordings import (
     toss_windows,
 )
 from contactdiff.data.cube_tosses import NOMINAL, load_tosses
-from contactdiff.fit import ResidualWeights, Scaled, Windows, fit
+from contactdiff.fit import Loss, ResidualWeights, Scaled, Windows, fit
 from contactdiff.fit.evaluation import StateFit, Task, evaluate
 from contactdiff.fit.parameters import FitPlan
+from contactdiff.fit.rest import REST_SAMPLES, rest_height
 from contactdiff.fit.rollouts import rollout, rollouts
 
 ANCHORS = {"Drake": (13.5, 8.2, 16.5, 20.0), "Bullet": (14.9, 8.9, 16.5, 20.2), "MuJoCo": (25.1, 10.8, 21.7, 21.4)}
@@ -235,6 +236,19 @@ def main(argv=None) -> int:
         choices=["keep", "exclude"],
         help="recordings not differentiable at the start: keep or exclude (default keep)",
     )
+    parser.add_argument(
+        "--loss",
+        default="linear",
+        choices=[loss.value for loss in Loss],
+        help="the fit's loss (default linear: least squares; soft_l1, huber, cauchy: robust)",
+    )
+    parser.add_argument(
+        "--f-scale",
+        type=float,
+        default=0.003,
+        help="m: with a robust --loss, residual rows beyond this count less (default 0.003: three "
+        "times the data's ~1 mm noise)",
+    )
     parser.add_argument("--no-gravity", action="store_true", help="keep g at 9.81 m/s² (do not fit it)")
     parser.add_argument(
         "--ground",
@@ -250,6 +264,15 @@ def main(argv=None) -> int:
         "small: 0.98 makes edge 0.1027 m and g 9.61 m/s²; default 1)",
     )
     parser.add_argument("--no-offset", action="store_true", help="keep the board's height at --ground (do not fit it)")
+    parser.add_argument(
+        "--rest-board",
+        action="store_true",
+        help="set the board's height from the training tosses' last --rest-samples samples at rest "
+        "(contactdiff.fit.rest_height, closed form) and hold it in the fit (implies --no-offset)",
+    )
+    parser.add_argument(
+        "--rest-samples", type=int, default=REST_SAMPLES, help=f"with --rest-board (default {REST_SAMPLES})"
+    )
     parser.add_argument(
         "--length-check",
         action="store_true",
@@ -275,6 +298,15 @@ def main(argv=None) -> int:
     jobs = args.jobs or 2
     train, held_out = split(tosses, args.train, args.seed)
     held_out = held_out[: args.test] if args.test else held_out
+    rest = None
+    if args.rest_board:  # the board from the training tosses at rest, held in the fit
+        rest = rest_height(
+            cd.cube_scene(base_parameters(args)),
+            [toss_recording(tosses[n]) for n in train],
+            group="cube",
+            samples=args.rest_samples,
+        )
+        args.ground, args.no_offset = rest.offset, True
     base = base_parameters(args)
     build = functools.partial(cd.cube_scene, base)
     scene = build()
@@ -284,10 +316,19 @@ def main(argv=None) -> int:
         "seed": args.seed,
         "base": {"edge": base.edge, "gravity": base.gravity, "ground": base.ground},
     }
+    if rest is not None:
+        report["rest_board"] = {"offset": rest.offset, "standard_error": rest.standard_error, "points": rest.points}
+        print(
+            f"board from the training tosses at rest: {rest.offset * 1e3:.3f} ± {rest.standard_error * 1e3:.3f} mm "
+            f"({rest.points} supporting corners)",
+            file=sys.stderr,
+            flush=True,
+        )
 
     recs = training_recordings(tosses, train, args, scene)
     parameters = unknowns(scene, gravity=not args.no_gravity, offset=not args.no_offset)
     state = StateFit.VELOCITY if args.window else StateFit.NONE
+    report |= {"loss": args.loss, "f_scale": args.f_scale if args.loss != "linear" else None}
     report |= {"window": args.window, "lead": args.lead if args.window else None, "recordings": len(recs)}
     weights = ResidualWeights(position=1.0, orientation=NOMINAL.edge / 2)  # a radian counts as a corner's travel
     started = time.perf_counter()
@@ -302,6 +343,8 @@ def main(argv=None) -> int:
         policy=args.policy,
         max_evaluations=args.max_evaluations,
         options=options,
+        loss=args.loss,
+        f_scale=args.f_scale,
     )
     report["fit"] = result.to_dict() | {"wall_time": time.perf_counter() - started}
     print(result.table(), file=sys.stderr, flush=True)
