@@ -61,14 +61,14 @@ STEPPING_COST = {"MuJoCo": (3.4e-3, 21.9), "Drake": (9e-3, 13.1)}
 """Quoted wall time per toss (s) at a 0.68 ms step and position error (%) of the time-stepping simulators."""
 
 
-def unknowns(scene, gravity: bool = True, offset: bool = True) -> list:
-    """μ and e shared by the eight corners, (unless ``offset`` is False) the board height, a scale
-    of the three moments, and (unless ``gravity`` is False) gravity."""
+def unknowns(scene, gravity: bool = True, offset: bool = True, inertia: bool = True) -> list:
+    """μ and e shared by the eight corners, (unless ``offset`` is False) the board height, (unless
+    ``inertia`` is False) a scale of the three moments, and (unless ``gravity`` is False) gravity."""
     moments = {f"body:cube:i{a}{a}": NOMINAL.moment for a in "xyz"}
     return (
         ["group:cube:friction", "group:cube:restitution"]
         + (["group:cube:offset"] if offset else [])
-        + [Scaled("inertia_scale", moments)]
+        + ([Scaled("inertia_scale", moments)] if inertia else [])
         + (["scene:gravity_z"] if gravity else [])
     )
 
@@ -318,6 +318,9 @@ def main(argv=None) -> int:
         help="the model's edge and g times this (the data's lengths in units this much too "
         "small: 0.98 makes edge 0.1027 m and g 9.61 m/s²; default 1)",
     )
+    parser.add_argument(
+        "--no-inertia", action="store_true", help="keep the moments of inertia nominal (do not fit their scale)"
+    )
     parser.add_argument("--no-offset", action="store_true", help="keep the board's height at --ground (do not fit it)")
     parser.add_argument(
         "--rest-board",
@@ -394,7 +397,7 @@ def main(argv=None) -> int:
         )
 
     recs = training_recordings(tosses, train, args, scene)
-    parameters = unknowns(scene, gravity=not args.no_gravity, offset=not args.no_offset)
+    parameters = unknowns(scene, gravity=not args.no_gravity, offset=not args.no_offset, inertia=not args.no_inertia)
     state = StateFit.VELOCITY if args.window else StateFit.NONE
     report |= {"loss": args.loss, "f_scale": args.f_scale if args.loss != "linear" else None}
     report |= {"window": args.window, "lead": args.lead if args.window else None, "recordings": len(recs)}
