@@ -101,9 +101,16 @@ def summary(errors: list[tuple[float, float]]) -> dict:
 
 
 def base_parameters(args):
-    """The cube's parameters the fit starts from: the board at --ground, lengths and g scaled by --length-scale."""
+    """The cube's parameters the fit starts from: the board at --ground, lengths and g scaled by --length-scale,
+    μ, e and the moments from --friction, --restitution and --moment-scale."""
     return replace(
-        NOMINAL, ground=args.ground, edge=NOMINAL.edge * args.length_scale, gravity=NOMINAL.gravity * args.length_scale
+        NOMINAL,
+        ground=args.ground,
+        edge=NOMINAL.edge * args.length_scale,
+        gravity=NOMINAL.gravity * args.length_scale,
+        friction=args.friction,
+        restitution=args.restitution,
+        moment=NOMINAL.moment * args.moment_scale,
     )
 
 
@@ -317,6 +324,21 @@ def main(argv=None) -> int:
         default=1.0,
         help="the model's edge and g times this (the data's lengths in units this much too "
         "small: 0.98 makes edge 0.1027 m and g 9.61 m/s²; default 1)",
+    )
+    parser.add_argument(
+        "--friction", type=float, default=NOMINAL.friction, help=f"μ to start from (default {NOMINAL.friction})"
+    )
+    parser.add_argument(
+        "--restitution",
+        type=float,
+        default=NOMINAL.restitution,
+        help=f"e to start from (default {NOMINAL.restitution})",
+    )
+    parser.add_argument(
+        "--moment-scale",
+        type=float,
+        default=1.0,
+        help="the moments of inertia to start from, times the nominal (default 1)",
     )
     parser.add_argument(
         "--no-inertia", action="store_true", help="keep the moments of inertia nominal (do not fit their scale)"
