@@ -26,6 +26,7 @@ from __future__ import annotations
 import argparse
 import functools
 import json
+import math
 import statistics
 import sys
 import time
@@ -34,6 +35,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+import pinocchio as pin
 
 import contactdiff as cd
 from contactdiff.data.cube_recordings import (
@@ -46,9 +48,10 @@ from contactdiff.data.cube_recordings import (
     toss_windows,
 )
 from contactdiff.data.cube_tosses import NOMINAL, load_tosses
-from contactdiff.fit import ResidualWeights, Scaled, Windows, fit
+from contactdiff.fit import Loss, ResidualWeights, Scaled, Windows, fit
 from contactdiff.fit.evaluation import StateFit, Task, evaluate
 from contactdiff.fit.parameters import FitPlan
+from contactdiff.fit.rest import REST_SAMPLES, rest_height
 from contactdiff.fit.rollouts import rollout, rollouts
 
 ANCHORS = {"Drake": (13.5, 8.2, 16.5, 20.0), "Bullet": (14.9, 8.9, 16.5, 20.2), "MuJoCo": (25.1, 10.8, 21.7, 21.4)}
@@ -58,14 +61,14 @@ STEPPING_COST = {"MuJoCo": (3.4e-3, 21.9), "Drake": (9e-3, 13.1)}
 """Quoted wall time per toss (s) at a 0.68 ms step and position error (%) of the time-stepping simulators."""
 
 
-def unknowns(scene, gravity: bool = True, offset: bool = True) -> list:
-    """μ and e shared by the eight corners, (unless ``offset`` is False) the board height, a scale
-    of the three moments, and (unless ``gravity`` is False) gravity."""
+def unknowns(scene, gravity: bool = True, offset: bool = True, inertia: bool = True) -> list:
+    """μ and e shared by the eight corners, (unless ``offset`` is False) the board height, (unless
+    ``inertia`` is False) a scale of the three moments, and (unless ``gravity`` is False) gravity."""
     moments = {f"body:cube:i{a}{a}": NOMINAL.moment for a in "xyz"}
     return (
         ["group:cube:friction", "group:cube:restitution"]
         + (["group:cube:offset"] if offset else [])
-        + [Scaled("inertia_scale", moments)]
+        + ([Scaled("inertia_scale", moments)] if inertia else [])
         + (["scene:gravity_z"] if gravity else [])
     )
 
@@ -98,9 +101,16 @@ def summary(errors: list[tuple[float, float]]) -> dict:
 
 
 def base_parameters(args):
-    """The cube's parameters the fit starts from: the board at --ground, lengths and g scaled by --length-scale."""
+    """The cube's parameters the fit starts from: the board at --ground, lengths and g scaled by --length-scale,
+    μ, e and the moments from --friction, --restitution and --moment-scale."""
     return replace(
-        NOMINAL, ground=args.ground, edge=NOMINAL.edge * args.length_scale, gravity=NOMINAL.gravity * args.length_scale
+        NOMINAL,
+        ground=args.ground,
+        edge=NOMINAL.edge * args.length_scale,
+        gravity=NOMINAL.gravity * args.length_scale,
+        friction=args.friction,
+        restitution=args.restitution,
+        moment=NOMINAL.moment * args.moment_scale,
     )
 
 
@@ -153,13 +163,23 @@ def length_check(tosses) -> dict:
     """The data's gravity and the cube's rest height, each against the model's: a parabola z(t) through
     each toss's first flight (at least 8 samples whose lowest corner clears the board by
     WINDOW_CLEARANCE) gives g; the centre's mean height over each toss's last 20 samples (at rest
-    on a face) the rest height. Medians over tosses, and each as a ratio to 9.81 m/s² and edge / 2."""
-    g, rest = [], []
+    on a face) the rest height. Medians over tosses, and each as a ratio to 9.81 m/s² and edge / 2.
+    Also the data's noise in free flight: the RMS of a parabola's residuals per axis (m; 3 of
+    each axis's samples spent on the fit), and of the rotation vector between consecutive samples
+    about its flight's mean over √2 (rad: the body-frame rate is constant in free flight, and
+    each step's vector holds two samples' noise)."""
+    g, rest, position_noise, rotation_noise = [], [], [], []
     for toss in tosses.values():
         free = lowest_corner(toss) > WINDOW_CLEARANCE
         k = int(np.argmin(free)) if not free.all() else len(toss)
         if k >= 8:
             g.append(-2.0 * np.polyfit(toss.t[:k], toss.position[:k, 2], 2)[0])
+            V = np.vander(toss.t[:k], 3)
+            coefficients, *_ = np.linalg.lstsq(V, toss.position[:k], rcond=None)
+            position_noise.append(float(np.sqrt(np.sum((toss.position[:k] - V @ coefficients) ** 2) / (3 * (k - 3)))))
+            R = [pin.Quaternion(*q).normalized().matrix() for q in toss.quaternion[:k]]
+            steps = np.array([pin.log3(a.T @ b) for a, b in zip(R[:-1], R[1:])])  # constant in free flight
+            rotation_noise.append(float(np.std(steps - steps.mean(axis=0)) / math.sqrt(2.0)))
         rest.append(float(np.mean(toss.position[-20:, 2])))
     g_median, rest_median = statistics.median(g), statistics.median(rest)
     return {
@@ -170,6 +190,49 @@ def length_check(tosses) -> dict:
         "rest_median": rest_median,
         "rest_ratio": rest_median / (NOMINAL.edge / 2.0),
         "tosses": len(rest),
+        "position_noise_median": statistics.median(position_noise),
+        "rotation_noise_median": statistics.median(rotation_noise),
+    }
+
+
+START_NOISE = (2.3e-5, 3.2e-4)
+"""The data's noise in free flight (m per axis of position, rad per axis of orientation), medians
+over the tosses' first flights (`length_check`): the start's perturbations of `start_noise`."""
+
+
+def start_noise(tosses, names, values, jobs, options, source, draws: int, seed: int = 0) -> dict:
+    """How much of the held-out error is luck: each held-out toss's rollout from before touch at
+    ``values``, ``draws`` times from a start perturbed by the data's own noise (`START_NOISE`:
+    Gaussian per axis on the centre, a rotation ``R0 exp(δ)`` with Gaussian ``δ``; the velocity as
+    fitted). Per draw the mean over tosses; per toss the spread (largest less smallest error)."""
+    rng = np.random.default_rng(seed)
+    base = [toss_recording(tosses[n], Start.BEFORE_TOUCH) for n in names]
+    recs = []
+    for _ in range(draws):
+        for rec in base:
+            q0 = rec.q0.copy()
+            q0[:3] += START_NOISE[0] * rng.standard_normal(3)
+            rotation = pin.Quaternion(q0[6], q0[3], q0[4], q0[5]).normalized().matrix()
+            q0[3:7] = pin.Quaternion(rotation @ pin.exp3(START_NOISE[1] * rng.standard_normal(3))).coeffs()
+            recs.append(replace(rec, q0=q0))
+    runs = rollouts(source, recs, values, jobs=jobs, options=options, progress=None)
+    errors = np.full((draws, len(base)), np.nan)
+    for i, (rec, run) in enumerate(zip(recs, runs)):
+        if run.complete:
+            errors[i // len(base), i % len(base)] = toss_errors(rec, run.q)[0]
+    means = np.nanmean(errors, axis=1)
+    spread = np.nanmax(errors, axis=0) - np.nanmin(errors, axis=0)
+    return {
+        "draws": draws,
+        "noise": list(START_NOISE),
+        "failed": int(np.isnan(errors).sum()),
+        "draw_means": means.tolist(),
+        "draw_mean_std": float(np.std(means)),
+        "best_of_draws_mean": float(np.mean(np.nanmin(errors, axis=0))),
+        "worst_of_draws_mean": float(np.mean(np.nanmax(errors, axis=0))),
+        "spread_median": float(np.median(spread)),
+        "tosses_spread_over_10": int(np.sum(spread > 10.0)),
+        "per_toss": {n: errors[:, j].tolist() for j, n in enumerate(names)},
     }
 
 
@@ -235,6 +298,19 @@ def main(argv=None) -> int:
         choices=["keep", "exclude"],
         help="recordings not differentiable at the start: keep or exclude (default keep)",
     )
+    parser.add_argument(
+        "--loss",
+        default="linear",
+        choices=[loss.value for loss in Loss],
+        help="the fit's loss (default linear: least squares; soft_l1, huber, cauchy: robust)",
+    )
+    parser.add_argument(
+        "--f-scale",
+        type=float,
+        default=0.003,
+        help="m: with a robust --loss, residual rows beyond this count less (default 0.003: three "
+        "times the data's ~1 mm noise)",
+    )
     parser.add_argument("--no-gravity", action="store_true", help="keep g at 9.81 m/s² (do not fit it)")
     parser.add_argument(
         "--ground",
@@ -249,11 +325,49 @@ def main(argv=None) -> int:
         help="the model's edge and g times this (the data's lengths in units this much too "
         "small: 0.98 makes edge 0.1027 m and g 9.61 m/s²; default 1)",
     )
+    parser.add_argument(
+        "--friction", type=float, default=NOMINAL.friction, help=f"μ to start from (default {NOMINAL.friction})"
+    )
+    parser.add_argument(
+        "--restitution",
+        type=float,
+        default=NOMINAL.restitution,
+        help=f"e to start from (default {NOMINAL.restitution})",
+    )
+    parser.add_argument(
+        "--moment-scale",
+        type=float,
+        default=1.0,
+        help="the moments of inertia to start from, times the nominal (default 1)",
+    )
+    parser.add_argument(
+        "--no-inertia", action="store_true", help="keep the moments of inertia nominal (do not fit their scale)"
+    )
     parser.add_argument("--no-offset", action="store_true", help="keep the board's height at --ground (do not fit it)")
+    parser.add_argument(
+        "--rest-board",
+        action="store_true",
+        help="set the board's height from the training tosses' last --rest-samples samples at rest "
+        "(contactdiff.fit.rest_height, closed form) and hold it in the fit (implies --no-offset)",
+    )
+    parser.add_argument(
+        "--rest-samples", type=int, default=REST_SAMPLES, help=f"with --rest-board (default {REST_SAMPLES})"
+    )
     parser.add_argument(
         "--length-check",
         action="store_true",
         help="only compare the data's free-flight g and rest height with the model's, and stop",
+    )
+    parser.add_argument(
+        "--start-noise",
+        type=int,
+        default=0,
+        metavar="K",
+        help="also run each held-out toss from before touch K times from starts perturbed by the "
+        "data's noise, at the fitted values (how much of the error is luck; default 0: not)",
+    )
+    parser.add_argument(
+        "--no-nominal", action="store_true", help="do not evaluate the held-out tosses at the nominal values"
     )
     parser.add_argument("--quick", action="store_true", help="2 shipped tosses to fit, 2 held out, 1 evaluation")
     parser.add_argument("--plot-dir", help="write plots of held-out tosses and the error distribution here")
@@ -267,7 +381,9 @@ def main(argv=None) -> int:
             if args.json
             else f"free-flight g: median {c['g_median']:.3f} m/s² over {c['flights']} first flights (quartiles "
             f"{c['g_quartiles'][0]:.3f}, {c['g_quartiles'][1]:.3f}), {c['g_ratio']:.4f} of 9.81; rest height: "
-            f"median {c['rest_median']:.5f} m over {c['tosses']} tosses, {c['rest_ratio']:.4f} of edge / 2"
+            f"median {c['rest_median']:.5f} m over {c['tosses']} tosses, {c['rest_ratio']:.4f} of edge / 2; "
+            f"noise in free flight: position {c['position_noise_median'] * 1e3:.4f} mm, rotation "
+            f"{c['rotation_noise_median']:.5f} rad (medians)"
         )
         return 0
     if args.quick:
@@ -275,6 +391,15 @@ def main(argv=None) -> int:
     jobs = args.jobs or 2
     train, held_out = split(tosses, args.train, args.seed)
     held_out = held_out[: args.test] if args.test else held_out
+    rest = None
+    if args.rest_board:  # the board from the training tosses at rest, held in the fit
+        rest = rest_height(
+            cd.cube_scene(base_parameters(args)),
+            [toss_recording(tosses[n]) for n in train],
+            group="cube",
+            samples=args.rest_samples,
+        )
+        args.ground, args.no_offset = rest.offset, True
     base = base_parameters(args)
     build = functools.partial(cd.cube_scene, base)
     scene = build()
@@ -284,10 +409,19 @@ def main(argv=None) -> int:
         "seed": args.seed,
         "base": {"edge": base.edge, "gravity": base.gravity, "ground": base.ground},
     }
+    if rest is not None:
+        report["rest_board"] = {"offset": rest.offset, "standard_error": rest.standard_error, "points": rest.points}
+        print(
+            f"board from the training tosses at rest: {rest.offset * 1e3:.3f} ± {rest.standard_error * 1e3:.3f} mm "
+            f"({rest.points} supporting corners)",
+            file=sys.stderr,
+            flush=True,
+        )
 
     recs = training_recordings(tosses, train, args, scene)
-    parameters = unknowns(scene, gravity=not args.no_gravity, offset=not args.no_offset)
+    parameters = unknowns(scene, gravity=not args.no_gravity, offset=not args.no_offset, inertia=not args.no_inertia)
     state = StateFit.VELOCITY if args.window else StateFit.NONE
+    report |= {"loss": args.loss, "f_scale": args.f_scale if args.loss != "linear" else None}
     report |= {"window": args.window, "lead": args.lead if args.window else None, "recordings": len(recs)}
     weights = ResidualWeights(position=1.0, orientation=NOMINAL.edge / 2)  # a radian counts as a corner's travel
     started = time.perf_counter()
@@ -302,6 +436,8 @@ def main(argv=None) -> int:
         policy=args.policy,
         max_evaluations=args.max_evaluations,
         options=options,
+        loss=args.loss,
+        f_scale=args.f_scale,
     )
     report["fit"] = result.to_dict() | {"wall_time": time.perf_counter() - started}
     print(result.table(), file=sys.stderr, flush=True)
@@ -309,8 +445,20 @@ def main(argv=None) -> int:
     report["fitted_scene_values"] = fitted
 
     report["options"] = options
-    report["nominal"] = evaluate_held_out(tosses, held_out, None, jobs, "nominal", options)
+    if not args.no_nominal:
+        report["nominal"] = evaluate_held_out(tosses, held_out, None, jobs, "nominal", options)
     report["fitted"] = evaluate_held_out(tosses, held_out, fitted, jobs, "fitted", options, build)
+    if args.start_noise:
+        report["start_noise"] = start_noise(tosses, held_out, fitted, jobs, options, build, args.start_noise)
+        n = report["start_noise"]
+        print(
+            f"start noise, {args.start_noise} draws: means {np.round(n['draw_means'], 1).tolist()} (std "
+            f"{n['draw_mean_std']:.1f}); per toss best {n['best_of_draws_mean']:.1f}, worst "
+            f"{n['worst_of_draws_mean']:.1f}; spread median {n['spread_median']:.1f}, "
+            f"{n['tosses_spread_over_10']} tosses spread > 10 points; {n['failed']} failed",
+            file=sys.stderr,
+            flush=True,
+        )
     probe = recs[:5] if args.window else [toss_recording(tosses[n], Start.BEFORE_TOUCH) for n in train[:5]]
     report["jacobian_cost"] = jacobian_cost(probe, scene, options, parameters, state)
     report["anchors"] = ANCHORS
@@ -334,6 +482,8 @@ def plot_report(report: dict, tosses, fitted: dict, folder: Path, scene) -> None
     start = Start.BEFORE_TOUCH.value
     fig, ax = plt.subplots(figsize=(7, 3.2))
     for label, color in (("nominal", "C7"), ("fitted", "C0")):
+        if label not in report:
+            continue
         errors = [row[1] for row in report[label][start]["per_toss"]]
         ax.hist(errors, bins=np.linspace(0, 100, 41), alpha=0.6, color=color, label=f"{label} parameters")
     for (name, values), color in zip(ANCHORS.items(), ("C1", "C2", "C3")):
@@ -381,7 +531,7 @@ def format_report(report: dict) -> str:
         lines.append(f"  {name:<26} {p['start']:>10.5g} -> {p['value']:>10.5g} ± {p['standard_error']:.2g}")
     lines.append(f"held out: {report['held_out']} tosses")
     for label in ("nominal", "fitted"):
-        for start, s in report[label].items():
+        for start, s in report.get(label, {}).items():
             lines.append(f"  {label:<8} from {start:<13} " + _line(s))
     lines.append(
         "anchors (tuned on all tosses, from before touch): "

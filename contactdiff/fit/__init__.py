@@ -8,13 +8,16 @@ residuals          PoseResidual, ResidualWeights (residuals on the configuration
 parameters         FitPlan, Scaled (the unknowns and the scene parameters they set)
 evaluation         evaluate (one recording's residuals and Jacobian from one run), StateFit
 problem            fit, FitResult, NonDifferentiablePolicy
+loss               Loss (least squares or a robust loss)
 windows            Windows, cut (windowed residuals: multiple shooting over short windows)
 rollouts           rollouts (plain runs for held-out evaluation)
+rest               rest_height (the floor's height from resting samples, closed form)
 metrics            position_error, rotation_error (the published cube-toss metrics)
 cli, plot          the ``contactdiff fit`` command and its figure
 """
 
 from .evaluation import StateFit
+from .loss import Loss
 from .metrics import position_error, position_errors, rotation_error, rotation_errors
 from .observation_files import load_observations, save_observations
 from .observations import Observations, joint_columns, toss_observations, valid_columns
@@ -22,6 +25,7 @@ from .parameters import FitPlan, Scaled
 from .problem import FitResult, NonDifferentiablePolicy, NotDifferentiableWarning, RecordingFit, fit
 from .recordings import Recording
 from .residuals import PoseResidual, ResidualWeights
+from .rest import RestHeight, rest_height
 from .rollouts import Rollout, rollouts
 from .windows import Windows, cut
 
@@ -29,12 +33,15 @@ __all__ = [
     "fit",
     "FitResult",
     "FitPlan",
+    "Loss",
     "NonDifferentiablePolicy",
     "NotDifferentiableWarning",
     "PoseResidual",
     "Recording",
     "RecordingFit",
     "ResidualWeights",
+    "RestHeight",
+    "rest_height",
     "Rollout",
     "rollouts",
     "Scaled",

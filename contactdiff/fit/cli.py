@@ -2,7 +2,8 @@
 
     contactdiff fit SCENE DATA [DATA ...] --param NAME [--param NAME ...]
                     [--scale NAME=PARAM,PARAM,...] [--bound NAME=LO:HI] [--fit-state none|velocity|full]
-                    [--policy keep|exclude] [--position-weight W] [--orientation-weight W]
+                    [--policy keep|exclude] [--loss linear|soft_l1|huber|cauchy [--f-scale F]]
+                    [--position-weight W] [--orientation-weight W]
                     [--window N [--window-stride S]] [--joint-weight W] [--rtol R] [--atol A] [--max-evaluations N]
                     [--jobs N] [--backend loky|dask|ray] [--json] [--plot out.png]
 
@@ -37,6 +38,7 @@ if TYPE_CHECKING:
 def add_parser(sub: argparse._SubParsersAction) -> None:
     """Add ``fit`` to the ``contactdiff`` subcommands ``sub``."""
     from .evaluation import StateFit
+    from .loss import Loss
     from .problem import NonDifferentiablePolicy
 
     parser = sub.add_parser(
@@ -97,6 +99,19 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         choices=[p.value for p in NonDifferentiablePolicy],
         help="trajectories whose outcome is not differentiable: keep (count, warn) or exclude "
         "those not differentiable at the start (default keep)",
+    )
+    parser.add_argument(
+        "--loss",
+        default=Loss.LINEAR.value,
+        choices=[loss.value for loss in Loss],
+        help="the cost: linear (least squares, default) or a robust loss that counts rows beyond "
+        "--f-scale less (soft_l1, huber, cauchy; start near the answer)",
+    )
+    parser.add_argument(
+        "--f-scale",
+        type=Number(float, 0.0),
+        default=1.0,
+        help="with a robust --loss: the weighted residual beyond which a row counts less (m for positions; default 1)",
     )
     parser.add_argument(
         "--position-weight",
@@ -169,6 +184,8 @@ def run(args: argparse.Namespace) -> int:
         backend=args.backend,
         options=options,
         max_evaluations=args.max_evaluations,
+        loss=args.loss,
+        f_scale=args.f_scale,
     )
     failed = None
     if args.plot:

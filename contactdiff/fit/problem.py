@@ -1,14 +1,16 @@
 """`fit`: scene parameters (and, when asked, initial states) by nonlinear least squares.
 
 The cost is half the sum of squares of every recording's weighted residuals
-(`contactdiff.fit.residuals`) at its compared samples. Each evaluation runs
+(`contactdiff.fit.residuals`) at its compared samples, or with a robust `Loss`
+half the sum of ``f_scale² ρ((r / f_scale)²)`` (scipy's robust losses). Each evaluation runs
 every recording once (in parallel on the sweep engine's workers) and gets the
 residuals and their exact Jacobian from that one run (`contactdiff.fit.evaluation`);
 scipy's trust-region reflective method (``least_squares(method="trf")``) keeps
 the unknowns inside their bounds (`contactdiff.fit.parameters`).
 
 **Standard errors** come from the Gauss–Newton covariance at the solution,
-``s² (JᵀJ)⁻¹`` with ``s² = Σr² / (m − n)`` (m residual rows, n unknowns): they
+``s² (JᵀJ)⁻¹`` with ``s² = Σr² / (m − n)`` (m residual rows, n unknowns; with a
+robust loss each row weighed by ``ρ'``, as its last Gauss–Newton step weighs it): they
 describe the noise of a model that fits, and are too small when the model
 misses systematically. A direction the residuals do not see (a singular
 ``JᵀJ``, relative to its largest singular value below `RANK_TOL`) gets an
@@ -41,6 +43,7 @@ from scipy.optimize import least_squares
 from ..errors import FitError, InvalidInputError, check_count
 from ..model.scene import Scene
 from .evaluation import Evaluation, StateFit, Task, evaluate
+from .loss import Loss
 from .parameters import FitPlan
 from .recordings import Recording
 from .residuals import ResidualWeights
@@ -101,7 +104,8 @@ class FitResult:
         names: the unknowns' names; start, values: their values before and after.
         standard_errors: from the Gauss–Newton covariance (inf where not identifiable).
         covariance: of the unknowns (n × n), the initial-state offsets marginalised.
-        cost: half the sum of squares at ``values``; start_cost: at ``start``.
+        cost: half the sum of squares at ``values`` (with a robust `Loss`, of its ``ρ``);
+            start_cost: at ``start``.
         recordings: a `RecordingFit` per recording, in the order given.
         iterations: Jacobian evaluations (scipy's ``njev``); evaluations: residual
             evaluations (``nfev``), each one run per recording.
@@ -240,6 +244,8 @@ def fit(
     max_evaluations: int = 30,
     tolerance: float = 1e-8,
     progress: bool | None = None,
+    loss: Loss | str = Loss.LINEAR,
+    f_scale: float = 1.0,
 ) -> FitResult:
     """Fit ``parameters`` of ``scene`` to ``recordings`` (module doc).
 
@@ -259,6 +265,9 @@ def fit(
         max_evaluations: residual evaluations at most (each runs every recording once).
         tolerance: scipy's ``ftol``, ``xtol`` and ``gtol``.
         progress: a progress bar per evaluation on stderr (default: on a terminal).
+        loss: the `Loss` (default the sum of squares).
+        f_scale: the residual (in the weighted rows' unit, m for positions) beyond which a
+            robust loss counts a row less (> 0).
 
     Returns:
         The `FitResult`.
@@ -275,6 +284,9 @@ def fit(
     policy = _enum(NonDifferentiablePolicy, policy, "policy")
     jobs = check_count("fit", "jobs", jobs, minimum=1)
     max_evaluations = check_count("fit", "max_evaluations", max_evaluations, minimum=1)
+    loss = _enum(Loss, loss, "loss")
+    if not (isinstance(f_scale, (int, float)) and math.isfinite(f_scale) and f_scale > 0.0):
+        raise InvalidInputError(f"fit: f_scale must be a number > 0, got {f_scale!r}")
     workers = _Workers(scene, jobs, backend, progress)
     base = workers.model_scene()
     plan = FitPlan(base, parameters, bounds)
@@ -324,7 +336,7 @@ def fit(
                 "fit: policy 'exclude' leaves no recording: every one is not differentiable "
                 "at the starting values (use policy 'keep')"
             )
-    start_cost = 0.5 * sum(float(first[i].residual @ first[i].residual) for i in active)
+    start_cost = loss.cost(np.concatenate([first[i].residual for i in active]), f_scale)
     rows = sum(len(first[i].residual) for i in active)
 
     def residuals(x):
@@ -349,12 +361,15 @@ def fit(
         xtol=tolerance,
         gtol=tolerance,
         max_nfev=max_evaluations,
+        loss=loss.value,
+        f_scale=f_scale,
     )
     final = run(solution.x)  # the accepted point: cached, or run again if the last trial failed
     assert final is not None  # it ran at the accepted point before
     J = jacobian(solution.x)
     J = J.toarray() if sparse.issparse(J) else J
-    covariance, rank_deficient = _covariance(J, solution.fun, n)
+    w = np.sqrt(loss.weights(solution.fun, f_scale))  # a robust loss: rows weighed as its last step weighs them
+    covariance, rank_deficient = _covariance(w[:, None] * J, w * solution.fun, n)
     if counts and counts[-1] and policy is NonDifferentiablePolicy.KEEP:
         warnings.warn(
             f"fit: {counts[-1]} of {len(recordings)} recordings are not differentiable at the fitted "

@@ -88,3 +88,16 @@ def test_fit_command_on_windows(tmp_path, capsys):
         assert main(["fit", "ball", path, "--param", "contact:ball:restitution", *bad]) == 2
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and fragment in err, err
+
+
+def test_fit_command_with_a_robust_loss(tmp_path, capsys):
+    """--loss soft_l1 with f_scale 3 mm (three times the noise) on two clean noisy drops: the
+    value within three standard errors of E_TRUE; a zero f_scale exits 2 with one line."""
+    files = [_observation_file(tmp_path, seed) for seed in (4, 5)]
+    param = ["--param", "contact:ball:restitution"]
+    assert main(["fit", "ball", *files, *param, "--loss", "soft_l1", "--f-scale", "0.003", "--json"]) == 0
+    e = json.loads(capsys.readouterr().out)["parameters"]["contact:ball:restitution"]
+    assert abs(e["value"] - E_TRUE) < 3 * e["standard_error"]
+    assert main(["fit", "ball", files[0], *param, "--loss", "huber", "--f-scale", "0"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "f_scale" in err
