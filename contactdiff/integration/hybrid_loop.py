@@ -52,7 +52,8 @@ GAP_TOL = 1e-12
 
 
 class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReports):
-    """The hybrid loop of one run (module docstring); `simulate` is ``HybridLoop(...).run()``.
+    """The hybrid loop of one run (described in `contactdiff.integration.hybrid`); `simulate` is
+    ``HybridLoop(...).run()``.
 
     Args:
         scene: the `Scene`.
