@@ -40,7 +40,7 @@ from scipy.linalg import null_space
 from test_anisotropic_stop import ANISO_URDF
 
 import contactdiff as cd
-from contactdiff.integration import event_resets, friction_events, hybrid
+from contactdiff.integration import event_resets, friction_events, hybrid_loop
 from contactdiff.integration.friction_events import FrictionEvents
 from contactdiff.model.objects import SceneObject, add_objects, empty_robot
 
@@ -256,14 +256,14 @@ def test_a_start_whose_second_corner_slips_once_the_first_does(monkeypatch):
     options = dict(zeno_speed=1e-3, **OPTS)
     t_final = 0.005  # s: no event before
     rounds = []
-    settle = hybrid.settle_friction
+    settle = hybrid_loop.settle_friction
 
     def spy(dyn, q, v, t, mode, from_rest=None):
         out = settle(dyn, q, v, t, mode, from_rest)
         rounds.extend(from_rest or [])
         return out
 
-    monkeypatch.setattr(hybrid, "settle_friction", spy)
+    monkeypatch.setattr(hybrid_loop, "settle_friction", spy)
     traj = cd.simulate(scene, t_final, parameters=["body:cube:mass"], **options)
     monkeypatch.undo()
     names = scene.contact_names
