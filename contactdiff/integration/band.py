@@ -164,7 +164,7 @@ class BandEvents(LoopEvents):
                 continue  # it slides on with its reference, in the band: its term goes on
             else:
                 del self.onsets[index]
-            if not exact:
+            if not exact and key in mode:  # a held contact's reference acts once it bears
                 self.notes.append(
                     f"flow Jacobian: from t = {t:.12g} it holds the reference direction of "
                     f"{self.names[index]}'s slip from rest fixed (an event before the slip "

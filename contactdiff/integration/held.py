@@ -53,6 +53,7 @@ def held_contacts(
     rates: np.ndarray,
     gap_tol: float,
     speed_tol: float,
+    from_rest: list | None = None,
 ) -> dict[int, int]:
     """The contacts ``mode`` holds at zero gap, each with its key in the enlarged set.
 
@@ -69,6 +70,10 @@ def held_contacts(
             allows: a held contact's gap is a combination of the others').
         speed_tol: m/s, a gap rate within it is zero, and a slip faster than it makes a
             Coulomb contact's key sliding.
+        from_rest: if given, gets ``(scene index, mode, enlarged)`` for each held contact at
+            rest that Coulomb's law makes slide in its enlarged set: ``mode`` the set whose
+            sticking force set its reference (`settle_friction`), ``enlarged`` the settled
+            set it bears with (`HeldEvents._held_onsets` carries its reference's angle).
 
     Returns:
         ``{scene index: key}``: the contacts whose rows (sticking, or sliding along its slip
@@ -103,11 +108,14 @@ def held_contacts(
             key = dyn.sliding_key(i)
         if row_rank(np.vstack([A, dyn.contact(key).rows(dyn.kin)])) != rank:
             continue
+        found: list = []
         try:  # its key as Coulomb's law settles the enlarged set, the one it would bear with
-            settled, _ = settle_friction(dyn, q, v, t, enlarged(mode, key))
+            settled, _ = settle_friction(dyn, q, v, t, enlarged(mode, key), found)
         except (PainleveError, SolverError):
             continue
         held[i] = next(k for k in settled if dyn.contact_index(k) == i)
+        if from_rest is not None:
+            from_rest.extend((index, rows, settled) for index, rows in found if index == i)
     return held
 
 
@@ -151,6 +159,37 @@ class HeldEvents(LoopEvents):
 
     if TYPE_CHECKING:  # besides the state of every event mixin (LoopEvents)
         fields: Sequence[HoldingField]  # the loop's ModeField objects
+        initial_saltation: np.ndarray | None
+
+        def _identity_phi(self) -> np.ndarray: ...
+        def _jumped(self, phi: np.ndarray | None, event) -> np.ndarray: ...
+
+    def _held_onsets(self, t, q, v, mode, found: list, start: bool) -> None:
+        """Carry the references of the held contacts at rest that `held_contacts` set at the
+        start of ``mode`` (``found``: its ``from_rest`` entries) as onsets' angles
+        (`FrictionEvents._onset_columns`): their ``w = ∂θ/∂`` of the flow Jacobian's columns,
+        from the state at ``(t, q, v)`` (after the last event, or the start's) moved with the
+        event's time, ``Ξ φ + Ξ_p + F+ ∂t`` (``∂t`` the event's time gradient; zero at the
+        start, whose time is fixed). The reference acts once the contact bears with it (its
+        load in the enlarged set, the bearing guard, moves with ``θ`` by a force proportional
+        to that load: zero where it fires)."""
+        n_cols = self._identity_phi().shape[1]
+        dt = np.zeros(n_cols)
+        if start:
+            phi = self.initial_saltation if self.initial_saltation is not None else self._identity_phi()
+        else:
+            event = self.events[-1]
+            if event.saltation is None or self.phi is None:
+                return  # not differentiable there: the run's Jacobian ends (its note says so)
+            phi = self._jumped(self.phi, event)
+            n = self.n_state
+            if event.time_gradient is not None:
+                dt[:n] = event.time_gradient
+            if event.parameter_time_gradient is not None:
+                dt[n:] = event.parameter_time_gradient
+        moved = phi + np.outer(vector_field(self.dyn, q, v, t, mode), dt)
+        for index, rows, settled in found:
+            self._onset_columns(t, q, [(index, rows, v)], moved, dt, settled)
 
     def _bear_event(self, t, q, v, mode, bearing: list[int]):
         """The held contacts ``bearing`` (scene indices) join ``mode`` at ``(t, q, v)``: no

@@ -136,7 +136,8 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReport
     def _field(self, mode, fused: bool, t: float, q, v) -> ModeField:
         """The field of ``mode`` from ``(t, q, v)``, watching the contacts it holds at zero gap
         (a gap within the drift the projection allows: a held contact's gap is the others')."""
-        held = {}
+        held: dict[int, int] = {}
+        found: list = []  # held contacts at rest that slide in their enlarged set
         if mode:
             gaps, rates = self._gaps_and_rates(q, v)
             held = held_contacts(
@@ -149,7 +150,10 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReport
                 rates,
                 max(self.gap_tol, self.options.resolved_project_tol),
                 self.options.grazing_speed,
+                found if self.sensitive else None,
             )
+            if found:  # their references' angles, carried as onsets' (`HeldEvents._held_onsets`)
+                self._held_onsets(t, q, v, tuple(mode), found, start=not self.fields)
         return ModeField(
             self.dyn,
             mode,
