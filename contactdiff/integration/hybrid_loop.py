@@ -40,7 +40,7 @@ from .guards import GuardFinder
 from .held import HeldEvents, held_contacts
 from .loop_reports import MAX_NOTES, LoopReports
 from .mode_field import ModeField
-from .options import AUTO, SimulateOptions
+from .options import AUTO, JacobianError, SimulateOptions
 from .parameter_jumps import ParameterJumps
 from .projection import held_velocity, project_state
 from .rest import RestCheck
@@ -252,7 +252,13 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReport
     # -- the loop -------------------------------------------------------------------
     def _stepper_options(self, field: ModeField) -> dict:
         o = self.options
-        options: dict[str, Any] = dict(rtol=o.rtol, atol=o.atol, max_step=o.max_step, t_bound=self.t_final)
+        options: dict[str, Any] = dict(
+            rtol=o.rtol,
+            atol=o.atol,
+            max_step=o.max_step,
+            t_bound=self.t_final,
+            variational_error_control=o.jacobian_error is JacobianError.CONTROL,
+        )
         if self.sensitive:  # the parameters' forcing, and a slip onset's (`ModeField`)
             options.update(parameter_jac=field.parameter_jac)
         if self.jumps is not None:
