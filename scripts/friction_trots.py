@@ -16,7 +16,8 @@ A run that raises is reported with its counts up to there, traceback, time reach
     python scripts/friction_trots.py --mu 0.5 --repeats 3 --json
     python scripts/friction_trots.py --profile       # and where the Coulomb runs' time goes
     python scripts/friction_trots.py --mu 0.8 --scenes solo12_trot --jacobian --profile  # with the flow Jacobian
-    python scripts/friction_trots.py --mu 0.8 --scenes solo12_trot --jacobian-cost  # its cost under each jacobian_error
+    python scripts/friction_trots.py --mu 0.8 --scenes solo12_trot --jacobian-cost --reference
+        # the flow Jacobian's cost and accuracy under each jacobian_error
     python scripts/friction_trots.py --quick         # solo12, μ = 0.7, 0.2 s, profiled: a smoke run
 """
 
@@ -242,11 +243,18 @@ def _profiled(
     return {"profile": time_shares(record, traj.segments, wall, traj.events) | {"total": {"wall": wall}}}
 
 
-def jacobian_costs(scene: cd.Scene, t_final: float) -> dict:
+def _column_error(J: np.ndarray, ref: np.ndarray) -> tuple[float, float]:
+    """Largest and median over the columns of ``max |J - ref|`` over the column's ``max |ref|``."""
+    err = np.abs(J - ref).max(axis=0) / np.abs(ref).max(axis=0)
+    return float(err.max()), float(np.median(err))
+
+
+def jacobian_costs(scene: cd.Scene, t_final: float, reference: bool = False) -> dict:
     """The flow Jacobian's cost in plain runs under each `JacobianError`, in one process: a plain
     run, then one with ``jacobian=True`` per setting (counts, wall, wall over the plain run's),
     and the largest difference between the settings' Jacobians per column, relative to the
-    column's largest entry under ``"control"``."""
+    column's largest entry under ``"control"``; with ``reference`` each setting's column errors
+    against a run at rtol 1e-11, atol 1e-13 under ``"control"`` (and whether its events match)."""
     out: dict = {}
     start = time.perf_counter()
     plain = cd.simulate(scene, t_final)
@@ -272,9 +280,14 @@ def jacobian_costs(scene: cd.Scene, t_final: float) -> dict:
             "events": len(traj.events),
             "same_state": bool(np.array_equal(traj.q, plain.q) and np.array_equal(traj.v, plain.v)),
         }
-    ref = jacobians[JacobianError.CONTROL]
-    diff = np.abs(jacobians[JacobianError.STATE] - ref).max(axis=0) / np.abs(ref).max(axis=0)
-    out["state_vs_control_column_rel"] = float(diff.max())
+    out["state_vs_control_column_rel"] = _column_error(
+        jacobians[JacobianError.STATE], jacobians[JacobianError.CONTROL]
+    )[0]
+    if reference:
+        ref = cd.simulate(scene, t_final, jacobian=True, rtol=1e-11, atol=1e-13)
+        out["reference"] = {"events": len(ref.events)} | {
+            setting.value: _column_error(J, ref.jacobian) for setting, J in jacobians.items()
+        }
     return out
 
 
@@ -370,6 +383,13 @@ def table(rows: list[dict], t_final: float) -> str:
                 "  largest difference of a column of the Jacobian, state against control, relative to the "
                 f"column's largest entry: {c['state_vs_control_column_rel']:.3g}"
             )
+            if "reference" in c:
+                ref = c["reference"]
+                lines.append(
+                    f"  against the run at rtol 1e-11, atol 1e-13 ({ref['events']} events), largest (median) "
+                    "column error relative to the column's largest entry: "
+                    + ", ".join(f"{k} {ref[k][0]:.3g} ({ref[k][1]:.3g})" for k in ("control", "state"))
+                )
     for r in fails:
         lines += [
             f"\n--- {r['scene']} friction={r['friction']}: {r['error']}",
@@ -414,6 +434,12 @@ def main(argv: list[str] | None = None) -> None:
         "Jacobian under each jacobian_error, their counts and wall in plain runs, and how far apart "
         "the two Jacobians are",
     )
+    parser.add_argument(
+        "--reference",
+        action="store_true",
+        help="with --jacobian-cost: also each setting's Jacobian error against a run at rtol 1e-11, "
+        "atol 1e-13 with jacobian_error=control",
+    )
     parser.add_argument("--json", action="store_true")
     parser.add_argument(
         "--quick",
@@ -433,10 +459,9 @@ def main(argv: list[str] | None = None) -> None:
                 flush=True,
             )
             if args.jacobian_cost:
-                if friction != "stick":
-                    row = {"scene": name, "friction": friction, "jacobian_costs": jacobian_costs(scene, args.t_final)}
-                    print(f"  done: {row['jacobian_costs']['plain']['wall']:.2f} s plain", file=sys.stderr, flush=True)
-                    rows.append(row)
+                costs = jacobian_costs(scene, args.t_final, args.reference)
+                print(f"  done: {costs['plain']['wall']:.2f} s plain", file=sys.stderr, flush=True)
+                rows.append({"scene": name, "friction": friction, "jacobian_costs": costs})
                 continue
             profile = args.profile and friction != "stick"
             row = {"scene": name, "friction": friction} | run(
