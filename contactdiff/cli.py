@@ -177,7 +177,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sim.add_argument(
         "--on-grazing",
-        choices=tuple(OnGrazing),
+        choices=[m.value for m in OnGrazing],
         default=defaults.on_grazing.value,
         help="event: a grazing touchdown is an event, a near-grazing miss a note (the default); "
         "raise: both stop the run with an error",
@@ -187,7 +187,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sim.add_argument(
         "--jacobian-error",
-        choices=tuple(JacobianError),
+        choices=[m.value for m in JacobianError],
         default=defaults.jacobian_error.value,
         help="with --jacobian or --param: control: steps chosen from the state's and the Jacobian's "
         "errors (the default); state: from the state's alone (the plain run's steps, cheaper)",

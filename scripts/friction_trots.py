@@ -423,7 +423,7 @@ def main(argv: list[str] | None = None) -> None:
     )
     parser.add_argument(
         "--jacobian-error",
-        choices=tuple(JacobianError),
+        choices=[m.value for m in JacobianError],
         default=JacobianError.CONTROL.value,
         help="with --jacobian: which errors choose the steps (SimulateOptions.jacobian_error)",
     )
