@@ -92,7 +92,16 @@ def build_parser() -> argparse.ArgumentParser:
     check.set_defaults(run=run_check)
 
     from .analysis.gait.stride import STRIDE_ATOL, STRIDE_METHOD, STRIDE_RTOL
-    from .integration.options import ATOL_MAX, AUTO, RTOL_MAX, RTOL_MIN, SIMULATE_METHODS, OnGrazing, SimulateOptions
+    from .integration.options import (
+        ATOL_MAX,
+        AUTO,
+        RTOL_MAX,
+        RTOL_MIN,
+        SIMULATE_METHODS,
+        JacobianError,
+        OnGrazing,
+        SimulateOptions,
+    )
     from .ode.factory import METHODS
     from .replay import DEFAULT_FPS
 
@@ -168,13 +177,20 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sim.add_argument(
         "--on-grazing",
-        choices=tuple(OnGrazing),
+        choices=[m.value for m in OnGrazing],
         default=defaults.on_grazing.value,
         help="event: a grazing touchdown is an event, a near-grazing miss a note (the default); "
         "raise: both stop the run with an error",
     )
     sim.add_argument(
         "--jacobian", action="store_true", help="also compute the flow Jacobian d x(T)/d x0 and every saltation matrix"
+    )
+    sim.add_argument(
+        "--jacobian-error",
+        choices=[m.value for m in JacobianError],
+        default=defaults.jacobian_error.value,
+        help="with --jacobian or --param: control: steps chosen from the state's and the Jacobian's "
+        "errors (the default); state: from the state's alone (the plain run's steps, cheaper)",
     )
     sim.add_argument(
         "--param",

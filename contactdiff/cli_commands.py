@@ -137,6 +137,7 @@ def run_simulate(args) -> int:
             rtol=args.rtol,
             atol=args.atol,
             jacobian=args.jacobian,
+            jacobian_error=args.jacobian_error,
             max_steps=args.max_steps,
             max_events=args.max_events,
             zeno_speed=args.zeno_speed,

@@ -16,6 +16,8 @@ A run that raises is reported with its counts up to there, traceback, time reach
     python scripts/friction_trots.py --mu 0.5 --repeats 3 --json
     python scripts/friction_trots.py --profile       # and where the Coulomb runs' time goes
     python scripts/friction_trots.py --mu 0.8 --scenes solo12_trot --jacobian --profile  # with the flow Jacobian
+    python scripts/friction_trots.py --mu 0.8 --scenes solo12_trot --jacobian-cost --reference
+        # the flow Jacobian's cost and accuracy under each jacobian_error
     python scripts/friction_trots.py --quick         # solo12, μ = 0.7, 0.2 s, profiled: a smoke run
 """
 
@@ -36,6 +38,7 @@ import numpy as np
 import pinocchio as pin
 
 import contactdiff as cd
+from contactdiff.integration.options import JacobianError
 from contactdiff.integration.trajectory import EVENT_KINDS
 
 TROTS = ("solo12_trot", "anymal_trot")
@@ -166,12 +169,21 @@ def time_shares(record: list, segments, wall: float, events=()) -> dict:
     }
 
 
-def run(scene: cd.Scene, t_final: float, repeats: int, profile: bool = False, jacobian: bool = False) -> dict:
+def run(
+    scene: cd.Scene,
+    t_final: float,
+    repeats: int,
+    profile: bool = False,
+    jacobian: bool = False,
+    jacobian_error: str = JacobianError.CONTROL,
+) -> dict:
     """One scene's row: counts of the last run, median wall time; on an exception, the diagnosis;
     with ``profile`` one more run with `where_time_goes`."""
     walls, reached = [], [0.0, 0, 0]
     # what simulate(scene, t_final) runs; progress only records (t, events, accepted steps)
-    options = cd.SimulateOptions(progress=lambda *p: reached.__setitem__(slice(None), p), jacobian=jacobian)
+    options = cd.SimulateOptions(
+        progress=lambda *p: reached.__setitem__(slice(None), p), jacobian=jacobian, jacobian_error=jacobian_error
+    )
     for _ in range(repeats):
         loop = cd.HybridLoop(scene, 0.0, t_final, options=options)
         start = time.perf_counter()
@@ -216,17 +228,67 @@ def run(scene: cd.Scene, t_final: float, repeats: int, profile: bool = False, ja
             "tilt_deg": tilt,
             "upright": height >= 0.5 * start_height and tilt < 45.0,
         }
-        | (_profiled(scene, t_final, jacobian) if profile else {})
+        | (_profiled(scene, t_final, jacobian, jacobian_error) if profile else {})
     )
 
 
-def _profiled(scene: cd.Scene, t_final: float, jacobian: bool = False) -> dict:
+def _profiled(
+    scene: cd.Scene, t_final: float, jacobian: bool = False, jacobian_error: str = JacobianError.CONTROL
+) -> dict:
     record = []
     with where_time_goes(record):
         start = time.perf_counter()
-        traj = cd.simulate(scene, t_final, jacobian=jacobian)
+        traj = cd.simulate(scene, t_final, jacobian=jacobian, jacobian_error=jacobian_error)
         wall = time.perf_counter() - start
     return {"profile": time_shares(record, traj.segments, wall, traj.events) | {"total": {"wall": wall}}}
+
+
+def _column_error(J: np.ndarray, ref: np.ndarray) -> tuple[float, float]:
+    """Largest and median over the columns of ``max |J - ref|`` over the column's ``max |ref|``."""
+    err = np.abs(J - ref).max(axis=0) / np.abs(ref).max(axis=0)
+    return float(err.max()), float(np.median(err))
+
+
+def jacobian_costs(scene: cd.Scene, t_final: float, reference: bool = False) -> dict:
+    """The flow Jacobian's cost in plain runs under each `JacobianError`, in one process: a plain
+    run, then one with ``jacobian=True`` per setting (counts, wall, wall over the plain run's),
+    and the largest difference between the settings' Jacobians per column, relative to the
+    column's largest entry under ``"control"``; with ``reference`` each setting's column errors
+    against a run at rtol 1e-11, atol 1e-13 under ``"control"`` (and whether its events match)."""
+    out: dict = {}
+    start = time.perf_counter()
+    plain = cd.simulate(scene, t_final)
+    out["plain"] = {
+        "wall": time.perf_counter() - start,
+        "steps": plain.stats.steps,
+        "rejected": plain.stats.rejected_steps,
+        "evaluations": plain.stats.stepper_evaluations,
+    }
+    jacobians = {}
+    for setting in JacobianError:
+        start = time.perf_counter()
+        traj = cd.simulate(scene, t_final, jacobian=True, jacobian_error=setting)
+        wall = time.perf_counter() - start
+        jacobians[setting] = traj.jacobian
+        out[setting.value] = {
+            "wall": wall,
+            "ratio": wall / out["plain"]["wall"],
+            "steps": traj.stats.steps,
+            "rejected": traj.stats.rejected_steps,
+            "evaluations": traj.stats.stepper_evaluations,
+            "jacobian_evaluations": traj.stats.jacobian_evaluations,
+            "events": len(traj.events),
+            "same_state": bool(np.array_equal(traj.q, plain.q) and np.array_equal(traj.v, plain.v)),
+        }
+    out["state_vs_control_column_rel"] = _column_error(
+        jacobians[JacobianError.STATE], jacobians[JacobianError.CONTROL]
+    )[0]
+    if reference:
+        ref = cd.simulate(scene, t_final, jacobian=True, rtol=1e-11, atol=1e-13)
+        out["reference"] = {"events": len(ref.events)} | {
+            setting.value: _column_error(J, ref.jacobian) for setting, J in jacobians.items()
+        }
+    return out
 
 
 def table(rows: list[dict], t_final: float) -> str:
@@ -245,6 +307,8 @@ def table(rows: list[dict], t_final: float) -> str:
     lines = [f"scene        friction events {head}  zenoC  slip s  wall s  steps  rej   base m (start)  tilt  upright"]
     fails = []
     for r in rows:
+        if "jacobian_costs" in r:  # no table row: its lines follow
+            continue
         cells = (
             f"{r['scene']:<12} {r['friction']:>8} {r['events']:6d} "
             + " ".join(f"{r['kinds'][k]:5d}" for k in EVENT_KINDS)
@@ -263,6 +327,8 @@ def table(rows: list[dict], t_final: float) -> str:
         "NonSmooth.ZENO_CASCADE; slip s: foot-seconds slipping; wall: median; rej: rejected steps; "
         "tilt: base z axis from vertical (deg); a FAILED row counts up to the failure"
     )
+    if all("jacobian_costs" in r for r in rows):  # --jacobian-cost: no table rows
+        lines = []
     for r in rows:
         if "profile" in r:
             p = r["profile"]
@@ -297,6 +363,33 @@ def table(rows: list[dict], t_final: float) -> str:
             lines.append(
                 f"  impacts: {p['impacts']['wall']:.2f} s; events, guards, the rest: {p['rest']['wall']:.2f} s"
             )
+    for r in rows:
+        if "jacobian_costs" in r:
+            c = r["jacobian_costs"]
+            lines.append(
+                f"{r['scene']} friction={r['friction']}: the flow Jacobian's cost (one process); plain run "
+                f"{c['plain']['wall']:.2f} s wall, {c['plain']['steps']} steps ({c['plain']['rejected']} rejected), "
+                f"{c['plain']['evaluations']} evaluations"
+            )
+            for setting in JacobianError:
+                q = c[setting.value]
+                lines.append(
+                    f"  jacobian_error={setting.value:<8} {q['wall']:7.2f} s wall = {q['ratio']:5.2f} plain runs, "
+                    f"{q['steps']} steps ({q['rejected']} rejected), {q['evaluations']} evaluations, "
+                    f"{q['jacobian_evaluations']} Jacobian evaluations, {q['events']} events, "
+                    f"state bit for bit the plain run's: {q['same_state']}"
+                )
+            lines.append(
+                "  largest difference of a column of the Jacobian, state against control, relative to the "
+                f"column's largest entry: {c['state_vs_control_column_rel']:.3g}"
+            )
+            if "reference" in c:
+                ref = c["reference"]
+                lines.append(
+                    f"  against the run at rtol 1e-11, atol 1e-13 ({ref['events']} events), largest (median) "
+                    "column error relative to the column's largest entry: "
+                    + ", ".join(f"{k} {ref[k][0]:.3g} ({ref[k][1]:.3g})" for k in ("control", "state"))
+                )
     for r in fails:
         lines += [
             f"\n--- {r['scene']} friction={r['friction']}: {r['error']}",
@@ -328,6 +421,25 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument(
         "--jacobian", action="store_true", help="carry the flow Jacobian in every run (simulate(..., jacobian=True))"
     )
+    parser.add_argument(
+        "--jacobian-error",
+        choices=[m.value for m in JacobianError],
+        default=JacobianError.CONTROL.value,
+        help="with --jacobian: which errors choose the steps (SimulateOptions.jacobian_error)",
+    )
+    parser.add_argument(
+        "--jacobian-cost",
+        action="store_true",
+        help="instead of the table's runs, for each Coulomb case: a plain run and one with the flow "
+        "Jacobian under each jacobian_error, their counts and wall in plain runs, and how far apart "
+        "the two Jacobians are",
+    )
+    parser.add_argument(
+        "--reference",
+        action="store_true",
+        help="with --jacobian-cost: also each setting's Jacobian error against a run at rtol 1e-11, "
+        "atol 1e-13 with jacobian_error=control",
+    )
     parser.add_argument("--json", action="store_true")
     parser.add_argument(
         "--quick",
@@ -346,8 +458,15 @@ def main(argv: list[str] | None = None) -> None:
                 file=sys.stderr,
                 flush=True,
             )
+            if args.jacobian_cost:
+                costs = jacobian_costs(scene, args.t_final, args.reference)
+                print(f"  done: {costs['plain']['wall']:.2f} s plain", file=sys.stderr, flush=True)
+                rows.append({"scene": name, "friction": friction, "jacobian_costs": costs})
+                continue
             profile = args.profile and friction != "stick"
-            row = {"scene": name, "friction": friction} | run(scene, args.t_final, args.repeats, profile, args.jacobian)
+            row = {"scene": name, "friction": friction} | run(
+                scene, args.t_final, args.repeats, profile, args.jacobian, args.jacobian_error
+            )
             done = row.get("error") or f"{row['events']} events, {row['wall']:.2f} s wall"
             print(f"  done: {done}", file=sys.stderr, flush=True)
             rows.append(row)

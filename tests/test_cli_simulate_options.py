@@ -82,3 +82,33 @@ def test_fast_spin_stops_at_its_step_budget(capsys):
     assert err.count("\n") == 1 and "collapsed" not in err
     assert "max_steps = 200000 cannot reach t_final = 2 s: at t = " in err and "free flight" in err
     assert "after 1000 steps" in err and "raise max_steps to about" in err
+
+
+@pytest.mark.parametrize("option, bad", [("--jacobian-error", "full"), ("--on-grazing", "warn")])
+def test_bad_choice_lists_the_valid_values(capsys, option, bad):
+    """A bad value of an enum option is refused in one line naming it and the valid values
+    (their strings, not the enum's repr)."""
+    assert main(["simulate", "ball", "--t-final", "1", option, bad]) == 2
+    err = capsys.readouterr().err
+    valid = "'control', 'state'" if option == "--jacobian-error" else "'event', 'raise'"
+    assert err.count("\n") == 1 and f"invalid choice: '{bad}'" in err and valid in err and "<" not in err
+
+
+def test_jacobian_error_state_keeps_the_plain_steps(capsys):
+    """`--jacobian-error state` reaches the run: two_limb for 1.5 s with the flow Jacobian takes
+    the plain run's steps, events and final state (`tests/integration/test_jacobian_error.py`
+    says why), while under the default ``control`` the Jacobian's error chooses other steps."""
+
+    def run(*extra):
+        assert main(["simulate", "two_limb", "--t-final", "1.5", "--json", *extra]) == 0
+        return json.loads(capsys.readouterr().out)
+
+    def state_of(out):
+        steps = (out["stats"]["steps"], out["stats"]["rejected_steps"])
+        events = [(e["t"], e["kind"], e["q"], e["v_plus"]) for e in out["events"]]
+        return steps, events, out["q"], out["v"]
+
+    plain, state, control = run(), run("--jacobian", "--jacobian-error", "state"), run("--jacobian")
+    assert state["jacobian"] is not None and control["jacobian"] is not None
+    assert state_of(state) == state_of(plain)
+    assert state_of(control)[0] != state_of(plain)[0]

@@ -40,7 +40,7 @@ from .guards import GuardFinder
 from .held import HeldEvents, held_contacts
 from .loop_reports import MAX_NOTES, LoopReports
 from .mode_field import ModeField
-from .options import AUTO, SimulateOptions
+from .options import AUTO, JacobianError, SimulateOptions
 from .parameter_jumps import ParameterJumps
 from .projection import held_velocity, project_state
 from .rest import RestCheck
@@ -132,6 +132,14 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReport
         phi = np.zeros((n, self.n_state + (self.jumps.p if self.jumps else 0)))
         phi[:, : self.n_state] = np.eye(n, self.n_state)
         return phi
+
+    def _fused(self, method: str) -> bool:
+        """Whether the field differentiates the mode at every evaluation (`ModeField`): with
+        derivatives, under an explicit method whose attempts use them. Radau evaluates the field
+        at Newton iterates, and under ``jacobian_error="state"`` a rejected attempt's derivatives
+        are never read: there the accepted stages are differentiated when the Jacobian is
+        propagated (one more solve each, against the derivatives of every rejected attempt)."""
+        return self.sensitive and method != "Radau" and self.options.jacobian_error is JacobianError.CONTROL
 
     def _field(self, mode, fused: bool, t: float, q, v) -> ModeField:
         """The field of ``mode`` from ``(t, q, v)``, watching the contacts it holds at zero gap
@@ -256,7 +264,13 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReport
     # -- the loop -------------------------------------------------------------------
     def _stepper_options(self, field: ModeField) -> dict:
         o = self.options
-        options: dict[str, Any] = dict(rtol=o.rtol, atol=o.atol, max_step=o.max_step, t_bound=self.t_final)
+        options: dict[str, Any] = dict(
+            rtol=o.rtol,
+            atol=o.atol,
+            max_step=o.max_step,
+            t_bound=self.t_final,
+            variational_error_control=o.jacobian_error is JacobianError.CONTROL,
+        )
         if self.sensitive:  # the parameters' forcing, and a slip onset's (`ModeField`)
             options.update(parameter_jac=field.parameter_jac)
         if self.jumps is not None:
@@ -268,7 +282,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReport
         options, scene = self.options, self.scene
         q, v = scene.q0.copy(), scene.v0.copy()
         mode, v = self.initial_mode(q, v)
-        field = self._field(mode, self.sensitive and options.method != "Radau", self.t0, q, v)
+        field = self._field(mode, self._fused(options.method), self.t0, q, v)
         self.chooser = MethodChooser(self._probe(mode)) if options.method == AUTO else None
         stepper = make_stepper(
             EXPLICIT if self.chooser else options.method,
@@ -383,7 +397,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReport
             for event in self.events[n_before:]:
                 stop = self.on_event(event, mode_before, phi_before) or stop
             q_event = self.events[-1].q
-            field = self._field(mode, self.sensitive and stepper.method != "Radau", t_event, q_event, v_plus)
+            field = self._field(mode, self._fused(stepper.method), t_event, q_event, v_plus)
             self.fields.append(field)
             stepper.restart(
                 t_event,
@@ -449,7 +463,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReport
         self.retired.append(stepper)
         self.switches.append((stepper.t, method))
         # Radau evaluates the field at Newton iterates, where no derivative is wanted
-        field.fused = self.sensitive and method != "Radau"
+        field.fused = self._fused(method)
         assert self.chooser is not None  # method "auto" switches, and it has a chooser
         rho = self.chooser.rho
         if len(self.switches) <= MAX_NOTES:

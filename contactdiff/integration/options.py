@@ -40,6 +40,17 @@ class OnGrazing(StrEnum):
     """raise `GrazingError`"""
 
 
+class JacobianError(StrEnum):
+    """Which errors choose the steps of a run that carries a flow Jacobian."""
+
+    CONTROL = "control"
+    """the state's and the flow Jacobian's: a step is accepted only if both local
+    errors are within the tolerances (CVODES' ``errconS = true``)"""
+    STATE = "state"
+    """the state's alone (CVODES' ``errconS = false``): the steps are those of the run
+    without the Jacobian, which is propagated over them by the same method"""
+
+
 @dataclass(frozen=True, kw_only=True)
 class SimulateOptions:
     """Options of `simulate` (and of the stride map, which runs the same loop).
@@ -54,6 +65,13 @@ class SimulateOptions:
             (``"Radau"`` for stiff scenes).
         jacobian: also compute the flow Jacobian ``traj.jacobian`` (d x(t_final) /
             d x0, tangent space) and each event's saltation matrix and time gradient.
+        jacobian_error: a `JacobianError` (or its value), with ``jacobian`` or
+            ``parameters``: ``"control"`` chooses each step from the state's and the flow
+            Jacobian's local errors; ``"state"`` from the state's alone, so the steps, the
+            events and the state are those of the run without derivatives and the
+            Jacobian is the exact derivative of that discrete run (on vector spaces) but
+            its own error is not controlled (see docs/design.md for when that loses
+            accuracy and how much it saves).
         parameters: names of scene parameters (`Scene.parameter_names`) to
             differentiate with respect to: ``traj.parameter_jacobian`` (d x(t_final) /
             d p) and each event's parameter blocks. Without ``jacobian`` only those
@@ -100,6 +118,7 @@ class SimulateOptions:
     atol: float = 1e-10
     method: str = AUTO
     jacobian: bool = False
+    jacobian_error: JacobianError = JacobianError.CONTROL
     parameters: tuple[str, ...] = ()
     max_events: int = 10_000
     max_steps: int = MAX_STEPS
@@ -121,6 +140,11 @@ class SimulateOptions:
         if self.on_grazing not in tuple(OnGrazing):
             raise InvalidInputError(f"on_grazing must be one of {', '.join(OnGrazing)}; got {self.on_grazing!r}")
         set_(self, "on_grazing", OnGrazing(self.on_grazing))
+        if self.jacobian_error not in tuple(JacobianError):
+            raise InvalidInputError(
+                f"jacobian_error must be one of {', '.join(JacobianError)}; got {self.jacobian_error!r}"
+            )
+        set_(self, "jacobian_error", JacobianError(self.jacobian_error))
         set_(self, "rtol", _in_range("rtol", self.rtol, RTOL_MIN, RTOL_MAX))
         set_(self, "atol", _in_range("atol", self.atol, 0.0, ATOL_MAX, open_low=True))
         set_(self, "jacobian", bool(self.jacobian))
