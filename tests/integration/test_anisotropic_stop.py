@@ -41,7 +41,8 @@ the time left (``scripts/friction_trots.py --profile`` counts them in the trots)
 
 Tolerances: as `coulomb_models` (runs at rtol = atol = 1e-12, closed-form values at 1e-10
 relative, Jacobians by central differences at `FD_RTOL`); the closed-form time gradient is compared
-at `JAC_REL` (the variational equation's error is not controlled, only the state's).
+at `JAC_REL` (the variational equation's error is controlled with the state's, the default
+``jacobian_error``: the same relative error as the state's).
 """
 
 from __future__ import annotations
