@@ -106,8 +106,8 @@ class GuardFinder:
         self.kin = scene.kinematics
         self.contacts = scene.contacts
         self.from_rest: set[int] = set()
-        """Keys of the slips the last event started from rest (set by the hybrid loop for
-        the first step after an event, `restart_from_rest`)."""
+        """Keys of the slips the events started from rest whose speed has stayed within the
+        slip-speed floor since (`restart_from_rest` at an event, `keep_resting` after each step)."""
 
     def crossings(self, stepper, dense, field, mode, start, end) -> tuple[list[tuple[float, Guard]], list[NearMiss]]:
         """The guards the last step of ``stepper`` crossed, and its near-grazing misses.
@@ -227,10 +227,31 @@ class GuardFinder:
         their stop fires only past ``-floor`` (`crossings`). With the round-off positive
         the stop was located at zero instead, where a step's dense output reversing from
         the start put it at the start itself: after every restart the same stop, and a
-        run that repeated one event without advancing."""
+        run that repeated one event without advancing. A slip started from rest at an earlier
+        event that this one leaves as it was (the same key on both sides, its stop not fired)
+        stays from rest: its slip may still be round-off (a corner whose slip two sticking
+        corners hold at zero), and its stop at round-off's sign changes would reset its
+        reference at times that depend on the last bits of the state."""
         stopped = {g.contact for g in fired if g.kind is GuardKind.STOP}
+        kept = {key for key in self.from_rest if key in mode_before and key not in stopped}
         self.from_rest = {
-            key for key in mode_after if self.dyn.contact(key).slips and (key not in mode_before or key in stopped)
+            key
+            for key in mode_after
+            if self.dyn.contact(key).slips and (key not in mode_before or key in stopped or key in kept)
+        }
+
+    def keep_resting(self, field, values) -> None:
+        """After an accepted step whose end has the guard values ``values`` (``field.guard_values``):
+        the slips from rest whose speed along their direction is still within the slip-speed
+        floor stay from rest for the next step. A slip the mode holds at zero (a corner of a
+        face whose other sticking corners fix the body's motion) stays at round-off for the
+        whole mode, and its stop must not fire on round-off's sign changes, which depend on
+        the last bits of the state (and would reset its reference there)."""
+        floor = self.dyn.slip_speed_floor
+        self.from_rest = {
+            guard.contact
+            for guard, value in zip(field.guards, values)
+            if guard.kind is GuardKind.STOP and guard.contact in self.from_rest and value <= floor
         }
 
     def grazing_band(self, q) -> float:

@@ -335,7 +335,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReport
             crossings, misses = self.guards.crossings(
                 stepper, dense, field, mode, (gaps, rates, forces), (gaps1, rates1, forces1)
             )
-            self.guards.from_rest = set()  # the first step after an event only
+            self.guards.keep_resting(field, forces1)  # the slips from rest still at rest
             if not crossings:
                 self._near_misses(misses, np.inf)
                 gaps, rates, forces = gaps1, rates1, forces1
