@@ -26,7 +26,8 @@ Tolerances. Runs use rtol = atol = 1e-12 (`TOL`). A run's error is then at most 
 the state over its O(10²) steps, so closed-form values of O(1) are compared at 1e-10 relative (a
 100x margin over ~1e-12 per step, while any wrong term in a closed form is O(1)); Jacobians
 propagated by the variational equation carry the same relative error and are compared at 1e-8
-(their own step error is controlled with the state's, the default ``jacobian_error``). Central differences (ε = 1e-6): the
+(their own step error is controlled with the state's, the default ``jacobian_error``). Central
+differences (ε = 1e-6): the
 truncation ε² |x'''| / 6 ~ 1e-13 for the O(1)..O(10) third derivatives here, and the noise of two
 runs each within ~rtol |x| + atol ≈ 2e-12 is ≤ 2 · 2e-12 / (2 ε) = 2e-6 absolute at worst; the
 Jacobians here have max-abs entry ≥ 1 (d q / d q0 = I), so `FD_RTOL` = 1e-5 relative to that scale
