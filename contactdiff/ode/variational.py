@@ -139,7 +139,6 @@ class VariationalAlgebra:
         reaches 1e6 1/s, in a column of 2.5e5 after a Zeno sequence, made the ``atol`` of an
         entry near zero ask for 4e-16 of its column: steps of 6e-8 s and a run out of steps).
         It binds only where ``atol`` asks for less than that."""
-        A0, A1 = np.abs(P0), np.abs(P1)
-        scale = self._atol_phi + self.rtol * np.maximum(A0, A1)
-        column = np.maximum(A0.max(axis=0, initial=0.0), A1.max(axis=0, initial=0.0))
-        return np.maximum(scale, RTOL_FLOOR * column)
+        size = np.maximum(np.abs(P0), np.abs(P1))
+        scale = self._atol_phi + self.rtol * size
+        return np.maximum(scale, RTOL_FLOOR * size.max(axis=0, initial=0.0))
