@@ -153,16 +153,14 @@ class BandEvents(LoopEvents):
         dyn.kin.update(q, v_plus)
         for index, onset in band.items():
             key = dyn.sliding_key(index)
-            if self.onsets.get(index) is not onset.w:
-                pass  # a new onset at this event
-            elif (
-                exact
-                and key in new_mode
-                and np.array_equal(dyn.slip_reference[index], onset.reference)
-                and float(np.linalg.norm(dyn.contact(key).full.rows(dyn.kin)[1:] @ v_plus)) < 2.0 * floor
-            ):
-                continue  # it slides on with its reference, in the band: its term goes on
-            else:
+            if self.onsets.get(index) is onset.w:  # not replaced by a new onset at this event
+                if (
+                    exact
+                    and key in new_mode
+                    and np.array_equal(dyn.slip_reference[index], onset.reference)
+                    and float(np.linalg.norm(dyn.contact(key).full.rows(dyn.kin)[1:] @ v_plus)) < 2.0 * floor
+                ):
+                    continue  # it slides on with its reference, in the band: its term goes on
                 del self.onsets[index]
             if not exact and key in mode:  # a held contact's reference acts once it bears
                 self.notes.append(
