@@ -11,6 +11,7 @@ import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
 from enum import StrEnum
+from typing import TypeVar
 
 import numpy as np
 
@@ -137,14 +138,8 @@ class SimulateOptions:
         set_ = object.__setattr__  # frozen: normalise each field once
         if self.method not in SIMULATE_METHODS:
             raise InvalidInputError(f"unknown method {self.method!r}; valid: {', '.join(SIMULATE_METHODS)}")
-        if self.on_grazing not in tuple(OnGrazing):
-            raise InvalidInputError(f"on_grazing must be one of {', '.join(OnGrazing)}; got {self.on_grazing!r}")
-        set_(self, "on_grazing", OnGrazing(self.on_grazing))
-        if self.jacobian_error not in tuple(JacobianError):
-            raise InvalidInputError(
-                f"jacobian_error must be one of {', '.join(JacobianError)}; got {self.jacobian_error!r}"
-            )
-        set_(self, "jacobian_error", JacobianError(self.jacobian_error))
+        set_(self, "on_grazing", _member("on_grazing", self.on_grazing, OnGrazing))
+        set_(self, "jacobian_error", _member("jacobian_error", self.jacobian_error, JacobianError))
         set_(self, "rtol", _in_range("rtol", self.rtol, RTOL_MIN, RTOL_MAX))
         set_(self, "atol", _in_range("atol", self.atol, 0.0, ATOL_MAX, open_low=True))
         set_(self, "jacobian", bool(self.jacobian))
@@ -225,3 +220,14 @@ def _in_range(name: str, value, low: float, high: float, *, open_low: bool = Fal
         interval = f"({low:g}, {high:g}]" if open_low else f"[{low:.3g}, {high:g}]"
         raise InvalidInputError(f"simulate: {name} must be in {interval}, got {value!r}")
     return x
+
+
+_E = TypeVar("_E", bound=StrEnum)
+
+
+def _member(name: str, value, kind: type[_E]) -> _E:
+    """``value`` as a member of the enum ``kind`` (a member or its value), else
+    `InvalidInputError` listing the valid values."""
+    if value not in tuple(kind):
+        raise InvalidInputError(f"{name} must be one of {', '.join(kind)}; got {value!r}")
+    return kind(value)
