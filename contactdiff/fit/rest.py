@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import InvalidInputError
+from ..errors import InvalidInputError, check_count
 from ..model.kinematics import Kinematics
 from .recordings import Recording
 
@@ -90,8 +90,7 @@ def rest_height(
     recordings = list(recordings)
     if not recordings or not all(isinstance(r, Recording) for r in recordings):
         raise InvalidInputError("rest_height: recordings must be a non-empty list of contactdiff.fit.Recording")
-    if isinstance(samples, bool) or not isinstance(samples, (int, np.integer)) or samples < 1:
-        raise InvalidInputError(f"rest_height: samples must be a whole number >= 1, got {samples!r}")
+    samples = check_count("rest_height", "samples", samples, minimum=1)
     if not (isinstance(support, (int, float)) and math.isfinite(support) and support >= 0.0):
         raise InvalidInputError(f"rest_height: support must be a length >= 0 (m), got {support!r}")
     contacts = [c for c in scene.contacts if c.against_fid is None and (group is None or c.spec.group == group)]
