@@ -14,7 +14,7 @@ from ..errors import ContactDiffError, IntegrationError
 from ..model.efforts import Spring
 from ..model.scene import Scene
 from ..scenes.scene_file import load_scene
-from .study_rows import DEFAULT_TOL, StudyRow, _counts, _failed, _run, state_error
+from .study_rows import DEFAULT_TOL, StudyRow, _counts, _failed, _run, _skipped, state_error
 
 
 # -- stiffness ------------------------------------------------------------------------
@@ -179,18 +179,7 @@ def stiffness_sweep(
                 reference=f"{reference_method} rtol = atol = {reference_tol['rtol']:g} (final state and event times)",
             )
             if reason:
-                rows.append(
-                    StudyRow(
-                        **base,
-                        error=None,
-                        time=math.nan,
-                        steps=0,
-                        evaluations=0,
-                        outcome=f"skipped: {reason}",
-                        ok=True,
-                        details={"omega": omega},
-                    )
-                )
+                rows.append(_skipped(base, reason, {"omega": omega}))
                 continue
             traj, elapsed = _run(scene, t_final, method=method, max_events=1000, **tol)
             if isinstance(traj, ContactDiffError):
@@ -325,18 +314,7 @@ def tiny_mass_study(
             )
             reason = skip(m, method) if skip else None
             if reason:
-                rows.append(
-                    StudyRow(
-                        **base,
-                        error=None,
-                        time=math.nan,
-                        steps=0,
-                        evaluations=0,
-                        outcome=f"skipped: {reason}",
-                        ok=True,
-                        details={"stiffness_ratio": ratio},
-                    )
-                )
+                rows.append(_skipped(base, reason, {"stiffness_ratio": ratio}))
                 continue
             traj, elapsed = _run(scene, t_final, method=method, **tol)
             if isinstance(traj, ContactDiffError):

@@ -106,6 +106,20 @@ def _failed(base: dict, error: ContactDiffError, elapsed: float) -> StudyRow:
     )
 
 
+def _skipped(base: dict, reason: str, details: dict) -> StudyRow:
+    """The row of a case not run for ``reason`` (no error, no time, counted as ok)."""
+    return StudyRow(
+        **base,
+        error=None,
+        time=math.nan,
+        steps=0,
+        evaluations=0,
+        outcome=f"skipped: {reason}",
+        ok=True,
+        details=details,
+    )
+
+
 def _error_name(out) -> str:
     """Name of the error a `_run` returned, or ``"no error"``."""
     return type(out).__name__ if isinstance(out, Exception) else "no error"
