@@ -171,7 +171,17 @@ class PainleveError(OutsideDomainError):
     several (Painlevé's paradox: the friction turns the normal force's effect on the
     normal acceleration around, ``A_n M^-1 (A_n - μ s^T A_T)^T <= 0``;
     `contactdiff.dynamics.slip`). Met at a trial stage of a step it only shortens the
-    step; raised when the trajectory itself gets there (or at an event's mode choice)."""
+    step; raised when the trajectory itself gets there (or at an event's mode choice).
+
+    Attributes:
+        contact: scene index of the slipping contact whose own block failed, where one did
+            (None for a singular problem of several); the hybrid loop reads it to tell a
+            slip that jams (`contactdiff.integration.jam`) from the paradox itself.
+    """
+
+    def __init__(self, message: str, contact: int | None = None):
+        super().__init__(message)
+        self.contact = contact
 
 
 def require_extra(module: str, extra: str, purpose: str) -> ModuleType:

@@ -238,6 +238,31 @@ def sphere_urdf(mass: float, inertia: float) -> str:
 """
 
 
+def rod_urdf(half_length: float, mass: float) -> str:
+    """URDF of a uniform rod (inertia ``m (2l)² / 12`` about its centre) moving in the x-z
+    plane: joints ``x``, ``z`` (prismatic) and ``theta`` (about +y), and a frame ``tip`` at
+    ``half_length`` along the rod (Painlevé's rod: the tip slides on the ground)."""
+    inertia = mass * (2 * half_length) ** 2 / 12.0
+    return f"""<?xml version="1.0"?>
+<robot name="rod">
+  <link name="world"/>
+  <link name="sx"/>
+  <link name="sz"/>
+  <link name="rod"><inertial><mass value="{mass}"/>
+    <inertia ixx="{inertia}" iyy="{inertia}" izz="{inertia}" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <joint name="x" type="prismatic"><parent link="world"/><child link="sx"/><axis xyz="1 0 0"/>
+    <limit lower="-100" upper="100" effort="0" velocity="100"/></joint>
+  <joint name="z" type="prismatic"><parent link="sx"/><child link="sz"/><axis xyz="0 0 1"/>
+    <limit lower="-100" upper="100" effort="0" velocity="100"/></joint>
+  <joint name="theta" type="revolute"><parent link="sz"/><child link="rod"/><axis xyz="0 1 0"/>
+    <limit lower="-10" upper="10" effort="0" velocity="100"/></joint>
+  <link name="tip"/>
+  <joint name="tip_joint" type="fixed"><parent link="rod"/><child link="tip"/>
+    <origin xyz="{half_length} 0 0"/></joint>
+</robot>
+"""
+
+
 MENAGERIE = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "menagerie"
 """MuJoCo Menagerie models (XML only) kept beside the repository, in ``../shared/data/menagerie``."""
 

@@ -217,5 +217,6 @@ def painleve_check(G: np.ndarray, slips, names) -> None:
             raise PainleveError(
                 f"contact {names[slip.index]!r} slipping with mu = {slip.mu:g} along {slip.direction.tolist()}: "
                 f"A_n M^-1 (A_n - mu s^T A_T)^T = {g:.6g} <= 0, so a pushing normal force accelerates it into the "
-                "ground: the sliding problem has no solution or two (Painlevé's paradox)"
+                "ground: the sliding problem has no solution or two (Painlevé's paradox)",
+                contact=slip.index,
             )

@@ -49,6 +49,9 @@ from .held import HoldingField, bear_guard, enlarged
 from .loop_events import LoopEvents
 from .sensitivity import liftoff_guard, vector_field
 
+if TYPE_CHECKING:
+    from .mode_field import ModeField
+
 FORCE_GUARDS = (GuardKind.FORCE, GuardKind.CONE, GuardKind.BEAR)
 """The guards that read the mode's forces, and so move with a reference ``θ``."""
 
@@ -118,6 +121,16 @@ class BandEvents(LoopEvents):
 
     # band_dt (LoopEvents): ∂t/∂ of the columns that the event's guard adds through the band's
     # θ (m,), while an event in the band is processed; None otherwise
+
+    def _band_onsets(self, field: ModeField, q, v) -> dict[int, BandOnset]:
+        """At an event at ``(q, v)``: the slips from rest still in the band (`ModeField`,
+        `contactdiff.integration.band`), which alone keep their term in ``self.onsets`` through
+        the event; the others' references no longer act."""
+        band = {}
+        if self.onsets:
+            band = {i: BandOnset(self.onsets[i], self.dyn.slip_reference[i].copy()) for i in field.onsets_in_band(q, v)}
+        self.onsets = {i: onset.w for i, onset in band.items()}
+        return band
 
     def _band_guard(self, band: dict[int, BandOnset], t, q, v, mode, fired: list[Guard]) -> bool:
         """Before the event at ``(t, q, v)`` in ``mode``: set `band_dt` from its guard's

@@ -10,7 +10,6 @@ event mixins (`contactdiff.integration.loop_events`).
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import numpy as np
@@ -19,7 +18,7 @@ from ..dynamics.impacts import choose_mode
 from ..dynamics.mode import ModeDynamics
 from ..errors import (
     InvalidInputError,
-    OutsideDomainError,
+    PainleveError,
     StepSizeUnderflowError,
     TooManyEventsError,
     TooManyStepsError,
@@ -27,17 +26,19 @@ from ..errors import (
 )
 from ..model.scene import Scene, StateInput
 from ..ode.crossings import simultaneous_group
+from ..ode.dense import DenseOutput
 from ..ode.factory import PinocchioGroup, make_stepper
-from ..ode.method_choice import EXPLICIT, MethodChooser, spectral_radius
+from ..ode.method_choice import EXPLICIT, MethodChooser, field_probe
 from ..ode.step_budget import BudgetWatch
 from ..ode.step_collapse import CollapseWatch
 from ..scenes.scene_file import passive_note
-from .band import BandEvents, BandOnset
+from .band import BandEvents
 from .event_resets import EventResets
 from .final_time import final_touches
 from .friction_events import FrictionEvents, refuse_ambiguous_slip, settle_friction
 from .guards import GuardFinder
 from .held import HeldEvents, held_contacts
+from .jam import jam_or_raise
 from .loop_reports import MAX_NOTES, LoopReports
 from .mode_field import ModeField
 from .options import AUTO, JacobianError, SimulateOptions
@@ -319,23 +320,33 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReport
                 next_break = scene.next_breakpoint(stepper.t)
             # steps end on breakpoints and sample times; also for a stepper new since the last step
             stepper.t_bound = min(self.t_final, next_break, self.recorder.next_time)
+            jam = None
             try:
                 stepper.step()
             except StepSizeUnderflowError as exc:  # the extreme of a collapse: said as one, with the run so far
                 self._collapse(stepper, mode, exc.h, watch.typical, underflow=str(exc))
-            steps += 1
-            if options.progress is not None:
-                options.progress(stepper.t, len(self.events), steps)
-            h = stepper.t - stepper.t_old
-            dense = stepper.dense(lazy=True)  # DOP853's extra stages only if a guard needs them
-            if options.dense:
-                segment.pieces.append(dense)
-            gaps1, rates1 = self._gaps_and_rates(stepper.q, stepper.v)
-            forces1 = field.guard_values(stepper.t, stepper.q, stepper.v)
-            crossings, misses = self.guards.crossings(
-                stepper, dense, field, mode, (gaps, rates, forces), (gaps1, rates1, forces1)
-            )
-            self.guards.keep_resting(field, forces1)  # the slips from rest still at rest
+            except PainleveError as exc:  # a slip that jams stops here (`contactdiff.integration.jam`)
+                jam = jam_or_raise(self.dyn, stepper, mode, watch.typical, exc)
+            if jam is None:
+                steps += 1
+                if options.progress is not None:
+                    options.progress(stepper.t, len(self.events), steps)
+                h = stepper.t - stepper.t_old
+                dense: DenseOutput | None = stepper.dense(lazy=True)  # DOP853's extra stages only if a guard needs them
+                gaps1, rates1 = self._gaps_and_rates(stepper.q, stepper.v)
+                forces1 = field.guard_values(stepper.t, stepper.q, stepper.v)
+                try:
+                    crossings, misses = self.guards.crossings(
+                        stepper, dense, field, mode, (gaps, rates, forces), (gaps1, rates1, forces1)
+                    )
+                except PainleveError as exc:  # the dense output's extra stages cross a jam
+                    jam = jam_or_raise(self.dyn, stepper, mode, watch.typical, exc, step_back=True)
+                else:
+                    self.guards.keep_resting(field, forces1)  # the slips from rest still at rest
+                    if options.dense:
+                        segment.pieces.append(dense)
+            if jam is not None:  # at the last accepted state: no step to cut back
+                crossings, misses, dense = [(stepper.t, jam.guard)], [], None
             if not crossings:
                 self._near_misses(misses, np.inf)
                 gaps, rates, forces = gaps1, rates1, forces1
@@ -366,8 +377,10 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReport
             budget.new_regime()
             t_event, fired = simultaneous_group(crossings, options.simultaneous_tol)
             self._near_misses(misses, t_event)
-            stepper.truncate(t_event)
-            dense.t = segment.t1 = t_event
+            if dense is not None:
+                stepper.truncate(t_event)
+                dense.t = t_event
+            segment.t1 = t_event
             self.phi = stepper.phi
             n_before, mode_before = len(self.events), tuple(mode)
             band = self._band_onsets(field, stepper.q, stepper.v)
@@ -392,6 +405,8 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReport
                     "raise max_events or zeno_speed",
                     self._trajectory(stepper, Termination.MAX_EVENTS),
                 )
+            if jam is not None:
+                self.events[n_before].nonsmooth[NonSmooth.PAINLEVE_JAM] = self._note(jam.remark(self.names))
             phi_before = None if self.phi is None else self.phi.copy()
             stop = False
             for event in self.events[n_before:]:
@@ -430,16 +445,6 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReport
             self.notes.extend(touches)
         return traj
 
-    def _band_onsets(self, field: ModeField, q, v) -> dict[int, BandOnset]:
-        """At an event at ``(q, v)``: the slips from rest still in the band (`ModeField`,
-        `contactdiff.integration.band`), which alone keep their term in ``self.onsets`` through
-        the event; the others' references no longer act."""
-        band = {}
-        if self.onsets:
-            band = {i: BandOnset(self.onsets[i], self.dyn.slip_reference[i].copy()) for i in field.onsets_in_band(q, v)}
-        self.onsets = {i: onset.w for i, onset in band.items()}
-        return band
-
     # -- method="auto" ----------------------------------------------------------------
     def _probe(self, mode):
         """``ρ`` of ``mode`` at a state, for `MethodChooser` (difference quotients of
@@ -449,13 +454,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReport
             self.n_probe_evaluations += 1
             return self.dyn.solve(q, v, t, mode).ddq
 
-        def probe(q, v, t):
-            try:
-                return spectral_radius(accel, q, v, t, self.group)
-            except OutsideDomainError:  # a probe point left the mode's domain: no measure, the method stays
-                return math.nan
-
-        return probe
+        return field_probe(accel, self.group)
 
     def _switch(self, stepper, method: str, field):
         """Continue from the stepper's current point with ``method``: a restart without a

@@ -61,6 +61,11 @@ class NonSmooth(Enum):
         "the tangential force sits on the friction cone's boundary without crossing it "
         "(neighbouring runs stick or slip: the stick/slip threshold)"
     )
+    PAINLEVE_JAM = (
+        "a slip stopped at a dynamic jam (Painlevé: its normal force grew without bound as it "
+        "stopped, `contactdiff.integration.jam`): the stop is taken at the last accepted state, "
+        "and its saltation is that of a stop there, not a derivative through the jam"
+    )
     FINAL_TIME = (
         "a contact touches at the final time with nonzero normal speed (neighbouring runs land "
         "before or after it: the final state has one-sided derivatives; "

@@ -465,10 +465,12 @@ class Stepper(VariationalAlgebra, abc.ABC):
         `OutsideDomainError` if trial stages kept leaving its domain, else an `IntegrationError`."""
         if self._outside is not None:
             exc = self._outside
-            return type(exc)(
+            said = type(exc)(
                 f"{exc} (at t = {float(self.t)!r} s every step down to h = {h_abs:.3g} s "
                 "reaches such states: the trajectory itself does)"
             )
+            said.__dict__.update(exc.__dict__)  # what the error carries (`PainleveError.contact`)
+            return said
         return StepSizeUnderflowError(
             f"{self.method}: step size underflow at t={float(self.t)!r}: h={h_abs:.3g} < {min_step:.3g} "
             f"(rtol={self.rtol:g}); the vector field may be singular or non-smooth here",

@@ -61,9 +61,12 @@ by the trial's few steps.
 
 from __future__ import annotations
 
+import math
 from collections import deque
 
 import numpy as np
+
+from ..errors import OutsideDomainError
 
 EXPLICIT, STIFF = "DOP853", "Radau"
 STIFF_RATIO = 3.0  # h ρ of a stability-limited DOP853 step (boundary ≈ 6; ~3-4 at rtol 1e-12)
@@ -74,6 +77,20 @@ TRIAL_STEPS = 3  # Radau steps after a switch from explicit, of which one must r
 TRIAL_MARGIN = 4.0  # 1 / TRIAL_MARGIN of the explicit steps' median (module doc)
 PROBE_AFTER = 8  # steps in a mode before ρ is measured
 KRYLOV = 12  # Arnoldi products (accel calls) of one measurement of ρ
+
+
+def field_probe(accel, group=None):
+    """``probe(q, v, t)``: the `spectral_radius` of the field ``accel(t, q, v)`` at a state,
+    for `MethodChooser`; NaN where a probe point leaves the field's domain (an
+    `OutsideDomainError`): no measure, and the method stays."""
+
+    def probe(q: np.ndarray, v: np.ndarray, t: float) -> float:
+        try:
+            return spectral_radius(accel, q, v, t, group)
+        except OutsideDomainError:
+            return math.nan
+
+    return probe
 
 
 def spectral_radius(accel, q: np.ndarray, v: np.ndarray, t: float, group=None, krylov: int = KRYLOV) -> float:

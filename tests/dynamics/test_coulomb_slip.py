@@ -12,7 +12,7 @@ import math
 import numpy as np
 import pinocchio as pin
 import pytest
-from helpers import assert_fd, fd_dq, fd_dv, random_state, sphere_urdf
+from helpers import assert_fd, fd_dq, fd_dv, random_state, rod_urdf, sphere_urdf
 
 import contactdiff as cd
 from contactdiff.dynamics.mode import ModeDynamics
@@ -150,32 +150,10 @@ def test_slip_mode_derivatives_match_fd(ball, i, seed):
 ROD_HALF, ROD_MASS = 0.5, 1.0
 
 
-def _rod_urdf() -> str:
-    inertia = ROD_MASS * (2 * ROD_HALF) ** 2 / 12.0
-    return f"""<?xml version="1.0"?>
-<robot name="rod">
-  <link name="world"/>
-  <link name="sx"/>
-  <link name="sz"/>
-  <link name="rod"><inertial><mass value="{ROD_MASS}"/>
-    <inertia ixx="{inertia}" iyy="{inertia}" izz="{inertia}" ixy="0" ixz="0" iyz="0"/></inertial></link>
-  <joint name="x" type="prismatic"><parent link="world"/><child link="sx"/><axis xyz="1 0 0"/>
-    <limit lower="-100" upper="100" effort="0" velocity="100"/></joint>
-  <joint name="z" type="prismatic"><parent link="sx"/><child link="sz"/><axis xyz="0 0 1"/>
-    <limit lower="-100" upper="100" effort="0" velocity="100"/></joint>
-  <joint name="theta" type="revolute"><parent link="sz"/><child link="rod"/><axis xyz="0 1 0"/>
-    <limit lower="-10" upper="10" effort="0" velocity="100"/></joint>
-  <link name="tip"/>
-  <joint name="tip_joint" type="fixed"><parent link="rod"/><child link="tip"/>
-    <origin xyz="{ROD_HALF} 0 0"/></joint>
-</robot>
-"""
-
-
 @pytest.fixture(scope="module")
 def rod(tmp_path_factory):
     path = tmp_path_factory.mktemp("rod") / "rod.urdf"
-    path.write_text(_rod_urdf())
+    path.write_text(rod_urdf(ROD_HALF, ROD_MASS))
     return cd.load_robot(path)
 
 
