@@ -87,11 +87,14 @@ class ModeDynamics:
         self.slip_speed_floor = SLIP_SPEED_EPS
         """m/s: a 3-D slip slower than this follows its reference (`contactdiff.dynamics.slip`)."""
 
-    def slip_direction(self, index: int, slip_velocity: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+    def slip_direction(
+        self, index: int, slip_velocity: np.ndarray, jacobian: bool = True
+    ) -> tuple[np.ndarray, np.ndarray | None]:
         """Unit slip direction ``s`` of scene contact ``index`` with tangential row
         velocities ``slip_velocity`` (m/s), and ``ds/d(slip_velocity)`` (None where it
-        is zero); see `contactdiff.dynamics.slip.slip_direction`."""
-        return slip_direction(slip_velocity, self.slip_reference.get(index), self.slip_speed_floor)
+        is zero, or not asked for: ``jacobian`` False); see
+        `contactdiff.dynamics.slip.slip_direction`."""
+        return slip_direction(slip_velocity, self.slip_reference.get(index), self.slip_speed_floor, jacobian)
 
     # -- contact keys (see the module doc) ----------------------------------------------
     def contact(self, key: int):
@@ -307,7 +310,7 @@ class ModeDynamics:
         drift = np.concatenate([c.drift(kin) for c in contacts])
         MinvAT = Minv @ A.T
         delassus = A @ MinvAT  # the constraint rows' G: the problem's own without slip
-        slips = [SlipRow.at(self, key, row, kin, v) for key, row in slipping]
+        slips = [SlipRow.at(self, key, row, kin, v, derivatives) for key, row in slipping]
         U = gram_range_basis(delassus) if redundant else None
         if slips:
             F = A.copy()

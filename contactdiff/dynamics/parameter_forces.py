@@ -187,7 +187,7 @@ class ParameterForces:
                 cols = self.friction_columns.get(index)
                 if cols:
                     A_T = dyn.contact(key).full.rows(dyn.kin)[1:]
-                    s = dyn.slip_direction(index, A_T @ v)[0]
+                    s = dyn.slip_direction(index, A_T @ v, jacobian=False)[0]
                     out[:, cols] -= (sol.forces[rows.start] * (A_T.T @ s))[:, None]
         return out
 

@@ -90,7 +90,7 @@ def _turn(x: float) -> tuple[float, float]:
 
 
 def slip_direction(
-    slip_velocity: np.ndarray, reference: np.ndarray | None, floor: float = SLIP_SPEED_EPS
+    slip_velocity: np.ndarray, reference: np.ndarray | None, floor: float = SLIP_SPEED_EPS, jacobian: bool = True
 ) -> tuple[np.ndarray, np.ndarray | None]:
     """Unit slip direction ``s`` (tangent coordinates) and ``ds/du_T`` (module doc).
 
@@ -99,6 +99,8 @@ def slip_direction(
         reference: the unit direction the slip continues along (the planar sign, or
             the 3-D direction at the last accepted step); None: the slip's own.
         floor: slip speed (m/s) below which the reference is the direction.
+        jacobian: also ``ds/du_T``; False: ``D`` is None (a solve without derivatives
+            reads ``s`` alone, and the same ``s``).
 
     Returns:
         ``(s, D)``: ``D = (I - s s^T) / ||u_T||`` in 3-D above ``2 floor`` (the
@@ -118,7 +120,7 @@ def slip_direction(
     if reference is not None and s @ reference < 0.0:  # past a stop: the reference (module doc)
         return np.asarray(reference, dtype=float), None
     if reference is None or speed >= 2.0 * floor:
-        return s, (np.eye(2) - np.outer(s, s)) / speed
+        return s, ((np.eye(2) - np.outer(s, s)) / speed if jacobian else None)
     # the band [floor, 2 floor]: from the reference to the slip's own direction (module doc)
     r = np.asarray(reference, dtype=float)
     a, da = _turn(speed / floor - 1.0)
@@ -126,6 +128,8 @@ def slip_direction(
     b = a * s + (1.0 - a) * r
     norm = float(np.linalg.norm(b))
     blended = b / norm
+    if not jacobian:
+        return blended, None
     # db/du = da ŵ-derivative terms: (ŵ - r) ŵᵀ da + a (I - ŵ ŵᵀ) / ||u||
     db_dw = np.outer(s - r, s) * da + a * (np.eye(2) - np.outer(s, s)) / speed
     return blended, (np.eye(2) - np.outer(blended, blended)) / norm @ db_dw
@@ -180,13 +184,13 @@ class SlipRow:
     full: BoundContact
 
     @classmethod
-    def at(cls, dyn, key: int, row: int, kin, v: np.ndarray) -> SlipRow:
+    def at(cls, dyn, key: int, row: int, kin, v: np.ndarray, jacobian: bool = True) -> SlipRow:
         """The slip row of contact key ``key`` (a slipping view of ``dyn``) at the state
-        of ``kin`` with velocity ``v``."""
+        of ``kin`` with velocity ``v``; ``jacobian``: with ``ds/du_T`` (else None)."""
         full = dyn.contact(key).full
         index = dyn.contact_index(key)
         A = full.rows(kin)
-        s, D = dyn.slip_direction(index, A[1:] @ v)
+        s, D = dyn.slip_direction(index, A[1:] @ v, jacobian)
         mu = full.spec.mu
         return cls(row, index, mu, s, D, A[1:], A[0] - mu * (s @ A[1:]), full)
 

@@ -225,7 +225,7 @@ def stop_guard(dyn: ModeDynamics, q, v, key: int) -> np.ndarray:
     kin.update(q, v, derivatives=True)
     full = dyn.contact(key).full
     A_T = full.rows(kin)[1:]
-    s = dyn.slip_direction(dyn.contact_index(key), A_T @ v)[0]
+    s = dyn.slip_direction(dyn.contact_index(key), A_T @ v, jacobian=False)[0]
     return np.concatenate([s @ full.rows_velocity_dq(kin)[1:], s @ A_T])
 
 

@@ -180,7 +180,7 @@ class ModeField:
         dyn.kin.update(q, v)
         index = dyn.contact_index(key)
         u_T = dyn.contact(key).full.rows(dyn.kin)[1:] @ v
-        return index, u_T, dyn.slip_direction(index, u_T)[0]
+        return index, u_T, dyn.slip_direction(index, u_T, jacobian=False)[0]
 
     def slip_speed(self, key: int, q, v) -> float:
         """Slip velocity (m/s) of slipping contact key ``key`` along its reference direction."""
