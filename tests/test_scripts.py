@@ -25,6 +25,7 @@ SMOKE = {
         ["bench.png", "bench.json"],
         "plot written to",
     ),
+    "cube_metric_search.py": (["--quick", "--jobs", "1"], [], "least training mean"),
     "cube_toss_runs.py": (["--quick", "--jobs", "1"], [], "3 tosses x 1 settings"),
     "cube_tosses.py": (
         ["--quick", "--jobs", "1", "--plot-dir", "{tmp}"],
