@@ -11,6 +11,7 @@ toss (the run alone, in its worker); then the errors, if any.
     python scripts/cube_toss_runs.py --tosses ../shared/data/cube_tosses/tosses.npz
     python scripts/cube_toss_runs.py --nominal-only --json       # the shipped 24, nominal
     python scripts/cube_toss_runs.py --quick                     # 3 shipped tosses, nominal
+    python scripts/cube_toss_runs.py --setting 0.5 0.3 --limit 40  # one setting, 40 tosses
 """
 
 from __future__ import annotations
@@ -56,12 +57,24 @@ def main(argv=None) -> int:
     parser.add_argument("--tosses", help="a tosses .npz file (default: the 24 shipped with the package)")
     parser.add_argument("--nominal-only", action="store_true", help="only the nominal friction and restitution")
     parser.add_argument("--quick", action="store_true", help="three shipped tosses at the nominal setting")
+    parser.add_argument(
+        "--setting",
+        nargs=2,
+        type=float,
+        action="append",
+        metavar=("MU", "E"),
+        help="run this friction coefficient and restitution instead of the seven settings (repeatable)",
+    )
     parser.add_argument("--limit", type=int, default=None, help="only the first N tosses of the file")
     parser.add_argument("--jobs", type=int, default=None, help="worker processes (default: one per core)")
     parser.add_argument("--json", action="store_true", help="print the summary as JSON")
     args = parser.parse_args(argv)
     names = list(load_tosses(args.tosses))
-    settings = SETTINGS[:1] if (args.nominal_only or args.quick) else SETTINGS
+    if args.setting and (args.nominal_only or args.quick):
+        parser.error("--setting chooses the settings: give it without --nominal-only and --quick")
+    settings = [(mu, e) for mu, e in args.setting] if args.setting else SETTINGS
+    if args.nominal_only or args.quick:
+        settings = SETTINGS[:1]
     if args.quick:
         names = names[:3]
     if args.limit is not None:

@@ -109,3 +109,17 @@ def test_script_runs(script, tmp_path):
     # nothing else was written: not beside the named files, not into docs/ (where the full runs write)
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(files)
     assert {p: p.stat().st_mtime_ns for p in (ROOT / "docs").rglob("*")} == docs
+
+
+def test_cube_toss_runs_takes_one_setting(tmp_path):
+    """``--setting MU E`` runs that friction and restitution alone (here on the first shipped
+    toss, as JSON); with ``--nominal-only`` it is refused with the reason, not run."""
+    script = str(SCRIPTS / "cube_toss_runs.py")
+    args = [sys.executable, script, "--setting", "0.5", "0", "--limit", "1", "--jobs", "1", "--json"]
+    done = subprocess.run(args, cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-4000:]
+    settings = json.loads(done.stdout)["settings"]
+    assert [(s["friction"], s["restitution"], s["tosses"]) for s in settings] == [(0.5, 0.0, 1)]
+    refused = subprocess.run([*args, "--nominal-only"], cwd=tmp_path, capture_output=True, text=True, timeout=60)
+    assert refused.returncode == 2 and "Traceback" not in refused.stderr
+    assert "--setting chooses the settings" in refused.stderr

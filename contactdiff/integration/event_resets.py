@@ -404,9 +404,12 @@ class EventResets(LoopEvents):
         One that slid before and that the law leaves open at zero normal speed with no
         impulse (a grazing landing's neighbours) slides on along its own slip, not along
         a direction an earlier mode left (a stale one makes its slip look stopped, and
-        the stop holds a sliding face still). ``before``: the contacts' keys before the
-        impact, in the order of ``impact.contacts`` (which holds scene indices with
-        Coulomb friction)."""
+        the stop holds a sliding face still), if that slip is above the same floors; a
+        slower one is creeping too (given a sliding key, a corner of an edge at rest
+        slid with its full friction, which put the other corner, whose sticking force
+        needed 1 % of its cone, on its cone's edge: the two alternated between slip and
+        stop). ``before``: the contacts' keys before the impact, in the order of
+        ``impact.contacts`` (which holds scene indices with Coulomb friction)."""
         dyn, keys, creeping = self.dyn, [], []
         dyn.kin.update(q, impact.v_plus)
         scale = max(1.0, float(np.max(np.abs(impact.normal_speeds_before))))
@@ -422,13 +425,15 @@ class EventResets(LoopEvents):
                 elif u_n <= SPEED_TOL * scale:
                     creeping.append(k)
             elif contact.spec.coulomb and state is ContactState.OPEN and dyn.is_sliding(key_before):
-                # left open at zero normal speed, it stays in the mode sliding: along its own slip
-                index = dyn.contact_index(k)
+                # left open at zero normal speed, it stays in the mode: sliding along its own
+                # slip, or, slower, held as a creeping slip (as one the law leaves sliding)
                 u_T = dyn.contact(key_before).full.rows(dyn.kin)[1:] @ impact.v_plus
                 slip = float(np.linalg.norm(u_T))
                 if slip > CREEP_FACTOR * dyn.slip_speed_floor:
-                    dyn.slip_reference[index] = u_T / slip
-                k = dyn.sliding_key(index)
+                    dyn.slip_reference[k] = u_T / slip
+                    k = dyn.sliding_key(k)
+                elif u_n <= SPEED_TOL * scale:
+                    creeping.append(k)
             keys.append(k)
         return keys, creeping
 

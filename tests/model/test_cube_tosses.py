@@ -180,3 +180,82 @@ def test_a_toss_whose_flow_jacobian_column_dwarfs_an_entry_runs_to_its_end():
     assert traj.t == plain.t == toss.t[-1]
     assert [(e.kind, e.contacts) for e in traj.events] == [(e.kind, e.contacts) for e in plain.events]
     assert np.all(np.isfinite(traj.jacobian))
+
+
+def test_an_impacts_open_corner_at_rest_is_held_not_slid():
+    """A corner the frictional impact leaves open (no impulse, zero normal speed after)
+    that slid before but whose slip is now at rest within the integration's noise is held
+    like the law's own creeping slips (below ``CREEP_FACTOR`` slip-speed floors, 10 x
+    ``zeno_speed`` = 1e-5 m/s): it keeps its sticking key and Coulomb's law on its forces
+    decides after the impact, not a sliding key whose friction ``μ λ_N`` acts along a stale
+    direction. Here the cube lies on its face and moves along +x at u = 2e-6 m/s, every
+    bottom corner's slip; friction would stop that in u / (μ g) = 1.1 µs (μ = 0.18), below
+    any step of the run. So every corner keeps its sticking key and is held, and holding
+    the four corners' rows (`held_velocity`) leaves the cube at rest (up to round-off of
+    the M-weighted projection, 1e-16 of the unit-scale velocities)."""
+    from types import SimpleNamespace
+
+    from contactdiff.dynamics.frictional_impact import ContactState
+    from contactdiff.integration.event_resets import CREEP_FACTOR
+    from contactdiff.integration.projection import held_velocity
+
+    half = cd.CubeParameters().edge / 2
+    q = np.r_[0.0, 0.0, half, 0.0, 0.0, 0.0, 1.0]
+    v = np.r_[2e-6, 0.0, 0.0, 0.0, 0.0, 0.0]
+    scene = cd.cube_scene().with_state(q, v)
+    loop = cd.HybridLoop(scene, 0.0, 1.0)
+    dyn, names = loop.dyn, scene.contact_names
+    assert dyn.slip_speed_floor < 2e-6 < CREEP_FACTOR * dyn.slip_speed_floor  # between the floor and the creep
+    bottom = sorted(i for i, n in enumerate(names) if n.endswith("-z"))
+    stale = names.index("cube/+x-y-z")
+    dyn.slip_reference[stale] = np.array([-1.0, 0.0])
+    keys_before = [dyn.sliding_key(i) if i == stale else i for i in bottom]
+    impact = SimpleNamespace(
+        contacts=tuple(bottom),
+        v_plus=v,
+        normal_speeds_before=np.zeros(4),
+        normal_speeds_after=np.zeros(4),
+        states=tuple(ContactState.OPEN if i == stale else ContactState.SLIDE for i in bottom),
+        slide_directions=tuple(np.zeros(2) if i == stale else np.array([1.0, 0.0]) for i in bottom),
+    )
+    keys, creeping = loop._friction_keys(q, impact, keys_before)
+    assert keys == bottom and sorted(creeping) == bottom
+    np.testing.assert_allclose(held_velocity(dyn, q, v, creeping), 0.0, atol=1e-16)
+
+
+@pytest.mark.skipif(
+    not SHARED_TOSSES.is_file(), reason="the full set of tosses (shared data) is not beside the repository"
+)
+def test_an_edge_at_rest_sticks_where_its_sticking_forces_are_inside_the_cones():
+    """Regression (toss 446, μ = 0.5, e = 0.3): a Zeno impact ends a cascade with the cube
+    at rest on its edge -y-z (both corners' slips below 1e-5 m/s, ``CREEP_FACTOR`` slip-speed
+    floors) and nearly balanced on it: each corner carries about half the weight, m g / 2 =
+    1.8 N, and the edge's sticking forces need about 1 % of their cones. Coulomb's law then
+    sticks both. The corner the impact left open got a sliding key with no slip of its own;
+    its friction μ m g / 2 had to be held by the other corner, exactly its own cone's edge,
+    and the two alternated between slip and stop (118 slip events in 0.1 s at slips of
+    1e-5 m/s, 11 s of wall time). Checked at every event whose contacts all end at rest:
+    where sticking them all puts every force strictly inside its cone (by 1 % of μ λ_N, far
+    above the threshold tolerance 1e-9), none slides."""
+    from contactdiff.integration.event_resets import CREEP_FACTOR
+
+    mu = 0.5
+    toss = cd.load_tosses(SHARED_TOSSES)["toss_446"]
+    scene = cd.cube_scene(friction=mu, restitution=0.3).with_state(*toss.state(0))
+    traj = cd.simulate(scene, toss.t[-1], t0=toss.t[0])
+    assert traj.t == toss.t[-1]
+    loop = cd.HybridLoop(scene, toss.t[0], toss.t[-1])
+    dyn, kin, names = loop.dyn, scene.kinematics, scene.contact_names
+    checked = 0
+    for event in traj.events:
+        active = tuple(sorted(names.index(n) for n in event.mode_after))
+        kin.update(event.q, event.v_plus)
+        slips = [np.linalg.norm(scene.contacts[i].rows(kin)[1:] @ event.v_plus) for i in active]
+        if not active or max(slips) > CREEP_FACTOR * dyn.slip_speed_floor:
+            continue
+        sol = dyn.solve(event.q, event.v_plus, event.t, active)
+        margins = [(mu * f[0] - np.linalg.norm(f[1:])) / (mu * f[0]) for f in sol.row_forces()]
+        if min(margins) > 0.01:
+            checked += 1
+            assert event.sliding == (), (event.t, event.kind, event.sliding, margins)
+    assert checked
