@@ -204,10 +204,12 @@ class EventResets(LoopEvents):
         impact = resolve_impact(dyn, q, v_minus, closed, e)
         impact_keys = list(closed)
         v_plus = impact.v_plus
+        creeping: list[int] = []
         if impact.states is not None:  # Coulomb friction: each contact sticks or slides on
             closed, creeping = self._friction_keys(q, impact, closed)
             if creeping:  # a slip below the noise floor is held: the contact sticks or slips by its forces
                 v_plus = held_velocity(dyn, q, v_plus, creeping)
+        v_crept = v_plus  # after the impact and the creeping slips' hold
         scale = max(1.0, float(np.max(np.abs(impact.normal_speeds_before))))
         leaving = set(dyn.contacts_of(releasing))  # a releasing contact leaves whatever its key
         staying = [
@@ -296,16 +298,22 @@ class EventResets(LoopEvents):
             except VanishingSlipError as exc:  # a stick/slip threshold: flagged, its direction held
                 event.nonsmooth[NonSmooth.FRICTION_THRESHOLD] = self._note(f"not differentiable at t = {t:.12g}: {exc}")
                 DR = impact_reset_jacobian(self.dyn, q, v_minus, impact, hold_vanishing=True)
+            return holds(DR)
+
+        def holds(D):
+            """``D`` (of the impact's velocities) through the holds that follow: the creeping
+            slips', then the settled contacts' (each's Jacobian at the velocity it holds; the
+            term of ``dP/dq`` on the rows' velocities before it, of the creeping or lifting
+            speed's size, is left out, as for a projection)."""
+            if creeping:
+                D = held_velocity_jacobian(self.dyn, q, v_crept, creeping) @ D
             if settled:  # the reset is the impact followed by holding the settled contacts
-                DR = held_velocity_jacobian(self.dyn, q, v_plus, new_mode) @ DR
-            return DR
+                D = held_velocity_jacobian(self.dyn, q, v_plus, new_mode) @ D
+            return D
 
         def reset_parameters():
             live = [k for k in closed if dyn.contact_index(k) not in zeno]
-            R_p = self.jumps.impact(q, v_minus, impact, live)
-            if settled:
-                R_p = held_velocity_jacobian(self.dyn, q, v_plus, new_mode) @ R_p
-            return R_p
+            return holds(self.jumps.impact(q, v_minus, impact, live))
 
         if self.sensitive and initial:
             # no guard at t0: perturbations keep the start time, only the reset acts
