@@ -5,7 +5,10 @@ A sliding contact's tangential impulse is ``-μ Λ_N s`` with ``s`` the unit dir
 its post-impact slip, itself a result of the impact: in 3-D an angle ``θ`` per sliding
 contact to solve for, ``g(θ) = wrap(atan2(u+_T(θ)) - θ) = 0``. The map ``θ -> u+_T``
 and its Jacobian are evaluated for a whole batch of angles at once (`SlipMap`, in
-`contactdiff.dynamics.slip_map`: one stacked linear solve). One slider: ``g`` scanned around the circle and beside
+`contactdiff.dynamics.slip_map`: one stacked linear solve). One slider: every root of
+the cross form below from a closed form (a quartic's roots on the unit circle,
+`contactdiff.dynamics.slip_circle`), each polished by Newton; where that form gives no
+answer, ``g`` scanned around the circle and beside
 the poles of ``Λ_N`` (closed form), each sign change bisected and polished (Newton),
 and the sign changes of the cross form below polished too (a slip that vanishes at one
 direction is a root of that form only). Several: the cross form
@@ -33,6 +36,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from .slip_circle import cross_form_roots, slip_coefficients
 from .slip_map import SLIP_ZERO, CandidateEval, SlipMap, wrap_angle
 
 __all__ = ["SLIP_ZERO", "CandidateEval", "SlipDirections", "SlipMap", "project_cone"]  # the map's names, former path
@@ -57,6 +61,10 @@ _FP_SWEEPS = 1000  # until a relative change of 1e-14; a cap, most touchdowns co
 _FP_CYCLE = 8  # iterates kept to recognise a cycle in round-off (periods 2 to 5 seen on face landings)
 _POLE_GAP = 1e-9  # rad: scan points beside a pole of one slider's Λ_N
 _DUPLICATE = 1e-8  # rad: two roots closer than this are one
+
+#: One spatial slider: its roots from the closed form of `contactdiff.dynamics.slip_circle`
+#: where it answers (else, and with False, by the scan of `SlipDirections.roots_1d`).
+ONE_SLIDER_CLOSED_FORM = True
 
 
 def project_cone(x: np.ndarray, mu: float) -> np.ndarray:
@@ -121,7 +129,10 @@ class SlipDirections:
         """Slip angles θ with g(θ) = 0, nearest the pre-impact slip directions first
         (Euclidean distance of the wrapped angle differences).
 
-        One spatial slider: g is scanned on a grid of _SCAN_POINTS angles from
+        One spatial slider: the cross form's roots in closed form (`circle_roots`),
+        polished by Newton; where the closed form gives no answer (`slip_circle`: a
+        badly conditioned candidate, or a slip zero or along its direction at every
+        angle), g is scanned on a grid of _SCAN_POINTS angles from
         the pre-impact slip direction, each sign change is bisected and polished
         by Newton, which rejects the wrap jumps (g = ±π) and the poles (Λ_N
         infinite): all roots that the grid separates. Near a small post-impact
@@ -137,14 +148,17 @@ class SlipDirections:
         _GRID_STARTS of them, those where the law's other inequalities hold and
         the slips are along their directions first.
         """
-        fmap = SlipMap(self, states, dirs, spatial, lay, cross=len(spatial) > 1)
+        fmap = SlipMap(self, states, dirs, spatial, lay, cross=True)
         pre = np.array([np.arctan2(self.u[self.tang[k][1]], self.u[self.tang[k][0]]) for k in spatial])
-        if len(spatial) == 1:
-            roots = self.roots_1d(fmap, float(pre[0]))
+        closed_form = self.circle_roots(fmap) if len(spatial) == 1 and ONE_SLIDER_CLOSED_FORM else None
+        if closed_form is not None:
+            roots = closed_form
+        elif len(spatial) == 1:
+            roots = self.roots_1d(SlipMap(self, states, dirs, spatial, lay, cross=False), float(pre[0]))
             # a slip that vanishes at one direction (the impulse on the cone's edge, the
             # contact at rest after it) is no root of the angle form, whose angle is
             # undefined there, but one of the cross form s × u+_T (`cross_roots`)
-            roots += self.cross_roots(SlipMap(self, states, dirs, spatial, lay, cross=True), float(pre[0]))
+            roots += self.cross_roots(fmap, float(pre[0]))
         else:
             roots = self.roots_nd(fmap, states, dirs, spatial, lay, pre)
         # of two copies of one root (found from two brackets, or 2π apart) the first is
@@ -201,6 +215,21 @@ class SlipDirections:
             grid = pre + offsets
             self._grids[key] = (per_axis, grid, fmap.turns(grid))
         return self._grids[key]
+
+    def circle_roots(self, fmap) -> list[tuple[np.ndarray, float]] | None:
+        """One spatial slider: every root of the cross form, from the closed form of
+        `contactdiff.dynamics.slip_circle` (a quartic's roots on the unit circle), each
+        polished by Newton on the cross form (``fmap``, a cross-form `SlipMap`); None where the
+        closed form gives no answer (the scan is then used)."""
+        coefficients = slip_coefficients(fmap)
+        if coefficients is None:
+            return None
+        starts = cross_form_roots(coefficients[0])
+        if starts is None:
+            return None
+        if not starts.size:
+            return []
+        return self.newton(fmap, starts[:, None])
 
     def cross_roots(self, fmap, pre: float) -> list[tuple[np.ndarray, float]]:
         """One spatial slider: the sign changes of the cross form ``s × u+_T`` over the
