@@ -18,7 +18,9 @@ misses), solved by Newton's method with a backtracking line search run at once
 from every local minimum of ``max|f|`` on a grid (infeasible points ranked
 last; the grid's points solved as low-rank updates of one factorisation,
 `contactdiff.dynamics.slip_lowrank`), the pre-impact slip, a rough solution of the whole law (a projected
-fixed point) and the frictionless slip; roots with a slip against ``s``
+fixed point) and the frictionless slip (from these three alone where a bound proves the
+map from slip angles to the slips' angles a contraction, so that it has one root, and
+Newton converges from one of them: `LowRankSolve.slip_contraction`); roots with a slip against ``s``
 (``g = π``, also roots of ``f``) are dropped. Of two copies of one root (2π apart, or
 found from two starts) the first is tried, and the other after it where Newton stopped
 the first short of convergence and the other is closer. A mixin of the solver's problem
@@ -58,6 +60,9 @@ _GRID_POINTS = {2: 48, 3: 20}  # per axis; more sliders: _GRID_BUDGET in all
 _GRID_BUDGET = 20000
 _GRID_STARTS = 48
 _FP_SWEEPS = 1000  # until a relative change of 1e-14; a cap, most touchdowns converge in far fewer
+# a bound of the slip-angle map's Lipschitz constant below this (`LowRankSolve.slip_contraction`)
+# proves one root (below 1 does; the margin covers the bound's round-off, ~1e-10 relative)
+_CONTRACTION_MAX = 0.9
 _FP_CREEP_AFTER = 50  # sweeps after which a creep below _FP_CREEP of the iterate per sweep stops them
 _FP_CREEP = 1e-10
 _FP_CYCLE = 8  # iterates kept to recognise a cycle in round-off (periods 2 to 5 seen on face landings)
@@ -148,7 +153,9 @@ class SlipDirections:
         slip, and from the local minima of max|f| on a grid on the torus (one
         start per basin rather than the best points, which cluster), at most
         _GRID_STARTS of them, those where the law's other inequalities hold and
-        the slips are along their directions first.
+        the slips are along their directions first. The grid is skipped where the
+        map from the slip angles to the slips' angles is proved a contraction (one
+        root) and Newton from the first three starts converges.
         """
         fmap = SlipMap(self, states, dirs, spatial, lay, cross=True)
         pre = np.array([np.arctan2(self.u[self.tang[k][1]], self.u[self.tang[k][0]]) for k in spatial])
@@ -190,6 +197,13 @@ class SlipDirections:
         starts.append(np.array([np.arctan2(ups[self.tang[k][1]], ups[self.tang[k][0]]) for k in spatial]))
         free = self.evaluate(states, dirs, lay)  # sliders without their friction columns
         starts.append(np.array([np.arctan2(free.up[self.tang[k][1]], free.up[self.tang[k][0]]) for k in spatial]))
+        # where the slip angles' map is a contraction its one root is found from any start:
+        # the grid is needed only if Newton from these starts does not converge
+        low = fmap.low_rank()
+        if low.usable and low.slip_contraction(self.u, fmap.GB0, fmap.GT, fmap.T) <= _CONTRACTION_MAX:
+            roots = self.newton(fmap, np.array(starts))
+            if any(merit <= _NEWTON_ATOL for _, merit in roots):
+                return roots
         per_axis, grid, turns = self.grid_turns(fmap, spatial, pre)
         ns = len(spatial)
         # the grid only ranks Newton's starts: its points solved as low-rank updates of
