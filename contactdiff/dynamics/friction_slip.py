@@ -38,7 +38,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .slip_circle import cross_form_roots, polish_roots, slip_coefficients
+from .slip_circle import cross_form_roots, slip_coefficients
 from .slip_map import SLIP_ZERO, CandidateEval, SlipMap, wrap_angle
 
 __all__ = ["SLIP_ZERO", "CandidateEval", "SlipDirections", "SlipMap", "project_cone"]  # the map's names, former path
@@ -235,10 +235,8 @@ class SlipDirections:
     def circle_roots(self, fmap) -> list[tuple[np.ndarray, float]] | None:
         """One spatial slider: every root of the cross form, from the closed form of
         `contactdiff.dynamics.slip_circle` (a quartic's roots on the unit circle), each
-        polished on that form and evaluated by ``fmap`` (a cross-form `SlipMap`): kept where
-        converged (to _NEWTON_ATOL), dropped where the slip is against its direction or at
-        a pole, else polished by Newton on ``fmap``. None where the closed form gives no
-        answer (the scan is then used)."""
+        polished by Newton on the cross form (``fmap``, a cross-form `SlipMap`); None where the
+        closed form gives no answer (the scan is then used)."""
         coefficients = slip_coefficients(fmap)
         if coefficients is None:
             return None
@@ -247,17 +245,7 @@ class SlipDirections:
             return None
         if not starts.size:
             return []
-        theta = polish_roots(coefficients[0], starts)[:, None]
-        # the candidate's own evaluation judges them: converged ones are roots, slips against
-        # their direction and poles are not, the others are polished on that evaluation
-        f, _, _, aligned, scale = fmap(theta, jac=False)
-        merit = np.abs(f[:, 0]) / scale
-        good = np.isfinite(merit) & aligned
-        done = good & (merit <= _NEWTON_ATOL)
-        roots = [(theta[i], float(merit[i])) for i in np.flatnonzero(done)]
-        if (good & ~done).any():
-            roots += self.newton(fmap, theta[good & ~done])
-        return roots
+        return self.newton(fmap, starts[:, None])
 
     def cross_roots(self, fmap, pre: float) -> list[tuple[np.ndarray, float]]:
         """One spatial slider: the sign changes of the cross form ``s × u+_T`` over the

@@ -22,10 +22,8 @@ slider's post-impact slip times ``D``: ``u+_T(θ) D(θ) = V(θ) = α + β cos θ
 a trigonometric polynomial of degree 2: with ``x = e^{iθ}``, ``x² F`` is a polynomial of
 degree 4 in ``x``, whose roots on the unit circle are every root of the cross form
 (``F`` at most four; the scan of `friction_slip` finds those it brackets). They are
-polished by Newton's method on ``F`` (`polish_roots`) and evaluated once by the
-candidate's own solve (`SlipMap`), which drops the slips against ``s`` (also roots of
-``F``) and the poles (``D = 0``); a root it finds short of convergence is polished by
-Newton's method on that solve.
+polished by Newton's method on the candidate's own evaluation (`SlipMap`), which drops
+the slips against ``s`` (also roots of ``F``) and the poles (``D = 0``).
 
 The base angle is where ``|det K(θ)|`` (``α_d + β_d cos θ + γ_d sin θ``, fitted at 0,
 π/2, π) is largest: ``Kb`` is then as well conditioned as the circle allows. Where it is
@@ -120,26 +118,3 @@ def cross_form_roots(V: np.ndarray) -> np.ndarray | None:
     x = np.roots(coef)
     x = x[np.abs(np.abs(x) - 1.0) <= CIRCLE_TOL]
     return np.angle(x)
-
-
-def polish_roots(V: np.ndarray, theta: np.ndarray, iterations: int = 3) -> np.ndarray:
-    """The angles ``theta`` (rad) moved by ``iterations`` Newton steps on ``F(θ)`` of the
-    module doc (the closed form's own cross form: scalar, no solve), a root's step at
-    most 0.1 rad. The quartic's roots are accurate to about ``eps`` over ``|F'|``
-    relative to ``F``'s scale; these steps take them to the accuracy of ``V`` itself,
-    where the candidate's own evaluation (`SlipMap`) then judges them."""
-    alpha, beta, gamma = V[:, 0], V[:, 1], V[:, 2]
-    a, b = alpha[1], -alpha[0]
-    cc, cs, ss = beta[1], gamma[1] - beta[0], -gamma[0]
-    # F = a cos + b sin + cc cos² + cs cos sin + ss sin²
-    #   = (cc + ss)/2 + a cos + b sin + (cc - ss)/2 cos 2θ + cs/2 sin 2θ
-    mean, half_c, half_s = 0.5 * (cc + ss), 0.5 * (cc - ss), 0.5 * cs
-    th = np.array(theta, dtype=float)
-    for _ in range(iterations):
-        c, s, c2, s2 = np.cos(th), np.sin(th), np.cos(2.0 * th), np.sin(2.0 * th)
-        F = mean + a * c + b * s + half_c * c2 + half_s * s2
-        dF = -a * s + b * c - 2.0 * half_c * s2 + 2.0 * half_s * c2
-        with np.errstate(divide="ignore", invalid="ignore"):
-            step = np.where(dF != 0.0, F / dF, 0.0)
-        th = th - np.clip(np.where(np.isfinite(step), step, 0.0), -0.1, 0.1)
-    return th

@@ -20,7 +20,7 @@ from test_slip_lowrank import EDGE, FACE, _cube_problem
 
 from contactdiff.dynamics import friction_slip
 from contactdiff.dynamics.frictional_impact import ContactState, solve_frictional_impact
-from contactdiff.dynamics.slip_circle import cross_form_roots, polish_roots, slip_coefficients
+from contactdiff.dynamics.slip_circle import cross_form_roots, slip_coefficients
 from contactdiff.dynamics.slip_map import SlipMap
 
 SLIDE, STICK, OPEN = ContactState.SLIDE, ContactState.STICK, ContactState.OPEN
@@ -62,9 +62,8 @@ def test_quartic_roots_are_the_cross_form_roots():
     """The angles `cross_form_roots` returns (unpolished) make ``cos θ V_y - sin θ V_x``
     vanish to 1e-9 of the coefficients' scale (the companion matrix's eigenvalues are
     backward stable: a few eps of the scale at a simple root, up to ``sqrt(eps)`` at a
-    close pair), `polish_roots` takes them to 1e-14 of it (Newton's three steps from
-    there: round-off of F's terms), and a scan of that form on 1e5 angles (step 6.3e-5
-    rad) finds no sign change they miss: each within 1e-4 rad of a returned root."""
+    close pair), and a scan of that form on 1e5 angles (step 6.3e-5 rad) finds no sign
+    change they miss: each within 1e-4 rad of a returned root."""
     rng = np.random.default_rng(3)
     th = np.linspace(-np.pi, np.pi, 100_001)
     for _ in range(200):
@@ -79,8 +78,6 @@ def test_quartic_roots_are_the_cross_form_roots():
 
         scale = np.abs(V).max()
         assert np.all(np.abs(F(roots)) <= 1e-9 * scale)
-        # three Newton steps on F: to round-off of its terms (a few eps of the scale)
-        assert np.all(np.abs(F(polish_roots(V, roots))) <= 1e-14 * scale)
         f = F(th)
         for i in np.flatnonzero(np.sign(f[:-1]) != np.sign(f[1:])):
             gaps = np.abs((roots - th[i] + np.pi) % (2 * np.pi) - np.pi)
