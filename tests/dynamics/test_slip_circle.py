@@ -91,6 +91,19 @@ def test_flat_cross_form_has_no_answer():
     assert cross_form_roots(np.zeros((2, 3))) is None
 
 
+def test_a_slip_held_at_zero_has_no_closed_form():
+    """A face's corner sliding while two others stick: the sticking corners fix the cube's
+    motion in the plane (two points held), so the slider's slip is zero whatever its
+    direction; `slip_coefficients` gives no answer (``V`` at round-off of the velocity
+    scale, `FLAT_TOL`) and the scan's plateau rule is used."""
+    rng = np.random.default_rng(9)
+    for _ in range(5):
+        prob = _cube_problem(rng, FACE)
+        states = (SLIDE, STICK, STICK, OPEN)
+        fmap = SlipMap(prob, states, {}, [0], prob.layout(states), cross=True)
+        assert slip_coefficients(fmap) is None
+
+
 @pytest.mark.parametrize("seed", range(2))
 def test_solutions_equal_the_scan_path(monkeypatch, seed):
     """On 100 random problems (1-3 spatial contacts, random Delassus, μ in [0.05, 1], e
