@@ -132,7 +132,7 @@ class SlipDirections:
         def evaluate(self, states, dirs, lay) -> CandidateEval:
             """The candidate at the given states and slip directions (the subclass's)."""
 
-    def slip_roots(self, states, dirs, spatial, lay) -> Iterator[np.ndarray]:
+    def slip_roots(self, states, dirs, spatial, lay, fmap: SlipMap | None = None) -> Iterator[np.ndarray]:
         """Slip angles θ with g(θ) = 0, nearest the pre-impact slip directions first
         (Euclidean distance of the wrapped angle differences).
 
@@ -157,7 +157,8 @@ class SlipDirections:
         map from the slip angles to the slips' angles is proved a contraction (one
         root) and Newton from the first three starts converges.
         """
-        fmap = SlipMap(self, states, dirs, spatial, lay, cross=True)
+        if fmap is None:  # the candidate's cross-form map, unless the caller formed it
+            fmap = SlipMap(self, states, dirs, spatial, lay, cross=True)
         pre = np.array([np.arctan2(self.u[self.tang[k][1]], self.u[self.tang[k][0]]) for k in spatial])
         closed_form = self.circle_roots(fmap) if len(spatial) == 1 and ONE_SLIDER_CLOSED_FORM else None
         if closed_form is not None:
