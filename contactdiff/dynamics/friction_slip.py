@@ -5,7 +5,10 @@ A sliding contact's tangential impulse is ``-μ Λ_N s`` with ``s`` the unit dir
 its post-impact slip, itself a result of the impact: in 3-D an angle ``θ`` per sliding
 contact to solve for, ``g(θ) = wrap(atan2(u+_T(θ)) - θ) = 0``. The map ``θ -> u+_T``
 and its Jacobian are evaluated for a whole batch of angles at once (`SlipMap`, in
-`contactdiff.dynamics.slip_map`: one stacked linear solve). One slider: ``g`` scanned around the circle and beside
+`contactdiff.dynamics.slip_map`: one stacked linear solve). One slider: every root of
+the cross form below from a closed form (a quartic's roots on the unit circle,
+`contactdiff.dynamics.slip_circle`), each polished by Newton; where that form gives no
+answer, ``g`` scanned around the circle and beside
 the poles of ``Λ_N`` (closed form), each sign change bisected and polished (Newton),
 and the sign changes of the cross form below polished too (a slip that vanishes at one
 direction is a root of that form only). Several: the cross form
@@ -15,7 +18,9 @@ misses), solved by Newton's method with a backtracking line search run at once
 from every local minimum of ``max|f|`` on a grid (infeasible points ranked
 last; the grid's points solved as low-rank updates of one factorisation,
 `contactdiff.dynamics.slip_lowrank`), the pre-impact slip, a rough solution of the whole law (a projected
-fixed point) and the frictionless slip; roots with a slip against ``s``
+fixed point) and the frictionless slip (from these three alone where a bound proves the
+map from slip angles to the slips' angles a contraction, so that it has one root, and
+Newton converges from one of them: `LowRankSolve.slip_contraction`); roots with a slip against ``s``
 (``g = π``, also roots of ``f``) are dropped. Of two copies of one root (2π apart, or
 found from two starts) the first is tried, and the other after it where Newton stopped
 the first short of convergence and the other is closer. A mixin of the solver's problem
@@ -33,6 +38,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from .slip_circle import cross_form_roots, slip_coefficients
 from .slip_map import SLIP_ZERO, CandidateEval, SlipMap, wrap_angle
 
 __all__ = ["SLIP_ZERO", "CandidateEval", "SlipDirections", "SlipMap", "project_cone"]  # the map's names, former path
@@ -54,9 +60,18 @@ _GRID_POINTS = {2: 48, 3: 20}  # per axis; more sliders: _GRID_BUDGET in all
 _GRID_BUDGET = 20000
 _GRID_STARTS = 48
 _FP_SWEEPS = 1000  # until a relative change of 1e-14; a cap, most touchdowns converge in far fewer
+# a bound of the slip-angle map's Lipschitz constant below this (`LowRankSolve.slip_contraction`)
+# proves one root (below 1 does; the margin covers the bound's round-off, ~1e-10 relative)
+_CONTRACTION_MAX = 0.9
+_FP_CREEP_AFTER = 50  # sweeps after which a creep below _FP_CREEP of the iterate per sweep stops them
+_FP_CREEP = 1e-10
 _FP_CYCLE = 8  # iterates kept to recognise a cycle in round-off (periods 2 to 5 seen on face landings)
 _POLE_GAP = 1e-9  # rad: scan points beside a pole of one slider's Λ_N
 _DUPLICATE = 1e-8  # rad: two roots closer than this are one
+
+#: One spatial slider: its roots from the closed form of `contactdiff.dynamics.slip_circle`
+#: where it answers (else, and with False, by the scan of `SlipDirections.roots_1d`).
+ONE_SLIDER_CLOSED_FORM = True
 
 
 def project_cone(x: np.ndarray, mu: float) -> np.ndarray:
@@ -117,11 +132,14 @@ class SlipDirections:
         def evaluate(self, states, dirs, lay) -> CandidateEval:
             """The candidate at the given states and slip directions (the subclass's)."""
 
-    def slip_roots(self, states, dirs, spatial, lay) -> Iterator[np.ndarray]:
+    def slip_roots(self, states, dirs, spatial, lay, fmap: SlipMap | None = None) -> Iterator[np.ndarray]:
         """Slip angles θ with g(θ) = 0, nearest the pre-impact slip directions first
         (Euclidean distance of the wrapped angle differences).
 
-        One spatial slider: g is scanned on a grid of _SCAN_POINTS angles from
+        One spatial slider: the cross form's roots in closed form (`circle_roots`),
+        polished by Newton; where the closed form gives no answer (`slip_circle`: a
+        badly conditioned candidate, or a slip zero or along its direction at every
+        angle), g is scanned on a grid of _SCAN_POINTS angles from
         the pre-impact slip direction, each sign change is bisected and polished
         by Newton, which rejects the wrap jumps (g = ±π) and the poles (Λ_N
         infinite): all roots that the grid separates. Near a small post-impact
@@ -135,16 +153,22 @@ class SlipDirections:
         slip, and from the local minima of max|f| on a grid on the torus (one
         start per basin rather than the best points, which cluster), at most
         _GRID_STARTS of them, those where the law's other inequalities hold and
-        the slips are along their directions first.
+        the slips are along their directions first. The grid is skipped where the
+        map from the slip angles to the slips' angles is proved a contraction (one
+        root) and Newton from the first three starts converges.
         """
-        fmap = SlipMap(self, states, dirs, spatial, lay, cross=len(spatial) > 1)
+        if fmap is None:  # the candidate's cross-form map, unless the caller formed it
+            fmap = SlipMap(self, states, dirs, spatial, lay, cross=True)
         pre = np.array([np.arctan2(self.u[self.tang[k][1]], self.u[self.tang[k][0]]) for k in spatial])
-        if len(spatial) == 1:
-            roots = self.roots_1d(fmap, float(pre[0]))
+        closed_form = self.circle_roots(fmap) if len(spatial) == 1 and ONE_SLIDER_CLOSED_FORM else None
+        if closed_form is not None:
+            roots = closed_form
+        elif len(spatial) == 1:
+            roots = self.roots_1d(SlipMap(self, states, dirs, spatial, lay, cross=False), float(pre[0]))
             # a slip that vanishes at one direction (the impulse on the cone's edge, the
             # contact at rest after it) is no root of the angle form, whose angle is
             # undefined there, but one of the cross form s × u+_T (`cross_roots`)
-            roots += self.cross_roots(SlipMap(self, states, dirs, spatial, lay, cross=True), float(pre[0]))
+            roots += self.cross_roots(fmap, float(pre[0]))
         else:
             roots = self.roots_nd(fmap, states, dirs, spatial, lay, pre)
         # of two copies of one root (found from two brackets, or 2π apart) the first is
@@ -174,6 +198,13 @@ class SlipDirections:
         starts.append(np.array([np.arctan2(ups[self.tang[k][1]], ups[self.tang[k][0]]) for k in spatial]))
         free = self.evaluate(states, dirs, lay)  # sliders without their friction columns
         starts.append(np.array([np.arctan2(free.up[self.tang[k][1]], free.up[self.tang[k][0]]) for k in spatial]))
+        # where the slip angles' map is a contraction its one root is found from any start:
+        # the grid is needed only if Newton from these starts does not converge
+        low = fmap.low_rank()
+        if low.usable and low.slip_contraction(self.u, fmap.GB0, fmap.GT, fmap.T) <= _CONTRACTION_MAX:
+            roots = self.newton(fmap, np.array(starts))
+            if any(merit <= _NEWTON_ATOL for _, merit in roots):
+                return roots
         per_axis, grid, turns = self.grid_turns(fmap, spatial, pre)
         ns = len(spatial)
         # the grid only ranks Newton's starts: its points solved as low-rank updates of
@@ -201,6 +232,21 @@ class SlipDirections:
             grid = pre + offsets
             self._grids[key] = (per_axis, grid, fmap.turns(grid))
         return self._grids[key]
+
+    def circle_roots(self, fmap) -> list[tuple[np.ndarray, float]] | None:
+        """One spatial slider: every root of the cross form, from the closed form of
+        `contactdiff.dynamics.slip_circle` (a quartic's roots on the unit circle), each
+        polished by Newton on the cross form (``fmap``, a cross-form `SlipMap`); None where the
+        closed form gives no answer (the scan is then used)."""
+        coefficients = slip_coefficients(fmap)
+        if coefficients is None:
+            return None
+        starts = cross_form_roots(coefficients[0])
+        if starts is None:
+            return None
+        if not starts.size:
+            return []
+        return self.newton(fmap, starts[:, None])
 
     def cross_roots(self, fmap, pre: float) -> list[tuple[np.ndarray, float]]:
         """One spatial slider: the sign changes of the cross form ``s × u+_T`` over the
@@ -265,7 +311,11 @@ class SlipDirections:
         ANYmal trot's touchdowns 100 left sticking feet with a residual slip, 1000 do not).
         Where the iterates fall into a cycle in round-off (an iterate equal, bit for bit,
         to one of the last _FP_CYCLE: often, on a face's corners), the sweeps stop there
-        with the iterate they would have reached at the cap.
+        with the iterate they would have reached at the cap. After _FP_CREEP_AFTER sweeps
+        they also stop where the iterate creeps by less than _FP_CREEP of its size per
+        sweep (a face's corners, whose singular G the sweeps approach at ~1e-11 a sweep:
+        900 more sweeps moved the iterate by 1e-7 of its size at most, and no contact's
+        guessed state, on the impacts of ten real cube tosses, whose thresholds are 1e-6).
         """
         if self._fp is not None:
             return self._fp
@@ -327,6 +377,8 @@ class SlipDirections:
                 change, size = float(np.abs(lam - np.array(old_values)).max()), float(np.abs(lam).max())
             if change <= 1e-14 * max(size, 1e-300):
                 break
+            if done >= _FP_CREEP_AFTER and change <= _FP_CREEP * size:
+                break  # a creep far below what the guess and the starts can tell
             old_values = values
             # a cycle in round-off: the iterate equals one p sweeps back, bit for bit. A
             # sweep is a function of the iterate alone, so the iterates repeat with period p

@@ -32,16 +32,20 @@ solved: open ``Λ_k = 0``; stick ``w_N = 0`` and ``u+_T = 0``; slide ``w_N = 0``
 and ``Λ_T = -μ Λ_N s`` with the unit slip direction ``s`` an unknown. For
 given ``s`` this is one linear system; ``s`` is ``±1`` on a planar contact
 (both signs are tried) and ``(cos θ, sin θ)`` on a spatial one, where ``θ``
-solves ``atan2(u+_T(θ)) = θ``: with one spatial sliding contact by a scan of
-the circle, also split beside the poles of ``Λ_N`` (in closed form), then
-bisection and a Newton polish (every root the scan separates), and the sign
-changes of the cross form below polished too (a slip that vanishes at one
-direction, its impulse on the cone's edge, is a root of that form only);
+solves ``atan2(u+_T(θ)) = θ``: with one spatial sliding contact as every root
+of the cross form below, in closed form (a quartic's roots on the unit circle,
+`contactdiff.dynamics.slip_circle`), each polished by Newton (where that form
+gives no answer, by a scan of the circle, also split beside the poles of ``Λ_N``,
+then bisection and a Newton polish, and the sign changes of the cross form
+polished too: a slip that vanishes at one direction, its impulse on the cone's
+edge, is a root of that form only);
 with several by Newton's method with a line search on the smooth cross form
 ``s_k x u+_T,k(θ) = 0`` (no angle wrap, and no ``1/||u+_T||`` that makes a root
 with a small slip a needle in ``θ``), run at once from the pre-impact slip,
 an approximate solution of the whole law (projected Gauss-Seidel), the
-frictionless slip and every local minimum of a grid on the torus (see
+frictionless slip and every local minimum of a grid on the torus; the grid is
+skipped where a bound proves the map from the slip angles to the slips' angles
+a contraction, whose one root Newton finds from the first three (see
 `contactdiff.dynamics.friction_slip`). The roots of a candidate are tried
 nearest the pre-impact slip directions first. Every condition of the
 law is then checked on the candidate, and the first candidate that satisfies
@@ -55,7 +59,8 @@ others are checked one by one. "Exact" means: the true circular cone
 that satisfies every condition of the law up to the scaled residual ``tol``
 (about 1e-15 in practice: the linear solves are backward stable and Newton
 converges quadratically). It does not mean the search is complete: for
-several spatial sliding contacts a root may lie between the grid's basins
+several spatial sliding contacts without the contraction's proof a root may lie
+between the grid's basins
 (none missed in 9000 random problems of 1-3 spatial contacts with ``e`` in
 [0, 1]; the earlier search on the angle residual, without the poles in the
 one-slider scan, missed 6 of the first 1800), so a `SolverError` there is

@@ -187,9 +187,12 @@ class ImpactCandidates(SlipDirections):
         if not spatial:
             ev = self.evaluate(states, dirs, lay)
             return self.check(states, dirs, ev, signs, "enumerate")
-        if self.pulls_everywhere(states, dirs, spatial, lay):
+        # one map of the candidate's slip angles for the bound, the search and the batch
+        # rejection (its construction and low-rank factorisation formed once)
+        fmap = SlipMap(self, states, dirs, spatial, lay, cross=True)
+        if self.pulls_everywhere(states, dirs, spatial, lay, fmap):
             return None
-        roots = list(self.slip_roots(states, dirs, spatial, lay))
+        roots = list(self.slip_roots(states, dirs, spatial, lay, fmap))
         if not roots:
             self.newton_failed.append(describe_states(states, signs))
             return None
@@ -199,9 +202,7 @@ class ImpactCandidates(SlipDirections):
         # first root that passes the check is the same. A planar slider's friction is not
         # in `SlipMap.violating`'s impulse scale: with one, every root is checked.
         skip = (
-            SlipMap(self, states, dirs, spatial, lay, cross=True).violating(np.array(roots), _SKIP_SHARE * self.tol)
-            if not signs
-            else np.zeros(len(roots), dtype=bool)
+            fmap.violating(np.array(roots), _SKIP_SHARE * self.tol) if not signs else np.zeros(len(roots), dtype=bool)
         )
         for theta, skipped in zip(roots, skip):
             if skipped:
@@ -214,12 +215,14 @@ class ImpactCandidates(SlipDirections):
                 return out
         return None
 
-    def pulls_everywhere(self, states, dirs, spatial, lay) -> bool:
+    def pulls_everywhere(self, states, dirs, spatial, lay, fmap: SlipMap | None = None) -> bool:
         """Whether the candidate fails the law at every slip direction of its spatial
         sliders, a closed contact pulling by far more than the check's tolerance
         (`LowRankSolve.pulls_everywhere`, where its angle-free matrix is well
-        conditioned): its search for slip directions is then skipped."""
-        fmap = SlipMap(self, states, dirs, spatial, lay, cross=True)
+        conditioned): its search for slip directions is then skipped. ``fmap``: the
+        candidate's cross-form `SlipMap` if already formed."""
+        if fmap is None:
+            fmap = SlipMap(self, states, dirs, spatial, lay, cross=True)
         low = fmap.low_rank()
         if not low.usable:
             return False

@@ -18,6 +18,10 @@ one and the stacked matrices it takes. For the dependent case, ``(Uᵀ K U)⁻¹
 ``Uᵀ K U = Uᵀ K0 U + Σ_j (Uᵀ g_j)(U[c_j])`` is the same identity in the coordinates of
 ``U``, and multiplied by ``U`` it is the formula above.
 
+The same identity bounds, over every angle, how far the sliders' slips turn with their
+angles (`LowRankSolve.slip_contraction`): where the map from the slip angles to the
+slips' angles is a contraction, the candidate has one root and the search needs no grid.
+
 The two paths agree to round-off times the condition of ``K0`` and ``S(θ)``; the solver
 takes this one only where ``K0`` (in ``U``'s coordinates) is well conditioned
 (`COND_MAX`), and only to rank a grid's points as Newton's starts, whose roots the
@@ -117,6 +121,58 @@ class LowRankSolve:
         spread = N @ beta
         scale = float((np.abs(self.z0) + spread).max()) * max(1.0, mu_max)
         return bool(np.any(self.z0[closed] + spread[closed] < -rel * scale))
+
+    def slip_contraction(self, u: np.ndarray, GB0: np.ndarray, GT: list[np.ndarray], T: list[np.ndarray]) -> float:
+        """A bound ``L`` of the Lipschitz constant (max-norm, over every slip angle) of the
+        map from the sliders' slip angles to the angles of their post-impact slips, inf
+        where none is found. Where ``L < 1`` that map is a contraction: the candidate's
+        slip-angle equations have exactly one root (a fixed point of the map).
+
+        Args:
+            u: pre-impact row velocities (m,).
+            GB0: ``G B0``, the rows' response to the unknowns without the sliders'
+                friction columns (m, p).
+            GT: each slider's friction rows ``-μ G[:, T]`` (m, 2).
+            T: each slider's tangential rows.
+
+        The bound, from the module doc's identity: ``z_c(θ) = β(θ)``, so the post-impact
+        velocities are ``u+(θ) = u_free + Σ_j H_j s_j β_j`` with ``u_free = u + G B0 z0``
+        (the frictionless sliders'), ``H_j = GT_j - G B0 W Gt_j`` and ``s_j = (cos θ_j,
+        sin θ_j)``. With ``N`` and ``|β| <= b = (I - N[c])⁻¹ |z0[c]|`` as in
+        `pulls_everywhere` (valid while ``σ < 1``), slider ``k``'s slip ``v_k`` is within
+        ``R_k = Σ_j h_kj b_j`` of its frictionless one (``h_kj = ||H_j[T_k]||₂``), and
+        ``∂β/∂θ_i = -S⁻¹ (W Gt_i)[c] s_i' β_i`` with ``|S⁻¹| <= (I - N[c])⁻¹`` entry by
+        entry (Neumann series) gives ``|∂v_k/∂θ_i| <= D_ki = h_ki b_i + Σ_j h_kj ((I -
+        N[c])⁻¹ N[c, i])_j b_i``. Where ``|v_k^free| > R_k`` the slip never vanishes and its
+        angle moves by at most ``D_ki / (|v_k^free| - R_k)`` per radian of ``θ_i``: ``L``
+        is the largest row sum. Only where ``σ <= CERTIFY_SIGMA`` and ``cond(K0) <=
+        CERTIFY_COND`` (as `pulls_everywhere`), else inf."""
+        if not self.cond <= CERTIFY_COND:
+            return np.inf
+        cos_part, sin_part = self._WG_parts()
+        N = np.sqrt(cos_part**2 + sin_part**2)  # (p, ns)
+        Nc = N[self.c]
+        sigma = float(np.linalg.norm(Nc, 2)) if np.isfinite(Nc).all() else np.inf
+        if not sigma <= CERTIFY_SIGMA:
+            return np.inf
+        ns = len(self.c)
+        inv = np.linalg.inv(np.eye(ns) - Nc)
+        b = inv @ np.abs(self.z0[self.c])
+        dbeta = (inv @ Nc) * b[None, :]  # column i: the bound of |∂β/∂θ_i|
+        u_free = u + GB0 @ self.z0
+        bound = 0.0
+        for k in range(ns):
+            h = np.array(
+                [
+                    np.linalg.norm(GT[j][T[k]] - GB0[T[k]] @ np.column_stack([cos_part[:, j], sin_part[:, j]]), 2)
+                    for j in range(ns)
+                ]
+            )
+            slip = float(np.linalg.norm(u_free[T[k]])) - float(h @ b)
+            if not slip > 0.0:
+                return np.inf
+            bound = max(bound, float((h * b + h @ dbeta).sum()) / slip)
+        return bound if np.isfinite(bound) else np.inf
 
     def _WG_parts(self) -> tuple[np.ndarray, np.ndarray]:
         """The columns ``WG_j[:, 0]`` and ``WG_j[:, 1]`` of every slider, (p, ns) each."""
