@@ -73,6 +73,10 @@ class GuardKind(Enum):
     BEAR = "bear"
     """minus the compatible load of a contact the mode holds at zero gap, in the set of the
     mode and it (`contactdiff.integration.held`): it fires as that load turns to pushing"""
+    GRIP = "grip"
+    """minus the cone margin ``||λ_T|| - μ λ_N`` of the sticking force of a slipping contact
+    whose slip the mode holds at zero, in the mode with it sticking
+    (`contactdiff.integration.held`): it fires as that force comes back inside the cone"""
 
 
 @dataclass(frozen=True)
@@ -250,7 +254,7 @@ class GuardFinder:
     def _scales(field, values0, values1) -> np.ndarray:
         """Each guard's scale (`NEAR_FRACTION`) over a step whose ends have the guard values
         ``values0``, ``values1``: a normal force's and a held load's, the mode's largest normal
-        force; a cone margin's, its cone's size ``μ λ_N``; a slip speed's, the larger of its ends
+        force; a cone margin's (and a held slip's), its cone's size ``μ λ_N``; a slip speed's, the larger of its ends
         (the caller adds the floor to one watched past ``-floor``)."""
         normal = {}
         for k, guard in enumerate(field.guards):
@@ -259,7 +263,7 @@ class GuardFinder:
         largest = max(normal.values(), default=0.0)
         scales = np.empty(len(field.guards))
         for k, guard in enumerate(field.guards):
-            if guard.kind is GuardKind.CONE:
+            if guard.kind in (GuardKind.CONE, GuardKind.GRIP):
                 scales[k] = field.dyn.contact(guard.contact).spec.mu * normal[guard.contact]
             elif guard.kind is GuardKind.STOP:
                 scales[k] = max(values0[k], values1[k])
