@@ -4,8 +4,10 @@ The guards of mode ``J`` are the gap of every open contact (downward through 0)
 and the normal force of every closed one (downward through 0); with Coulomb
 friction also the cone margin ``μ λ_N - ||λ_T||`` of every sticking contact
 (stick → slip) and the slip velocity along its direction of every slipping one
-(slip → stick, `contactdiff.dynamics.slip`), and minus the compatible load of a
-contact the mode holds at zero gap, which has no gap guard (`contactdiff.integration.held`).
+(slip → stick, `contactdiff.dynamics.slip`), minus the compatible load of a
+contact the mode holds at zero gap, which has no gap guard, and the distance outside the
+cone of the sticking force of a slip the mode holds at zero, which has no stop to fire
+(both `contactdiff.integration.held`).
 After each
 accepted step every guard is checked over the step: a gap that ends below 0, or
 that dips below it and back within the step (found from the cubic Hermite

@@ -1,4 +1,5 @@
-"""Contacts held at zero gap by a mode, and the event where one bears again.
+"""Contacts held at zero gap by a mode, and the event where one bears again; slips
+held at zero by a mode, and the event where one sticks again.
 
 A contact outside the mode whose gap is closed and whose rows add no rank to the
 mode's (a face's corner released when its compatible load asked it to pull, while
