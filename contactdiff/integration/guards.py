@@ -27,6 +27,7 @@ from dataclasses import dataclass
 from enum import Enum
 
 import numpy as np
+import pinocchio as pin
 from scipy.optimize import minimize_scalar
 
 from ..ode.crossings import hermite_minimum, locate_crossing
@@ -48,7 +49,8 @@ acceleration): judged at the step's end only, the corner would have pulled unsee
 NEAR_FRACTION = 0.1
 """A force, cone, stop or bearing guard whose values at both ends of a step are positive is
 modelled over the step only where the smaller lies within this share of its scale (a normal
-force or a held load: the mode's largest normal force at the step's ends; a cone margin: its
+force or a held load: the scene's weight, or the mode's largest normal force at the step's ends
+if larger; a cone margin: its
 cone's size ``μ λ_N``; a slip speed: the larger of its two ends). Its rates there cost a mode
 solve per end, paid only near a threshold: a guard that ends a step far above it would have to
 fall by most of its scale and come back within the step (the state's own error control makes
@@ -132,6 +134,8 @@ class GuardFinder:
         self.contacts = scene.contacts
         self._rate_points: dict = {}
         """The guards' rates (`_rates`) at the last step's ends, by field and point."""
+        # N: the scale of a normal force (NEAR_FRACTION); 0 without gravity
+        self.weight = pin.computeTotalMass(scene.model) * float(np.linalg.norm(scene.model.gravity.linear))
         self.from_rest: set[int] = set()
         """Keys of the slips the events started from rest whose speed has stayed within the
         slip-speed floor since (`restart_from_rest` at an event, `keep_resting` after each step)."""
@@ -252,17 +256,18 @@ class GuardFinder:
             found.append((locate_crossing(value, t_a, t_b, start, values1[k] + shift), guard))
         return found, misses
 
-    @staticmethod
-    def _scales(field, values0, values1) -> np.ndarray:
+    def _scales(self, field, values0, values1) -> np.ndarray:
         """Each guard's scale (`NEAR_FRACTION`) over a step whose ends have the guard values
-        ``values0``, ``values1``: a normal force's and a held load's, the mode's largest normal
-        force; a cone margin's (and a held slip's), its cone's size ``μ λ_N``; a slip speed's, the larger of its ends
-        (the caller adds the floor to one watched past ``-floor``)."""
+        ``values0``, ``values1``: a normal force's and a held load's, the scene's weight or the
+        mode's largest normal force, whichever is larger (a push that unloads every contact
+        shrinks the latter with the guard itself); a cone margin's (and a held slip's), its
+        cone's size ``μ λ_N``; a slip speed's, the larger of its ends (the caller adds the floor
+        to one watched past ``-floor``)."""
         normal = {}
         for k, guard in enumerate(field.guards):
             if guard.kind is GuardKind.FORCE:
                 normal[guard.contact] = max(abs(values0[k]), abs(values1[k]))
-        largest = max(normal.values(), default=0.0)
+        largest = max(self.weight, *normal.values())
         scales = np.empty(len(field.guards))
         for k, guard in enumerate(field.guards):
             if guard.kind in (GuardKind.CONE, GuardKind.GRIP):

@@ -92,3 +92,41 @@ def test_a_push_under_the_threshold_starts_no_slip(block3):
     traj = cd.simulate(pushed_block(block3, -A), T_FINAL)
     assert traj.events == []
     assert np.all(traj.q == 0.0) and np.all(traj.v == 0.0)
+
+
+def test_a_pull_over_the_weight_between_step_ends_lifts_the_block_off(block3):
+    """A normal force's dip: the frictionless block at rest pulled up by
+    ``f_z = m g + A_z - k (t - t_c)²`` (A_z = 0.1 N, w_z = 2 ms, k = A_z / w_z²) on a contact of the
+    same block: its normal force ``m g - f_z = k (t - t_c)² - A_z`` (at rest the contact carries the
+    rest of the weight) reaches 0 at ``t_c - w_z``, where it lifts off; in flight
+    ``m z'' = A_z - k s²`` (s = t - t_c), so from z = z' = 0 at s = -w_z
+
+        m z(s) = A_z (s + w_z)²/2 - (k/3) [(s⁴ - w_z⁴)/4 + w_z³ (s + w_z)],
+
+    which factors as ``-(k/12)(s + w_z)³ (s - 3 w_z)``: it lands at ``t_c + 3 w_z`` with
+    ``m z' = -(16/3) A_z w_z`` (5.3e-4 m/s), far above the grazing speed. Before the fix the
+    steps (4 of them over 20 ms) stepped over the whole pulse: no event.
+
+    Tolerances (rtol = atol = 1e-12, which the steps before the fix stepped over too). The lift-off
+    is the root of a force computed to ~1e-15 of m g = 19.6 N (2e-14 N) over its rate
+    2 k w_z = 100 N/s: ~1e-16 s; 1e-12 s keeps a wide margin. The landing: the gap carries at most
+    the steps' error bound, atol + rtol |q| ≈ 1e-12 m per step (|q| < 1e-6 m) over < 10 steps,
+    over the landing speed 5.3e-4 m/s: < 2e-8 s; 1e-7 s, while the pulse lasts 4 ms."""
+    a_z, w_z = 0.1, 2e-3
+    k = a_z / w_z**2
+
+    def pull(q, v, t):
+        return np.array([0.0, 0.0, MASS * G + a_z - k * (t - T_C) ** 2])
+
+    def pull_rate(q, v, t):
+        return np.array([0.0, 0.0, -2.0 * k * (t - T_C)])
+
+    effort = cd.UserEffort(
+        pull, lambda q, v, t: (np.zeros((3, 3)), np.zeros((3, 3))), name="pull", time_derivative=pull_rate
+    )
+    scene = cd.Scene(block3, [cd.Contact("block")], [effort], gravity=[0, 0, -G], q0=np.zeros(3), v0=np.zeros(3))
+    traj = cd.simulate(scene, 0.02, rtol=1e-12, atol=1e-12)
+    assert [e.kind for e in traj.events] == [cd.EventKind.LIFT_OFF, cd.EventKind.TOUCHDOWN]
+    assert traj.stats.steps < 100
+    assert traj.events[0].t == pytest.approx(T_C - w_z, abs=1e-12)
+    assert traj.events[1].t == pytest.approx(T_C + 3.0 * w_z, abs=1e-7)
