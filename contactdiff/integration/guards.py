@@ -16,9 +16,10 @@ dense output), and a force-level or slip guard that ends below 0, or that dips
 below it and back within the step: where its values at both ends lie within
 `NEAR_FRACTION` of its scale, its rates along the flow are formed at both ends
 (`GuardFinder._rates`) and its Hermite interpolant is searched as a gap's. Each
-crossing is located on the dense output with Brent's method to full precision in time. A gap that comes
-down to within the grazing band with zero normal speed and rises again is a
-near-grazing miss: the integration error cannot tell whether it touched.
+crossing is located on the dense output with Brent's method to full precision in
+time. A gap that comes down to within the grazing band with zero normal speed and
+rises again is a near-grazing miss: the integration error cannot tell whether it
+touched.
 """
 
 from __future__ import annotations
@@ -47,14 +48,14 @@ acceleration): judged at the step's end only, the corner would have pulled unsee
 
 
 NEAR_FRACTION = 0.1
-"""A force, cone, stop or bearing guard whose values at both ends of a step are positive is
-modelled over the step only where the smaller lies within this share of its scale (a normal
+"""A force, cone, stop, bearing or grip guard whose values at both ends of a step are positive
+is modelled over the step only where the smaller lies within this share of its scale (a normal
 force or a held load: the scene's weight, or the mode's largest normal force at the step's ends
-if larger; a cone margin: its
-cone's size ``μ λ_N``; a slip speed: the larger of its two ends). Its rates there cost a mode
-solve per end, paid only near a threshold: a guard that ends a step far above it would have to
-fall by most of its scale and come back within the step (the state's own error control makes
-that a step over a fast change of the efforts, as a push's pulse on a body at rest)."""
+if larger; a cone margin: its cone's size ``μ λ_N``; a slip speed: the larger of its two ends).
+Its rates there cost a mode solve per end, paid only near a threshold: a guard that ends a step
+far above it would have to fall by most of its scale and come back within the step (the state's
+own error control makes that a step over a fast change of the efforts, as a push's pulse on a
+body at rest: there ``max_step`` must resolve the efforts' time scale)."""
 
 RATE_STEP = 1e-6
 """The guards' rates along the flow, ``Dh F + h_t``, are the forward difference of their values
@@ -267,7 +268,7 @@ class GuardFinder:
         for k, guard in enumerate(field.guards):
             if guard.kind is GuardKind.FORCE:
                 normal[guard.contact] = max(abs(values0[k]), abs(values1[k]))
-        largest = max(self.weight, *normal.values())
+        largest = max([self.weight, *normal.values()])
         scales = np.empty(len(field.guards))
         for k, guard in enumerate(field.guards):
             if guard.kind in (GuardKind.CONE, GuardKind.GRIP):
@@ -281,9 +282,9 @@ class GuardFinder:
     def _dip(self, stepper, dense, field, k: int, shift: float, values0, values1) -> float | None:
         """The time (s) where guard ``k`` of ``field`` (plus ``shift``) first passes below 0
         within the last step of ``stepper``, positive at both its ends (the guards' values there
-        ``values0``, ``values1``), or None: its cubic
-        Hermite model from the end values and rates (`_rates`), searched on the step's dense
-        output where the model comes within `DIP_FRACTION` of the end values, as a gap's."""
+        ``values0``, ``values1``), or None: its cubic Hermite model from the end values and rates
+        (`_rates`), searched on the step's dense output where the model comes within
+        `DIP_FRACTION` of the end values, as a gap's."""
         t_a, t_b = stepper.t_old, stepper.t
         h0, h1 = values0[k] + shift, values1[k] + shift
         r0 = self._rates(field, t_a, stepper.q_old, stepper.v_old, t_b - t_a)[k]
