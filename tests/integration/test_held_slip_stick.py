@@ -39,7 +39,7 @@ MU = 0.5
 F0 = np.array([0.6, 0.25, 0.0]) * MU * MASS * G
 TAU0 = 0.6 * MU * MASS * G * B
 T_C, K = 0.05, 200.0
-T_FINAL = 0.1
+T_FINAL = 0.075  # s: past the stick (t2 = 0.066 s)
 CORNERS = {f"cube/{sx}x{sy}y-z": np.array([float(sx + "1") * B, float(sy + "1") * B, -B]) for sx in "+-" for sy in "+-"}
 # steps of at most 1 ms: at rest the steps' error estimates vanish, and a step over the whole
 # rise of the push would not end near the cone's threshold (`guards.NEAR_FRACTION`)
@@ -145,3 +145,27 @@ def test_the_stick_event_time_and_flow_jacobian_against_central_differences():
     turn = np.array([e.time_gradient[5] for e in traj.events])
     assert abs(turn[0]) > 1e-3 and turn[1] == pytest.approx(-turn[0], abs=1e-8)
     assert all(e.differentiable for e in traj.events)
+
+
+def test_the_stick_event_time_moves_with_the_corners_friction_as_central_differences_say():
+    """The events' time gradients in the slipping corner's μ (the parameters' block of the stick
+    event, whose guard's cone grows with μ: ``∂h/∂μ = -λ_N`` at fixed forces) and in another
+    corner's μ (which moves neither guard: 0), against central differences of runs at μ ± ε.
+    ``∂t2/∂μ = -∂t1/∂μ`` (a(t) is symmetric about t_c).
+
+    Tolerance: as for the state's columns (previous test): the differences' noise is ~1e-10 with
+    ε = 1e-6, their truncation ~1e-13; the gradients are 0 or ~0.3 s: 1e-8 absolute."""
+    scene = pushed_cube()
+    names = ["contact:cube/+x-y-z:friction", "contact:cube/+x+y-z:friction"]
+    traj = cd.simulate(scene, T_FINAL, parameters=names, **OPTS)
+    kinds = [(e.kind, e.contacts) for e in traj.events]
+    eps = 1e-6
+    for j, name in enumerate(names):
+        value = float(scene.parameter_values([name])[0])
+        runs = [cd.simulate(scene.with_parameters({name: value + s * eps}), T_FINAL, **OPTS) for s in (1.0, -1.0)]
+        assert all([(e.kind, e.contacts) for e in run.events] == kinds for run in runs)
+        fd = np.array([a.t - b.t for a, b in zip(runs[0].events, runs[1].events)]) / (2 * eps)
+        gradients = np.array([e.parameter_time_gradient[j] for e in traj.events])
+        assert np.allclose(gradients, fd, rtol=0.0, atol=1e-8)
+    own = [e.parameter_time_gradient[0] for e in traj.events]
+    assert abs(own[0]) > 1e-2 and own[1] == pytest.approx(-own[0], abs=1e-8)
