@@ -53,12 +53,12 @@ import numpy as np
 from ..dynamics.mode import ModeDynamics
 from ..dynamics.redundant import row_rank
 from ..errors import PainleveError, SolverError
-from .friction_events import cone_guard, settle_friction
+from .friction_events import THRESHOLD_TOL, cone_guard, settle_friction
 from .loop_events import LoopEvents
 from .parameter_jumps import ParameterJumps
 from .projection import mode_rows
 from .sensitivity import liftoff_guard, saltation, vector_field
-from .trajectory import EventKind
+from .trajectory import EventKind, NonSmooth
 
 
 def held_contacts(
@@ -280,9 +280,17 @@ class HeldEvents(LoopEvents):
             stuck = gripped(dyn, stuck, key)
         new_mode, _ = settle_friction(dyn, q, v, t, stuck)
         event = self._impulseless_event(t, EventKind.STICK, gripping, len(gripping) > 1, q, v, v, mode, new_mode)
+        Dh, h_t, (sol, der, rows, w) = grip_guard(dyn, t, q, v, mode, gripping[0])
+        F_minus = vector_field(dyn, q, v, t, mode)
+        rate = float(Dh @ F_minus) + h_t
+        cone = dyn.contact(gripping[0]).spec.mu * float(sol.forces[rows.start])
+        if abs(rate) <= THRESHOLD_TOL * max(abs(cone), 1e-300):  # touches the cone from outside
+            event.nonsmooth[NonSmooth.FRICTION_THRESHOLD] = self._note(
+                f"not differentiable at t = {t:.12g}: the sticking force of {', '.join(event.contacts)} "
+                f"touches the friction cone without entering it (guard rate {rate:.3g} N/s)"
+            )
         if self.sensitive:
-            Dh, h_t, (sol, der, rows, w) = grip_guard(dyn, t, q, v, mode, gripping[0])
-            F_minus, F_plus = vector_field(dyn, q, v, t, mode), vector_field(dyn, q, v, t, new_mode)
+            F_plus = vector_field(dyn, q, v, t, new_mode)
             xi = saltation(np.eye(2 * self.scene.nv), Dh, F_minus, F_plus, h_t)
             h_p = xi_p = None
             if self.jumps:
@@ -290,7 +298,7 @@ class HeldEvents(LoopEvents):
                 h_p = -(w @ der.forces_dtau[rows] @ forces.mode_forces(dyn, sol, q, v, t))
                 # the cone's own size: ∂(μ λ_N)/∂μ = λ_N at fixed forces
                 h_p[forces.friction_columns.get(dyn.contact_index(gripping[0]), [])] -= sol.forces[rows.start]
-                xi_p = ParameterJumps.saltation(None, h_p, None, F_minus, F_plus, float(Dh @ F_minus) + h_t)
+                xi_p = ParameterJumps.saltation(None, h_p, None, F_minus, F_plus, rate)
             self._attach_sensitivity(event, xi, Dh, F_minus, h_t, xi_p=xi_p, h_p=h_p)
         self.events.append(event)
         return new_mode, v
