@@ -139,6 +139,10 @@ class BandEvents(LoopEvents):
         reading = [g for g in fired if g.kind in FORCE_GUARDS]
         if any(g.kind is GuardKind.STOP and self.dyn.contact_index(g.contact) in band for g in fired):
             return False
+        # a held slip's guard reads the forces with it sticking: its own θ is gone, another's acts
+        gripping = {self.dyn.contact_index(g.contact) for g in fired if g.kind is GuardKind.GRIP}
+        if gripping and set(band) - gripping:
+            return False
         if not reading:
             return True  # gap and other slips' stop guards: no θ in the guard
         if len(fired) > 1:

@@ -59,6 +59,9 @@ class EventResets(LoopEvents):
         bearing = [g.contact for g in fired if g.kind is GuardKind.BEAR]
         if bearing and len(bearing) == len(fired):  # held contacts bear (`contactdiff.integration.held`)
             return self._bear_event(t, q, v, mode, bearing)
+        gripping = [g.contact for g in fired if g.kind is GuardKind.GRIP]
+        if gripping and len(gripping) == len(fired):  # slips held at zero stick (the same module)
+            return self._grip_event(t, q, v, mode, gripping)
         # with other guards at once, a held contact's load is watched again in the next
         # mode (its guard fires at that mode's start if it still pushes)
         if not touching and not releasing:  # Coulomb friction's own events

@@ -4,16 +4,22 @@ The guards of mode ``J`` are the gap of every open contact (downward through 0)
 and the normal force of every closed one (downward through 0); with Coulomb
 friction also the cone margin ``μ λ_N - ||λ_T||`` of every sticking contact
 (stick → slip) and the slip velocity along its direction of every slipping one
-(slip → stick, `contactdiff.dynamics.slip`), and minus the compatible load of a
-contact the mode holds at zero gap, which has no gap guard (`contactdiff.integration.held`).
+(slip → stick, `contactdiff.dynamics.slip`), minus the compatible load of a
+contact the mode holds at zero gap, which has no gap guard, and the distance outside the
+cone of the sticking force of a slip the mode holds at zero, which has no stop to fire
+(both `contactdiff.integration.held`).
 After each
 accepted step every guard is checked over the step: a gap that ends below 0, or
 that dips below it and back within the step (found from the cubic Hermite
 interpolant of the end-point gaps and gap rates, and confirmed on the step's
-dense output), and a force that ends below 0. Each crossing is located on the
-dense output with Brent's method to full precision in time. A gap that comes
-down to within the grazing band with zero normal speed and rises again is a
-near-grazing miss: the integration error cannot tell whether it touched.
+dense output), and a force-level or slip guard that ends below 0, or that dips
+below it and back within the step: where its values at both ends lie within
+`NEAR_FRACTION` of its scale, its rates along the flow are formed at both ends
+(`GuardFinder._rates`) and its Hermite interpolant is searched as a gap's. Each
+crossing is located on the dense output with Brent's method to full precision in
+time. A gap that comes down to within the grazing band with zero normal speed and
+rises again is a near-grazing miss: the integration error cannot tell whether it
+touched.
 """
 
 from __future__ import annotations
@@ -22,6 +28,7 @@ from dataclasses import dataclass
 from enum import Enum
 
 import numpy as np
+import pinocchio as pin
 from scipy.optimize import minimize_scalar
 
 from ..ode.crossings import hermite_minimum, locate_crossing
@@ -40,6 +47,23 @@ back above zero within the first step (a step grown long on a motion of constant
 acceleration): judged at the step's end only, the corner would have pulled unseen."""
 
 
+NEAR_FRACTION = 0.1
+"""A force, cone, stop, bearing or grip guard whose values at both ends of a step are positive
+is modelled over the step only where the smaller lies within this share of its scale (a normal
+force or a held load: the scene's weight, or the mode's largest normal force at the step's ends
+if larger; a cone margin: its cone's size ``μ λ_N``; a slip speed: the larger of its two ends).
+Its rates there cost a mode solve per end, paid only near a threshold: a guard that ends a step
+far above it would have to fall by most of its scale and come back within the step (the state's
+own error control makes that a step over a fast change of the efforts, as a push's pulse on a
+body at rest: there ``max_step`` must resolve the efforts' time scale)."""
+
+RATE_STEP = 1e-6
+"""The guards' rates along the flow, ``Dh F + h_t``, are the forward difference of their values
+over this share of the step (`GuardFinder._rates`): the difference's error moves the Hermite
+model by ~RATE_STEP of the guard's change over the step, its round-off by ~eps / RATE_STEP of
+its scale, both far below a dip the model must see."""
+
+
 class GuardKind(Enum):
     """What a guard watches."""
 
@@ -54,6 +78,10 @@ class GuardKind(Enum):
     BEAR = "bear"
     """minus the compatible load of a contact the mode holds at zero gap, in the set of the
     mode and it (`contactdiff.integration.held`): it fires as that load turns to pushing"""
+    GRIP = "grip"
+    """minus the cone margin ``||λ_T|| - μ λ_N`` of the sticking force of a slipping contact
+    whose slip the mode holds at zero, in the mode with it sticking
+    (`contactdiff.integration.held`): it fires as that force comes back inside the cone"""
 
 
 @dataclass(frozen=True)
@@ -105,6 +133,10 @@ class GuardFinder:
         self.scene, self.dyn, self.options, self.gap_tol = scene, dyn, options, gap_tol
         self.kin = scene.kinematics
         self.contacts = scene.contacts
+        self._rate_points: dict = {}
+        """The guards' rates (`_rates`) at the last step's ends, by field and point."""
+        # N: the scale of a normal force (NEAR_FRACTION); 0 without gravity
+        self.weight = pin.computeTotalMass(scene.model) * float(np.linalg.norm(scene.model.gravity.linear))
         self.from_rest: set[int] = set()
         """Keys of the slips the events started from rest whose speed has stayed within the
         slip-speed floor since (`restart_from_rest` at an event, `keep_resting` after each step)."""
@@ -188,10 +220,9 @@ class GuardFinder:
         floor = self.dyn.slip_speed_floor
         forces0 = [abs(values0[k]) for k, g in enumerate(field.guards) if g.kind is GuardKind.FORCE]
         pull = -PULL_TOL * max(forces0, default=0.0)
+        scales = None  # each guard's scale (NEAR_FRACTION), formed where a guard ends a step near 0
         for k, guard in enumerate(field.guards):
             pulling = guard.kind is GuardKind.FORCE and values0[k] < pull
-            if values1[k] >= 0.0 and not pulling:
-                continue
             # a slip that starts at (or is stopped within noise of) zero speed fires only once
             # its speed along its direction passes -floor: below floor its direction is noise.
             # One an event started from rest starts at round-off of either sign (`from_rest`)
@@ -201,6 +232,14 @@ class GuardFinder:
             ):
                 shift = floor
             if values1[k] + shift >= 0.0 and not pulling:
+                low = min(values0[k], values1[k]) + shift
+                if not 0.0 < low < np.inf:
+                    continue
+                scales = self._scales(field, values0, values1) if scales is None else scales
+                if low <= NEAR_FRACTION * (scales[k] + shift):
+                    t_dip = self._dip(stepper, dense, field, k, shift, values0, values1)
+                    if t_dip is not None:
+                        found.append((t_dip, guard))
                 continue
 
             def value(t, k=k, shift=shift):
@@ -217,6 +256,76 @@ class GuardFinder:
                 continue
             found.append((locate_crossing(value, t_a, t_b, start, values1[k] + shift), guard))
         return found, misses
+
+    def _scales(self, field, values0, values1) -> np.ndarray:
+        """Each guard's scale (`NEAR_FRACTION`) over a step whose ends have the guard values
+        ``values0``, ``values1``: a normal force's and a held load's, the scene's weight or the
+        mode's largest normal force, whichever is larger (a push that unloads every contact
+        shrinks the latter with the guard itself); a cone margin's (and a held slip's), its
+        cone's size ``μ λ_N``; a slip speed's, the larger of its ends (the caller adds the floor
+        to one watched past ``-floor``)."""
+        normal = {}
+        for k, guard in enumerate(field.guards):
+            if guard.kind is GuardKind.FORCE:
+                normal[guard.contact] = max(abs(values0[k]), abs(values1[k]))
+        largest = max([self.weight, *normal.values()])
+        scales = np.empty(len(field.guards))
+        for k, guard in enumerate(field.guards):
+            if guard.kind in (GuardKind.CONE, GuardKind.GRIP):
+                scales[k] = field.dyn.contact(guard.contact).spec.mu * normal[guard.contact]
+            elif guard.kind is GuardKind.STOP:
+                scales[k] = max(values0[k], values1[k])
+            else:
+                scales[k] = largest
+        return scales
+
+    def _dip(self, stepper, dense, field, k: int, shift: float, values0, values1) -> float | None:
+        """The time (s) where guard ``k`` of ``field`` (plus ``shift``) first passes below 0
+        within the last step of ``stepper``, positive at both its ends (the guards' values there
+        ``values0``, ``values1``), or None: its cubic Hermite model from the end values and rates
+        (`_rates`), searched on the step's dense output where the model comes within
+        `DIP_FRACTION` of the end values, as a gap's."""
+        t_a, t_b = stepper.t_old, stepper.t
+        h0, h1 = values0[k] + shift, values1[k] + shift
+        r0 = self._rates(field, t_a, stepper.q_old, stepper.v_old, t_b - t_a)[k]
+        r1 = self._rates(field, t_b, stepper.q, stepper.v, t_b - t_a, values1, stepper.f)[k]
+        s, low = hermite_minimum(h0, r0, h1, r1, t_b - t_a)
+        if not (0.0 < s < 1.0 and low < DIP_FRACTION * min(h0, h1)):
+            return None
+
+        def value(t):
+            qt, vt = dense(t)
+            return field.guard_values(t, qt, vt)[k] + shift
+
+        t_low, g_low = self._lowest(value, t_a, t_b, stop_below=0.0)
+        if g_low >= 0.0:
+            return None
+        g_a = value(t_a)  # the dense output's start, as the crossings past a step's end
+        return t_a if g_a <= 0.0 else locate_crossing(value, t_a, t_low, g_a, g_low)
+
+    def _rates(self, field, t: float, q, v, h: float, values=None, f=None) -> np.ndarray:
+        """The rates ``Dh F + h_t`` (guard unit per s) of every guard of ``field`` along its flow
+        at ``(t, q, v)``: the forward difference of `ModeField.guard_values` over
+        ``δ = RATE_STEP h`` (``h`` the step, s) from ``x`` to ``(t + δ, q ⊕ δ v, v + δ ddq)``.
+        ``values``: the guards there, ``f``: the field ``(v, ddq)`` there, if known (a step's
+        end); else solved (a step's start whose rates its previous step's end did not form).
+        Kept for the next step, whose start this step's end is."""
+        key = (id(field), t, q.tobytes(), v.tobytes())
+        known = self._rate_points.get(key)
+        if known is not None:
+            return known
+        if values is None:
+            values = field.guard_values(t, q, v)
+        if f is None:
+            f = np.concatenate([v, field.dyn.solve(q, v, t, field.mode).ddq])
+        nv = len(v)
+        delta = max(RATE_STEP * h, 1e3 * np.finfo(float).eps * max(1.0, abs(t)))
+        moved = field.guard_values(t + delta, self.scene.robot.integrate(q, delta * f[:nv]), v + delta * f[nv:])
+        rates = (moved - values) / delta
+        if len(self._rate_points) > 2:
+            self._rate_points.clear()
+        self._rate_points[key] = rates
+        return rates
 
     def restart_from_rest(self, mode_before, mode_after, fired) -> None:
         """After an event from ``mode_before`` to ``mode_after`` (contact keys) where the

@@ -1,4 +1,5 @@
-"""Contacts held at zero gap by a mode, and the event where one bears again.
+"""Contacts held at zero gap by a mode, and the event where one bears again; slips
+held at zero by a mode, and the event where one sticks again.
 
 A contact outside the mode whose gap is closed and whose rows add no rank to the
 mode's (a face's corner released when its compatible load asked it to pull, while
@@ -23,6 +24,23 @@ derivative is what moves the flow Jacobian's later columns.
 Cost: one mode solve per held contact at each guard evaluation (each accepted
 step's end, and the crossing search of a step that crossed); none when no contact
 is held.
+
+**Slips held at zero.** A contact that slips from rest in a mode whose other rows fix
+its motion (a face's corner whose sticking force left its cone while two or three
+other corners stick: its sticking rows add no rank to the mode's) keeps a slip of
+exactly zero (round-off) for as long as the mode lasts, so its stop guard never fires
+(`GuardFinder.keep_resting`) and it would slide on, its friction saturated, after the
+push that started it is gone. It is watched instead by the principle that made it
+slip (`settle_friction`: a contact at rest slips where its sticking force leaves the
+cone): its guard is ``||λ_T|| - μ λ_N`` of the force it would carry sticking, in the
+mode with it sticking (`held_slips`, `grip_value`), fired as that force comes back
+inside the cone. There it sticks (event kind ``stick``): no jump of the state (its
+slip is zero), the mode with it sticking and Coulomb's law settled again. Its
+saltation matrix is ``Ξ = I + (F+ - F-) Dh / (Dh F- + h_t)`` with ``Dh``, ``h_t`` the
+guard's (`grip_guard`, the cone margin's of `contactdiff.integration.friction_events.cone_guard`
+with its sign turned); where the mode's rows fix the whole motion ``F+ = F-`` and
+``Ξ = I``, and the event time's gradient is the guard's. Cost: one mode solve per such
+slip at each guard evaluation; a rank test per slipping contact at each mode's start.
 """
 
 from __future__ import annotations
@@ -35,12 +53,12 @@ import numpy as np
 from ..dynamics.mode import ModeDynamics
 from ..dynamics.redundant import row_rank
 from ..errors import PainleveError, SolverError
-from .friction_events import settle_friction
+from .friction_events import THRESHOLD_TOL, cone_guard, settle_friction
 from .loop_events import LoopEvents
 from .parameter_jumps import ParameterJumps
 from .projection import mode_rows
 from .sensitivity import liftoff_guard, saltation, vector_field
-from .trajectory import EventKind
+from .trajectory import EventKind, NonSmooth
 
 
 def held_contacts(
@@ -117,6 +135,46 @@ def held_contacts(
         if from_rest is not None:
             from_rest.extend((index, rows, settled) for index, rows in found if index == i)
     return held
+
+
+def held_slips(dyn: ModeDynamics, q: np.ndarray, mode) -> list[int]:
+    """The slipping keys of ``mode`` whose slip the mode holds at zero (module doc): their
+    contact's sticking rows add no rank to the mode's rows at ``q`` (``dyn.kin`` is moved to
+    ``q`` at rest)."""
+    slipping = [k for k in mode if dyn.is_sliding(k)]
+    if not slipping:
+        return []
+    dyn.kin.update(q, np.zeros(dyn.model.nv))
+    A = mode_rows(dyn, mode)
+    rank = row_rank(A)
+    return [k for k in slipping if row_rank(np.vstack([A, dyn.contact(dyn.contact_index(k)).rows(dyn.kin)])) == rank]
+
+
+def gripped(dyn: ModeDynamics, mode, key: int) -> tuple[int, ...]:
+    """The mode ``mode`` with slipping key ``key`` sticking (sorted keys)."""
+    return tuple(sorted(dyn.contact_index(k) if k == key else k for k in mode))
+
+
+def grip_value(dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float, mode, key: int) -> float:
+    """The guard ``||λ_T|| - μ λ_N`` (N) of held slip ``key`` of ``mode`` at ``(q, v, t)``
+    (module doc): its sticking force in the mode with it sticking, positive while that force
+    lies outside the cone; +inf where that mode has no solution."""
+    stuck = gripped(dyn, mode, key)
+    index = dyn.contact_index(key)
+    try:
+        sol = dyn.solve(q, v, t, stuck)
+    except (PainleveError, SolverError):
+        return np.inf
+    f = sol.forces[sol.row_slices[stuck.index(index)]]
+    return float(np.linalg.norm(f[1:])) - dyn.contact(index).spec.mu * float(f[0])
+
+
+def grip_guard(dyn: ModeDynamics, t: float, q: np.ndarray, v: np.ndarray, mode, key: int):
+    """The guard of held slip ``key`` of ``mode`` (`grip_value`): ``(Dh, h_t, solved)``, its
+    gradient (2nv,), its explicit time rate (N/s) and `cone_guard`'s ``solved`` in the mode
+    with it sticking (for the parameters' block)."""
+    Dh, _, h_t, solved, _ = cone_guard(dyn, t, q, v, gripped(dyn, mode, key), dyn.contact_index(key))
+    return -Dh, -h_t, solved
 
 
 def enlarged(mode, key: int) -> tuple[int, ...]:
@@ -208,6 +266,39 @@ class HeldEvents(LoopEvents):
             if self.jumps:
                 h_p = -self.jumps.force_guard(q, v, t, enlarged(mode, keys[0]), keys[0])
                 xi_p = ParameterJumps.saltation(None, h_p, None, F_minus, F_plus, float(Dh @ F_minus) + h_t)
+            self._attach_sensitivity(event, xi, Dh, F_minus, h_t, xi_p=xi_p, h_p=h_p)
+        self.events.append(event)
+        return new_mode, v
+
+    def _grip_event(self, t, q, v, mode, gripping: list[int]):
+        """The held slips ``gripping`` (sliding keys of ``mode``) stick at ``(t, q, v)``: no
+        jump (their slip is zero); the mode after them settled by Coulomb's law (module doc).
+        With several at once the saltation is that of the first one's guard."""
+        dyn, mode = self.dyn, tuple(mode)
+        stuck = mode
+        for key in gripping:
+            stuck = gripped(dyn, stuck, key)
+        new_mode, _ = settle_friction(dyn, q, v, t, stuck)
+        event = self._impulseless_event(t, EventKind.STICK, gripping, len(gripping) > 1, q, v, v, mode, new_mode)
+        Dh, h_t, (sol, der, rows, w) = grip_guard(dyn, t, q, v, mode, gripping[0])
+        F_minus = vector_field(dyn, q, v, t, mode)
+        rate = float(Dh @ F_minus) + h_t
+        cone = dyn.contact(gripping[0]).spec.mu * float(sol.forces[rows.start])
+        if abs(rate) <= THRESHOLD_TOL * max(abs(cone), 1e-300):  # touches the cone from outside
+            event.nonsmooth[NonSmooth.FRICTION_THRESHOLD] = self._note(
+                f"not differentiable at t = {t:.12g}: the sticking force of {', '.join(event.contacts)} "
+                f"touches the friction cone without entering it (guard rate {rate:.3g} N/s)"
+            )
+        if self.sensitive:
+            F_plus = vector_field(dyn, q, v, t, new_mode)
+            xi = saltation(np.eye(2 * self.scene.nv), Dh, F_minus, F_plus, h_t)
+            h_p = xi_p = None
+            if self.jumps:
+                forces = self.jumps.forces
+                h_p = -(w @ der.forces_dtau[rows] @ forces.mode_forces(dyn, sol, q, v, t))
+                # the cone's own size: ∂(μ λ_N)/∂μ = λ_N at fixed forces
+                h_p[forces.friction_columns.get(dyn.contact_index(gripping[0]), [])] -= sol.forces[rows.start]
+                xi_p = ParameterJumps.saltation(None, h_p, None, F_minus, F_plus, rate)
             self._attach_sensitivity(event, xi, Dh, F_minus, h_t, xi_p=xi_p, h_p=h_p)
         self.events.append(event)
         return new_mode, v

@@ -37,7 +37,7 @@ from .event_resets import EventResets
 from .final_time import final_touches
 from .friction_events import FrictionEvents, refuse_ambiguous_slip, settle_friction
 from .guards import GuardFinder
-from .held import HeldEvents, held_contacts
+from .held import HeldEvents, held_contacts, held_slips
 from .jam import jam_or_raise
 from .loop_reports import MAX_NOTES, LoopReports
 from .mode_field import ModeField
@@ -170,6 +170,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReport
             parameters=self.jumps.forces if self.jumps else None,
             held=held,
             onsets=self.onsets,
+            held_slips=held_slips(self.dyn, q, tuple(mode)) if mode else None,
         )
 
     def _jumped(self, phi: np.ndarray | None, event: Event) -> np.ndarray:

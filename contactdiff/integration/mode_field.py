@@ -13,7 +13,7 @@ from ..dynamics.mode import ModeDynamics
 from ..dynamics.parameter_forces import ParameterForces
 from ..dynamics.slip import reference_turn
 from .guards import Guard, GuardKind, mode_guards
-from .held import bear_value
+from .held import bear_value, grip_value
 
 
 class ModeField:
@@ -27,7 +27,9 @@ class ModeField:
     `parameter_jac`. With ``parameters`` (`ParameterForces`) each derivative
     solve also gives ``∂ddq/∂p``. ``held`` (``{scene index: key}``,
     `contactdiff.integration.held.held_contacts`): the contacts the mode holds at zero
-    gap, each watched by a `GuardKind.BEAR` guard.
+    gap, each watched by a `GuardKind.BEAR` guard; ``held_slips`` (sliding keys,
+    `contactdiff.integration.held.held_slips`): the slips it holds at zero, each watched
+    by a `GuardKind.GRIP` guard.
 
     ``onsets`` (``{scene index: w}``): the 3-D slips that started from rest at the
     event the mode began with (or before it, still in the band: `contactdiff.integration.band`)
@@ -51,6 +53,7 @@ class ModeField:
         parameters: ParameterForces | None = None,
         held: dict[int, int] | None = None,
         onsets: dict[int, np.ndarray] | None = None,
+        held_slips: list[int] | None = None,
     ):
         self.dyn, self.mode, self.fused, self.parameters = dyn, mode, fused, parameters
         self.onsets: dict[int, np.ndarray] = onsets if onsets is not None else {}
@@ -60,7 +63,11 @@ class ModeField:
         self._plain = dyn.accelerator(mode)
         self.last = None  # (t, q, v) of the last accel, and its row forces' source
         self._last_forces = None
-        self.guards: list[Guard] = mode_guards(dyn, mode) + [Guard(GuardKind.BEAR, i) for i in self.held]
+        self.guards: list[Guard] = (
+            mode_guards(dyn, mode)
+            + [Guard(GuardKind.BEAR, i) for i in self.held]
+            + [Guard(GuardKind.GRIP, key) for key in held_slips or ()]
+        )
         """The mode's force-level and slip guards, in the order of `guard_values`."""
         self._positions = {key: k for k, key in enumerate(mode)}
         self.slipping = any(g.kind is GuardKind.STOP for g in self.guards) or any(
@@ -156,7 +163,8 @@ class ModeField:
         where its value crosses 0 downward: a normal force (N), a sticking contact's cone
         margin ``μ λ_N - ||λ_T||`` (N), a slipping contact's slip velocity along its
         reference direction (m/s, `contactdiff.dynamics.slip`), minus a held contact's
-        load in the enlarged set (N, `contactdiff.integration.held`)."""
+        load in the enlarged set (N, `contactdiff.integration.held`), the sticking force's distance
+        outside the cone of a slip the mode holds at zero (N, the same module)."""
         if not self.guards:
             return np.zeros(0)
         forces = self.row_forces(t, q, v)
@@ -164,6 +172,9 @@ class ModeField:
         for j, guard in enumerate(self.guards):
             if guard.kind is GuardKind.BEAR:
                 values[j] = bear_value(self.dyn, q, v, t, self.mode, self.held[guard.contact])
+                continue
+            if guard.kind is GuardKind.GRIP:
+                values[j] = grip_value(self.dyn, q, v, t, self.mode, guard.contact)
                 continue
             k = self._positions[guard.contact]
             if guard.kind is GuardKind.FORCE:

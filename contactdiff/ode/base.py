@@ -231,6 +231,12 @@ class Stepper(VariationalAlgebra, abc.ABC):
         """Size of the next step to try (s)."""
         return min(self.h_abs, self.max_step)
 
+    @property
+    def f(self) -> np.ndarray:
+        """The field ``(v, ddq)`` (2nv,) at the current point: the last accepted step's end
+        (its last stage), or the point of the last `truncate` or `restart`."""
+        return self._f
+
     @abc.abstractmethod
     def step(self) -> None:
         """Take one accepted step (retrying internally after rejections).
