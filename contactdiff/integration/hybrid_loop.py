@@ -148,7 +148,10 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReport
         found: list = []  # held contacts at rest that slide in their enlarged set
         if mode:
             gaps, rates = self._gaps_and_rates(q, v)
-            held = held_contacts(
+            # it also sets slip references on self.dyn (its second value, kept there): the held
+            # contacts' slips, which their bearing guards read, and the directions Coulomb's law
+            # gives the mode's own sticking contacts in the enlarged sets
+            held, _ = held_contacts(
                 self.dyn,
                 q,
                 v,
