@@ -109,6 +109,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReport
         self.n_near_misses = 0
         self.n_probe_evaluations = 0
         self.phi = None  # flow Jacobian just before the event being processed
+        self._salted_last: tuple[Event, np.ndarray, np.ndarray, np.ndarray] | None = None  # `_salted`'s
         self.initial_saltation = None
         self.jumps = None  # the parameters' blocks at events, with options.parameters
         # the slips from rest that follow the reference set at the last event: scene index ->
@@ -179,7 +180,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReport
         ``Ξ_p`` on the parameter columns, plus the event's terms through a slip's reference in
         the band (``reference_jump``, ``parameter_reference_jump``: `Event`)."""
         assert phi is not None and event.saltation is not None  # called only in a sensitive run
-        out = event.saltation @ phi
+        out = self._salted(phi, event).copy()
         n = self.n_state
         if event.parameter_saltation is not None:
             out[:, n:] += event.parameter_saltation
@@ -188,6 +189,19 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReport
         if event.parameter_reference_jump is not None:
             out[:, n:] += event.parameter_reference_jump
         return out
+
+    def _salted(self, phi: np.ndarray, event: Event) -> np.ndarray:
+        """``Ξ phi``, ``event``'s saltation matrix times ``phi``, formed once per event,
+        saltation matrix and ``phi`` (the same arrays): the onsets' state after an event
+        (`HeldEvents._held_onsets`, `EventResets._simultaneous_onsets`) and the stepper's
+        restart (`_jumped`) read one product. Read-only: copy it to write into it."""
+        last = self._salted_last
+        if last is not None and last[0] is event and last[1] is event.saltation and last[2] is phi:
+            return last[3]
+        assert event.saltation is not None  # called only in a sensitive run
+        product = event.saltation @ phi
+        self._salted_last = (event, event.saltation, phi, product)
+        return product
 
     # -- hooks ----------------------------------------------------------------------
     def on_event(self, event: Event, mode_before: tuple[int, ...], phi_before: np.ndarray | None) -> bool:
