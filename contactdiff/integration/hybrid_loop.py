@@ -66,9 +66,14 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReport
     Extension: override `initial_mode` and `on_event` (see there). The state a
     subclass may read: ``scene``, ``dyn`` (its `ModeDynamics`), ``kin`` (the
     scene's kinematics cache), ``contacts``, ``names``, ``options``, ``events``,
-    ``segments``, ``notes``, and ``phi``, the flow Jacobian just before the event
-    being processed (with ``options.jacobian`` or ``options.parameters``: its columns are
-    the state's 2nv with ``jacobian``, then the parameters').
+    ``segments``, ``notes``, ``t0``, ``jumps`` (the parameters' blocks at events, or
+    None), and ``phi``, the flow Jacobian just before the event being processed (with
+    ``options.jacobian`` or ``options.parameters``: its columns are the state's
+    ``n_state``, 2nv with ``jacobian`` else 0, then the parameters'). It may set
+    ``initial_saltation``, the flow Jacobian just after the start's events (from
+    `initial_mode`). What it may call: `gaps_and_rates` (every contact's gap and gap
+    rate at a state) and `jacobian_after` (the flow Jacobian just after an event, from
+    the one before it or from the start's).
     """
 
     def __init__(
@@ -221,12 +226,21 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReport
         """
         return False
 
+    def jacobian_after(self, event: Event, phi: np.ndarray | None = None) -> np.ndarray:
+        """The flow Jacobian just after ``event`` (its saltation attached) from ``phi`` just
+        before it; None: the start's, ``[I, 0]`` (2nv × (2nv + p), as ``phi``'s columns)."""
+        return self._jumped(self._identity_phi() if phi is None else phi, event)
+
     # -- small evaluations ------------------------------------------------------------
-    def _gaps_and_rates(self, q, v) -> tuple[np.ndarray, np.ndarray]:
+    def gaps_and_rates(self, q, v) -> tuple[np.ndarray, np.ndarray]:
+        """Every contact's gap (m) and gap rate (m/s) at ``(q, v)``, in the scene's order
+        (the kinematics cache is moved to ``(q, v)``)."""
         self.kin.update(q, v)
         gaps = np.array([c.gap(self.kin) for c in self.contacts])
         rates = np.array([c.gap_rate(self.kin) for c in self.contacts])
         return gaps, rates
+
+    _gaps_and_rates = gaps_and_rates  # the name the loop's own body calls
 
     def _mode_names(self, mode) -> tuple[str, ...]:
         """Names of the contacts active (sticking or sliding) in ``mode``."""

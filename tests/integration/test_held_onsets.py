@@ -141,7 +141,7 @@ def test_held_contacts_returns_the_references_it_sets():
     q, v, dyn = scene.q0.copy(), scene.v0.copy(), loop.dyn
     index = scene.contact_names.index(CORNER)
     mode = tuple(scene.contact_names.index(f"cube/{c}-z") for c in ("+x+y", "+x-y", "-x+y"))
-    gaps, rates = loop._gaps_and_rates(q, v)
+    gaps, rates = loop.gaps_and_rates(q, v)
     tol = max(loop.gap_tol, loop.options.resolved_project_tol)
     held, references = held_contacts(dyn, q, v, 0.0, mode, gaps, rates, tol, loop.options.grazing_speed)
     assert set(held) == {index} and index in references
