@@ -51,7 +51,7 @@ GAP_TOL = 1e-12
 """m: a contact whose gap is below this is closed."""
 
 
-class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReports):
+class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents):
     """The hybrid loop of one run (described in `contactdiff.integration.hybrid`); `simulate` is
     ``HybridLoop(...).run()``.
 
@@ -109,10 +109,6 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReport
         self.fields: list[ModeField] = []  # one per mode visited, for the statistics
         self.retired: list = []  # steppers replaced by method="auto", for the statistics
         self.switches: list[tuple[float, str]] = []
-        self.max_drift = 0.0
-        self.n_projections = 0
-        self.n_near_misses = 0
-        self.n_probe_evaluations = 0
         self.phi = None  # flow Jacobian just before the event being processed
         self._salted_last: tuple[Event, np.ndarray, np.ndarray, np.ndarray] | None = None  # `_salted`'s
         self.initial_saltation = None
@@ -130,6 +126,24 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReport
             self.jumps = ParameterJumps(self.dyn, resolve(self.scene, self.options.parameters))
         check_sample_times(self.options.sample_times, self.t0, self.t_final)
         self.recorder = SampleRecorder(self.options.sample_times, self.n_state, self.options.parameters)
+        # what the run reports: its trajectory, the errors carrying it, the near-grazing misses
+        self.reports = LoopReports(
+            self.scene,
+            self.t0,
+            self.t_final,
+            self.options,
+            self.n_state,
+            self.jumps,
+            self.recorder,
+            self.events,
+            self.segments,
+            self.notes,
+            self.fields,
+            self.retired,
+            self.switches,
+            mode_names=self._mode_names,
+            stiffness_probes=lambda: self.chooser.n_probes if self.chooser else 0,
+        )
 
     def _identity_phi(self) -> np.ndarray:
         """The flow Jacobian at the start: ``[I, 0]`` (2nv × (2nv + p)); without the state's
@@ -344,7 +358,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReport
                     f"max_steps = {options.max_steps} steps taken by t = {stepper.t:.6g} s of "
                     f"t_final = {self.t_final:g} s (last step {h:.3g} s); "
                     "raise max_steps, or look for a runaway state",
-                    self._trajectory(stepper, Termination.MAX_STEPS),
+                    self.reports.trajectory(stepper, Termination.MAX_STEPS),
                 )
             if stepper.t >= next_break:
                 next_break = scene.next_breakpoint(stepper.t)
@@ -353,7 +367,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReport
             try:
                 stepper.step()
             except StepSizeUnderflowError as exc:  # the extreme of a collapse: said as one, with the run so far
-                self._collapse(stepper, mode, exc.h, watch.typical, underflow=str(exc))
+                self.reports.collapse(stepper, mode, exc.h, watch.typical, underflow=str(exc))
             steps += 1
             if options.progress is not None:
                 options.progress(stepper.t, len(self.events), steps)
@@ -368,7 +382,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReport
             )
             self.guards.keep_resting(field, forces1)  # the slips from rest still at rest
             if not crossings:
-                self._near_misses(misses, np.inf)
+                self.reports.near_misses(misses, np.inf)
                 gaps, rates, forces = gaps1, rates1, forces1
                 projected = mode and self._project(stepper, mode, gaps1)
                 if projected:
@@ -381,9 +395,9 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReport
                 self.recorder.take(stepper)
                 clipped = stepper.t == stepper.t_bound
                 if watch.after_step(h, clipped):
-                    self._collapse(stepper, mode, h, watch.typical)
+                    self.reports.collapse(stepper, mode, h, watch.typical)
                 if projection := budget.after_step(h, clipped, self.t_final - stepper.t, steps):
-                    self._over_budget(stepper, mode, steps, *projection)
+                    self.reports.over_budget(stepper, mode, steps, *projection)
                 # at rest: to t_final in one step, or to the next sample time (steps end on them)
                 if rest.settle(stepper, field, mode, segment, min(self.t_final, self.recorder.next_time)):
                     self.recorder.take(stepper)
@@ -396,7 +410,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReport
             watch.new_mode()
             budget.new_regime()
             t_event, fired = simultaneous_group(crossings, options.simultaneous_tol)
-            self._near_misses(misses, t_event)
+            self.reports.near_misses(misses, t_event)
             stepper.truncate(t_event)
             dense.t = segment.t1 = t_event
             self.phi = stepper.phi
@@ -421,7 +435,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReport
                     f"more than max_events = {options.max_events} events by t = {t_event:.17g} "
                     f"(last: {self.events[-1].kind} of {', '.join(self.events[-1].contacts)}); "
                     "raise max_events or zeno_speed",
-                    self._trajectory(stepper, Termination.MAX_EVENTS),
+                    self.reports.trajectory(stepper, Termination.MAX_EVENTS),
                 )
             phi_before = None if self.phi is None else self.phi.copy()
             stop = False
@@ -447,8 +461,8 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReport
             gaps, rates = self._gaps_and_rates(stepper.q, stepper.v)
             forces = field.guard_values(stepper.t, stepper.q, stepper.v)
             if stop:
-                return self._trajectory(stepper, Termination.STOPPED)
-        traj = self._trajectory(stepper, Termination.T_FINAL)
+                return self.reports.trajectory(stepper, Termination.STOPPED)
+        traj = self.reports.trajectory(stepper, Termination.T_FINAL)
         if touches := final_touches(
             self.names,
             *self._gaps_and_rates(traj.q, traj.v),
@@ -477,7 +491,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReport
         the mode's accelerations; they bypass the mode field and its counters)."""
 
         def accel(t, q, v):
-            self.n_probe_evaluations += 1
+            self.reports.n_probe_evaluations += 1
             return self.dyn.solve(q, v, t, mode).ddq
 
         def probe(q, v, t):
@@ -521,7 +535,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReport
         """Project the stepper's state back onto the manifold of ``mode`` when its gap
         drift exceeds ``project_tol``; whether it did."""
         drift = max(abs(gaps[i]) for i in self.dyn.contacts_of(mode))
-        self.max_drift = max(self.max_drift, drift)
+        self.reports.max_drift = max(self.reports.max_drift, drift)
         if drift <= self.options.resolved_project_tol:
             return False
         q, v, D = project_state(self.dyn, stepper.q, stepper.v, mode, jacobian=self.sensitive)
@@ -530,5 +544,5 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReport
             assert phi is not None  # a run with parameters is sensitive: D is computed
             phi[:, self.n_state :] += self.jumps.projection(q, mode)
         stepper.restart(stepper.t, q, v, phi=phi)
-        self.n_projections += 1
+        self.reports.n_projections += 1
         return True
