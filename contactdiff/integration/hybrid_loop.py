@@ -254,7 +254,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents):
         rates = np.array([c.gap_rate(self.kin) for c in self.contacts])
         return gaps, rates
 
-    _gaps_and_rates = gaps_and_rates  # the name the loop's own body calls
+    _gaps_and_rates = gaps_and_rates  # the name run() and the event mixins call
 
     def _mode_names(self, mode) -> tuple[str, ...]:
         """Names of the contacts active (sticking or sliding) in ``mode``."""
