@@ -317,7 +317,7 @@ class EventResets(LoopEvents):
                 event.parameter_time_gradient = np.zeros(self.jumps.p)
             if from_rest:
                 self._onset_columns(
-                    t, q, from_rest, self._jumped(self.phi, event), np.zeros(self.phi.shape[1]), new_mode
+                    t, q, from_rest, self.jacobians.after(self.phi, event), np.zeros(self.phi.shape[1]), new_mode
                 )
         elif self.sensitive:
             F_minus = vector_field(self.dyn, q, v_minus, t, mode)
@@ -363,14 +363,14 @@ class EventResets(LoopEvents):
         (`_onset_columns`): the state after the reset moved with the event's time,
         ``Ξ φ + Ξ_p + F+ ∂t`` (for a single landing ``DR (φ + F- ∂t) + ∂R/∂p``), ``∂t`` that of
         the guard the event's time gradient uses. ``event`` carries its saltation matrix
-        ``Ξ``: ``Ξ φ`` is the product the stepper restarts from (`HybridLoop._salted`)."""
+        ``Ξ``: ``Ξ φ`` is the product the stepper restarts from (`EventJacobians.salted`)."""
         assert self.phi is not None  # called only in a sensitive run
         rate = float(Dh @ F_minus)
         dt = -(Dh @ self.phi)
         if h_p is not None:
             dt[self.n_state :] -= h_p
         dt /= rate
-        moved = self._salted(self.phi, event) + np.outer(vector_field(self.dyn, q, v_plus, t, new_mode), dt)
+        moved = self.jacobians.salted(self.phi, event) + np.outer(vector_field(self.dyn, q, v_plus, t, new_mode), dt)
         if xi_p is not None:
             moved[:, self.n_state :] += xi_p
         self._onset_columns(t, q, from_rest, moved, dt, new_mode)

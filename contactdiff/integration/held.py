@@ -168,9 +168,6 @@ class HeldEvents(LoopEvents):
         fields: Sequence[HoldingField]  # the loop's ModeField objects
         initial_saltation: np.ndarray | None
 
-        def _identity_phi(self) -> np.ndarray: ...
-        def _jumped(self, phi: np.ndarray | None, event) -> np.ndarray: ...
-
     def _held_onsets(self, t, q, v, mode, found: list, start: bool) -> None:
         """Carry the references of the held contacts at rest that `held_contacts` set at the
         start of ``mode`` (``found``: its ``from_rest`` entries) as onsets' angles
@@ -180,15 +177,15 @@ class HeldEvents(LoopEvents):
         start, whose time is fixed). The reference acts once the contact bears with it (its
         load in the enlarged set, the bearing guard, moves with ``θ`` by a force proportional
         to that load: zero where it fires)."""
-        n_cols = self._identity_phi().shape[1]
+        n_cols = self.jacobians.identity().shape[1]
         dt = np.zeros(n_cols)
         if start:
-            phi = self.initial_saltation if self.initial_saltation is not None else self._identity_phi()
+            phi = self.initial_saltation if self.initial_saltation is not None else self.jacobians.identity()
         else:
             event = self.events[-1]
             if event.saltation is None or self.phi is None:
                 return  # not differentiable there: the run's Jacobian ends (its note says so)
-            phi = self._jumped(self.phi, event)
+            phi = self.jacobians.after(self.phi, event)
             n = self.n_state
             if event.time_gradient is not None:
                 dt[:n] = event.time_gradient

@@ -33,6 +33,7 @@ from ..ode.step_budget import BudgetWatch
 from ..ode.step_collapse import CollapseWatch
 from ..scenes.scene_file import passive_note
 from .band import BandEvents, BandOnset
+from .event_jacobians import EventJacobians
 from .event_resets import EventResets
 from .final_time import final_touches
 from .friction_events import FrictionEvents, refuse_ambiguous_slip, settle_friction
@@ -110,7 +111,6 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents):
         self.retired: list = []  # steppers replaced by method="auto", for the statistics
         self.switches: list[tuple[float, str]] = []
         self.phi = None  # flow Jacobian just before the event being processed
-        self._salted_last: tuple[Event, np.ndarray, np.ndarray, np.ndarray] | None = None  # `_salted`'s
         self.initial_saltation = None
         self.jumps = None  # the parameters' blocks at events, with options.parameters
         # the slips from rest that follow the reference set at the last event: scene index ->
@@ -124,6 +124,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents):
             from ..model.parameters import resolve  # the model's names import the dynamics' scene
 
             self.jumps = ParameterJumps(self.dyn, resolve(self.scene, self.options.parameters))
+        self.jacobians = EventJacobians(self.scene.nv, self.n_state, self.jumps.p if self.jumps else 0)
         check_sample_times(self.options.sample_times, self.t0, self.t_final)
         self.recorder = SampleRecorder(self.options.sample_times, self.n_state, self.options.parameters)
         # what the run reports: its trajectory, the errors carrying it, the near-grazing misses
@@ -144,14 +145,6 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents):
             mode_names=self._mode_names,
             stiffness_probes=lambda: self.chooser.n_probes if self.chooser else 0,
         )
-
-    def _identity_phi(self) -> np.ndarray:
-        """The flow Jacobian at the start: ``[I, 0]`` (2nv × (2nv + p)); without the state's
-        Jacobian, the p parameter columns only (zero)."""
-        n = 2 * self.scene.nv
-        phi = np.zeros((n, self.n_state + (self.jumps.p if self.jumps else 0)))
-        phi[:, : self.n_state] = np.eye(n, self.n_state)
-        return phi
 
     def _fused(self, method: str) -> bool:
         """Whether the field differentiates the mode at every evaluation (`ModeField`): with
@@ -194,34 +187,6 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents):
             onsets=self.onsets,
         )
 
-    def _jumped(self, phi: np.ndarray | None, event: Event) -> np.ndarray:
-        """The flow Jacobian just after ``event`` from ``phi`` just before: ``Ξ phi``, plus
-        ``Ξ_p`` on the parameter columns, plus the event's terms through a slip's reference in
-        the band (``reference_jump``, ``parameter_reference_jump``: `Event`)."""
-        assert phi is not None and event.saltation is not None  # called only in a sensitive run
-        out = self._salted(phi, event).copy()
-        n = self.n_state
-        if event.parameter_saltation is not None:
-            out[:, n:] += event.parameter_saltation
-        if event.reference_jump is not None:
-            out[:, :n] += event.reference_jump
-        if event.parameter_reference_jump is not None:
-            out[:, n:] += event.parameter_reference_jump
-        return out
-
-    def _salted(self, phi: np.ndarray, event: Event) -> np.ndarray:
-        """``Ξ phi``, ``event``'s saltation matrix times ``phi``, formed once per event,
-        saltation matrix and ``phi`` (the same arrays): the onsets' state after an event
-        (`HeldEvents._held_onsets`, `EventResets._simultaneous_onsets`) and the stepper's
-        restart (`_jumped`) read one product. Read-only: copy it to write into it."""
-        last = self._salted_last
-        if last is not None and last[0] is event and last[1] is event.saltation and last[2] is phi:
-            return last[3]
-        assert event.saltation is not None  # called only in a sensitive run
-        product = event.saltation @ phi
-        self._salted_last = (event, event.saltation, phi, product)
-        return product
-
     # -- hooks ----------------------------------------------------------------------
     def on_event(self, event: Event, mode_before: tuple[int, ...], phi_before: np.ndarray | None) -> bool:
         """Called once for every event, in time order, after the loop has processed it
@@ -243,7 +208,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents):
     def jacobian_after(self, event: Event, phi: np.ndarray | None = None) -> np.ndarray:
         """The flow Jacobian just after ``event`` (its saltation attached) from ``phi`` just
         before it; None: the start's, ``[I, 0]`` (2nv × (2nv + p), as ``phi``'s columns)."""
-        return self._jumped(self._identity_phi() if phi is None else phi, event)
+        return self.jacobians.after(self.jacobians.identity() if phi is None else phi, event)
 
     # -- small evaluations ------------------------------------------------------------
     def gaps_and_rates(self, q, v) -> tuple[np.ndarray, np.ndarray]:
@@ -285,10 +250,10 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents):
         sliding = [i for i in slips if not self.contacts[i].spec.coulomb]
         if any(rates[i] < -self.options.grazing_speed for i in closed) or sliding:
             if self.sensitive:
-                self.phi = self._identity_phi()
+                self.phi = self.jacobians.identity()
             mode, v_plus = self._impact(self.t0, q, v, (), closed, closed, initial=True)
             if self.sensitive:
-                self.initial_saltation = self._jumped(self._identity_phi(), self.events[-1])
+                self.initial_saltation = self.jacobians.after(self.jacobians.identity(), self.events[-1])
             return mode, v_plus
         candidates = [i for i in closed if rates[i] <= self.options.grazing_speed]
         for i in set(slips) & set(candidates):
@@ -300,7 +265,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents):
             from_rest: list = []
             mode, _ = settle_friction(self.dyn, q, v, self.t0, mode, from_rest)
             if self.sensitive and from_rest:  # no guard at t0: the start's own perturbations
-                start = self._identity_phi()
+                start = self.jacobians.identity()
                 self._onset_columns(
                     self.t0, q, [(i, m, v) for i, m in from_rest], start, np.zeros(start.shape[1]), mode
                 )
@@ -337,7 +302,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents):
             q,
             v,
             jac=field.jac,
-            variational=self._identity_phi() if self.sensitive else None,
+            variational=self.jacobians.identity() if self.sensitive else None,
             **self._stepper_options(field),
         )
         if self.sensitive and self.initial_saltation is not None:
@@ -423,7 +388,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents):
                 exact = exact and len(self.events) == n_before + 1
                 q_after = self.events[-1].q
                 correction = self._band_after(band, t_event, q_after, stepper.v, mode_before, mode, v_plus, exact)
-                if correction is not None:  # recorded on the event, which `_jumped` applies
+                if correction is not None:  # recorded on the event, which `jacobians.after` applies
                     last = self.events[-1]
                     if self.options.jacobian:
                         last.reference_jump = correction[:, : self.n_state]
@@ -451,7 +416,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents):
                 accel=field.accel,
                 jac=field.jac,
                 parameter_jac=field.parameter_jac if self.sensitive else None,
-                phi=None if self.events[-1].saltation is None else self._jumped(stepper.phi, self.events[-1]),
+                phi=None if self.events[-1].saltation is None else self.jacobians.after(stepper.phi, self.events[-1]),
             )
             if self.chooser is not None:
                 self.chooser.new_mode(self._probe(mode))

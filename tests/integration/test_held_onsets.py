@@ -157,27 +157,27 @@ def test_held_contacts_returns_the_references_it_sets():
 def test_the_events_saltation_product_is_formed_once(monkeypatch):
     """At the corner's lift-off (t = 0) and the side corner's slip (0.062 s) the mode after
     holds the corner at rest: its onset (`HeldEvents._held_onsets`) and the stepper's restart
-    (`HybridLoop._jumped`) both read ``Ξ φ`` of the event: read twice, formed once
-    (`HybridLoop._salted`)."""
+    (`EventJacobians.after`) both read ``Ξ φ`` of the event: read twice, formed once
+    (`EventJacobians.salted`)."""
     from collections import Counter
 
-    from contactdiff.integration.hybrid_loop import HybridLoop
+    from contactdiff.integration.event_jacobians import EventJacobians
 
     reads, formed, onsets = Counter(), Counter(), []
-    salted, held_onsets = HybridLoop._salted, HeldEvents._held_onsets
+    salted, held_onsets = EventJacobians.salted, HeldEvents._held_onsets
 
     def spy(self, phi, event):
-        before = self._salted_last
+        before = self._last
         out = salted(self, phi, event)
         reads[id(event)] += 1
-        formed[id(event)] += self._salted_last is not before
+        formed[id(event)] += self._last is not before
         return out
 
     def onset_spy(self, t, q, v, mode, found, start):
         onsets.append(len(self.events))
         return held_onsets(self, t, q, v, mode, found, start)
 
-    monkeypatch.setattr(HybridLoop, "_salted", spy)
+    monkeypatch.setattr(EventJacobians, "salted", spy)
     monkeypatch.setattr(HeldEvents, "_held_onsets", onset_spy)
     traj = cd.simulate(pushed_cube(), 0.065, jacobian=True, rtol=1e-10, atol=1e-12, max_step=2e-3)
     assert [(e.kind, e.contacts) for e in traj.events] == [("lift-off", (CORNER,)), ("slip", ("cube/+x-y-z",))]

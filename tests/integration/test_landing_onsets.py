@@ -95,21 +95,21 @@ def test_a_slip_from_rest_after_a_simultaneous_landing_carries_its_reference(t_f
 
 def test_the_landings_saltation_product_is_formed_once(monkeypatch):
     """The slip's onset after the landing (`_simultaneous_onsets`) and the stepper's restart
-    (`HybridLoop._jumped`) both read ``Ξ φ`` of the landing: it is read twice and formed
-    once (`HybridLoop._salted`)."""
-    from contactdiff.integration.hybrid_loop import HybridLoop
+    (`EventJacobians.after`) both read ``Ξ φ`` of the landing: it is read twice and formed
+    once (`EventJacobians.salted`)."""
+    from contactdiff.integration.event_jacobians import EventJacobians
 
     reads, formed = Counter(), Counter()
-    salted = HybridLoop._salted
+    salted = EventJacobians.salted
 
     def spy(self, phi, event):
-        before = self._salted_last
+        before = self._last
         out = salted(self, phi, event)
         reads[id(event)] += 1
-        formed[id(event)] += self._salted_last is not before
+        formed[id(event)] += self._last is not before
         return out
 
-    monkeypatch.setattr(HybridLoop, "_salted", spy)
+    monkeypatch.setattr(EventJacobians, "salted", spy)
     options = dict(zeno_speed=1e-3, **OPTS)
     traj = cd.simulate(landing_scene(), 0.0213, jacobian=True, parameters=["body:cube:mass"], **options)
     assert _events(traj) == [("touchdown", EDGE)]
