@@ -7,8 +7,10 @@ finite set of values is valid, lists them.
 from __future__ import annotations
 
 import importlib
+from enum import StrEnum
 from pathlib import Path
 from types import ModuleType
+from typing import TypeVar
 
 
 class ContactDiffError(Exception):
@@ -228,7 +230,8 @@ def check_number(owner: str, name: str, value, *, minimum: float | None = None, 
     ±inf), else `InvalidInputError` naming ``owner`` and ``name`` and showing the value.
 
     The project's one set of input checks: `check_number`, `check_count`,
-    `check_vector`, `check_output_file`; every module validates through them.
+    `check_vector`, `check_member`, `check_output_file`; every module validates
+    through them.
     A boolean is not a number here (``restitution = true`` would be 1)."""
     import numpy as np
 
@@ -253,6 +256,18 @@ def check_count(owner: str, name: str, value, *, minimum: int = 0) -> int:
     if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < minimum:
         raise InvalidInputError(f"{owner}: {name} must be an integer >= {minimum}, got {value!r}")
     return int(value)
+
+
+_E = TypeVar("_E", bound=StrEnum)
+
+
+def check_member(name: str, value: object, enum_type: type[_E]) -> _E:
+    """``value`` as a member of the string enum ``enum_type`` (a member or its value),
+    else `InvalidInputError` naming the option ``name``, showing the value and listing
+    the valid values. Only a string can be one: a bool, None or an array is refused."""
+    if not isinstance(value, str) or value not in tuple(enum_type):
+        raise InvalidInputError(f"{name} must be one of {', '.join(enum_type)}; got {value!r}")
+    return enum_type(value)
 
 
 def check_vector(owner: str, name: str, value, size: int, labels=None):

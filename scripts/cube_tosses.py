@@ -26,7 +26,6 @@ from __future__ import annotations
 import argparse
 import functools
 import json
-import math
 import statistics
 import sys
 import time
@@ -35,24 +34,23 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
-import pinocchio as pin
 
 import contactdiff as cd
 from contactdiff.data.cube_recordings import (
-    WINDOW_CLEARANCE,
     Start,
-    lowest_corner,
     split,
     toss_errors,
     toss_recording,
     toss_windows,
 )
 from contactdiff.data.cube_tosses import NOMINAL, load_tosses
+from contactdiff.data.toss_checks import length_check
+from contactdiff.data.toss_evaluation import evaluate_start, start_noise
 from contactdiff.fit import Loss, ResidualWeights, Scaled, Windows, fit
 from contactdiff.fit.evaluation import StateFit, Task, evaluate
 from contactdiff.fit.parameters import FitPlan
 from contactdiff.fit.rest import REST_SAMPLES, rest_height
-from contactdiff.fit.rollouts import rollout, rollouts
+from contactdiff.fit.rollouts import rollout
 
 ANCHORS = {"Drake": (13.5, 8.2, 16.5, 20.0), "Bullet": (14.9, 8.9, 16.5, 20.2), "MuJoCo": (25.1, 10.8, 21.7, 21.4)}
 """Acosta, Yang, Posa (RA-L 2022), tuned on all tosses: position % (mean, std), rotation deg (mean, std)."""
@@ -84,22 +82,6 @@ def training_recordings(tosses, names, args, scene) -> list:
     ]
 
 
-def summary(errors: list[tuple[float, float]]) -> dict:
-    pos = [e[0] for e in errors]
-    rot = [e[1] for e in errors]
-    if not pos:
-        return {"tosses": 0}
-    return {
-        "tosses": len(pos),
-        "position_mean": statistics.fmean(pos),
-        "position_std": statistics.pstdev(pos),
-        "position_median": statistics.median(pos),
-        "rotation_mean": statistics.fmean(rot),
-        "rotation_std": statistics.pstdev(rot),
-        "rotation_median": statistics.median(rot),
-    }
-
-
 def base_parameters(args):
     """The cube's parameters the fit starts from: the board at --ground, lengths and g scaled by --length-scale,
     μ, e and the moments from --friction, --restitution and --moment-scale."""
@@ -115,36 +97,11 @@ def base_parameters(args):
 
 
 def evaluate_held_out(tosses, names, values, jobs, label, options, source=cd.cube_scene) -> dict:
-    """Both starts' rollouts of the held-out ``names`` at ``values``: metrics, failures, worst tosses."""
+    """Both starts' rollouts of the held-out ``names`` at ``values`` (`evaluate_start`), each
+    start's line on stderr as it ends."""
     out = {}
     for start in Start:
-        recs = [toss_recording(tosses[n], start) for n in names]
-        runs = rollouts(source, recs, values, jobs=jobs, options=options, progress=None)
-        errors, failed, rows = [], [], []
-        for rec, run in zip(recs, runs):
-            if not run.complete:
-                failed.append(f"{rec.name}: {run.error}")
-                continue
-            e = toss_errors(rec, run.q)
-            errors.append(e)
-            rows.append(
-                {
-                    "toss": rec.name,
-                    "position": e[0],
-                    "rotation": e[1],
-                    "wall": run.wall,
-                    "events": run.events,
-                    "nonsmooth": run.nonsmooth,
-                }
-            )
-        rows.sort(key=lambda r: -r["position"])
-        out[start.value] = summary(errors) | {
-            "failed": failed,
-            "worst": rows[:8],
-            "not_differentiable": sum(bool(r["nonsmooth"]) for r in rows),
-            "wall_median": statistics.median([r["wall"] for r in rows]) if rows else None,
-            "per_toss": [[r["toss"], r["position"], r["rotation"]] for r in rows],
-        }
+        out[start.value] = evaluate_start(tosses, names, values, start, jobs, options, source)
         print(f"{label}, start {start.value}: " + _line(out[start.value]), file=sys.stderr, flush=True)
     return out
 
@@ -157,83 +114,6 @@ def _line(s: dict) -> str:
         f"(median {s['position_median']:.1f}), rotation {s['rotation_mean']:.1f} ± {s['rotation_std']:.1f} deg "
         f"(median {s['rotation_median']:.1f}); {len(s['failed'])} failed"
     )
-
-
-def length_check(tosses) -> dict:
-    """The data's gravity and the cube's rest height, each against the model's: a parabola z(t) through
-    each toss's first flight (at least 8 samples whose lowest corner clears the board by
-    WINDOW_CLEARANCE) gives g; the centre's mean height over each toss's last 20 samples (at rest
-    on a face) the rest height. Medians over tosses, and each as a ratio to 9.81 m/s² and edge / 2.
-    Also the data's noise in free flight: the RMS of a parabola's residuals per axis (m; 3 of
-    each axis's samples spent on the fit), and of the rotation vector between consecutive samples
-    about its flight's mean over √2 (rad: the body-frame rate is constant in free flight, and
-    each step's vector holds two samples' noise)."""
-    g, rest, position_noise, rotation_noise = [], [], [], []
-    for toss in tosses.values():
-        free = lowest_corner(toss) > WINDOW_CLEARANCE
-        k = int(np.argmin(free)) if not free.all() else len(toss)
-        if k >= 8:
-            g.append(-2.0 * np.polyfit(toss.t[:k], toss.position[:k, 2], 2)[0])
-            V = np.vander(toss.t[:k], 3)
-            coefficients, *_ = np.linalg.lstsq(V, toss.position[:k], rcond=None)
-            position_noise.append(float(np.sqrt(np.sum((toss.position[:k] - V @ coefficients) ** 2) / (3 * (k - 3)))))
-            R = [pin.Quaternion(*q).normalized().matrix() for q in toss.quaternion[:k]]
-            steps = np.array([pin.log3(a.T @ b) for a, b in zip(R[:-1], R[1:])])  # constant in free flight
-            rotation_noise.append(float(np.std(steps - steps.mean(axis=0)) / math.sqrt(2.0)))
-        rest.append(float(np.mean(toss.position[-20:, 2])))
-    g_median, rest_median = statistics.median(g), statistics.median(rest)
-    return {
-        "flights": len(g),
-        "g_median": g_median,
-        "g_quartiles": list(np.percentile(g, [25, 75])),
-        "g_ratio": g_median / NOMINAL.gravity,
-        "rest_median": rest_median,
-        "rest_ratio": rest_median / (NOMINAL.edge / 2.0),
-        "tosses": len(rest),
-        "position_noise_median": statistics.median(position_noise),
-        "rotation_noise_median": statistics.median(rotation_noise),
-    }
-
-
-START_NOISE = (2.3e-5, 3.2e-4)
-"""The data's noise in free flight (m per axis of position, rad per axis of orientation), medians
-over the tosses' first flights (`length_check`): the start's perturbations of `start_noise`."""
-
-
-def start_noise(tosses, names, values, jobs, options, source, draws: int, seed: int = 0) -> dict:
-    """How much of the held-out error is luck: each held-out toss's rollout from before touch at
-    ``values``, ``draws`` times from a start perturbed by the data's own noise (`START_NOISE`:
-    Gaussian per axis on the centre, a rotation ``R0 exp(δ)`` with Gaussian ``δ``; the velocity as
-    fitted). Per draw the mean over tosses; per toss the spread (largest less smallest error)."""
-    rng = np.random.default_rng(seed)
-    base = [toss_recording(tosses[n], Start.BEFORE_TOUCH) for n in names]
-    recs = []
-    for _ in range(draws):
-        for rec in base:
-            q0 = rec.q0.copy()
-            q0[:3] += START_NOISE[0] * rng.standard_normal(3)
-            rotation = pin.Quaternion(q0[6], q0[3], q0[4], q0[5]).normalized().matrix()
-            q0[3:7] = pin.Quaternion(rotation @ pin.exp3(START_NOISE[1] * rng.standard_normal(3))).coeffs()
-            recs.append(replace(rec, q0=q0))
-    runs = rollouts(source, recs, values, jobs=jobs, options=options, progress=None)
-    errors = np.full((draws, len(base)), np.nan)
-    for i, (rec, run) in enumerate(zip(recs, runs)):
-        if run.complete:
-            errors[i // len(base), i % len(base)] = toss_errors(rec, run.q)[0]
-    means = np.nanmean(errors, axis=1)
-    spread = np.nanmax(errors, axis=0) - np.nanmin(errors, axis=0)
-    return {
-        "draws": draws,
-        "noise": list(START_NOISE),
-        "failed": int(np.isnan(errors).sum()),
-        "draw_means": means.tolist(),
-        "draw_mean_std": float(np.std(means)),
-        "best_of_draws_mean": float(np.mean(np.nanmin(errors, axis=0))),
-        "worst_of_draws_mean": float(np.mean(np.nanmax(errors, axis=0))),
-        "spread_median": float(np.median(spread)),
-        "tosses_spread_over_10": int(np.sum(spread > 10.0)),
-        "per_toss": {n: errors[:, j].tolist() for j, n in enumerate(names)},
-    }
 
 
 def jacobian_cost(recordings, scene, options, parameters, state: StateFit = StateFit.NONE) -> dict:

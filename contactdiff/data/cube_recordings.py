@@ -31,7 +31,7 @@ from enum import StrEnum
 import numpy as np
 import pinocchio as pin
 
-from ..errors import InvalidInputError
+from ..errors import InvalidInputError, check_member
 from ..fit.metrics import position_error, rotation_error
 from ..fit.recordings import Recording
 from ..fit.windows import FIRST_START, Windows, cut
@@ -86,12 +86,7 @@ def toss_recording(toss: Toss, start: Start | str = Start.FIRST, parameters: Cub
     Raises:
         InvalidInputError: an unknown start (the valid ones listed).
     """
-    try:
-        start = Start(start)
-    except ValueError:
-        raise InvalidInputError(
-            f"toss start must be one of {', '.join(s.value for s in Start)}, got {start!r}"
-        ) from None
+    start = check_member("toss start", start, Start)
     q = toss.configurations()
     if start is Start.FIRST:
         k0 = 0

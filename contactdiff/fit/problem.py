@@ -34,21 +34,18 @@ from collections import Counter
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from enum import StrEnum
-from typing import TypeVar
 
 import numpy as np
 from scipy import sparse
 from scipy.optimize import least_squares
 
-from ..errors import FitError, InvalidInputError, check_count
+from ..errors import FitError, InvalidInputError, check_count, check_member
 from ..model.scene import Scene
 from .evaluation import Evaluation, StateFit, Task, evaluate
 from .loss import Loss
 from .parameters import FitPlan
 from .recordings import Recording
 from .residuals import ResidualWeights
-
-_E = TypeVar("_E", bound=StrEnum)
 
 FAILED_RESIDUAL = 1e3
 """A trial value at which a run fails gets every residual row this many times the start's RMS
@@ -280,11 +277,11 @@ def fit(
     recordings = list(recordings)
     if not recordings or not all(isinstance(r, Recording) for r in recordings):
         raise InvalidInputError("fit: recordings must be a non-empty list of contactdiff.fit.Recording")
-    state = _enum(StateFit, state, "state")
-    policy = _enum(NonDifferentiablePolicy, policy, "policy")
+    state = check_member("fit: state", state, StateFit)
+    policy = check_member("fit: policy", policy, NonDifferentiablePolicy)
     jobs = check_count("fit", "jobs", jobs, minimum=1)
     max_evaluations = check_count("fit", "max_evaluations", max_evaluations, minimum=1)
-    loss = _enum(Loss, loss, "loss")
+    loss = check_member("fit: loss", loss, Loss)
     if not (isinstance(f_scale, (int, float)) and math.isfinite(f_scale) and f_scale > 0.0):
         raise InvalidInputError(f"fit: f_scale must be a number > 0, got {f_scale!r}")
     workers = _Workers(scene, jobs, backend, progress)
@@ -401,15 +398,6 @@ def fit(
         rank_deficient,
         time.perf_counter() - started,
     )
-
-
-def _enum(kind: type[_E], value, name: str) -> _E:
-    try:
-        return kind(value)
-    except ValueError:
-        raise InvalidInputError(
-            f"fit: {name} must be one of {', '.join(k.value for k in kind)}, got {value!r}"
-        ) from None
 
 
 def _bound(values: np.ndarray, s: int, recordings, upper: bool = False) -> np.ndarray:

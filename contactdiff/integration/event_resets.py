@@ -328,7 +328,7 @@ class EventResets(LoopEvents):
                 event.parameter_time_gradient = np.zeros(self.jumps.p)
             if from_rest:
                 self._onset_columns(
-                    t, q, from_rest, self._jumped(self.phi, event), np.zeros(self.phi.shape[1]), new_mode
+                    t, q, from_rest, self.jacobians.after(self.phi, event), np.zeros(self.phi.shape[1]), new_mode
                 )
         elif self.sensitive:
             F_minus = vector_field(self.dyn, q, v_minus, t, mode)
@@ -345,8 +345,6 @@ class EventResets(LoopEvents):
                     for k, (jump, rate) in sim.corrections.items():
                         xi_p += np.outer(jump, self.jumps.gap_guard(k)) / rate
                 event.saltation_orders = {tuple(self.names[i] for i in k): m for k, m in sim.orders.items()}
-                if from_rest:  # the state after the reset at the event's time: Ξ φ + Ξ_p + F+ ∂t
-                    self._simultaneous_onsets(t, q, v_plus, Dh, F_minus, xi, xi_p, h_p, from_rest, new_mode)
             else:
                 DR = reset_jacobian()
                 F_plus = vector_field(self.dyn, q, v_plus, t, new_mode)
@@ -364,22 +362,26 @@ class EventResets(LoopEvents):
                         moved[:, self.n_state :] += R_p
                     self._onset_columns(t, q, from_rest, moved, dt, new_mode)
             self._attach_sensitivity(event, xi, Dh, F_minus, xi_p=xi_p, h_p=h_p)
+            if from_rest and len(touching) > 1:  # the state after the reset at the event's time
+                self._simultaneous_onsets(t, q, v_plus, Dh, F_minus, event, xi_p, h_p, from_rest, new_mode)
         elif len(touching) > 1 and not initial:  # the verdict must not depend on what was asked for
             self._landing_orders(event, t, q, v_minus, mode, touching, closed, e, verdict_only=True)
         self.events.append(event)
         return new_mode, v_plus
 
-    def _simultaneous_onsets(self, t, q, v_plus, Dh, F_minus, xi, xi_p, h_p, from_rest, new_mode) -> None:
+    def _simultaneous_onsets(self, t, q, v_plus, Dh, F_minus, event, xi_p, h_p, from_rest, new_mode) -> None:
         """The slips from rest that Coulomb's law settles after a simultaneous landing
         (`_onset_columns`): the state after the reset moved with the event's time,
         ``Ξ φ + Ξ_p + F+ ∂t`` (for a single landing ``DR (φ + F- ∂t) + ∂R/∂p``), ``∂t`` that of
-        the guard the event's time gradient uses."""
+        the guard the event's time gradient uses. ``event`` carries its saltation matrix
+        ``Ξ``: ``Ξ φ`` is the product the stepper restarts from (`EventJacobians.salted`)."""
+        assert self.phi is not None  # called only in a sensitive run
         rate = float(Dh @ F_minus)
         dt = -(Dh @ self.phi)
         if h_p is not None:
             dt[self.n_state :] -= h_p
         dt /= rate
-        moved = xi @ self.phi + np.outer(vector_field(self.dyn, q, v_plus, t, new_mode), dt)
+        moved = self.jacobians.salted(self.phi, event) + np.outer(vector_field(self.dyn, q, v_plus, t, new_mode), dt)
         if xi_p is not None:
             moved[:, self.n_state :] += xi_p
         self._onset_columns(t, q, from_rest, moved, dt, new_mode)

@@ -79,7 +79,13 @@ floors (``zeno_speed``, as an impact's creeping rule) slips along its own slip."
 
 
 def settle_friction(
-    dyn: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float, mode: tuple[int, ...], from_rest: list | None = None
+    dyn: ModeDynamics,
+    q: np.ndarray,
+    v: np.ndarray,
+    t: float,
+    mode: tuple[int, ...],
+    from_rest: list | None = None,
+    references: dict[int, np.ndarray] | None = None,
 ) -> tuple[tuple[int, ...], ModeSolution]:
     """The mode after Coulomb's law on ``mode`` at ``(q, v, t)``.
 
@@ -88,7 +94,8 @@ def settle_friction(
     repeated until every sticking contact is inside its cone. Returns the mode and
     its `ModeSolution` there. ``from_rest``, if given, gets ``(scene index, mode)`` for
     each contact that slips from rest, in order, ``mode`` the one whose sticking force
-    set its reference (`FrictionEvents._onset_columns`).
+    set its reference (`FrictionEvents._onset_columns`). ``references``, if given, gets
+    each slip reference set on ``dyn.slip_reference`` (``{scene index: unit vector}``).
 
     Raises:
         PainleveError: a slipping contact has no consistent force (Painlevé).
@@ -115,6 +122,8 @@ def settle_friction(
             speed = float(np.linalg.norm(slip))
             moving = speed > SLIPPING_FLOORS * dyn.slip_speed_floor
             dyn.slip_reference[index] = slip / speed if moving else -f[1:] / np.linalg.norm(f[1:])
+            if references is not None:
+                references[index] = dyn.slip_reference[index]
             if not moving and from_rest is not None:
                 from_rest.append((index, mode))
             keys[keys.index(key)] = dyn.sliding_key(index)

@@ -72,12 +72,13 @@ def held_contacts(
     gap_tol: float,
     speed_tol: float,
     from_rest: list | None = None,
-) -> dict[int, int]:
-    """The contacts ``mode`` holds at zero gap, each with its key in the enlarged set.
+) -> tuple[dict[int, int], dict[int, np.ndarray]]:
+    """The contacts ``mode`` holds at zero gap, each with its key in the enlarged set, and
+    the slip references set on ``dyn`` to find them.
 
     Args:
         dyn: the scene's `ModeDynamics` (its kinematics cache is moved to ``(q, v)``;
-            the slip reference of a held contact that slips is set to its slip).
+            slip references are set on ``dyn.slip_reference``: the second value returned).
         q: configuration (nq,).
         v: velocity (nv,), tangent space.
         t: time (s), for time-dependent efforts.
@@ -94,23 +95,29 @@ def held_contacts(
             set it bears with (`HeldEvents._held_onsets` carries its reference's angle).
 
     Returns:
-        ``{scene index: key}``: the contacts whose rows (sticking, or sliding along its slip
-        for a Coulomb contact slipping faster than ``speed_tol``) add no rank to the mode's,
-        each with its key as Coulomb's law settles the enlarged set ``mode + (key,)``
-        (`settle_friction`: a held contact at rest whose sticking force there would leave
-        its cone bears sliding; the guard then watches the load it would bear with). One
-        whose enlarged set has no solution is left out, as is a contact without Coulomb
-        friction that slips (its sticking rows would add a constraint): both keep their
-        gap guard.
+        ``(held, references)``. ``held``, ``{scene index: key}``: the contacts whose rows
+        (sticking, or sliding along its slip for a Coulomb contact slipping faster than
+        ``speed_tol``) add no rank to the mode's, each with its key as Coulomb's law
+        settles the enlarged set ``mode + (key,)`` (`settle_friction`: a held contact at
+        rest whose sticking force there would leave its cone bears sliding; the guard
+        then watches the load it would bear with). One whose enlarged set has no solution
+        is left out, as is a contact without Coulomb friction that slips (its sticking
+        rows would add a constraint): both keep their gap guard. ``references``,
+        ``{scene index: unit vector}``: every slip reference set on
+        ``dyn.slip_reference`` on the way (the last value where set twice): a held
+        contact's own slip, and those Coulomb's law sets settling each enlarged set,
+        which can be a contact of ``mode`` itself that sticks in ``mode`` but slips in an
+        enlarged set (its entry overwritten).
     """
+    references: dict[int, np.ndarray] = {}
     if not mode:
-        return {}
+        return {}, references
     active = dyn.contacts_of(mode)
     closed = [
         i for i, (g, r) in enumerate(zip(gaps, rates)) if i not in active and g <= gap_tol and abs(r) <= speed_tol
     ]
     if not closed:
-        return {}
+        return {}, references
     dyn.kin.update(q, v)
     A = mode_rows(dyn, mode)
     rank = row_rank(A)
@@ -122,19 +129,19 @@ def held_contacts(
         if len(slip) and np.max(np.abs(slip)) > speed_tol:
             if not contact.spec.coulomb:
                 continue
-            dyn.slip_reference[i] = slip / np.linalg.norm(slip)
+            dyn.slip_reference[i] = references[i] = slip / np.linalg.norm(slip)
             key = dyn.sliding_key(i)
         if row_rank(np.vstack([A, dyn.contact(key).rows(dyn.kin)])) != rank:
             continue
         found: list = []
         try:  # its key as Coulomb's law settles the enlarged set, the one it would bear with
-            settled, _ = settle_friction(dyn, q, v, t, enlarged(mode, key), found)
+            settled, _ = settle_friction(dyn, q, v, t, enlarged(mode, key), found, references)
         except (PainleveError, SolverError):
             continue
         held[i] = next(k for k in settled if dyn.contact_index(k) == i)
         if from_rest is not None:
             from_rest.extend((index, rows, settled) for index, rows in found if index == i)
-    return held
+    return held, references
 
 
 def held_slips(dyn: ModeDynamics, q: np.ndarray, mode) -> list[int]:
@@ -219,9 +226,6 @@ class HeldEvents(LoopEvents):
         fields: Sequence[HoldingField]  # the loop's ModeField objects
         initial_saltation: np.ndarray | None
 
-        def _identity_phi(self) -> np.ndarray: ...
-        def _jumped(self, phi: np.ndarray | None, event) -> np.ndarray: ...
-
     def _held_onsets(self, t, q, v, mode, found: list, start: bool) -> None:
         """Carry the references of the held contacts at rest that `held_contacts` set at the
         start of ``mode`` (``found``: its ``from_rest`` entries) as onsets' angles
@@ -231,15 +235,15 @@ class HeldEvents(LoopEvents):
         start, whose time is fixed). The reference acts once the contact bears with it (its
         load in the enlarged set, the bearing guard, moves with ``θ`` by a force proportional
         to that load: zero where it fires)."""
-        n_cols = self._identity_phi().shape[1]
+        n_cols = self.jacobians.identity().shape[1]
         dt = np.zeros(n_cols)
         if start:
-            phi = self.initial_saltation if self.initial_saltation is not None else self._identity_phi()
+            phi = self.initial_saltation if self.initial_saltation is not None else self.jacobians.identity()
         else:
             event = self.events[-1]
             if event.saltation is None or self.phi is None:
                 return  # not differentiable there: the run's Jacobian ends (its note says so)
-            phi = self._jumped(self.phi, event)
+            phi = self.jacobians.after(self.phi, event)
             n = self.n_state
             if event.time_gradient is not None:
                 dt[:n] = event.time_gradient

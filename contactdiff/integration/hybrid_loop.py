@@ -33,6 +33,7 @@ from ..ode.step_budget import BudgetWatch
 from ..ode.step_collapse import CollapseWatch
 from ..scenes.scene_file import passive_note
 from .band import BandEvents
+from .event_jacobians import EventJacobians
 from .event_resets import EventResets
 from .final_time import final_touches
 from .friction_events import FrictionEvents, refuse_ambiguous_slip, settle_friction
@@ -52,7 +53,7 @@ GAP_TOL = 1e-12
 """m: a contact whose gap is below this is closed."""
 
 
-class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReports):
+class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents):
     """The hybrid loop of one run (described in `contactdiff.integration.hybrid`); `simulate` is
     ``HybridLoop(...).run()``.
 
@@ -67,9 +68,14 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReport
     Extension: override `initial_mode` and `on_event` (see there). The state a
     subclass may read: ``scene``, ``dyn`` (its `ModeDynamics`), ``kin`` (the
     scene's kinematics cache), ``contacts``, ``names``, ``options``, ``events``,
-    ``segments``, ``notes``, and ``phi``, the flow Jacobian just before the event
-    being processed (with ``options.jacobian`` or ``options.parameters``: its columns are
-    the state's 2nv with ``jacobian``, then the parameters').
+    ``segments``, ``notes``, ``t0``, ``jumps`` (the parameters' blocks at events, or
+    None), and ``phi``, the flow Jacobian just before the event being processed (with
+    ``options.jacobian`` or ``options.parameters``: its columns are the state's
+    ``n_state``, 2nv with ``jacobian`` else 0, then the parameters'). It may set
+    ``initial_saltation``, the flow Jacobian just after the start's events (from
+    `initial_mode`). What it may call: `gaps_and_rates` (every contact's gap and gap
+    rate at a state) and `jacobian_after` (the flow Jacobian just after an event, from
+    the one before it or from the start's).
     """
 
     def __init__(
@@ -105,10 +111,6 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReport
         self.fields: list[ModeField] = []  # one per mode visited, for the statistics
         self.retired: list = []  # steppers replaced by method="auto", for the statistics
         self.switches: list[tuple[float, str]] = []
-        self.max_drift = 0.0
-        self.n_projections = 0
-        self.n_near_misses = 0
-        self.n_probe_evaluations = 0
         self.phi = None  # flow Jacobian just before the event being processed
         self.initial_saltation = None
         self.jumps = None  # the parameters' blocks at events, with options.parameters
@@ -123,16 +125,27 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReport
             from ..model.parameters import resolve  # the model's names import the dynamics' scene
 
             self.jumps = ParameterJumps(self.dyn, resolve(self.scene, self.options.parameters))
+        self.jacobians = EventJacobians(self.scene.nv, self.n_state, self.jumps.p if self.jumps else 0)
         check_sample_times(self.options.sample_times, self.t0, self.t_final)
         self.recorder = SampleRecorder(self.options.sample_times, self.n_state, self.options.parameters)
-
-    def _identity_phi(self) -> np.ndarray:
-        """The flow Jacobian at the start: ``[I, 0]`` (2nv × (2nv + p)); without the state's
-        Jacobian, the p parameter columns only (zero)."""
-        n = 2 * self.scene.nv
-        phi = np.zeros((n, self.n_state + (self.jumps.p if self.jumps else 0)))
-        phi[:, : self.n_state] = np.eye(n, self.n_state)
-        return phi
+        # what the run reports: its trajectory, the errors carrying it, the near-grazing misses
+        self.reports = LoopReports(
+            self.scene,
+            self.t0,
+            self.t_final,
+            self.options,
+            self.n_state,
+            self.jumps,
+            self.recorder,
+            self.events,
+            self.segments,
+            self.notes,
+            self.fields,
+            self.retired,
+            self.switches,
+            mode_names=self._mode_names,
+            stiffness_probes=lambda: self.chooser.n_probes if self.chooser else 0,
+        )
 
     def _fused(self, method: str) -> bool:
         """Whether the field differentiates the mode at every evaluation (`ModeField`): with
@@ -149,7 +162,10 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReport
         found: list = []  # held contacts at rest that slide in their enlarged set
         if mode:
             gaps, rates = self._gaps_and_rates(q, v)
-            held = held_contacts(
+            # it also sets slip references on self.dyn (its second value, kept there): the held
+            # contacts' slips, which their bearing guards read, and the directions Coulomb's law
+            # gives the mode's own sticking contacts in the enlarged sets
+            held, _ = held_contacts(
                 self.dyn,
                 q,
                 v,
@@ -173,21 +189,6 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReport
             held_slips=held_slips(self.dyn, q, tuple(mode)) if mode else None,
         )
 
-    def _jumped(self, phi: np.ndarray | None, event: Event) -> np.ndarray:
-        """The flow Jacobian just after ``event`` from ``phi`` just before: ``Ξ phi``, plus
-        ``Ξ_p`` on the parameter columns, plus the event's terms through a slip's reference in
-        the band (``reference_jump``, ``parameter_reference_jump``: `Event`)."""
-        assert phi is not None and event.saltation is not None  # called only in a sensitive run
-        out = event.saltation @ phi
-        n = self.n_state
-        if event.parameter_saltation is not None:
-            out[:, n:] += event.parameter_saltation
-        if event.reference_jump is not None:
-            out[:, :n] += event.reference_jump
-        if event.parameter_reference_jump is not None:
-            out[:, n:] += event.parameter_reference_jump
-        return out
-
     # -- hooks ----------------------------------------------------------------------
     def on_event(self, event: Event, mode_before: tuple[int, ...], phi_before: np.ndarray | None) -> bool:
         """Called once for every event, in time order, after the loop has processed it
@@ -206,12 +207,21 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReport
         """
         return False
 
+    def jacobian_after(self, event: Event, phi: np.ndarray | None = None) -> np.ndarray:
+        """The flow Jacobian just after ``event`` (its saltation attached) from ``phi`` just
+        before it; None: the start's, ``[I, 0]`` (2nv × (2nv + p), as ``phi``'s columns)."""
+        return self.jacobians.after(self.jacobians.identity() if phi is None else phi, event)
+
     # -- small evaluations ------------------------------------------------------------
-    def _gaps_and_rates(self, q, v) -> tuple[np.ndarray, np.ndarray]:
+    def gaps_and_rates(self, q, v) -> tuple[np.ndarray, np.ndarray]:
+        """Every contact's gap (m) and gap rate (m/s) at ``(q, v)``, in the scene's order
+        (the kinematics cache is moved to ``(q, v)``)."""
         self.kin.update(q, v)
         gaps = np.array([c.gap(self.kin) for c in self.contacts])
         rates = np.array([c.gap_rate(self.kin) for c in self.contacts])
         return gaps, rates
+
+    _gaps_and_rates = gaps_and_rates  # the name run() and the event mixins call
 
     def _mode_names(self, mode) -> tuple[str, ...]:
         """Names of the contacts active (sticking or sliding) in ``mode``."""
@@ -242,10 +252,10 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReport
         sliding = [i for i in slips if not self.contacts[i].spec.coulomb]
         if any(rates[i] < -self.options.grazing_speed for i in closed) or sliding:
             if self.sensitive:
-                self.phi = self._identity_phi()
+                self.phi = self.jacobians.identity()
             mode, v_plus = self._impact(self.t0, q, v, (), closed, closed, initial=True)
             if self.sensitive:
-                self.initial_saltation = self._jumped(self._identity_phi(), self.events[-1])
+                self.initial_saltation = self.jacobians.after(self.jacobians.identity(), self.events[-1])
             return mode, v_plus
         candidates = [i for i in closed if rates[i] <= self.options.grazing_speed]
         for i in set(slips) & set(candidates):
@@ -257,7 +267,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReport
             from_rest: list = []
             mode, _ = settle_friction(self.dyn, q, v, self.t0, mode, from_rest)
             if self.sensitive and from_rest:  # no guard at t0: the start's own perturbations
-                start = self._identity_phi()
+                start = self.jacobians.identity()
                 self._onset_columns(
                     self.t0, q, [(i, m, v) for i, m in from_rest], start, np.zeros(start.shape[1]), mode
                 )
@@ -294,7 +304,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReport
             q,
             v,
             jac=field.jac,
-            variational=self._identity_phi() if self.sensitive else None,
+            variational=self.jacobians.identity() if self.sensitive else None,
             **self._stepper_options(field),
         )
         if self.sensitive and self.initial_saltation is not None:
@@ -315,7 +325,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReport
                     f"max_steps = {options.max_steps} steps taken by t = {stepper.t:.6g} s of "
                     f"t_final = {self.t_final:g} s (last step {h:.3g} s); "
                     "raise max_steps, or look for a runaway state",
-                    self._trajectory(stepper, Termination.MAX_STEPS),
+                    self.reports.trajectory(stepper, Termination.MAX_STEPS),
                 )
             if stepper.t >= next_break:
                 next_break = scene.next_breakpoint(stepper.t)
@@ -325,7 +335,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReport
             try:
                 stepper.step()
             except StepSizeUnderflowError as exc:  # the extreme of a collapse: said as one, with the run so far
-                self._collapse(stepper, mode, exc.h, watch.typical, underflow=str(exc))
+                self.reports.collapse(stepper, mode, exc.h, watch.typical, underflow=str(exc))
             except PainleveError as exc:  # a slip that jams stops here (`contactdiff.integration.jam`)
                 jam = jam_or_raise(self.dyn, stepper, mode, watch.typical, exc)
             if jam is None:
@@ -349,7 +359,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReport
             if jam is not None:  # at the last accepted state: no step to cut back
                 crossings, misses, dense = [(stepper.t, jam.guard)], [], None
             if not crossings:
-                self._near_misses(misses, np.inf)
+                self.reports.near_misses(misses, np.inf)
                 gaps, rates, forces = gaps1, rates1, forces1
                 projected = mode and self._project(stepper, mode, gaps1)
                 if projected:
@@ -362,9 +372,9 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReport
                 self.recorder.take(stepper)
                 clipped = stepper.t == stepper.t_bound
                 if watch.after_step(h, clipped):
-                    self._collapse(stepper, mode, h, watch.typical)
+                    self.reports.collapse(stepper, mode, h, watch.typical)
                 if projection := budget.after_step(h, clipped, self.t_final - stepper.t, steps):
-                    self._over_budget(stepper, mode, steps, *projection)
+                    self.reports.over_budget(stepper, mode, steps, *projection)
                 # at rest: to t_final in one step, or to the next sample time (steps end on them)
                 if rest.settle(stepper, field, mode, segment, min(self.t_final, self.recorder.next_time)):
                     self.recorder.take(stepper)
@@ -377,7 +387,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReport
             watch.new_mode()
             budget.new_regime()
             t_event, fired = simultaneous_group(crossings, options.simultaneous_tol)
-            self._near_misses(misses, t_event)
+            self.reports.near_misses(misses, t_event)
             if dense is not None:
                 stepper.truncate(t_event)
                 dense.t = t_event
@@ -392,7 +402,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReport
                 exact = exact and len(self.events) == n_before + 1
                 q_after = self.events[-1].q
                 correction = self._band_after(band, t_event, q_after, stepper.v, mode_before, mode, v_plus, exact)
-                if correction is not None:  # recorded on the event, which `_jumped` applies
+                if correction is not None:  # recorded on the event, which `jacobians.after` applies
                     last = self.events[-1]
                     if self.options.jacobian:
                         last.reference_jump = correction[:, : self.n_state]
@@ -404,7 +414,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReport
                     f"more than max_events = {options.max_events} events by t = {t_event:.17g} "
                     f"(last: {self.events[-1].kind} of {', '.join(self.events[-1].contacts)}); "
                     "raise max_events or zeno_speed",
-                    self._trajectory(stepper, Termination.MAX_EVENTS),
+                    self.reports.trajectory(stepper, Termination.MAX_EVENTS),
                 )
             if jam is not None:
                 self.events[n_before].nonsmooth[NonSmooth.PAINLEVE_JAM] = self._note(jam.remark(self.names))
@@ -422,7 +432,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReport
                 accel=field.accel,
                 jac=field.jac,
                 parameter_jac=field.parameter_jac if self.sensitive else None,
-                phi=None if self.events[-1].saltation is None else self._jumped(stepper.phi, self.events[-1]),
+                phi=None if self.events[-1].saltation is None else self.jacobians.after(stepper.phi, self.events[-1]),
             )
             if self.chooser is not None:
                 self.chooser.new_mode(self._probe(mode))
@@ -432,8 +442,8 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReport
             gaps, rates = self._gaps_and_rates(stepper.q, stepper.v)
             forces = field.guard_values(stepper.t, stepper.q, stepper.v)
             if stop:
-                return self._trajectory(stepper, Termination.STOPPED)
-        traj = self._trajectory(stepper, Termination.T_FINAL)
+                return self.reports.trajectory(stepper, Termination.STOPPED)
+        traj = self.reports.trajectory(stepper, Termination.T_FINAL)
         if touches := final_touches(
             self.names,
             *self._gaps_and_rates(traj.q, traj.v),
@@ -452,7 +462,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReport
         the mode's accelerations; they bypass the mode field and its counters)."""
 
         def accel(t, q, v):
-            self.n_probe_evaluations += 1
+            self.reports.n_probe_evaluations += 1
             return self.dyn.solve(q, v, t, mode).ddq
 
         return field_probe(accel, self.group)
@@ -490,7 +500,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReport
         """Project the stepper's state back onto the manifold of ``mode`` when its gap
         drift exceeds ``project_tol``; whether it did."""
         drift = max(abs(gaps[i]) for i in self.dyn.contacts_of(mode))
-        self.max_drift = max(self.max_drift, drift)
+        self.reports.max_drift = max(self.reports.max_drift, drift)
         if drift <= self.options.resolved_project_tol:
             return False
         q, v, D = project_state(self.dyn, stepper.q, stepper.v, mode, jacobian=self.sensitive)
@@ -499,5 +509,5 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents, LoopReport
             assert phi is not None  # a run with parameters is sensitive: D is computed
             phi[:, self.n_state :] += self.jumps.projection(q, mode)
         stepper.restart(stepper.t, q, v, phi=phi)
-        self.n_projections += 1
+        self.reports.n_projections += 1
         return True

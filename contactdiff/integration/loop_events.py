@@ -20,6 +20,7 @@ if TYPE_CHECKING:
     from ..model.contacts import BoundContact
     from ..model.kinematics import Kinematics
     from ..model.scene import Scene
+    from .event_jacobians import EventJacobians
     from .guards import Guard
     from .options import SimulateOptions
     from .parameter_jumps import ParameterJumps
@@ -44,6 +45,7 @@ class LoopEvents:
         gap_tol: float
         onsets: dict[int, np.ndarray]
         band_dt: np.ndarray | None
+        jacobians: EventJacobians
 
         def _gaps_and_rates(self, q, v) -> tuple[np.ndarray, np.ndarray]: ...
         def _mode_names(self, mode) -> tuple[str, ...]: ...

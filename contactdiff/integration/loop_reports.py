@@ -2,13 +2,16 @@
 that end a run with the run so far on them (`StepCollapseError`, `StepBudgetError`), and the
 near-grazing misses (a note each, or `GrazingError`).
 
-`LoopReports` is a mixin of `contactdiff.integration.hybrid_loop.HybridLoop`: it reads the
-loop's state, declared below for the type checker (it exists at run time through
-`HybridLoop` only).
+`LoopReports` is an object the loop (`contactdiff.integration.hybrid_loop.HybridLoop`) holds
+as ``reports``, given its inputs explicitly: the run's description, the record lists the loop
+appends to, and two functions of the loop's state (a mode's names, the stiffness probes run).
+It keeps the run's counts that the loop adds to (drift, projections, probe evaluations) and
+counts the near-grazing misses itself.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 from ..errors import GrazingError, StepBudgetError, StepCollapseError
@@ -20,7 +23,6 @@ from .trajectory import RunStats, Termination, Trajectory
 
 if TYPE_CHECKING:
     from ..model.scene import Scene
-    from ..ode.method_choice import MethodChooser
     from .mode_field import ModeField
     from .options import SimulateOptions
     from .parameter_jumps import ParameterJumps
@@ -33,36 +35,66 @@ near-grazing misses (all are counted in the statistics)."""
 
 
 class LoopReports:
-    """The loop's records and reports (module doc)."""
+    """The loop's records and reports (module doc).
 
-    if TYPE_CHECKING:  # the state it reads of HybridLoop (set there), for the type checker only
-        scene: Scene
-        t0: float
-        t_final: float
-        options: SimulateOptions
-        names: list[str]
-        events: list[Event]
-        segments: list[Segment]
-        notes: list[str]
-        fields: list[ModeField]
-        retired: list
-        switches: list[tuple[float, str]]
-        chooser: MethodChooser | None
-        max_drift: float
-        n_projections: int
-        n_near_misses: int
-        n_probe_evaluations: int
-        n_state: int
-        jumps: ParameterJumps | None
-        recorder: SampleRecorder
+    Args:
+        scene: the run's `Scene` (its name, start state and model).
+        t0: start time (s).
+        t_final: final time (s).
+        options: the run's `SimulateOptions`.
+        n_state: the flow Jacobian's state columns (2nv with ``options.jacobian``, else 0).
+        jumps: the parameters' blocks at events (`ParameterJumps`), or None.
+        recorder: the run's `SampleRecorder`.
+        events: the run's events, a list the loop appends to (the same object).
+        segments: its segments, likewise.
+        notes: its notes, likewise (the near-grazing misses add theirs).
+        fields: the mode fields of the modes visited, likewise (their evaluation counts).
+        retired: the steppers ``method="auto"`` replaced, likewise.
+        switches: ``method="auto"``'s switches ``(t, method)``, likewise.
+        mode_names: the names of a mode's active contacts (a mode: its contact keys).
+        stiffness_probes: the stiffness probes run so far (0 without ``method="auto"``).
 
-        def _mode_names(self, mode) -> tuple[str, ...]: ...
+    Attributes:
+        max_drift: largest active-gap drift found (m; the loop raises it).
+        n_projections: projections onto the constraint manifold (the loop counts them).
+        n_probe_evaluations: the stiffness probes' mode solves (the loop counts them).
+        n_near_misses: near-grazing misses (`near_misses` counts them).
+    """
 
-    def _collapse(self, stepper, mode, h: float, typical: float, underflow: str | None = None):
+    def __init__(
+        self,
+        scene: Scene,
+        t0: float,
+        t_final: float,
+        options: SimulateOptions,
+        n_state: int,
+        jumps: ParameterJumps | None,
+        recorder: SampleRecorder,
+        events: list[Event],
+        segments: list[Segment],
+        notes: list[str],
+        fields: list[ModeField],
+        retired: list,
+        switches: list[tuple[float, str]],
+        mode_names: Callable[[tuple[int, ...]], tuple[str, ...]],
+        stiffness_probes: Callable[[], int],
+    ):
+        self.scene, self.t0, self.t_final, self.options = scene, t0, t_final, options
+        self.names = scene.contact_names
+        self.n_state, self.jumps, self.recorder = n_state, jumps, recorder
+        self.events, self.segments, self.notes, self.fields = events, segments, notes, fields
+        self.retired, self.switches = retired, switches
+        self.mode_names, self.stiffness_probes = mode_names, stiffness_probes
+        self.max_drift = 0.0
+        self.n_projections = 0
+        self.n_probe_evaluations = 0
+        self.n_near_misses = 0
+
+    def collapse(self, stepper, mode, h: float, typical: float, underflow: str | None = None):
         """Raise `StepCollapseError` (`contactdiff.ode.step_collapse`) at the stepper's
         point; ``underflow``: the stepper's own underflow message, where the steps shrank to
         the resolution of time before the count of short steps was reached."""
-        names = self._mode_names(mode)
+        names = self.mode_names(mode)
         how = (
             f"the step shrank to the resolution of time ({underflow})"
             if underflow
@@ -74,25 +106,27 @@ class LoopReports:
             f"{how}, with no event; the vector field is singular or nearly "
             "so here (a mechanism reaching a singular pose with its contacts held, e.g. a leg folded flat, "
             "or a force that blows up in finite time)",
-            self._trajectory(stepper, Termination.STEP_COLLAPSE),
+            self.trajectory(stepper, Termination.STEP_COLLAPSE),
             stepper.t,
             names,
             h,
         )
 
-    def _over_budget(self, stepper, mode, steps: int, needed: float, reference: float):
+    def over_budget(self, stepper, mode, steps: int, needed: float, reference: float):
         """Raise `StepBudgetError` (`contactdiff.ode.step_budget`) at the stepper's point."""
-        names = self._mode_names(mode)
+        names = self.mode_names(mode)
         raise StepBudgetError(
             budget_message(self.options.max_steps, self.t_final, stepper.t, names, steps, needed, reference),
-            self._trajectory(stepper, Termination.MAX_STEPS),
+            self.trajectory(stepper, Termination.MAX_STEPS),
             stepper.t,
             names,
             reference,
             needed,
         )
 
-    def _trajectory(self, stepper, termination: Termination) -> Trajectory:
+    def trajectory(self, stepper, termination: Termination) -> Trajectory:
+        """The run so far as a `Trajectory` ending at the stepper's point, with ``termination``
+        and the run's statistics (every stepper's and mode field's counts)."""
         steppers = self.retired + [stepper]
         by_method: dict[str, int] = {}
         for st in steppers:
@@ -109,7 +143,7 @@ class LoopReports:
             method=self.options.method,
             steps_by_method=by_method,
             method_switches=[[t, m] for t, m in self.switches],
-            stiffness_probes=self.chooser.n_probes if self.chooser else 0,
+            stiffness_probes=self.stiffness_probes(),
             probe_evaluations=self.n_probe_evaluations,
             near_grazing_misses=self.n_near_misses,
         )
@@ -135,7 +169,7 @@ class LoopReports:
         )
 
     # -- detection ------------------------------------------------------------------
-    def _near_misses(self, misses: list[NearMiss], t_event: float) -> None:
+    def near_misses(self, misses: list[NearMiss], t_event: float) -> None:
         """Report the near-grazing misses of the last step before ``t_event``.
 
         A contact came down to ``gap`` (within ``band``) with zero normal speed and

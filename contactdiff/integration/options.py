@@ -11,11 +11,10 @@ import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
 from enum import StrEnum
-from typing import TypeVar
 
 import numpy as np
 
-from ..errors import InvalidInputError, check_count, check_number
+from ..errors import InvalidInputError, check_count, check_member, check_number
 from ..ode.factory import METHODS
 
 AUTO = "auto"
@@ -138,8 +137,8 @@ class SimulateOptions:
         set_ = object.__setattr__  # frozen: normalise each field once
         if self.method not in SIMULATE_METHODS:
             raise InvalidInputError(f"unknown method {self.method!r}; valid: {', '.join(SIMULATE_METHODS)}")
-        set_(self, "on_grazing", _member("on_grazing", self.on_grazing, OnGrazing))
-        set_(self, "jacobian_error", _member("jacobian_error", self.jacobian_error, JacobianError))
+        set_(self, "on_grazing", check_member("on_grazing", self.on_grazing, OnGrazing))
+        set_(self, "jacobian_error", check_member("jacobian_error", self.jacobian_error, JacobianError))
         set_(self, "rtol", _in_range("rtol", self.rtol, RTOL_MIN, RTOL_MAX))
         set_(self, "atol", _in_range("atol", self.atol, 0.0, ATOL_MAX, open_low=True))
         set_(self, "jacobian", bool(self.jacobian))
@@ -220,14 +219,3 @@ def _in_range(name: str, value, low: float, high: float, *, open_low: bool = Fal
         interval = f"({low:g}, {high:g}]" if open_low else f"[{low:.3g}, {high:g}]"
         raise InvalidInputError(f"simulate: {name} must be in {interval}, got {value!r}")
     return x
-
-
-_E = TypeVar("_E", bound=StrEnum)
-
-
-def _member(name: str, value, kind: type[_E]) -> _E:
-    """``value`` as a member of the enum ``kind`` (a member or its value), else
-    `InvalidInputError` listing the valid values."""
-    if value not in tuple(kind):
-        raise InvalidInputError(f"{name} must be one of {', '.join(kind)}; got {value!r}")
-    return kind(value)

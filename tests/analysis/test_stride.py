@@ -681,3 +681,29 @@ def test_solo12_trot_is_periodic_and_both_maps_agree():
     pm = period_map(scene, q, v, mid, rtol=1e-10, atol=1e-12)
     np.testing.assert_allclose(np.sort(np.abs(pm.multipliers))[::-1][:6], stride_moduli, rtol=1e-3)
     assert stride_moduli[0] < 1.0
+
+
+def test_the_loops_public_hooks_a_stride_uses():
+    """`HybridLoop.gaps_and_rates` of the ball (its contact point on the plane z = 0, as the
+    closed forms above read it) at height z moving at w: gap z and rate w; `jacobian_after`
+    of the ball's touchdown with saltation Ξ, from the start's ``[I]`` and from ``2 I``: Ξ and
+    2 Ξ (products with a scaled identity are exact). And `StrideLoop` reads no private
+    member of the loop: every ``self._name`` it uses is defined in its own class."""
+    import ast
+    import inspect
+
+    from contactdiff.analysis.gait import StrideLoop
+
+    loop = cd.HybridLoop(_ball(0.8), 0.0, 1.5, options=cd.SimulateOptions(jacobian=True))
+    gaps, rates = loop.gaps_and_rates(np.array([0.25]), np.array([-0.5]))
+    assert gaps.tolist() == [0.25] and rates.tolist() == [-0.5]
+    loop.run()
+    (event,) = loop.events
+    assert event.saltation is not None and event.reference_jump is None
+    np.testing.assert_array_equal(loop.jacobian_after(event), event.saltation)
+    np.testing.assert_array_equal(loop.jacobian_after(event, 2.0 * np.eye(2)), 2.0 * event.saltation)
+    tree = ast.parse(inspect.getsource(StrideLoop))
+    used = {n.attr for n in ast.walk(tree) if isinstance(n, ast.Attribute) and n.attr.startswith("_")}
+    used -= {n.attr for n in ast.walk(tree) if isinstance(n, ast.Attribute) and n.attr.startswith("__")}
+    own = {n.name for n in ast.walk(tree) if isinstance(n, ast.FunctionDef)}
+    assert used <= own, sorted(used - own)

@@ -67,7 +67,7 @@ def test_soft_l1_recovers_the_truth_through_glitches():
 def test_bad_loss_options_are_named():
     scene = cd.load_scene("ball")
     rec = _glitched()
-    with pytest.raises(InvalidInputError, match="loss must be one of linear, soft_l1, huber, cauchy, got 'l1'"):
+    with pytest.raises(InvalidInputError, match="loss must be one of linear, soft_l1, huber, cauchy; got 'l1'"):
         fit(scene, [rec], ["contact:ball:restitution"], loss="l1", progress=False)
     with pytest.raises(InvalidInputError, match="f_scale must be a number > 0, got 0"):
         fit(scene, [rec], ["contact:ball:restitution"], loss="huber", f_scale=0.0, progress=False)

@@ -123,3 +123,64 @@ def test_flow_jacobian_through_the_held_corners_bearing_turns_with_the_cube(monk
     monkeypatch.setattr(HeldEvents, "_held_onsets", lambda self, *args, **kwargs: None)
     held = cd.simulate(scene, T, jacobian=True, **options)
     assert np.abs(held.jacobian[:, 5] - reference).max() > 1e-9
+
+
+def test_held_contacts_returns_the_references_it_sets():
+    """`held_contacts` in the mode the corner's lift-off at t = 0 leaves (the slow run's
+    first event: the three other bottom corners sticking, the corner at zero gap and at
+    rest) returns the held corner with the slip references it set on the dynamics: each
+    entry the very array now in ``dyn.slip_reference``, of unit norm, and the held
+    corner's the direction Coulomb's law gives it in the enlarged set,
+    ``r = -λ_T / |λ_T|`` of its sticking force when the face and it all stick (the corner
+    is at rest: the first round of `settle_friction`). That force comes from the same
+    deterministic solve, so 1e-12 only allows for the norm's rounding."""
+    from contactdiff.integration.held import enlarged, held_contacts
+
+    scene = pushed_cube()
+    loop = cd.HybridLoop(scene, 0.0, 0.1, options=cd.SimulateOptions())
+    q, v, dyn = scene.q0.copy(), scene.v0.copy(), loop.dyn
+    index = scene.contact_names.index(CORNER)
+    mode = tuple(scene.contact_names.index(f"cube/{c}-z") for c in ("+x+y", "+x-y", "-x+y"))
+    gaps, rates = loop.gaps_and_rates(q, v)
+    tol = max(loop.gap_tol, loop.options.resolved_project_tol)
+    held, references = held_contacts(dyn, q, v, 0.0, mode, gaps, rates, tol, loop.options.grazing_speed)
+    assert set(held) == {index} and index in references
+    for k, r in references.items():
+        assert dyn.slip_reference[k] is r
+        assert np.linalg.norm(r) == pytest.approx(1.0, abs=1e-15)
+    sticking = enlarged(mode, index)
+    f = dyn.solve(q, v, 0.0, sticking).row_forces()[sticking.index(index)]
+    assert f[0] < 0.0  # it would pull: the reason it bears sliding
+    np.testing.assert_allclose(references[index], -f[1:] / np.linalg.norm(f[1:]), atol=1e-12)
+
+
+def test_the_events_saltation_product_is_formed_once(monkeypatch):
+    """At the corner's lift-off (t = 0) and the side corner's slip (0.062 s) the mode after
+    holds the corner at rest: its onset (`HeldEvents._held_onsets`) and the stepper's restart
+    (`EventJacobians.after`) both read ``Ξ φ`` of the event: read twice, formed once
+    (`EventJacobians.salted`)."""
+    from collections import Counter
+
+    from contactdiff.integration.event_jacobians import EventJacobians
+
+    reads, formed, onsets = Counter(), Counter(), []
+    salted, held_onsets = EventJacobians.salted, HeldEvents._held_onsets
+
+    def spy(self, phi, event):
+        before = self._last
+        out = salted(self, phi, event)
+        reads[id(event)] += 1
+        formed[id(event)] += self._last is not before
+        return out
+
+    def onset_spy(self, t, q, v, mode, found, start):
+        onsets.append(len(self.events))
+        return held_onsets(self, t, q, v, mode, found, start)
+
+    monkeypatch.setattr(EventJacobians, "salted", spy)
+    monkeypatch.setattr(HeldEvents, "_held_onsets", onset_spy)
+    traj = cd.simulate(pushed_cube(), 0.065, jacobian=True, rtol=1e-10, atol=1e-12, max_step=2e-3)
+    assert [(e.kind, e.contacts) for e in traj.events] == [("lift-off", (CORNER,)), ("slip", ("cube/+x-y-z",))]
+    assert onsets == [1, 2]  # after each of the two events
+    for event in traj.events:
+        assert reads[id(event)] == 2 and formed[id(event)] == 1

@@ -20,6 +20,8 @@ Central differences as in test_slip_onset (``EPS``, ``FD_RTOL``).
 
 from __future__ import annotations
 
+from collections import Counter
+
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -89,3 +91,26 @@ def test_a_slip_from_rest_after_a_simultaneous_landing_carries_its_reference(t_f
     scale = np.abs(fd).max()
     assert np.abs(traj.parameter_jacobian[:, 0] - fd).max() <= FD_RTOL * scale
     assert np.abs(held.parameter_jacobian[:, 0] - fd).max() > 4 * FD_RTOL * scale
+
+
+def test_the_landings_saltation_product_is_formed_once(monkeypatch):
+    """The slip's onset after the landing (`_simultaneous_onsets`) and the stepper's restart
+    (`EventJacobians.after`) both read ``Ξ φ`` of the landing: it is read twice and formed
+    once (`EventJacobians.salted`)."""
+    from contactdiff.integration.event_jacobians import EventJacobians
+
+    reads, formed = Counter(), Counter()
+    salted = EventJacobians.salted
+
+    def spy(self, phi, event):
+        before = self._last
+        out = salted(self, phi, event)
+        reads[id(event)] += 1
+        formed[id(event)] += self._last is not before
+        return out
+
+    monkeypatch.setattr(EventJacobians, "salted", spy)
+    options = dict(zeno_speed=1e-3, **OPTS)
+    traj = cd.simulate(landing_scene(), 0.0213, jacobian=True, parameters=["body:cube:mass"], **options)
+    assert _events(traj) == [("touchdown", EDGE)]
+    assert reads[id(traj.events[0])] == 2 and formed[id(traj.events[0])] == 1

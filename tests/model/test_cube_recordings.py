@@ -1,5 +1,6 @@
 """Measured tosses as fit recordings: the free flight's velocity against a synthetic throw whose
-velocity is known, the first possible touch, duplicate-safe splits, the published metrics."""
+velocity is known, the first possible touch, duplicate-safe splits, the published metrics, the
+data's own gravity and noise (`length_check`) and the metrics over tosses (`error_summary`)."""
 
 import math
 
@@ -140,3 +141,41 @@ def test_toss_windows_start_in_free_flight_before_the_touch():
         toss_windows(toss, Windows(8), lead=-1)
     with pytest.raises(InvalidInputError, match="clearance must be a length >= 0"):
         toss_windows(toss, Windows(8), clearance=-0.001)
+
+
+def test_length_check_recovers_a_throws_gravity_and_finds_no_noise():
+    """`length_check` on a noiseless throw under g = 9.5 m/s²: the parabola through its first
+    flight is the throw's own, so g comes back to round-off (a 3-coefficient least-squares fit
+    of a 0.4 s flight: ~1e-10 m/s² against a 1e-8 tolerance) and the residuals' RMS is
+    round-off (positions ~0.5 m: < 1e-12 m); the body-frame rate is constant, so the rotation
+    steps' spread is round-off (< 1e-12 rad). The rest height is the mean of the last 20
+    samples' heights, z_k = Z0 + V0_z t_k - g t_k² / 2 (closed form)."""
+    from contactdiff.data.toss_checks import length_check
+
+    g = 9.5
+    toss = _throw(n=60, g=g)
+    c = length_check({toss.name: toss})
+    assert c["flights"] == 1 and c["tosses"] == 1
+    assert c["g_median"] == pytest.approx(g, abs=1e-8)
+    assert c["g_ratio"] == pytest.approx(g / NOMINAL.gravity, abs=1e-8)
+    t = toss.t[-20:]
+    rest = float(np.mean(Z0 + V0[2] * t - 0.5 * g * t**2))
+    assert c["rest_median"] == pytest.approx(rest, abs=1e-12)
+    assert c["rest_ratio"] == pytest.approx(rest / (NOMINAL.edge / 2.0), abs=1e-10)
+    assert c["position_noise_median"] < 1e-12 and c["rotation_noise_median"] < 1e-12
+
+
+def test_error_summary_of_three_tosses():
+    """Mean, population std and median of (1, 2, 4) % and (10, 20, 40) deg: 7/3, sqrt(14/9)
+    (squared deviations 16/9 + 1/9 + 25/9 over 3), 2 and ten times those; no toss: a count of 0."""
+    from contactdiff.data.toss_evaluation import error_summary
+
+    s = error_summary([(1.0, 10.0), (2.0, 20.0), (4.0, 40.0)])
+    assert s["tosses"] == 3
+    assert s["position_mean"] == pytest.approx(7 / 3, rel=1e-15)
+    assert s["position_std"] == pytest.approx(math.sqrt(14 / 9), rel=1e-15)
+    assert s["position_median"] == 2.0
+    assert s["rotation_mean"] == pytest.approx(70 / 3, rel=1e-15)
+    assert s["rotation_std"] == pytest.approx(10 * math.sqrt(14 / 9), rel=1e-15)
+    assert s["rotation_median"] == 20.0
+    assert error_summary([]) == {"tosses": 0}

@@ -54,7 +54,7 @@ class StrideLoop(HybridLoop):
             return mode, v_plus
         start = self.events[-1]
         closed = [i for i in range(len(self.contacts)) if self.names[i] in start.impulses]
-        _, rates = self._gaps_and_rates(start.q, v)
+        _, rates = self.gaps_and_rates(start.q, v)
         landing = [i for i in closed if i != self.foot and rates[i] < -self.options.grazing_speed]
         before = choose_mode(self.dyn, start.q, v, self.t0, [i for i in closed if i != self.foot and i not in landing])
         F_minus = vector_field(self.dyn, start.q, v, self.t0, before)
@@ -94,7 +94,7 @@ class StrideLoop(HybridLoop):
                     float(Dh @ F_minus),
                 )
         start.saltation = xi
-        self.initial_saltation = self._jumped(self._identity_phi(), start)
+        self.initial_saltation = self.jacobian_after(start)
         self.start = (before, F_minus, tuple(self.names[k] for k in landing))
         return mode, v_plus
 
