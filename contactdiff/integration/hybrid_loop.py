@@ -1,11 +1,12 @@
 """`HybridLoop`: the hybrid loop of one run (`contactdiff.integration.hybrid` describes it).
 
 Its construction (the run's state), the hooks a subclass overrides (`HybridLoop.initial_mode`,
-`HybridLoop.on_event`), the consistent start, the stepping with its guards and events, the
-switches of ``method="auto"`` and the projection onto a mode's constraints. What it records
-and reports (the `Trajectory`, its statistics, the errors carrying the run so far, the notes
-of near misses) is `contactdiff.integration.loop_reports`; what it does at an event, the
-event mixins (`contactdiff.integration.loop_events`).
+`HybridLoop.on_event`), the consistent start, the stepping with its guards and events, and
+the projection onto a mode's constraints. What it records and reports (the `Trajectory`,
+its statistics, the errors carrying the run so far, the notes of near misses) is
+`contactdiff.integration.loop_reports`; ``method="auto"``'s chooser and switches,
+`contactdiff.integration.auto_method`; what it does at an event, the event mixins
+(`contactdiff.integration.loop_events`).
 """
 
 from __future__ import annotations
@@ -28,10 +29,11 @@ from ..model.scene import Scene, StateInput
 from ..ode.crossings import simultaneous_group
 from ..ode.dense import DenseOutput
 from ..ode.factory import PinocchioGroup, make_stepper
-from ..ode.method_choice import EXPLICIT, MethodChooser, field_probe
+from ..ode.method_choice import EXPLICIT
 from ..ode.step_budget import BudgetWatch
 from ..ode.step_collapse import CollapseWatch
 from ..scenes.scene_file import passive_note
+from .auto_method import AutoMethod
 from .band import BandEvents
 from .event_jacobians import EventJacobians
 from .event_resets import EventResets
@@ -104,13 +106,11 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents):
         self.gap_tol = GAP_TOL
         self.guards = GuardFinder(self.scene, self.dyn, self.options, GAP_TOL)
         self.group = PinocchioGroup(self.scene.model)
-        self.chooser: MethodChooser | None = None  # method="auto" only, made at the start
         self.events: list[Event] = []
         self.segments: list[Segment] = []
         self.notes: list[str] = [note] if (note := passive_note(self.scene)) else []
         self.fields: list[ModeField] = []  # one per mode visited, for the statistics
-        self.retired: list = []  # steppers replaced by method="auto", for the statistics
-        self.switches: list[tuple[float, str]] = []
+        self.auto = AutoMethod(self.dyn, self.group, self.notes, MAX_NOTES)  # method="auto"'s chooser, if started
         self.phi = None  # flow Jacobian just before the event being processed
         self.initial_saltation = None
         self.jumps = None  # the parameters' blocks at events, with options.parameters
@@ -141,10 +141,8 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents):
             self.segments,
             self.notes,
             self.fields,
-            self.retired,
-            self.switches,
+            self.auto,
             mode_names=self._mode_names,
-            stiffness_probes=lambda: self.chooser.n_probes if self.chooser else 0,
         )
 
     def _fused(self, method: str) -> bool:
@@ -295,9 +293,10 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents):
         q, v = scene.q0.copy(), scene.v0.copy()
         mode, v = self.initial_mode(q, v)
         field = self._field(mode, self._fused(options.method), self.t0, q, v)
-        self.chooser = MethodChooser(self._probe(mode)) if options.method == AUTO else None
+        if options.method == AUTO:
+            self.auto.start(mode)
         stepper = make_stepper(
-            EXPLICIT if self.chooser else options.method,
+            EXPLICIT if options.method == AUTO else options.method,
             field.accel,
             self.group,
             self.t0,
@@ -378,10 +377,11 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents):
                 # at rest: to t_final in one step, or to the next sample time (steps end on them)
                 if rest.settle(stepper, field, mode, segment, min(self.t_final, self.recorder.next_time)):
                     self.recorder.take(stepper)
-                if self.chooser is not None and stepper.t < self.t_final:
-                    switch = self.chooser.after_step(h, stepper.q, stepper.v, stepper.t)
-                    if switch:
-                        stepper = self._switch(stepper, switch, field)
+                chooser = self.auto.chooser
+                if chooser is not None and stepper.t < self.t_final:
+                    if switch := chooser.after_step(h, stepper.q, stepper.v, stepper.t):
+                        field.fused = self._fused(switch)  # Radau's Newton iterates want no derivative
+                        stepper = self.auto.switch(stepper, switch, field, self.sensitive, self._stepper_options(field))
                         budget.new_regime()
                 continue
             watch.new_mode()
@@ -434,8 +434,8 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents):
                 parameter_jac=field.parameter_jac if self.sensitive else None,
                 phi=None if self.events[-1].saltation is None else self.jacobians.after(stepper.phi, self.events[-1]),
             )
-            if self.chooser is not None:
-                self.chooser.new_mode(self._probe(mode))
+            if self.auto.chooser is not None:
+                self.auto.chooser.new_mode(self.auto.probe(mode))
             segment = Segment(t0=t_event, t1=t_event, mode=self._mode_names(mode), sliding=self._sliding_names(mode))
             self.segments.append(segment)
             self.recorder.take(stepper)  # a sample at the event's time: after it
@@ -455,45 +455,6 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents):
             traj.final_nonsmooth[NonSmooth.FINAL_TIME] = "; ".join(touches)
             self.notes.extend(touches)
         return traj
-
-    # -- method="auto" ----------------------------------------------------------------
-    def _probe(self, mode):
-        """``ρ`` of ``mode`` at a state, for `MethodChooser` (difference quotients of
-        the mode's accelerations; they bypass the mode field and its counters)."""
-
-        def accel(t, q, v):
-            self.reports.n_probe_evaluations += 1
-            return self.dyn.solve(q, v, t, mode).ddq
-
-        return field_probe(accel, self.group)
-
-    def _switch(self, stepper, method: str, field):
-        """Continue from the stepper's current point with ``method``: a restart without a
-        jump (state and flow Jacobian carried over, the step size as a first guess)."""
-        self.retired.append(stepper)
-        self.switches.append((stepper.t, method))
-        # Radau evaluates the field at Newton iterates, where no derivative is wanted
-        field.fused = self._fused(method)
-        assert self.chooser is not None  # method "auto" switches, and it has a chooser
-        rho = self.chooser.rho
-        if len(self.switches) <= MAX_NOTES:
-            why = "explicit steps limited by stability" if method != EXPLICIT else "steps resolve the fastest motion"
-            self.notes.append(
-                f"method auto: {method} from t = {stepper.t:.12g} ({why}: "
-                f"h = {stepper.h_abs:.3g} s, spectral radius {rho:.3g} /s)"
-            )
-        return make_stepper(
-            method,
-            field.accel,
-            self.group,
-            stepper.t,
-            stepper.q,
-            stepper.v,
-            jac=field.jac,
-            first_step=stepper.h_abs,
-            variational=stepper.phi if self.sensitive else None,
-            **self._stepper_options(field),
-        )
 
     # -- constraint manifold ----------------------------------------------------------
     def _project(self, stepper, mode, gaps) -> bool:

@@ -23,6 +23,7 @@ from .trajectory import RunStats, Termination, Trajectory
 
 if TYPE_CHECKING:
     from ..model.scene import Scene
+    from .auto_method import AutoMethod
     from .mode_field import ModeField
     from .options import SimulateOptions
     from .parameter_jumps import ParameterJumps
@@ -49,15 +50,13 @@ class LoopReports:
         segments: its segments, likewise.
         notes: its notes, likewise (the near-grazing misses add theirs).
         fields: the mode fields of the modes visited, likewise (their evaluation counts).
-        retired: the steppers ``method="auto"`` replaced, likewise.
-        switches: ``method="auto"``'s switches ``(t, method)``, likewise.
+        auto: ``method="auto"``'s chooser and what it did (`AutoMethod`: the steppers it
+            replaced, its switches, its probes and their mode solves).
         mode_names: the names of a mode's active contacts (a mode: its contact keys).
-        stiffness_probes: the stiffness probes run so far (0 without ``method="auto"``).
 
     Attributes:
         max_drift: largest active-gap drift found (m; the loop raises it).
         n_projections: projections onto the constraint manifold (the loop counts them).
-        n_probe_evaluations: the stiffness probes' mode solves (the loop counts them).
         n_near_misses: near-grazing misses (`near_misses` counts them).
     """
 
@@ -74,20 +73,16 @@ class LoopReports:
         segments: list[Segment],
         notes: list[str],
         fields: list[ModeField],
-        retired: list,
-        switches: list[tuple[float, str]],
+        auto: AutoMethod,
         mode_names: Callable[[tuple[int, ...]], tuple[str, ...]],
-        stiffness_probes: Callable[[], int],
     ):
         self.scene, self.t0, self.t_final, self.options = scene, t0, t_final, options
         self.names = scene.contact_names
         self.n_state, self.jumps, self.recorder = n_state, jumps, recorder
         self.events, self.segments, self.notes, self.fields = events, segments, notes, fields
-        self.retired, self.switches = retired, switches
-        self.mode_names, self.stiffness_probes = mode_names, stiffness_probes
+        self.auto, self.mode_names = auto, mode_names
         self.max_drift = 0.0
         self.n_projections = 0
-        self.n_probe_evaluations = 0
         self.n_near_misses = 0
 
     def collapse(self, stepper, mode, h: float, typical: float, underflow: str | None = None):
@@ -127,7 +122,7 @@ class LoopReports:
     def trajectory(self, stepper, termination: Termination) -> Trajectory:
         """The run so far as a `Trajectory` ending at the stepper's point, with ``termination``
         and the run's statistics (every stepper's and mode field's counts)."""
-        steppers = self.retired + [stepper]
+        steppers = self.auto.retired + [stepper]
         by_method: dict[str, int] = {}
         for st in steppers:
             by_method[st.method] = by_method.get(st.method, 0) + st.n_steps
@@ -142,9 +137,9 @@ class LoopReports:
             projections=self.n_projections,
             method=self.options.method,
             steps_by_method=by_method,
-            method_switches=[[t, m] for t, m in self.switches],
-            stiffness_probes=self.stiffness_probes(),
-            probe_evaluations=self.n_probe_evaluations,
+            method_switches=[[t, m] for t, m in self.auto.switches],
+            stiffness_probes=self.auto.chooser.n_probes if self.auto.chooser else 0,
+            probe_evaluations=self.auto.n_probe_evaluations,
             near_grazing_misses=self.n_near_misses,
         )
         return Trajectory(

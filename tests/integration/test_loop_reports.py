@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 import contactdiff as cd
+from contactdiff.integration.auto_method import AutoMethod
 from contactdiff.integration.guards import NearMiss
 from contactdiff.integration.loop_reports import MAX_NOTES, LoopReports
 from contactdiff.integration.samples import SampleRecorder
@@ -35,7 +36,9 @@ def _reports(options=None, notes=None):
     options = options or cd.SimulateOptions()
     records = dict(events=[], segments=[], notes=[] if notes is None else notes)
     fields = [SimpleNamespace(n_solve=7, n_derivatives=2), SimpleNamespace(n_solve=5, n_derivatives=1)]
-    retired = [_stepper("DOP853", 10, 3, 130, 0)]
+    auto = AutoMethod(None, None, [], MAX_NOTES)  # what method="auto" did: one switch, 4 probes of 11 solves
+    auto.retired, auto.switches = [_stepper("DOP853", 10, 3, 130, 0)], [(0.25, "Radau")]
+    auto.chooser, auto.n_probe_evaluations = SimpleNamespace(n_probes=4), 11
     reports = LoopReports(
         scene,
         0.0,
@@ -46,10 +49,8 @@ def _reports(options=None, notes=None):
         SampleRecorder((), 0, ()),
         **records,
         fields=fields,
-        retired=retired,
-        switches=[(0.25, "Radau")],
+        auto=auto,
         mode_names=lambda mode: tuple(f"c{k}" for k in mode),
-        stiffness_probes=lambda: 4,
     )
     return reports, records
 
@@ -60,7 +61,7 @@ def test_the_trajectorys_statistics_sum_what_it_is_given():
     the steps by method; the counts it keeps as the loop set them; the final state the
     stepper's."""
     reports, records = _reports()
-    reports.max_drift, reports.n_projections, reports.n_probe_evaluations = 2e-9, 3, 11
+    reports.max_drift, reports.n_projections = 2e-9, 3
     traj = reports.trajectory(_stepper("Radau", 4, 1, 40, 6), Termination.T_FINAL)
     s = traj.stats
     assert (s.steps, s.rejected_steps, s.stepper_evaluations, s.jacobian_evaluations) == (14, 4, 170, 6)
