@@ -33,19 +33,35 @@ from contactdiff.fit.rollouts import rollouts
 
 FRICTION = "group:cube:friction"
 RESTITUTION = "group:cube:restitution"
+WORST = 5  # held-out tosses listed with their events, worst first
 OPTIONS = {"rtol": 1e-6, "atol": 1e-8}  # as scripts/cube_tosses.py: the data's noise is ~1e-3 m on 0.1 m
 
 
 def metrics(tosses, names, start: Start, values: dict, jobs: int) -> dict:
     """The published metrics of ``names``' rollouts from ``start`` at ``values``: position error
-    (% of edge) and rotation error (deg), mean ± std and median over the tosses that finished."""
+    (% of edge) and rotation error (deg), mean ± std and median over the tosses that finished;
+    how many of them have a flagged (not differentiable) event, and the `WORST` tosses with their
+    events by kind and their flagged events by reason."""
     recs = [toss_recording(tosses[n], start) for n in names]
     runs = rollouts(functools.partial(cd.cube_scene, NOMINAL), recs, values, jobs=jobs, options=OPTIONS, progress=False)
-    errors = [toss_errors(rec, run.q) for rec, run in zip(recs, runs) if run.complete]
+    done = [(rec, run, toss_errors(rec, run.q)) for rec, run in zip(recs, runs) if run.complete]
+    errors = [e for _, _, e in done]
     position, rotation = [e[0] for e in errors], [e[1] for e in errors]
+    worst = sorted(done, key=lambda d: -d[2][0])[:WORST]
     return {
         "tosses": len(recs),
         "finished": len(errors),
+        "not_differentiable": sum(bool(run.nonsmooth) for _, run, _ in done),
+        "worst": [
+            {
+                "toss": rec.name,
+                "position": e[0],
+                "rotation": e[1],
+                "events": {str(k): n for k, n in run.events.items()},
+                "nonsmooth": dict(run.nonsmooth),
+            }
+            for rec, run, e in worst
+        ],
         "position_mean": statistics.fmean(position),
         "position_std": statistics.pstdev(position),
         "position_median": statistics.median(position),
@@ -143,7 +159,12 @@ def main(argv=None) -> int:
         print(f"  μ {g['friction']:<5g} e {g['restitution']:<6g} {_line(g)}")
     print(f"chosen: μ {best['friction']:g}, e {best['restitution']:g} (least training mean)")
     for key, m in held.items():
-        print(f"held out, {key}: {_line(m)}")
+        print(f"held out, {key}: {_line(m)}; {m['not_differentiable']} with a flagged event")
+        for w in m["worst"]:
+            events = ", ".join(f"{k} {n}" for k, n in w["events"].items())
+            flagged = ", ".join(f"{k} {n}" for k, n in w["nonsmooth"].items()) or "none"
+            where = f"{w['toss']}: {w['position']:.1f} %, {w['rotation']:.1f} deg"
+            print(f"    {where}; events {events}; flagged {flagged}")
     print(f"{report['wall']:.0f} s wall")
     return 0
 
