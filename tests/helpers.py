@@ -238,6 +238,27 @@ def sphere_urdf(mass: float, inertia: float) -> str:
 """
 
 
+def spy_salted(monkeypatch):
+    """Count, per event (by ``id``), the reads of ``Ξ φ`` (`EventJacobians.salted`) and how
+    many of them formed it anew: ``(reads, formed)``, two `collections.Counter`."""
+    from collections import Counter
+
+    from contactdiff.integration.event_jacobians import EventJacobians
+
+    reads, formed = Counter(), Counter()
+    salted = EventJacobians.salted
+
+    def spy(self, phi, event):
+        before = self._last
+        out = salted(self, phi, event)
+        reads[id(event)] += 1
+        formed[id(event)] += self._last is not before
+        return out
+
+    monkeypatch.setattr(EventJacobians, "salted", spy)
+    return reads, formed
+
+
 def rod_urdf(half_length: float, mass: float) -> str:
     """URDF of a uniform rod (inertia ``m (2l)² / 12`` about its centre) moving in the x-z
     plane: joints ``x``, ``z`` (prismatic) and ``theta`` (about +y), and a frame ``tip`` at

@@ -28,6 +28,7 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 import pytest
+from helpers import spy_salted
 
 import contactdiff as cd
 from contactdiff.integration.held import HeldEvents
@@ -159,25 +160,13 @@ def test_the_events_saltation_product_is_formed_once(monkeypatch):
     holds the corner at rest: its onset (`HeldEvents._held_onsets`) and the stepper's restart
     (`EventJacobians.after`) both read ``Ξ φ`` of the event: read twice, formed once
     (`EventJacobians.salted`)."""
-    from collections import Counter
-
-    from contactdiff.integration.event_jacobians import EventJacobians
-
-    reads, formed, onsets = Counter(), Counter(), []
-    salted, held_onsets = EventJacobians.salted, HeldEvents._held_onsets
-
-    def spy(self, phi, event):
-        before = self._last
-        out = salted(self, phi, event)
-        reads[id(event)] += 1
-        formed[id(event)] += self._last is not before
-        return out
+    reads, formed = spy_salted(monkeypatch)
+    onsets, held_onsets = [], HeldEvents._held_onsets
 
     def onset_spy(self, t, q, v, mode, found, start):
         onsets.append(len(self.events))
         return held_onsets(self, t, q, v, mode, found, start)
 
-    monkeypatch.setattr(EventJacobians, "salted", spy)
     monkeypatch.setattr(HeldEvents, "_held_onsets", onset_spy)
     traj = cd.simulate(pushed_cube(), 0.065, jacobian=True, rtol=1e-10, atol=1e-12, max_step=2e-3)
     assert [(e.kind, e.contacts) for e in traj.events] == [("lift-off", (CORNER,)), ("slip", ("cube/+x-y-z",))]

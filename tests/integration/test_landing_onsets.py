@@ -20,11 +20,10 @@ Central differences as in test_slip_onset (``EPS``, ``FD_RTOL``).
 
 from __future__ import annotations
 
-from collections import Counter
-
 import numpy as np
 import pinocchio as pin
 import pytest
+from helpers import spy_salted
 from test_band_events import EDGE, _yaw_direction, _yawed, edge_scene
 from test_slip_onset import EPS, FD_RTOL, OPTS, G, _events, _fd, _mass_fd
 
@@ -97,19 +96,7 @@ def test_the_landings_saltation_product_is_formed_once(monkeypatch):
     """The slip's onset after the landing (`_simultaneous_onsets`) and the stepper's restart
     (`EventJacobians.after`) both read ``Ξ φ`` of the landing: it is read twice and formed
     once (`EventJacobians.salted`)."""
-    from contactdiff.integration.event_jacobians import EventJacobians
-
-    reads, formed = Counter(), Counter()
-    salted = EventJacobians.salted
-
-    def spy(self, phi, event):
-        before = self._last
-        out = salted(self, phi, event)
-        reads[id(event)] += 1
-        formed[id(event)] += self._last is not before
-        return out
-
-    monkeypatch.setattr(EventJacobians, "salted", spy)
+    reads, formed = spy_salted(monkeypatch)
     options = dict(zeno_speed=1e-3, **OPTS)
     traj = cd.simulate(landing_scene(), 0.0213, jacobian=True, parameters=["body:cube:mass"], **options)
     assert _events(traj) == [("touchdown", EDGE)]
