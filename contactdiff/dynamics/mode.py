@@ -67,9 +67,14 @@ class ModeDynamics:
     with ``M^-1`` and the Cholesky factor of the Delassus matrix. Uses the
     scene's kinematics cache and ``pinocchio.Data`` of its own; not thread safe
     (one instance per thread, each with its own scene).
+
+    Args:
+        scene: the scene.
+        slip_speed_floor: m/s, the speed below which a 3-D slip follows its reference
+            (`contactdiff.dynamics.slip`; a run passes its ``zeno_speed``).
     """
 
-    def __init__(self, scene: Scene):
+    def __init__(self, scene: Scene, slip_speed_floor: float = SLIP_SPEED_EPS):
         self.scene = scene
         self.model = scene.model
         self.kin = scene.kinematics
@@ -84,8 +89,9 @@ class ModeDynamics:
         """Per slipping contact (scene index), the unit direction (tangent coordinates)
         its slip is continued along: a planar contact's slip sign, a spatial contact's
         direction at its last accepted step (`slip_direction`); set by the hybrid loop."""
-        self.slip_speed_floor = SLIP_SPEED_EPS
-        """m/s: a 3-D slip slower than this follows its reference (`contactdiff.dynamics.slip`)."""
+        self.slip_speed_floor = slip_speed_floor
+        """m/s: a 3-D slip slower than this follows its reference (`contactdiff.dynamics.slip`);
+        a run's is its ``zeno_speed``, given at construction."""
 
     def slip_direction(
         self, index: int, slip_velocity: np.ndarray, jacobian: bool = True

@@ -97,9 +97,8 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents):
         if not self.t_final > self.t0:
             raise InvalidInputError(f"simulate: t_final must be after t0 = {self.t0}, got {t_final!r}")
         self.scene = scene.with_state(q0, v0) if (q0 is not None or v0 is not None) else scene
-        self.dyn = ModeDynamics(self.scene)
         # a slip slower than zeno_speed is integration noise in direction (contactdiff.dynamics.slip)
-        self.dyn.slip_speed_floor = self.options.zeno_speed
+        self.dyn = ModeDynamics(self.scene, slip_speed_floor=self.options.zeno_speed)
         self.kin = self.scene.kinematics
         self.contacts = self.scene.contacts
         self.names = self.scene.contact_names

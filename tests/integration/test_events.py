@@ -108,9 +108,8 @@ def _stop_crossing(h, t_a, t_b, from_rest: bool):
     from contactdiff.integration.options import SimulateOptions
 
     scene = cd.cube_scene(friction=0.5)
-    dyn = ModeDynamics(scene)
     options = SimulateOptions()
-    dyn.slip_speed_floor = options.zeno_speed
+    dyn = ModeDynamics(scene, slip_speed_floor=options.zeno_speed)
     mode = tuple(dyn.sliding_key(i) for i in range(len(scene.contacts)))
     field = SimpleNamespace(guards=[Guard(GuardKind.STOP, mode[0])], guard_values=lambda t, q, v: np.array([h(t)]))
     stepper = SimpleNamespace(t_old=t_a, t=t_b, q=scene.q0, q_old=scene.q0)
