@@ -28,7 +28,14 @@ band (the *band*) meets a field that depends on ``θ``:
 
 Not formed (the run leaves a note that the reference is held from there): a stop of the
 band's own slip (its guard ``s(θ) · u_T``, which fires only past ``-ε``, at a turn the
-reference does not describe), and several guards at once of which one reads forces.
+reference does not describe), and several guards at once of which one reads forces. The
+first is bounded by the floor: its guard moves by ``h_θ = (∂s/∂θ) · u_T``, at most the
+slip's speed (below ``2 ε``), and what a shift of the stop's time changes after it is
+``F+ - DR F-``, whose velocity rows are the stuck mode's accelerations at ``v+`` and at
+``v-`` (the hold ``DR`` maps the slipping field's accelerations onto the stuck mode's: the
+friction ``F^T λ`` lies in the rows it holds), apart by the slip left, again below ``2 ε``:
+the term left out is of order ``ε² |w| / rate`` (1e-13 |w| at ``zeno_speed`` 1e-6 m/s and a
+stop's deceleration of ``μ g``). The second is not small in general.
 
 Cost: per event in the band, one derivative solve of the mode (two for a held
 contact's bearing) and one vector field of each mode; none otherwise.
