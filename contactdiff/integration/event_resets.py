@@ -70,7 +70,7 @@ class EventResets(LoopEvents):
             # every contact closed at the instant takes part (docs/design.md §2), also one whose
             # guard did not fire within simultaneous_tol: left out, it would start the
             # next step closed and be skipped by _crossings (no peak), i.e. penetrate
-            gaps, _ = self._gaps_and_rates(q, v)
+            gaps, _ = self.gaps_and_rates(q, v)
             active = dyn.contacts_of(mode)
             near = [i for i, g in enumerate(gaps) if g <= self.gap_tol and i not in active]
             closed = sorted(set(mode) | set(touching) | set(near))
@@ -104,7 +104,7 @@ class EventResets(LoopEvents):
         may let sink (`liftoff_mode`). One slipping with Coulomb friction enters as
         sliding along its slip; one slipping without it is left to its gap."""
         dyn, speed = self.dyn, self.options.grazing_speed
-        gaps, rates = self._gaps_and_rates(q, v)
+        gaps, rates = self.gaps_and_rates(q, v)
         active = dyn.contacts_of(mode)
         closed = [
             i for i, (g, r) in enumerate(zip(gaps, rates)) if i not in active and g <= self.gap_tol and abs(r) <= speed

@@ -267,7 +267,7 @@ class FrictionEvents(LoopEvents):
         from_rest: list = []
         new_mode, settled = settle_friction(dyn, q, v_plus, t, new_mode, from_rest)
         if stops:
-            gaps, rates = self._gaps_and_rates(q, v_plus)
+            gaps, rates = self.gaps_and_rates(q, v_plus)
             active = dyn.contacts_of(new_mode)
             closed = [
                 i

@@ -158,7 +158,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents):
         held: dict[int, int] = {}
         found: list = []  # held contacts at rest that slide in their enlarged set
         if mode:
-            gaps, rates = self._gaps_and_rates(q, v)
+            gaps, rates = self.gaps_and_rates(q, v)
             # it also sets slip references on self.dyn (its second value, kept there): the held
             # contacts' slips, which their bearing guards read, and the directions Coulomb's law
             # gives the mode's own sticking contacts in the enlarged sets
@@ -218,8 +218,6 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents):
         rates = np.array([c.gap_rate(self.kin) for c in self.contacts])
         return gaps, rates
 
-    _gaps_and_rates = gaps_and_rates  # the name run() and the event mixins call
-
     def _mode_names(self, mode) -> tuple[str, ...]:
         """Names of the contacts active (sticking or sliding) in ``mode``."""
         return tuple(self.names[i] for i in sorted(self.dyn.contacts_of(mode)))
@@ -238,7 +236,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents):
         Otherwise the closed, non-separating contacts choose the mode, and the tiny
         row velocities they may have (at most ``grazing_speed``) are removed.
         """
-        gaps, rates = self._gaps_and_rates(q, v)
+        gaps, rates = self.gaps_and_rates(q, v)
         closed = [i for i, g in enumerate(gaps) if g <= self.gap_tol]
         if not closed:
             return (), v
@@ -311,7 +309,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents):
         self.recorder.take(stepper)
         segment = Segment(t0=self.t0, t1=self.t0, mode=self._mode_names(mode), sliding=self._sliding_names(mode))
         self.segments.append(segment)
-        gaps, rates = self._gaps_and_rates(stepper.q, stepper.v)
+        gaps, rates = self.gaps_and_rates(stepper.q, stepper.v)
         forces = field.guard_values(stepper.t, stepper.q, stepper.v)
         steps = 0
         h = 0.0  # the last accepted step (s)
@@ -342,7 +340,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents):
                     options.progress(stepper.t, len(self.events), steps)
                 h = stepper.t - stepper.t_old
                 dense: DenseOutput | None = stepper.dense(lazy=True)  # DOP853's extra stages only if a guard needs them
-                gaps1, rates1 = self._gaps_and_rates(stepper.q, stepper.v)
+                gaps1, rates1 = self.gaps_and_rates(stepper.q, stepper.v)
                 forces1 = field.guard_values(stepper.t, stepper.q, stepper.v)
                 try:
                     crossings, misses = self.guards.crossings(
@@ -361,7 +359,7 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents):
                 gaps, rates, forces = gaps1, rates1, forces1
                 projected = mode and self._project(stepper, mode, gaps1)
                 if projected:
-                    gaps, rates = self._gaps_and_rates(stepper.q, stepper.v)
+                    gaps, rates = self.gaps_and_rates(stepper.q, stepper.v)
                 if field.slipping:
                     field.advance(stepper.q, stepper.v)
                 if projected or field.slipping:
@@ -438,14 +436,14 @@ class HybridLoop(EventResets, FrictionEvents, HeldEvents, BandEvents):
             segment = Segment(t0=t_event, t1=t_event, mode=self._mode_names(mode), sliding=self._sliding_names(mode))
             self.segments.append(segment)
             self.recorder.take(stepper)  # a sample at the event's time: after it
-            gaps, rates = self._gaps_and_rates(stepper.q, stepper.v)
+            gaps, rates = self.gaps_and_rates(stepper.q, stepper.v)
             forces = field.guard_values(stepper.t, stepper.q, stepper.v)
             if stop:
                 return self.reports.trajectory(stepper, Termination.STOPPED)
         traj = self.reports.trajectory(stepper, Termination.T_FINAL)
         if touches := final_touches(
             self.names,
-            *self._gaps_and_rates(traj.q, traj.v),
+            *self.gaps_and_rates(traj.q, traj.v),
             set(self.dyn.contacts_of(mode)),
             self.events,
             traj.t,
