@@ -40,17 +40,18 @@ from .guards import Guard, GuardKind
 
 @dataclass(frozen=True)
 class Jam:
-    """A slip that jams: its stop guard, the time it had left at its deceleration (s) and
-    its speed (m/s) at the last accepted state."""
+    """A slip that jams: its stop guard, its contact's scene index, the time it had left at
+    its deceleration (s) and its speed (m/s) at the last accepted state."""
 
     guard: Guard
+    index: int
     time_left: float
     speed: float
 
     def remark(self, names) -> str:
         """What the event's `NonSmooth.PAINLEVE_JAM` says (``names``: the scene's contact names)."""
         return (
-            f"the slip of {names[self.guard.contact - len(names)]} jammed (Painlevé: its normal force grew "
+            f"the slip of {names[self.index]} jammed (Painlevé: its normal force grew "
             f"without bound as it stopped); stopped {self.time_left:.3g} s early at a speed of "
             f"{self.speed:.3g} m/s, which the reset removed"
         )
@@ -68,7 +69,7 @@ def jammed_slip(dyn, t: float, q: np.ndarray, v: np.ndarray, mode, typical: floa
     normal force growing without bound delivers in that time. A slip the stepper cannot
     follow with more time left is not stopping: Painlevé's paradox itself.
     """
-    index = getattr(exc, "contact", None)
+    index = exc.contact
     if index is None or dyn.sliding_key(index) not in mode:
         return None
     key = dyn.sliding_key(index)
@@ -76,7 +77,7 @@ def jammed_slip(dyn, t: float, q: np.ndarray, v: np.ndarray, mode, typical: floa
         sol = dyn.solve(q, v, t, mode)
     except OutsideDomainError:
         return None
-    normal = float(sol.forces[sol.row_slices[list(mode).index(key)].start])
+    normal = float(sol.normal_forces()[list(mode).index(key)])
     rate = float(stop_guard(dyn, q, v, key) @ np.concatenate([v, sol.ddq]))  # updates dyn.kin at (q, v)
     speed = float(np.linalg.norm(dyn.contact(key).full.rows(dyn.kin)[1:] @ v))
     if normal <= 0.0 or rate >= 0.0:
@@ -84,7 +85,7 @@ def jammed_slip(dyn, t: float, q: np.ndarray, v: np.ndarray, mode, typical: floa
     time_left = speed / -rate
     if time_left > COLLAPSE_RATIO * typical:
         return None
-    return Jam(Guard(GuardKind.STOP, key), time_left, speed)
+    return Jam(Guard(GuardKind.STOP, key), index, time_left, speed)
 
 
 def jam_or_raise(dyn, stepper, mode, typical: float, exc: PainleveError, step_back: bool = False) -> Jam:
