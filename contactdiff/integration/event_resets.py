@@ -430,22 +430,16 @@ class EventResets(LoopEvents):
             impact.contacts, before, impact.states, impact.slide_directions, impact.normal_speeds_after, strict=True
         ):
             contact = dyn.contact(k)
-            if contact.spec.coulomb and state is ContactState.SLIDE and np.any(s):
-                slip = float(np.linalg.norm(contact.rows(dyn.kin)[1:] @ impact.v_plus))
-                if slip > CREEP_FACTOR * dyn.slip_speed_floor:
-                    dyn.slip_reference[k] = np.array(s, dtype=float)
-                    k = dyn.sliding_key(k)
-                elif u_n <= SPEED_TOL * scale:
-                    creeping.append(k)
-            elif contact.spec.coulomb and state is ContactState.OPEN and dyn.is_sliding(key_before):
-                # left open at zero normal speed, it stays in the mode: sliding along its own
-                # slip, or, slower, held as a creeping slip (as one the law leaves sliding)
-                u_T = dyn.contact(key_before).full.rows(dyn.kin)[1:] @ impact.v_plus
+            sliding = state is ContactState.SLIDE and np.any(s)  # the law leaves it sliding along s
+            # or left open at zero normal speed after sliding: it stays in the mode, along its own slip
+            left_open = state is ContactState.OPEN and dyn.is_sliding(key_before)
+            if contact.spec.coulomb and (sliding or left_open):
+                u_T = contact.rows(dyn.kin)[1:] @ impact.v_plus
                 slip = float(np.linalg.norm(u_T))
                 if slip > CREEP_FACTOR * dyn.slip_speed_floor:
-                    dyn.slip_reference[k] = u_T / slip
+                    dyn.slip_reference[k] = np.array(s, dtype=float) if sliding else u_T / slip
                     k = dyn.sliding_key(k)
-                elif u_n <= SPEED_TOL * scale:
+                elif u_n <= SPEED_TOL * scale:  # slower: held as a creeping slip
                     creeping.append(k)
             keys.append(k)
         return keys, creeping
